@@ -70,6 +70,15 @@ class SE3d {
   SE3d(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) : q_(Eigen::Quaterniond(R).normalized()), t_(t) {}
 
   static SE3d Identity() { return SE3d(); }
+  // From a quaternion that is already unit norm to double precision (e.g. one read back from
+  // a file Waymark wrote): kept bit for bit, so write/read round trips are exact. Callers
+  // check the norm first (the constructors above renormalize, which can change the last bit).
+  static SE3d FromUnitQuaternion(const Eigen::Quaterniond& q_unit, const Eigen::Vector3d& t) {
+    SE3d T;
+    T.q_ = q_unit;
+    T.t_ = t;
+    return T;
+  }
   // From a 4x4 homogeneous matrix (the rotation block is re-orthonormalized).
   static SE3d FromMatrix(const Eigen::Matrix4d& m) {
     return SE3d(Eigen::Matrix3d(m.topLeftCorner<3, 3>()), Eigen::Vector3d(m.topRightCorner<3, 1>()));
