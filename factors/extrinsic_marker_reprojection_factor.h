@@ -1,0 +1,56 @@
+// Marker-corner reprojection with the camera mount as a parameter block too, for calibrating
+// T_robot_camera from a survey (free robot, SE(3) robot pose).
+//
+//   T_camera_marker = T_robot_camera^-1 * T_world_robot^-1 * T_world_marker
+//   r = (1 / sigma_px) [ project(K, d, T_camera_marker * c_i) - z_i ]_{i = 0..3}      (8 residuals)
+//
+// Frames and symbols as in factors/marker_reprojection_factor.h. The camera's own yaml
+// T_robot_camera is ignored here: the block holds it (initialize the block from the yaml).
+// Gauge: with the extrinsic free, robot poses and mount are only observable when the robot's
+// poses are tied to something else (odometry factors, or several cameras); a single camera
+// without odometry leaves T_world_robot * T_robot_camera as the only observable product, so the
+// caller must hold one of them constant (SetParameterBlockConstant) or add odometry.
+// Parameter blocks (factors/pose_block.h, manifold SE3Manifold for all three):
+//   T_world_robot  [qx qy qz qw tx ty tz]
+//   T_robot_camera [qx qy qz qw tx ty tz]
+//   T_world_marker [qx qy qz qw tx ty tz]
+// Behind the camera: returns false (see factors/corner_observation.h for why).
+#pragma once
+
+#include <array>
+
+#include <Eigen/Core>
+#include <ceres/autodiff_cost_function.h>
+
+#include "core/types.h"
+#include "factors/corner_observation.h"
+#include "factors/pose_block.h"
+
+namespace waymark {
+
+class ExtrinsicMarkerReprojectionFactor {
+ public:
+  // Throws std::invalid_argument on bad input (see CornerObservation).
+  ExtrinsicMarkerReprojectionFactor(const CameraInfo& camera, double size_m,
+                                    const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
+      : observation_(camera, size_m, corners_px, sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* const T_world_robot, const T* const T_robot_camera, const T* const T_world_marker,
+                  T* residuals) const {
+    const SE3T<T> T_world_camera = SE3TFromBlock(T_world_robot) * SE3TFromBlock(T_robot_camera);
+    return observation_.Residuals(T_world_camera.inverse() * SE3TFromBlock(T_world_marker), residuals);
+  }
+
+  static ceres::CostFunction* Create(const CameraInfo& camera, double size_m,
+                                     const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px) {
+    return new ceres::AutoDiffCostFunction<ExtrinsicMarkerReprojectionFactor, 8, kSE3BlockSize, kSE3BlockSize,
+                                           kSE3BlockSize>(
+        new ExtrinsicMarkerReprojectionFactor(camera, size_m, corners_px, sigma_px));
+  }
+
+ private:
+  const CornerObservation observation_;
+};
+
+}  // namespace waymark

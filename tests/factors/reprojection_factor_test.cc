@@ -1,0 +1,248 @@
+// Tests of the three marker-corner reprojection factors: hand-computed residuals, zero at the
+// truth for both camera models, behaviour behind the camera, bad input, and Jacobians against
+// ceres::GradientChecker under SE3Manifold at ten random states per factor and camera model.
+#include <array>
+#include <memory>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "factors/extrinsic_marker_reprojection_factor.h"
+#include "factors/marker_reprojection_factor.h"
+#include "factors/planar_marker_reprojection_factor.h"
+#include "factors/pose_block.h"
+#include "tests/factors/factor_test_util.h"
+
+namespace waymark {
+namespace {
+
+using testing::kNaN;
+
+constexpr double kSizeM = 0.2;
+constexpr double kSigmaPx = 0.5;
+
+// Undistorted pinhole, f = 500 px, principal point (320, 240), camera at the robot origin looking
+// along robot +x.
+CameraInfo SimpleCamera() {
+  CameraInfo camera;
+  camera.name = "simple";
+  camera.model = CameraModel::kPinholeRadtan;
+  camera.width = 640;
+  camera.height = 480;
+  camera.intrinsics = {500.0, 500.0, 320.0, 240.0};
+  camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  camera.T_robot_camera = SE3d(testing::ForwardCameraRotation(0.0), Eigen::Vector3d::Zero());
+  return camera;
+}
+
+// A 0.2 m marker 2 m ahead of the identity robot, facing it, upright: marker x = world -y,
+// y = world z, z = world -x. In the camera its corners are (+-0.1, -+0.1, 2), so at f = 500 the
+// corners are 25 px from the centre: TL (295, 215), TR (345, 215), BR (345, 265), BL (295, 265).
+SE3d MarkerAheadOfIdentityRobot() {
+  Eigen::Matrix3d R_world_marker;
+  R_world_marker << 0, 0, -1, -1, 0, 0, 0, 1, 0;
+  return SE3d(R_world_marker, Eigen::Vector3d(2.0, 0.0, 0.0));
+}
+
+// The hand-computed corners, with the top-left one moved by (+1, -2) px: the expected whitened
+// residual is ((295 - 296) / 0.5, (215 - 213) / 0.5) = (-2, 4) there and zero elsewhere.
+std::array<Eigen::Vector2d, 4> ObservedCorners() {
+  return {Eigen::Vector2d(296, 213), Eigen::Vector2d(345, 215), Eigen::Vector2d(345, 265),
+          Eigen::Vector2d(295, 265)};
+}
+
+void ExpectHandComputed(const std::array<double, 8>& residuals) {
+  const std::array<double, 8> expected = {-2.0, 4.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  for (int i = 0; i < 8; ++i) EXPECT_NEAR(residuals[i], expected[i], 1e-9) << "residual " << i;
+}
+
+TEST(MarkerReprojectionFactor, NominalHandComputed) {
+  const std::unique_ptr<ceres::CostFunction> cost(
+      MarkerReprojectionFactor::Create(SimpleCamera(), kSizeM, ObservedCorners(), kSigmaPx));
+  double robot[7], marker[7];
+  SE3ToBlock(SE3d(), robot);
+  SE3ToBlock(MarkerAheadOfIdentityRobot(), marker);
+  const double* parameters[] = {robot, marker};
+  std::array<double, 8> residuals;
+  residuals.fill(kNaN);
+  ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
+  ExpectHandComputed(residuals);
+}
+
+TEST(PlanarMarkerReprojectionFactor, NominalHandComputed) {
+  // The same view from a robot at (0, -2) heading +y, camera 0.3 m up: rotate the scene by
+  // +90 degrees about z and lift it by 0.3 m.
+  CameraInfo camera = SimpleCamera();
+  camera.T_robot_camera = SE3d(camera.T_robot_camera.rotation(), Eigen::Vector3d(0.0, 0.0, 0.3));
+  const SE3d T_world_robot = SE2d(0.0, -2.0, M_PI / 2).ToSE3();
+  const SE3d T_world_marker =
+      T_world_robot * SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0.3)) * MarkerAheadOfIdentityRobot();
+  const std::unique_ptr<ceres::CostFunction> cost(
+      PlanarMarkerReprojectionFactor::Create(camera, kSizeM, ObservedCorners(), kSigmaPx));
+  double robot[3] = {0.0, -2.0, M_PI / 2 + 2 * M_PI};  // an unwrapped angle is the same pose
+  double marker[7];
+  SE3ToBlock(T_world_marker, marker);
+  const double* parameters[] = {robot, marker};
+  std::array<double, 8> residuals;
+  residuals.fill(kNaN);
+  ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
+  ExpectHandComputed(residuals);
+}
+
+TEST(ExtrinsicMarkerReprojectionFactor, NominalHandComputedUsesTheBlockNotTheYaml) {
+  CameraInfo camera = SimpleCamera();
+  const SE3d T_robot_camera = camera.T_robot_camera;
+  camera.T_robot_camera = SE3d(ExpSO3(Eigen::Vector3d(0.3, 0.2, 0.1)), Eigen::Vector3d(1, 2, 3));  // ignored
+  const std::unique_ptr<ceres::CostFunction> cost(
+      ExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, ObservedCorners(), kSigmaPx));
+  double robot[7], extrinsic[7], marker[7];
+  SE3ToBlock(SE3d(), robot);
+  SE3ToBlock(T_robot_camera, extrinsic);
+  SE3ToBlock(MarkerAheadOfIdentityRobot(), marker);
+  const double* parameters[] = {robot, extrinsic, marker};
+  std::array<double, 8> residuals;
+  residuals.fill(kNaN);
+  ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
+  ExpectHandComputed(residuals);
+}
+
+class ReprojectionByModel : public ::testing::TestWithParam<CameraModel> {};
+
+// Random robot and a marker visible from its camera; corners projected exactly, or with noise.
+struct Scene {
+  SE3d T_world_robot;
+  SE3d T_world_marker;
+  std::array<Eigen::Vector2d, 4> corners_px;
+};
+
+Scene RandomScene(const CameraInfo& camera, const SE3d& T_world_robot, double noise_px, std::mt19937& rng) {
+  Scene scene;
+  scene.T_world_robot = T_world_robot;
+  const SE3d T_camera_marker = testing::RandomVisibleMarker(rng);
+  scene.T_world_marker = T_world_robot * camera.T_robot_camera * T_camera_marker;
+  EXPECT_TRUE(testing::ProjectCorners(camera, T_camera_marker, kSizeM, &scene.corners_px));
+  std::normal_distribution<double> noise(0.0, noise_px);
+  for (Eigen::Vector2d& corner : scene.corners_px) corner += Eigen::Vector2d(noise(rng), noise(rng));
+  return scene;
+}
+
+TEST_P(ReprojectionByModel, ZeroAtTheTruth) {
+  const CameraInfo camera = testing::TestCamera(GetParam());
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 10; ++trial) {
+    const SE2d T_world_robot_2d(rng() % 7 - 3.0, rng() % 5 - 2.0, (rng() % 628) / 100.0);
+    const Scene scene = RandomScene(camera, T_world_robot_2d.ToSE3(), 0.0, rng);
+    double robot_2d[3], robot[7], extrinsic[7], marker[7];
+    SE2ToBlock(T_world_robot_2d, robot_2d);
+    SE3ToBlock(scene.T_world_robot, robot);
+    SE3ToBlock(camera.T_robot_camera, extrinsic);
+    SE3ToBlock(scene.T_world_marker, marker);
+    const std::unique_ptr<ceres::CostFunction> free_cost(
+        MarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
+    const std::unique_ptr<ceres::CostFunction> planar_cost(
+        PlanarMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
+    const std::unique_ptr<ceres::CostFunction> extrinsic_cost(
+        ExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
+    const double* free_parameters[] = {robot, marker};
+    const double* planar_parameters[] = {robot_2d, marker};
+    const double* extrinsic_parameters[] = {robot, extrinsic, marker};
+    for (auto [cost, parameters] : {std::pair{free_cost.get(), free_parameters},
+                                    std::pair{planar_cost.get(), planar_parameters},
+                                    std::pair{extrinsic_cost.get(), extrinsic_parameters}}) {
+      Eigen::Matrix<double, 8, 1> residuals = Eigen::Matrix<double, 8, 1>::Constant(kNaN);
+      ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
+      EXPECT_LT(residuals.cwiseAbs().maxCoeff(), 1e-6) << "trial " << trial;
+    }
+  }
+}
+
+TEST_P(ReprojectionByModel, GradientCheckTenRandomStates) {
+  const CameraInfo camera = testing::TestCamera(GetParam());
+  const SE3Manifold se3;
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> coordinate(-5.0, 5.0), angle(-M_PI, M_PI);
+  for (int trial = 0; trial < 10; ++trial) {
+    // Free robot: any orientation; planar robot: (x, y, theta) lifted at z = 0.
+    const Scene scene = RandomScene(camera, testing::RandomSE3(rng, 5.0), 2.0, rng);
+    double robot[7], extrinsic[7], marker[7];
+    SE3ToBlock(scene.T_world_robot, robot);
+    SE3ToBlock(camera.T_robot_camera, extrinsic);
+    SE3ToBlock(scene.T_world_marker, marker);
+    const std::unique_ptr<ceres::CostFunction> free_cost(
+        MarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*free_cost, {&se3, &se3}, {robot, marker}, 1e-6, "free");
+    const std::unique_ptr<ceres::CostFunction> extrinsic_cost(
+        ExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*extrinsic_cost, {&se3, &se3, &se3}, {robot, extrinsic, marker}, 1e-6,
+                                  "extrinsic");
+
+    const SE2d T_world_robot_2d(coordinate(rng), coordinate(rng), angle(rng));
+    const Scene planar_scene = RandomScene(camera, T_world_robot_2d.ToSE3(), 2.0, rng);
+    double robot_2d[3];
+    SE2ToBlock(T_world_robot_2d, robot_2d);
+    SE3ToBlock(planar_scene.T_world_marker, marker);
+    const std::unique_ptr<ceres::CostFunction> planar_cost(
+        PlanarMarkerReprojectionFactor::Create(camera, kSizeM, planar_scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*planar_cost, {nullptr, &se3}, {robot_2d, marker}, 1e-6, "planar");
+  }
+}
+
+TEST_P(ReprojectionByModel, BehindTheCameraReturnsFalseAndLeavesResiduals) {
+  const CameraInfo camera = testing::TestCamera(GetParam());
+  const SE3d T_camera_marker(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, -1.0));
+  double robot[7], marker[7];
+  SE3ToBlock(SE3d(), robot);
+  SE3ToBlock(camera.T_robot_camera * T_camera_marker, marker);
+  const std::array<Eigen::Vector2d, 4> corners_px = ObservedCorners();
+  const std::unique_ptr<ceres::CostFunction> cost(
+      MarkerReprojectionFactor::Create(camera, kSizeM, corners_px, kSigmaPx));
+  const double* parameters[] = {robot, marker};
+  std::array<double, 8> residuals;
+  residuals.fill(kNaN);
+  EXPECT_FALSE(cost->Evaluate(parameters, residuals.data(), nullptr));
+  for (double r : residuals) EXPECT_TRUE(std::isnan(r));
+  // A marker straddling the camera plane (one corner behind) is rejected too.
+  SE3ToBlock(camera.T_robot_camera * SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
+                                          Eigen::Vector3d(0.0, 0.0, 0.05)),
+             marker);
+  EXPECT_FALSE(cost->Evaluate(parameters, residuals.data(), nullptr));
+}
+
+INSTANTIATE_TEST_SUITE_P(BothModels, ReprojectionByModel,
+                         ::testing::Values(CameraModel::kPinholeRadtan, CameraModel::kPinholeEquidistant),
+                         [](const ::testing::TestParamInfo<CameraModel>& info) {
+                           return info.param == CameraModel::kPinholeRadtan ? "Radtan" : "Equidistant";
+                         });
+
+TEST(MarkerReprojectionFactor, RejectsBadInput) {
+  const CameraInfo camera = SimpleCamera();
+  const std::array<Eigen::Vector2d, 4> corners = ObservedCorners();
+  EXPECT_THROW(MarkerReprojectionFactor(camera, 0.0, corners, kSigmaPx), std::invalid_argument);
+  EXPECT_THROW(MarkerReprojectionFactor(camera, kNaN, corners, kSigmaPx), std::invalid_argument);
+  EXPECT_THROW(MarkerReprojectionFactor(camera, kSizeM, corners, 0.0), std::invalid_argument);
+  EXPECT_THROW(MarkerReprojectionFactor(camera, kSizeM, corners, -1.0), std::invalid_argument);
+  std::array<Eigen::Vector2d, 4> nan_corners = corners;
+  nan_corners[2].y() = kNaN;
+  EXPECT_THROW(MarkerReprojectionFactor(camera, kSizeM, nan_corners, kSigmaPx), std::invalid_argument);
+  CameraInfo short_distortion = camera;
+  short_distortion.distortion.pop_back();
+  EXPECT_THROW(PlanarMarkerReprojectionFactor(short_distortion, kSizeM, corners, kSigmaPx), std::invalid_argument);
+  CameraInfo equidistant_with_radtan = camera;
+  equidistant_with_radtan.model = CameraModel::kPinholeEquidistant;  // needs 4 coefficients, has 5
+  EXPECT_THROW(ExtrinsicMarkerReprojectionFactor(equidistant_with_radtan, kSizeM, corners, kSigmaPx),
+               std::invalid_argument);
+  CameraInfo zero_focal = camera;
+  zero_focal.intrinsics[1] = 0.0;
+  EXPECT_THROW(MarkerReprojectionFactor(zero_focal, kSizeM, corners, kSigmaPx), std::invalid_argument);
+  try {
+    MarkerReprojectionFactor(short_distortion, kSizeM, corners, kSigmaPx);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "corner reprojection (camera simple): expected 5 distortion coefficients, got 4");
+  }
+}
+
+}  // namespace
+}  // namespace waymark
