@@ -1,0 +1,111 @@
+#include "online/ekf_state.h"
+
+#include <Eigen/Cholesky>
+
+namespace waymark {
+
+int StateDim(MotionModel motion) { return motion == MotionModel::kPlanar ? 3 : 4; }
+
+Eigen::VectorXd PoseToStateVector(const SE3d& T_world_robot, MotionModel motion) {
+  Eigen::VectorXd x(StateDim(motion));
+  const Eigen::Vector3d& t = T_world_robot.translation();
+  if (motion == MotionModel::kPlanar) {
+    x << t.x(), t.y(), T_world_robot.yaw();
+  } else {
+    x << t.x(), t.y(), t.z(), T_world_robot.yaw();
+  }
+  return x;
+}
+
+Eigen::Matrix3d LevelRotation(const Eigen::Matrix3d& R_world_robot) {
+  const double yaw_rad = std::atan2(R_world_robot(1, 0), R_world_robot(0, 0));
+  return Eigen::AngleAxisd(-yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R_world_robot;
+}
+
+Eigen::RowVector3d YawJacobianWorld(const Eigen::Matrix3d& R) {
+  const double n = R(0, 0) * R(0, 0) + R(1, 0) * R(1, 0);
+  return Eigen::RowVector3d(-R(0, 0) * R(2, 0) / n, -R(1, 0) * R(2, 0) / n, 1.0);
+}
+
+EkfState::EkfState(MotionModel motion)
+    : motion_(motion),
+      mean_(Eigen::VectorXd::Zero(StateDim(motion))),
+      covariance_(Eigen::MatrixXd::Identity(StateDim(motion), StateDim(motion))) {}
+
+void EkfState::SetLevel(const Eigen::Matrix3d& R_level) {
+  if (motion_ == MotionModel::kFree && R_level.allFinite()) R_level_ = LevelRotation(R_level);
+}
+
+SE3d EkfState::T_world_robot() const {
+  const double yaw_rad = mean_(yaw_index());
+  const Eigen::Matrix3d R_yaw = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  if (motion_ == MotionModel::kPlanar) return SE3d(R_yaw, Eigen::Vector3d(mean_(0), mean_(1), 0.0));
+  return SE3d(Eigen::Matrix3d(R_yaw * R_level_), Eigen::Vector3d(mean_.head<3>()));
+}
+
+Eigen::VectorXd EkfState::BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b, int yaw_index) {
+  Eigen::VectorXd delta = mean_b - mean_a;
+  delta(yaw_index) = WrapAngle(delta(yaw_index));
+  return delta;
+}
+
+Eigen::VectorXd EkfState::BoxPlus(const Eigen::VectorXd& mean, const Eigen::VectorXd& delta, int yaw_index) {
+  Eigen::VectorXd out = mean + delta;
+  out(yaw_index) = WrapAngle(out(yaw_index));
+  return out;
+}
+
+StepStatus EkfState::WriteCovariance(const Eigen::MatrixXd& covariance) {
+  if (covariance.rows() != dim() || covariance.cols() != dim()) return StepStatus::kInvalidInput;
+  if (!covariance.allFinite()) return StepStatus::kNonFiniteCovariance;
+  covariance_ = 0.5 * (covariance + covariance.transpose());
+  return StepStatus::kOk;
+}
+
+StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance) {
+  if (mean.size() != dim() || !mean.allFinite()) return StepStatus::kInvalidInput;
+  const StepStatus status = WriteCovariance(covariance);
+  if (status != StepStatus::kOk) return status;
+  mean_ = BoxPlus(mean, Eigen::VectorXd::Zero(dim()), yaw_index());
+  return StepStatus::kOk;
+}
+
+StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::MatrixXd& F, const Eigen::MatrixXd& G,
+                               const Eigen::MatrixXd& Qu) {
+  if (mean_new.size() != dim() || !mean_new.allFinite()) return StepStatus::kInvalidInput;
+  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose());
+  if (status != StepStatus::kOk) return status;
+  mean_ = BoxPlus(mean_new, Eigen::VectorXd::Zero(dim()), yaw_index());
+  return StepStatus::kOk;
+}
+
+UpdateResult EkfState::Update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H, const Eigen::MatrixXd& R,
+                              std::optional<double> nis_gate) {
+  UpdateResult result;
+  result.innovation = innovation;
+  if (!innovation.allFinite() || !H.allFinite() || !R.allFinite()) {
+    result.status = StepStatus::kInvalidInput;
+    return result;
+  }
+  const Eigen::MatrixXd PHt = covariance_ * H.transpose();
+  const Eigen::MatrixXd S = H * PHt + R;
+  const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (S + S.transpose()));
+  if (llt.info() != Eigen::Success) {
+    result.status = StepStatus::kNotPositiveDefinite;
+    return result;
+  }
+  result.nis = innovation.dot(llt.solve(innovation));
+  if (nis_gate && result.nis > *nis_gate) {
+    result.gated = true;
+    return result;
+  }
+  const Eigen::MatrixXd K = llt.solve(PHt.transpose()).transpose();  // P H^T S^-1
+  const Eigen::MatrixXd I_KH = Eigen::MatrixXd::Identity(dim(), dim()) - K * H;
+  result.status = WriteCovariance(I_KH * covariance_ * I_KH.transpose() + K * R * K.transpose());
+  if (result.status != StepStatus::kOk) return result;
+  mean_ = BoxPlus(mean_, K * innovation, yaw_index());
+  result.accepted = true;
+  return result;
+}
+
+}  // namespace waymark

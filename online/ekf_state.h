@@ -1,0 +1,98 @@
+// The localizer's state: the robot pose in the map's world frame, its covariance, and the
+// only code that writes that covariance (OpenVINS' StateHelper idea, reduced to one pose).
+//
+// Mean and error state, by motion model (DatasetConfig::motion):
+//   planar (3): x = [x, y, theta];      T_world_robot = (Rz(theta), [x, y, 0])
+//   free   (4): x = [x, y, z, yaw];     T_world_robot = (Rz(yaw) * R_level, [x, y, z])
+// R_level = Ry(pitch) * Rx(roll) (ZYX Euler: R = Rz(yaw) Ry(pitch) Rx(roll)) is NOT estimated.
+// Roll and pitch of a drone are observable from gravity, so a gravity-aligned odometry (VIO,
+// IMU attitude) keeps them to a fraction of a degree while yaw and position drift; the free
+// model therefore takes R_level from outside: from the latest T_odom_robot when the odometry is
+// gravity aligned (AttitudeSource::kOdometry), or else from the latest single-code pose
+// (AttitudeSource::kMarker, see localizer.h). Its error is not part of P.
+//
+// Error state delta (same order as x), additive in the world frame:
+//   x_true = x_hat [+] delta:  position += delta_position,  yaw = wrap(yaw + delta_yaw).
+// P = E[delta delta^T]. BoxMinus(a, b) = b [-] a is the inverse (yaw difference wrapped).
+//
+// Covariance writes (all through WriteCovariance, which symmetrizes and refuses non-finite P):
+//   Reset:     P = P0
+//   Propagate: x = f(x, u),  P = F P F^T + G Qu G^T   (F = df/dx, G = df/du)
+//   Update:    y = z [-] h(x),  S = H P H^T + R,  K = P H^T S^-1 (from the LLT of S),
+//              NIS = y^T S^-1 y, gated when NIS > gate,
+//              x = x [+] K y,   P = (I - K H) P (I - K H)^T + K R K^T   (Joseph form)
+#pragma once
+
+#include <optional>
+
+#include <Eigen/Core>
+
+#include "core/geometry.h"
+#include "core/types.h"
+#include "online/status.h"
+
+namespace waymark {
+
+// 3 for planar, 4 for free.
+int StateDim(MotionModel motion);
+
+// The state vector of a pose: [x, y, yaw] or [x, y, z, yaw] (roll and pitch dropped).
+Eigen::VectorXd PoseToStateVector(const SE3d& T_world_robot, MotionModel motion);
+
+// R_level = Rz(yaw)^T R: the roll-and-pitch part of a rotation (ZYX Euler).
+Eigen::Matrix3d LevelRotation(const Eigen::Matrix3d& R_world_robot);
+
+// d yaw / d phi for a world-frame (left) rotation perturbation R' = Exp(phi) R, yaw = atan2(R10, R00):
+//   [-R00 R20, -R10 R20, R00^2 + R10^2] / (R00^2 + R10^2)     (1x3; [0, 0, 1] when level)
+Eigen::RowVector3d YawJacobianWorld(const Eigen::Matrix3d& R_world_robot);
+
+// Result of one measurement update.
+struct UpdateResult {
+  StepStatus status = StepStatus::kOk;
+  bool accepted = false;      // the update was applied
+  bool gated = false;         // NIS above the gate: state untouched
+  double nis = 0.0;           // y^T S^-1 y
+  Eigen::VectorXd innovation; // y
+};
+
+class EkfState {
+ public:
+  explicit EkfState(MotionModel motion);
+
+  MotionModel motion() const { return motion_; }
+  int dim() const { return static_cast<int>(mean_.size()); }
+  int yaw_index() const { return dim() - 1; }
+  const Eigen::VectorXd& mean() const { return mean_; }
+  const Eigen::MatrixXd& covariance() const { return covariance_; }
+  const Eigen::Matrix3d& R_level() const { return R_level_; }
+  // Only meaningful for free motion; planar robots stay level.
+  void SetLevel(const Eigen::Matrix3d& R_level);
+
+  // T_world_robot of the mean (z = 0 and level for planar).
+  SE3d T_world_robot() const;
+  // delta with mean_b = mean_a [+] delta (yaw wrapped).
+  static Eigen::VectorXd BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b, int yaw_index);
+  // mean [+] delta.
+  static Eigen::VectorXd BoxPlus(const Eigen::VectorXd& mean, const Eigen::VectorXd& delta, int yaw_index);
+
+  // Sets mean and covariance (initialization, relocalization).
+  StepStatus Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance);
+  // Prediction step; mean_new = f(mean, u) computed by the caller (online/motion_model.h).
+  StepStatus Propagate(const Eigen::VectorXd& mean_new, const Eigen::MatrixXd& F, const Eigen::MatrixXd& G,
+                       const Eigen::MatrixXd& Qu);
+  // Correction step with innovation y = z [-] h(mean). Gated (no change) when NIS > nis_gate.
+  UpdateResult Update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H, const Eigen::MatrixXd& R,
+                      std::optional<double> nis_gate);
+
+ private:
+  // The one writer of covariance_: symmetrizes, and keeps the old P (returning an error)
+  // when the new one is not finite.
+  StepStatus WriteCovariance(const Eigen::MatrixXd& covariance);
+
+  MotionModel motion_;
+  Eigen::VectorXd mean_;
+  Eigen::MatrixXd covariance_;
+  Eigen::Matrix3d R_level_ = Eigen::Matrix3d::Identity();
+};
+
+}  // namespace waymark

@@ -1,0 +1,309 @@
+#include "online/localizer.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Eigenvalues>
+
+#include "online/chi_square.h"
+#include "online/marker_measurement.h"
+
+namespace waymark {
+
+bool LocalizerOptions::Check(std::string* why) const {
+  const auto fail = [why](const std::string& message) {
+    if (why) *why = "localizer options: " + message;
+    return false;
+  };
+  if (!odometry.Check(why)) return false;
+  if (!(gate_probability > 0.0 && gate_probability < 1.0)) return fail("gate_probability must be in (0, 1)");
+  if (!(default_pixel_sigma_px > 0.0) || !std::isfinite(default_pixel_sigma_px)) {
+    return fail("default_pixel_sigma_px must be finite and > 0");
+  }
+  if (loose_noise.size() != StateDim(motion)) {
+    return fail("loose_noise must have " + std::to_string(StateDim(motion)) + " variances for this motion model");
+  }
+  if (!loose_noise.allFinite() || (loose_noise.array() <= 0.0).any()) return fail("loose_noise must be finite and > 0");
+  if (lost_after_rejected_frames < 1 || relocalize_after_agreeing < 1) {
+    return fail("lost_after_rejected_frames and relocalize_after_agreeing must be >= 1");
+  }
+  if (!(agree_trans_m > 0.0) || !(agree_rot_rad > 0.0) || !(max_position_sigma_m > 0.0)) {
+    return fail("agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
+  }
+  return true;
+}
+
+Localizer::Localizer(LocalizerOptions options, MarkerMap map, const std::vector<CameraInfo>& cameras)
+    : options_(std::move(options)), map_(std::move(map)), state_(options_.motion) {
+  std::string why;
+  if (!options_.Check(&why)) throw std::invalid_argument(why);
+  for (const CameraInfo& info : cameras) {
+    if (!cameras_.emplace(info.name, Camera(info)).second) {
+      throw std::invalid_argument("localizer: camera `" + info.name + "` given twice");
+    }
+  }
+  gate_loose_ = ChiSquareQuantile(options_.gate_probability, state_.dim());
+  gate_tight_ = ChiSquareQuantile(options_.gate_probability, 8);
+}
+
+StepStatus Localizer::Accept(double stamp_s) {
+  StepStatus status = StepStatus::kOk;
+  if (!std::isfinite(stamp_s)) status = StepStatus::kInvalidInput;
+  else if (last_stamp_s_ && stamp_s < *last_stamp_s_) status = StepStatus::kTimeWentBackwards;
+  if (status != StepStatus::kOk) {
+    ++counters_.rejected_inputs;
+    return status;
+  }
+  last_stamp_s_ = stamp_s;
+  return status;
+}
+
+void Localizer::SetLost() {
+  if (tracking_ == TrackingStatus::kTracking) ++counters_.times_lost;
+  tracking_ = TrackingStatus::kLost;
+  rejected_frames_in_a_row_ = 0;
+}
+
+void Localizer::CheckUncertainty() {
+  if (tracking_ != TrackingStatus::kTracking) return;
+  const int n = state_.dim() - 1;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(state_.covariance().topLeftCorner(n, n),
+                                                             Eigen::EigenvaluesOnly);
+  if (!(eigen.eigenvalues().maxCoeff() <= options_.max_position_sigma_m * options_.max_position_sigma_m)) SetLost();
+}
+
+StepStatus Localizer::ApplyPrediction(const MotionPrediction& prediction, const SE3d& increment) {
+  if (hypothesis_T_world_robot_) hypothesis_T_world_robot_ = *hypothesis_T_world_robot_ * increment;
+  if (tracking_ == TrackingStatus::kUninitialized) return StepStatus::kOk;
+  const StepStatus status = state_.Propagate(prediction.mean, prediction.F, prediction.G, prediction.Qu);
+  if (status != StepStatus::kOk) {
+    SetLost();
+    return status;
+  }
+  state_.SetLevel(prediction.R_world_robot);  // free only; kOdometry put the odometry's attitude there
+  CheckUncertainty();
+  return status;
+}
+
+StepStatus Localizer::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
+  if (!T_odom_robot.IsFinite()) {
+    ++counters_.rejected_inputs;
+    return StepStatus::kInvalidInput;
+  }
+  const StepStatus time_status = Accept(stamp_s);
+  if (time_status != StepStatus::kOk) return time_status;
+  const std::optional<SE3d> previous = last_T_odom_robot_;
+  last_T_odom_robot_ = T_odom_robot;
+  if (!previous) return StepStatus::kOk;
+  const SE3d increment = previous->inverse() * T_odom_robot;
+  if (options_.motion == MotionModel::kPlanar) {
+    const SE2d increment_2d = SE2d::FromSE3(increment);
+    return ApplyPrediction(PredictPlanarIncrement(state_.mean(), increment_2d, options_.odometry),
+                           increment_2d.ToSE3());
+  }
+  MotionPrediction prediction = PredictFreeIncrement(state_.mean(), state_.R_level(), increment, options_.odometry);
+  if (options_.attitude_source == AttitudeSource::kOdometry) prediction.R_world_robot = T_odom_robot.rotation_matrix();
+  return ApplyPrediction(prediction, increment);
+}
+
+StepStatus Localizer::AddVelocity(double stamp_s, double v_mps, double omega_radps) {
+  if (options_.motion != MotionModel::kPlanar || !std::isfinite(v_mps) || !std::isfinite(omega_radps)) {
+    ++counters_.rejected_inputs;
+    return StepStatus::kInvalidInput;
+  }
+  const std::optional<double> previous_s = last_stamp_s_;
+  const StepStatus time_status = Accept(stamp_s);
+  if (time_status != StepStatus::kOk || !previous_s) return time_status;
+  const double dt_s = stamp_s - *previous_s;
+  const double d = v_mps * dt_s, a = omega_radps * dt_s;
+  const SE3d increment = SE2d(d * std::cos(0.5 * a), d * std::sin(0.5 * a), a).ToSE3();
+  return ApplyPrediction(PredictUnicycle(state_.mean(), v_mps, omega_radps, dt_s, options_.odometry), increment);
+}
+
+}  // namespace waymark
+
+namespace waymark {
+
+SE3d Localizer::CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                               size_t i) const {
+  return marker.T_world_marker * sighting.T_camera_marker[i].inverse() * camera.info().T_robot_camera.inverse();
+}
+
+FrameResult Localizer::AddFrame(const CameraFrame& frame) {
+  FrameResult result;
+  const auto camera_it = cameras_.find(frame.camera);
+  if (camera_it == cameras_.end()) {
+    ++counters_.rejected_inputs;
+    result.status = StepStatus::kUnknownCamera;
+  } else {
+    result.status = Accept(frame.stamp_s);
+  }
+  result.tracking = tracking_;
+  if (result.status != StepStatus::kOk) return result;
+  ++counters_.frames;
+  const bool was_tracking = tracking_ == TrackingStatus::kTracking;
+  const SE3d T_world_robot_predicted = state_.T_world_robot();
+  int accepted = 0, gated = 0;
+  for (const CodeSighting& sighting : frame.sightings) {
+    result.corrections.push_back(ProcessSighting(camera_it->second, sighting));
+    const CorrectionResult& correction = result.corrections.back();
+    if (correction.status != StepStatus::kOk && result.status == StepStatus::kOk) result.status = correction.status;
+    accepted += correction.outcome == CorrectionOutcome::kAccepted;
+    gated += correction.outcome == CorrectionOutcome::kGated;
+  }
+  if (was_tracking && accepted > 0) predicted_before_correction_.push_back({frame.stamp_s, T_world_robot_predicted});
+  if (tracking_ == TrackingStatus::kTracking) {
+    if (accepted > 0) {
+      rejected_frames_in_a_row_ = 0;
+      hypothesis_T_world_robot_.reset();
+      hypotheses_agreeing_ = 0;
+    } else if (gated > 0 && ++rejected_frames_in_a_row_ >= options_.lost_after_rejected_frames) {
+      SetLost();
+    }
+  }
+  result.tracking = tracking_;
+  return result;
+}
+
+CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSighting& sighting) {
+  CorrectionResult result;
+  result.key = sighting.observation.key;
+  const MapMarker* marker = map_.Find(sighting.observation.key);
+  if (!marker) {
+    ++counters_.unknown_markers;
+    result.outcome = CorrectionOutcome::kUnknownMarker;
+    return result;
+  }
+  if (tracking_ == TrackingStatus::kUninitialized) {
+    result.outcome = Initialize(camera, *marker, sighting) ? CorrectionOutcome::kInitialized
+                                                            : CorrectionOutcome::kNotUsable;
+  } else if (tracking_ == TrackingStatus::kLost) {
+    result.outcome = OfferHypothesis(camera, *marker, sighting) ? CorrectionOutcome::kInitialized
+                                                                 : CorrectionOutcome::kHypothesis;
+  } else {
+    result = options_.mode == CorrectionMode::kTightCorners ? CorrectTight(camera, *marker, sighting)
+                                                            : CorrectLoose(camera, *marker, sighting);
+    if (result.outcome == CorrectionOutcome::kGated) OfferHypothesis(camera, *marker, sighting);
+  }
+  counters_.not_usable += result.outcome == CorrectionOutcome::kNotUsable;
+  return result;
+}
+
+void Localizer::FinishCorrection(const UpdateResult& update, CorrectionResult* result) {
+  result->status = update.status;
+  result->nis = update.nis;
+  result->innovation = update.innovation;
+  if (update.accepted) {
+    result->outcome = CorrectionOutcome::kAccepted;
+    ++counters_.accepted;
+  } else if (update.gated) {
+    result->outcome = CorrectionOutcome::kGated;
+    ++counters_.gated;
+  } else {
+    result->outcome = CorrectionOutcome::kNotUsable;
+    if (update.status == StepStatus::kNonFiniteCovariance) SetLost();
+  }
+}
+
+CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+  CorrectionResult result;
+  result.key = marker.key;
+  result.gate = gate_tight_;
+  const std::optional<CornerPrediction> prediction = PredictCorners(state_, camera, marker);
+  if (!prediction) return result;  // a corner behind the camera: kNotUsable
+  const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
+  const Vector8d innovation = StackCorners(sighting.observation.corners_px) - prediction->px;
+  const Matrix8d R = CornerNoise(sigma_px, *prediction, marker.covariance);
+  FinishCorrection(state_.Update(innovation, prediction->H, R, gate_tight_), &result);
+  if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker &&
+      !sighting.T_camera_marker.empty() && !sighting.ambiguous) {
+    state_.SetLevel(CodeHypothesis(camera, marker, sighting, 0).rotation_matrix());
+  }
+  return result;
+}
+
+CorrectionResult Localizer::CorrectLoose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+  CorrectionResult result;
+  result.key = marker.key;
+  result.gate = gate_loose_;
+  if (sighting.T_camera_marker.empty()) return result;  // kNotUsable
+  // With an ambiguous code, take the solution nearest to the prediction.
+  const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
+  SE3d T_world_robot_code = CodeHypothesis(camera, marker, sighting, 0);
+  for (size_t i = 1; i < candidates; ++i) {
+    const SE3d candidate = CodeHypothesis(camera, marker, sighting, i);
+    if (LooseInnovation(state_, candidate).norm() < LooseInnovation(state_, T_world_robot_code).norm()) {
+      T_world_robot_code = candidate;
+    }
+  }
+  const int dim = state_.dim();
+  const Eigen::MatrixXd R = options_.loose_noise.asDiagonal();
+  FinishCorrection(
+      state_.Update(LooseInnovation(state_, T_world_robot_code), Eigen::MatrixXd::Identity(dim, dim), R, gate_loose_),
+      &result);
+  if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker) {
+    state_.SetLevel(T_world_robot_code.rotation_matrix());
+  }
+  return result;
+}
+
+bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+  if (sighting.ambiguous || sighting.T_camera_marker.empty() || !sighting.covariance) return false;
+  const CodeRobotPose code = RobotPoseFromCode(marker, sighting.T_camera_marker[0], *sighting.covariance,
+                                               camera.info().T_robot_camera, options_.motion);
+  if (!code.T_world_robot.IsFinite() || !code.covariance.allFinite() ||
+      Eigen::LLT<Eigen::MatrixXd>(code.covariance).info() != Eigen::Success) {
+    return false;
+  }
+  if (state_.Reset(PoseToStateVector(code.T_world_robot, options_.motion), code.covariance) != StepStatus::kOk) {
+    return false;
+  }
+  state_.SetLevel(code.T_world_robot.rotation_matrix());
+  tracking_ = TrackingStatus::kTracking;
+  ++counters_.initializations;
+  rejected_frames_in_a_row_ = 0;
+  hypothesis_T_world_robot_.reset();
+  hypotheses_agreeing_ = 0;
+  return true;
+}
+
+bool Localizer::OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+  if (sighting.T_camera_marker.empty()) return false;
+  const int yaw_index = state_.yaw_index();
+  const auto distance = [&](const SE3d& a, const SE3d& b) {
+    const Eigen::VectorXd delta = EkfState::BoxMinus(PoseToStateVector(a, options_.motion),
+                                                     PoseToStateVector(b, options_.motion), yaw_index);
+    return std::make_pair(delta.head(yaw_index).norm(), std::abs(delta(yaw_index)));
+  };
+  const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
+  for (size_t i = 0; i < candidates; ++i) {
+    const SE3d T_world_robot_code = CodeHypothesis(camera, marker, sighting, i);
+    if (hypothesis_T_world_robot_) {
+      const auto [trans_m, rot_rad] = distance(*hypothesis_T_world_robot_, T_world_robot_code);
+      if (trans_m < options_.agree_trans_m && rot_rad < options_.agree_rot_rad) {
+        ++hypotheses_agreeing_;
+        hypothesis_T_world_robot_ = T_world_robot_code;
+        return tracking_ == TrackingStatus::kLost &&
+               hypotheses_agreeing_ >= options_.relocalize_after_agreeing && Initialize(camera, marker, sighting);
+      }
+    }
+  }
+  if (sighting.ambiguous) return false;  // no agreement and no trustworthy solution: no new start
+  hypothesis_T_world_robot_ = CodeHypothesis(camera, marker, sighting, 0);
+  hypotheses_agreeing_ = 1;
+  return tracking_ == TrackingStatus::kLost && options_.relocalize_after_agreeing <= 1 &&
+         Initialize(camera, marker, sighting);
+}
+
+PoseOutput Localizer::Output() const {
+  PoseOutput output;
+  output.stamp_s = last_stamp_s_.value_or(0.0);
+  output.tracking = tracking_;
+  if (tracking_ == TrackingStatus::kTracking) {
+    output.T_world_robot = state_.T_world_robot();
+    output.covariance = state_.covariance();
+  }
+  return output;
+}
+
+}  // namespace waymark

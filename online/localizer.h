@@ -1,0 +1,174 @@
+// The online localizer: an EKF on the robot pose against a known map of codes, fed with
+// odometry (or velocities) and with the codes each camera sees. State and equations:
+// online/ekf_state.h (P, boxplus, update), online/motion_model.h (F, G, Qu),
+// online/marker_measurement.h (H, R of both corrections).
+//
+// Corrections, each gated by NIS <= ChiSquareQuantile(gate_probability, dof):
+//   kLoosePose     seed 000's baseline: the code's single-image pose composed with the map is
+//                  the measurement, H = I, fixed noise `loose_noise` (dof 3 planar, 4 free).
+//   kTightCorners  ours: the four corners' pixels, H through the camera Jacobian, noise
+//                  sigma_px^2 I8 plus the map covariance in pixel space (dof 8).
+//
+// Life cycle (TrackingStatus, reported with every output; a pose only while kTracking):
+//   kUninitialized -> kTracking: the first unambiguous code of the map with a single-image pose
+//     initializes the mean (RobotPoseFromCode) and P (single-image covariance + map covariance).
+//   kTracking -> kLost: `lost_after_rejected_frames` frames in a row whose every code was gated
+//     out (kidnapping, or a diverged filter), the position sigma above `max_position_sigma_m`,
+//     or a non-finite covariance.
+//   kLost -> kTracking: `relocalize_after_agreeing` single-code robot-pose hypotheses in a row
+//     that agree with each other (within agree_trans_m / agree_rot_rad after moving the older one
+//     by the odometry since) restart the filter from the latest one. Hypotheses are collected
+//     from every gated code while tracking too, so a kidnapping is recovered at the next code.
+// Codes absent from the map are counted and ignored. Inputs older than the last one processed
+// are rejected (StepStatus::kTimeWentBackwards) and change nothing.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/camera.h"
+#include "core/geometry.h"
+#include "core/types.h"
+#include "online/ekf_state.h"
+#include "online/motion_model.h"
+#include "online/status.h"
+
+namespace waymark {
+
+enum class CorrectionMode { kLoosePose, kTightCorners };
+// Where the free model takes roll and pitch from (ekf_state.h).
+enum class AttitudeSource { kOdometry, kMarker };
+
+struct LocalizerOptions {
+  MotionModel motion = MotionModel::kPlanar;
+  CorrectionMode mode = CorrectionMode::kTightCorners;
+  AttitudeSource attitude_source = AttitudeSource::kOdometry;
+  OdometryNoise odometry;
+  double gate_probability = 0.997;     // chi-square gate of every correction
+  double default_pixel_sigma_px = 1.0; // when CameraInfo::pixel_sigma is absent
+  // Seed 000's fixed G: variances of [x y theta] (planar) or [x y z yaw] (free).
+  Eigen::VectorXd loose_noise = Eigen::Vector3d::Constant(0.001);
+  int lost_after_rejected_frames = 3;
+  int relocalize_after_agreeing = 3;
+  double agree_trans_m = 0.2;
+  double agree_rot_rad = 0.2;
+  double max_position_sigma_m = 2.0;
+
+  bool Check(std::string* why) const;
+};
+
+// One code in one image with its single-image pose solutions (core/marker_pose.h).
+struct CodeSighting {
+  MarkerObservation observation;
+  std::vector<SE3d> T_camera_marker;   // best first (IPPE gives two); empty when unavailable
+  std::optional<Matrix6d> covariance;  // of T_camera_marker[0], right perturbation
+  bool ambiguous = false;              // the two solutions fit about equally well
+};
+
+// Everything one camera saw at one instant.
+struct CameraFrame {
+  double stamp_s = 0.0;
+  std::string camera;
+  std::vector<CodeSighting> sightings;
+};
+
+enum class CorrectionOutcome {
+  kAccepted,         // used to correct the state
+  kGated,            // NIS above the gate: ignored (kept as a relocalization hypothesis)
+  kUnknownMarker,    // not in the map: counted and ignored
+  kNotUsable,        // behind the camera, no single-image pose for the loose mode, or S not PD
+  kInitialized,      // started (or restarted) the filter
+  kHypothesis,       // lost or uninitialized: only collected as a relocalization hypothesis
+};
+
+struct CorrectionResult {
+  MarkerKey key;
+  StepStatus status = StepStatus::kOk;  // a numerical failure of this correction, if any
+  CorrectionOutcome outcome = CorrectionOutcome::kNotUsable;
+  double nis = 0.0;
+  double gate = 0.0;          // NIS threshold used
+  Eigen::VectorXd innovation; // z [-] h(x) before the update
+};
+
+struct FrameResult {
+  StepStatus status = StepStatus::kOk;
+  TrackingStatus tracking = TrackingStatus::kUninitialized;  // after the frame
+  std::vector<CorrectionResult> corrections;
+};
+
+// The localizer's answer at one instant: a pose only when tracking.
+struct PoseOutput {
+  double stamp_s = 0.0;
+  TrackingStatus tracking = TrackingStatus::kUninitialized;
+  std::optional<SE3d> T_world_robot;
+  std::optional<Eigen::MatrixXd> covariance;  // error state of ekf_state.h
+};
+
+struct LocalizerCounters {
+  long frames = 0;
+  long accepted = 0;
+  long gated = 0;
+  long unknown_markers = 0;
+  long not_usable = 0;
+  long initializations = 0;   // first start and every relocalization
+  long times_lost = 0;
+  long rejected_inputs = 0;   // time going backwards, invalid input, unknown camera
+};
+
+class Localizer {
+ public:
+  // Throws std::invalid_argument when options.Check fails or a camera is listed twice.
+  Localizer(LocalizerOptions options, MarkerMap map, const std::vector<CameraInfo>& cameras);
+
+  // Odometry pose T_odom_robot at stamp_s; only increments between calls are used.
+  StepStatus AddOdometry(double stamp_s, const SE3d& T_odom_robot);
+  // Planar only: the robot moved with (v, omega) since the previous input (seed 000, eq. 5).
+  StepStatus AddVelocity(double stamp_s, double v_mps, double omega_radps);
+  // Corrects with every code of the frame, in order.
+  FrameResult AddFrame(const CameraFrame& frame);
+
+  PoseOutput Output() const;
+  TrackingStatus tracking() const { return tracking_; }
+  const EkfState& state() const { return state_; }
+  const LocalizerCounters& counters() const { return counters_; }
+  // The pose predicted just before each frame that corrected the state (seed 000's PE/TE):
+  // one entry per such frame, stamped with the frame.
+  const Trajectory& predicted_before_correction() const { return predicted_before_correction_; }
+
+ private:
+  StepStatus Accept(double stamp_s);  // time check
+  StepStatus ApplyPrediction(const MotionPrediction& prediction, const SE3d& increment);
+  CorrectionResult ProcessSighting(const Camera& camera, const CodeSighting& sighting);
+  CorrectionResult CorrectTight(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
+  CorrectionResult CorrectLoose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
+  void FinishCorrection(const UpdateResult& update, CorrectionResult* result);
+  // The robot pose implied by solution i of a sighting.
+  SE3d CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i) const;
+  // Offers a gated or lost-time sighting as a relocalization hypothesis; true if it restarted the filter.
+  bool OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
+  bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
+  void SetLost();
+  void CheckUncertainty();
+
+  LocalizerOptions options_;
+  MarkerMap map_;
+  std::map<std::string, Camera> cameras_;
+  EkfState state_;
+  TrackingStatus tracking_ = TrackingStatus::kUninitialized;
+  LocalizerCounters counters_;
+  Trajectory predicted_before_correction_;
+  std::optional<double> last_stamp_s_;
+  std::optional<SE3d> last_T_odom_robot_;
+  int rejected_frames_in_a_row_ = 0;
+  // Relocalization: the latest hypothesis, moved with the odometry, and how many agreed in a row.
+  std::optional<SE3d> hypothesis_T_world_robot_;
+  int hypotheses_agreeing_ = 0;
+  double gate_loose_ = 0.0;  // chi-square quantiles of gate_probability
+  double gate_tight_ = 0.0;
+};
+
+}  // namespace waymark

@@ -1,0 +1,79 @@
+// Measurement models of the localizer: one code seen by one camera corrects the robot pose.
+// State conventions: online/ekf_state.h. Map marker covariance: right perturbation of
+// T_world_marker, tangent [rx ry rz tx ty tz] (DESIGN.md, core/geometry.h).
+//
+// (a) Loosely coupled, seed 000's baseline (eqs. 9-13). The code's single-image pose
+//     T_camera_marker gives a robot pose through the map,
+//       T_world_robot_code = T_world_marker * T_camera_marker^-1 * T_robot_camera^-1,
+//     z = PoseToStateVector(T_world_robot_code),  h(x) = x,  H = I,  y = z [-] x,
+//     R = fixed (seed 000: G = diag(0.001)).
+//
+// (b) Tightly coupled on the four corners (ours). For corner j (object point c_m, DESIGN.md order):
+//       c_w = T_world_marker * c_m
+//       c_r = R_world_robot^T (c_w - t_world_robot)          (robot frame)
+//       c_c = T_camera_robot * c_r                            (camera frame, T_camera_robot = T_robot_camera^-1)
+//       h_j = project(c_c)                                    (core/camera.h, 2x3 Jacobian J_p)
+//     with R_world_robot = Rz(yaw) R_level and t_world_robot = [x, y, 0] (planar) or [x, y, z]:
+//       d c_r / d t_world_robot = -R_world_robot^T
+//       d c_r / d yaw           = -R_world_robot^T Hat(e_z) (c_w - t_world_robot)
+//       H_j = J_p R_camera_robot [d c_r / d position, d c_r / d yaw]            (2 x dim)
+//     and for the map marker's right perturbation eps = [er, et]:
+//       d c_w / d eps = [-R_world_marker Hat(c_m), R_world_marker]
+//       J_marker_j = J_p R_camera_robot R_world_robot^T d c_w / d eps          (2 x 6)
+//     z = the 8 detected pixel coordinates, y = z - h(x),
+//     R = sigma_px^2 I8 + J_marker Sigma_marker J_marker^T,
+//     so a marker the map is unsure about is trusted less (its four corners move together).
+#pragma once
+
+#include <optional>
+
+#include <Eigen/Core>
+
+#include "core/camera.h"
+#include "core/geometry.h"
+#include "core/types.h"
+#include "online/ekf_state.h"
+
+namespace waymark {
+
+using Vector8d = Eigen::Matrix<double, 8, 1>;
+using Matrix8d = Eigen::Matrix<double, 8, 8>;
+
+// The robot pose a single code implies, with its covariance in state coordinates.
+struct CodeRobotPose {
+  SE3d T_world_robot;
+  Eigen::MatrixXd covariance;  // dim x dim, error state of online/ekf_state.h
+};
+
+// T_world_robot = T_world_marker * T_camera_marker^-1 * T_robot_camera^-1 and its covariance
+//   J_code Sigma_code J_code^T + J_map Sigma_map J_map^T,
+// Sigma_code the 6x6 covariance of T_camera_marker (right perturbation, core/marker_pose.h),
+// Sigma_map the marker's map covariance (zero when absent). With T_marker_robot = T_mc T_cr:
+//   d t_wr / d dr = R_wm Hat(t_mr),   d t_wr / d dt = -R_wm,   d phi_wr / d dr = -R_wm
+//   d t_wr / d er = -R_wm Hat(t_mr),  d t_wr / d et = R_wm,    d phi_wr / d er = R_wm
+// (phi a world-frame rotation error; yaw rows through YawJacobianWorld).
+CodeRobotPose RobotPoseFromCode(const MapMarker& marker, const SE3d& T_camera_marker,
+                                const Matrix6d& covariance_camera_marker, const SE3d& T_robot_camera,
+                                MotionModel motion);
+
+// Loosely coupled innovation y = z [-] x for a measured pose (H = I).
+Eigen::VectorXd LooseInnovation(const EkfState& state, const SE3d& T_world_robot_measured);
+
+// Tightly coupled prediction of the four corners.
+struct CornerPrediction {
+  Vector8d px;                           // h(x): [u0 v0 u1 v1 u2 v2 u3 v3]
+  Eigen::MatrixXd H;                     // 8 x dim
+  Eigen::Matrix<double, 8, 6> J_marker;  // d h / d eps (map marker's right perturbation)
+};
+
+// nullopt when a corner is behind the camera (Camera::Project undefined).
+std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Camera& camera,
+                                               const MapMarker& marker);
+
+// R = sigma_px^2 I8 + J_marker Sigma_marker J_marker^T (second term only with a covariance).
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance);
+
+// The 8-vector of detected corners, DESIGN.md order.
+Vector8d StackCorners(const std::array<Eigen::Vector2d, 4>& corners_px);
+
+}  // namespace waymark

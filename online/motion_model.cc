@@ -1,0 +1,86 @@
+#include "online/motion_model.h"
+
+#include <cmath>
+#include <string>
+
+#include "online/ekf_state.h"
+
+namespace waymark {
+
+bool OdometryNoise::Check(std::string* why) const {
+  const auto fail = [why](const std::string& message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!(sigma.trans_per_m >= 0.0) || !std::isfinite(sigma.trans_per_m)) {
+    return fail("odometry noise: trans_per_m must be a finite number >= 0");
+  }
+  if (!(sigma.rot_per_rad >= 0.0) || !std::isfinite(sigma.rot_per_rad)) {
+    return fail("odometry noise: rot_per_rad must be a finite number >= 0");
+  }
+  if (!(floor_trans_m > 0.0) || !(floor_rot_rad > 0.0) || !std::isfinite(floor_trans_m) ||
+      !std::isfinite(floor_rot_rad)) {
+    return fail("odometry noise: floor_trans_m and floor_rot_rad must be finite and > 0");
+  }
+  return true;
+}
+
+MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment, const OdometryNoise& noise) {
+  const double c = std::cos(x(2)), s = std::sin(x(2));
+  const double dx = increment.x(), dy = increment.y(), dtheta = increment.theta();
+  MotionPrediction p;
+  p.mean = Eigen::Vector3d(x(0) + c * dx - s * dy, x(1) + s * dx + c * dy, WrapAngle(x(2) + dtheta));
+  p.F = Eigen::Matrix3d::Identity();
+  p.F(0, 2) = -s * dx - c * dy;
+  p.F(1, 2) = c * dx - s * dy;
+  p.G = (Eigen::Matrix3d() << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0).finished();
+  const double sigma_trans = noise.sigma.trans_per_m * std::hypot(dx, dy) + noise.floor_trans_m;
+  const double sigma_rot = noise.sigma.rot_per_rad * std::abs(dtheta) + noise.floor_rot_rad;
+  p.Qu = Eigen::Vector3d(sigma_trans * sigma_trans, sigma_trans * sigma_trans, sigma_rot * sigma_rot).asDiagonal();
+  p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return p;
+}
+
+MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double omega_radps, double dt_s,
+                                 const OdometryNoise& noise) {
+  const double d = v_mps * dt_s, a = omega_radps * dt_s;
+  const double heading = x(2) + 0.5 * a;
+  const double c = std::cos(heading), s = std::sin(heading);
+  MotionPrediction p;
+  p.mean = Eigen::Vector3d(x(0) + d * c, x(1) + d * s, WrapAngle(x(2) + a));
+  p.F = Eigen::Matrix3d::Identity();
+  p.F(0, 2) = -d * s;
+  p.F(1, 2) = d * c;
+  p.G = (Eigen::Matrix<double, 3, 2>() << c, -0.5 * d * s, s, 0.5 * d * c, 0.0, 1.0).finished();
+  const double sigma_trans = noise.sigma.trans_per_m * std::abs(d) + noise.floor_trans_m;
+  const double sigma_rot = noise.sigma.rot_per_rad * std::abs(a) + noise.floor_rot_rad;
+  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans, sigma_rot * sigma_rot).asDiagonal();
+  p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return p;
+}
+
+MotionPrediction PredictFreeIncrement(const Eigen::Vector4d& x, const Eigen::Matrix3d& R_level,
+                                      const SE3d& increment, const OdometryNoise& noise) {
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(x(3), Eigen::Vector3d::UnitZ()).toRotationMatrix() * R_level;
+  const Eigen::Vector3d& dt = increment.translation();
+  const Eigen::Matrix3d R_new = R * increment.rotation_matrix();
+  const Eigen::Vector3d R_dt = R * dt;
+  MotionPrediction p;
+  p.mean = Eigen::Vector4d(x(0) + R_dt.x(), x(1) + R_dt.y(), x(2) + R_dt.z(),
+                           std::atan2(R_new(1, 0), R_new(0, 0)));
+  p.F = Eigen::Matrix4d::Identity();
+  p.F.block<3, 1>(0, 3) = Hat(Eigen::Vector3d::UnitZ().eval()) * R_dt;
+  p.G = Eigen::MatrixXd::Zero(4, 6);
+  p.G.block<3, 3>(0, 0) = R;
+  p.G.block<1, 3>(3, 3) = YawJacobianWorld(R_new) * R_new;
+  const double sigma_trans = noise.sigma.trans_per_m * dt.norm() + noise.floor_trans_m;
+  const double sigma_rot =
+      noise.sigma.rot_per_rad * RotationAngleBetween(SE3d(), increment) + noise.floor_rot_rad;
+  Eigen::Matrix<double, 6, 1> variances;
+  variances << Eigen::Vector3d::Constant(sigma_trans * sigma_trans), Eigen::Vector3d::Constant(sigma_rot * sigma_rot);
+  p.Qu = variances.asDiagonal();
+  p.R_world_robot = R_new;
+  return p;
+}
+
+}  // namespace waymark

@@ -1,0 +1,113 @@
+#include "online/ekf_state.h"
+
+#include <random>
+
+#include <Eigen/Cholesky>
+#include <gtest/gtest.h>
+
+#include "online/motion_model.h"
+
+namespace waymark {
+namespace {
+
+Eigen::Matrix3d SomeCovariance() {
+  Eigen::Matrix3d P;
+  P << 0.04, 0.01, 0.002, 0.01, 0.09, -0.003, 0.002, -0.003, 0.01;
+  return P;
+}
+
+bool IsSymmetricPositiveDefinite(const Eigen::MatrixXd& P) {
+  return (P - P.transpose()).norm() <= 1e-12 * P.norm() && Eigen::LLT<Eigen::MatrixXd>(P).info() == Eigen::Success &&
+         P.llt().matrixL().toDenseMatrix().diagonal().minCoeff() > 0.0;
+}
+
+TEST(EkfStateTest, ZeroInnovationKeepsMeanAndShrinksCovariance) {
+  EkfState state(MotionModel::kPlanar);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d(1.0, 2.0, 0.5), SomeCovariance()), StepStatus::kOk);
+  const Eigen::MatrixXd P_before = state.covariance();
+  const UpdateResult result =
+      state.Update(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity() * 0.01, 10.0);
+  ASSERT_TRUE(result.accepted);
+  EXPECT_EQ(result.nis, 0.0);
+  EXPECT_LT((state.mean() - Eigen::Vector3d(1.0, 2.0, 0.5)).norm(), 1e-15);
+  // P_before - P_after is positive definite: every direction became more certain.
+  EXPECT_TRUE(IsSymmetricPositiveDefinite(P_before - state.covariance()));
+  EXPECT_TRUE(IsSymmetricPositiveDefinite(state.covariance()));
+}
+
+TEST(EkfStateTest, GrossOutlierIsGatedAndChangesNothing) {
+  EkfState state(MotionModel::kPlanar);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d(1.0, 2.0, 0.5), SomeCovariance()), StepStatus::kOk);
+  const Eigen::MatrixXd P_before = state.covariance();
+  const UpdateResult result = state.Update(Eigen::Vector3d(5.0, 0.0, 0.0), Eigen::Matrix3d::Identity(),
+                                           Eigen::Matrix3d::Identity() * 0.01, 14.16);
+  EXPECT_TRUE(result.gated);
+  EXPECT_FALSE(result.accepted);
+  EXPECT_GT(result.nis, 100.0);
+  EXPECT_EQ(state.mean(), Eigen::Vector3d(1.0, 2.0, 0.5));
+  EXPECT_EQ(state.covariance(), P_before);
+}
+
+TEST(EkfStateTest, YawIsWrappedByBoxPlusAndBoxMinus) {
+  const Eigen::Vector3d a(0.0, 0.0, 3.1), b(0.0, 0.0, -3.1);
+  const Eigen::VectorXd delta = EkfState::BoxMinus(a, b, 2);
+  EXPECT_NEAR(delta(2), 2.0 * M_PI - 6.2, 1e-12);
+  EXPECT_NEAR(EkfState::BoxPlus(a, delta, 2)(2), -3.1, 1e-12);
+}
+
+TEST(EkfStateTest, NonFiniteCovarianceIsAnErrorAndKeepsTheOldOne) {
+  EkfState state(MotionModel::kPlanar);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), SomeCovariance()), StepStatus::kOk);
+  Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+  F(0, 2) = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(state.Propagate(Eigen::Vector3d::Zero(), F, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity()),
+            StepStatus::kNonFiniteCovariance);
+  EXPECT_EQ(state.covariance(), SomeCovariance());
+  Eigen::Matrix3d bad = SomeCovariance();
+  bad(1, 1) = std::nan("");
+  EXPECT_EQ(state.Reset(Eigen::Vector3d::Zero(), bad), StepStatus::kNonFiniteCovariance);
+  // S not positive definite (negative measurement noise) is reported, not used.
+  const UpdateResult result = state.Update(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(),
+                                           -Eigen::Matrix3d::Identity(), std::nullopt);
+  EXPECT_EQ(result.status, StepStatus::kNotPositiveDefinite);
+  EXPECT_FALSE(result.accepted);
+}
+
+TEST(EkfStateTest, CovarianceStaysSymmetricPositiveDefiniteOverALongRun) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  EkfState state(MotionModel::kPlanar);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity() * 1e-4), StepStatus::kOk);
+  OdometryNoise odometry;
+  Eigen::Matrix<double, 2, 3> H;  // a range-bearing-like rank-deficient measurement
+  H << 1.0, 0.5, 0.0, 0.0, 0.2, 1.0;
+  for (int k = 0; k < 100000; ++k) {
+    const MotionPrediction p = PredictPlanarIncrement(state.mean(), SE2d(0.05, 0.0, 0.01), odometry);
+    ASSERT_EQ(state.Propagate(p.mean, p.F, p.G, p.Qu), StepStatus::kOk);
+    if (k % 10 == 0) {
+      const Eigen::Vector2d y(1e-3 * noise(rng), 1e-3 * noise(rng));
+      ASSERT_EQ(state.Update(y, H, Eigen::Matrix2d::Identity() * 1e-6, std::nullopt).status, StepStatus::kOk);
+    }
+    if (k % 997 == 0) {
+      ASSERT_TRUE(IsSymmetricPositiveDefinite(state.covariance())) << "step " << k;
+    }
+  }
+  EXPECT_TRUE(IsSymmetricPositiveDefinite(state.covariance()));
+}
+
+TEST(EkfStateTest, FreeStateKeepsLevelRotation) {
+  EkfState state(MotionModel::kFree);
+  ASSERT_EQ(state.dim(), 4);
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
+                             Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitX())).toRotationMatrix();
+  state.SetLevel(R);  // the yaw part is removed
+  ASSERT_EQ(state.Reset(Eigen::Vector4d(1.0, 2.0, 3.0, 0.7), Eigen::Matrix4d::Identity()), StepStatus::kOk);
+  const SE3d T = state.T_world_robot();
+  EXPECT_LT((T.rotation_matrix() - R).norm(), 1e-12);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(1.0, 2.0, 3.0)).norm(), 1e-15);
+  EXPECT_LT((PoseToStateVector(T, MotionModel::kFree) - Eigen::Vector4d(1.0, 2.0, 3.0, 0.7)).norm(), 1e-12);
+}
+
+}  // namespace
+}  // namespace waymark
