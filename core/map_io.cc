@@ -1,0 +1,164 @@
+#include "core/map_io.h"
+
+#include <cmath>
+#include <set>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "core/io_util.h"
+
+namespace waymark {
+namespace {
+
+constexpr const char* kMapFormat = "waymark-map";
+constexpr long kMapVersion = 1;
+
+Matrix6d ParseCovariance(const JsonSource& source, const nlohmann::json& value, const std::string& field) {
+  const std::vector<double> numbers = JsonNumbers(source, value, field, 36);
+  Matrix6d covariance;
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) covariance(r, c) = numbers[6 * r + c];
+  }
+  const double scale = std::max(1.0, covariance.cwiseAbs().maxCoeff());
+  if ((covariance - covariance.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
+    ThrowJsonError(source, field, "expected a symmetric 6x6 matrix (row-major)");
+  }
+  if ((covariance.diagonal().array() < 0.0).any()) {
+    ThrowJsonError(source, field, "expected a non-negative diagonal (variances)");
+  }
+  return covariance;
+}
+
+MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                      ReadWarnings* warnings) {
+  MapMarker marker;
+  marker.key.family = JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
+  if (!IsKnownFamily(marker.key.family)) {
+    ThrowJsonError(source, JsonField(field, "family"),
+                   "unknown family \"" + marker.key.family + "\" (expected qr, datamatrix, square or apriltag-<name>)");
+  }
+  marker.key.id = JsonString(source, *JsonMember(source, value, field, "id", true), JsonField(field, "id"));
+  if (marker.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
+  marker.size_m = JsonNumber(source, *JsonMember(source, value, field, "size_m", true), JsonField(field, "size_m"));
+  if (!(marker.size_m > 0.0)) {
+    ThrowJsonError(source, JsonField(field, "size_m"), "expected a positive size, got " + FormatDouble(marker.size_m));
+  }
+  marker.T_world_marker = JsonPose(source, *JsonMember(source, value, field, "T_world_marker", true),
+                                   JsonField(field, "T_world_marker"));
+  if (const nlohmann::json* covariance = JsonMember(source, value, field, "covariance", false)) {
+    marker.covariance = ParseCovariance(source, *covariance, JsonField(field, "covariance"));
+  }
+  if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
+    marker.fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
+  }
+  if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
+    const long number = JsonInteger(source, *component, JsonField(field, "component"));
+    if (number < 0 || number > std::numeric_limits<int>::max()) {
+      ThrowJsonError(source, JsonField(field, "component"), "expected a non-negative integer, got " + component->dump());
+    }
+    marker.component = static_cast<int>(number);
+  }
+  JsonWarnUnknownKeys(source, value, field,
+                      {"family", "id", "size_m", "T_world_marker", "covariance", "fixed", "component"}, warnings);
+  return marker;
+}
+
+void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
+  const std::string format = JsonString(source, *JsonMember(source, root, "", "format", true), "format");
+  if (format != kMapFormat) {
+    ThrowJsonError(source, "format", std::string("expected \"") + kMapFormat + "\", got \"" + format + "\"");
+  }
+  const long version = JsonInteger(source, *JsonMember(source, root, "", "version", true), "version");
+  if (version != kMapVersion) {
+    ThrowJsonError(source, "version", "expected " + std::to_string(kMapVersion) + ", got " + std::to_string(version));
+  }
+}
+
+}  // namespace
+
+MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, ReadWarnings* warnings) {
+  std::map<std::string, long> lines;
+  const nlohmann::json root = ParseJsonDocument(text, path, &lines);
+  const JsonSource source = JsonSourceWithLines(path, std::move(lines));
+  CheckHeader(source, root);
+  const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
+  if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array of markers");
+  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers"}, warnings);
+
+  MarkerMap map;
+  std::set<MarkerKey> seen;
+  for (size_t i = 0; i < markers.size(); ++i) {
+    const std::string field = JsonField("markers", i);
+    MapMarker marker = ParseMarker(source, markers[i], field, warnings);
+    if (!seen.insert(marker.key).second) {
+      ThrowJsonError(source, field, "duplicate marker " + marker.key.ToString());
+    }
+    map.markers.push_back(std::move(marker));
+  }
+  return map;
+}
+
+MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings) {
+  return ParseMap(ReadTextFile(path), path, warnings);
+}
+
+namespace {
+
+// nlohmann's dump writes doubles with the shortest round-trip representation.
+nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
+  const Eigen::Vector3d& t = marker.T_world_marker.translation();
+  const Eigen::Quaterniond& q = marker.T_world_marker.rotation();
+  nlohmann::ordered_json json;
+  json["family"] = marker.key.family;
+  json["id"] = marker.key.id;
+  json["size_m"] = marker.size_m;
+  json["T_world_marker"] = {{"t", {t.x(), t.y(), t.z()}}, {"q_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+  if (marker.covariance) {
+    nlohmann::ordered_json covariance = nlohmann::ordered_json::array();
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) covariance.push_back((*marker.covariance)(r, c));
+    }
+    json["covariance"] = covariance;
+  }
+  json["fixed"] = marker.fixed;
+  if (marker.component) json["component"] = *marker.component;
+  return json;
+}
+
+void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
+  const std::string name = "map writer: marker " + marker.key.ToString() + ": ";
+  if (!IsKnownFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family");
+  if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
+  if (!(marker.size_m > 0.0) || !std::isfinite(marker.size_m)) throw std::invalid_argument(name + "size_m not positive");
+  if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "T_world_marker not finite");
+  if (marker.covariance && !marker.covariance->allFinite()) throw std::invalid_argument(name + "covariance not finite");
+  if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");
+  if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
+}
+
+}  // namespace
+
+std::string FormatMap(const MarkerMap& map) {
+  std::set<MarkerKey> seen;
+  std::string text = std::string("{\"format\": \"") + kMapFormat + "\", \"version\": " + std::to_string(kMapVersion) +
+                     ",\n \"markers\": [";
+  for (size_t i = 0; i < map.markers.size(); ++i) {
+    CheckWritable(map.markers[i], &seen);
+    text += (i == 0 ? "\n  " : ",\n  ") + MarkerJson(map.markers[i]).dump();
+  }
+  text += map.markers.empty() ? "]}\n" : "\n ]}\n";
+  return text;
+}
+
+void WriteMap(const std::filesystem::path& path, const MarkerMap& map) {
+  std::string text;
+  try {
+    text = FormatMap(map);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  AtomicWriteFile(path, text);
+}
+
+}  // namespace waymark
