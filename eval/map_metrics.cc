@@ -1,0 +1,154 @@
+#include "eval/map_metrics.h"
+
+#include <cmath>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+#include <Eigen/SVD>
+
+namespace waymark::eval {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+void CheckUniqueKeys(const MarkerMap& map, const char* which) {
+  std::set<MarkerKey> seen;
+  for (const MapMarker& marker : map.markers) {
+    if (!seen.insert(marker.key).second) {
+      throw std::invalid_argument(std::string(which) + " map holds marker " + marker.key.ToString() + " twice");
+    }
+  }
+}
+
+// Matched markers of one component: estimate and ground-truth poses, in map order.
+struct ComponentMatches {
+  std::vector<MarkerKey> keys;
+  std::vector<SE3d> T_est_marker;
+  std::vector<SE3d> T_gt_marker;
+  size_t markers_total = 0;
+};
+
+std::map<int, ComponentMatches> MatchByComponent(const MarkerMap& est, const MarkerMap& gt) {
+  std::map<int, ComponentMatches> components;
+  for (const MapMarker& marker : est.markers) {
+    ComponentMatches& c = components[marker.component.value_or(0)];
+    ++c.markers_total;
+    if (const MapMarker* truth = gt.Find(marker.key)) {
+      c.keys.push_back(marker.key);
+      c.T_est_marker.push_back(marker.T_world_marker);
+      c.T_gt_marker.push_back(truth->T_world_marker);
+    }
+  }
+  return components;
+}
+
+ComponentResult AlignComponent(int component, const ComponentMatches& matches) {
+  ComponentResult result;
+  result.component = component;
+  result.markers = matches.keys.size();
+  result.markers_total = matches.markers_total;
+  if (matches.keys.empty()) return result;
+  if (matches.keys.size() >= 3) {
+    std::vector<Eigen::Vector3d> p_est, p_gt;
+    for (size_t i = 0; i < matches.keys.size(); ++i) {
+      p_est.push_back(matches.T_est_marker[i].translation());
+      p_gt.push_back(matches.T_gt_marker[i].translation());
+    }
+    try {
+      result.alignment = UmeyamaSim3(p_est, p_gt, /*with_scale=*/false);
+      result.method = MapAlignmentMethod::kPositions;
+      return result;
+    } catch (const DegenerateAlignmentError&) {
+      // Collinear centres leave the rotation about their line free: use the poses.
+    }
+  }
+  result.alignment = AlignByPoses(matches.T_est_marker, matches.T_gt_marker);
+  result.method = MapAlignmentMethod::kPoses;
+  return result;
+}
+
+double Rms(const std::vector<double>& values) {
+  if (values.empty()) return 0.0;
+  double sum = 0.0;
+  for (const double v : values) sum += v * v;
+  return std::sqrt(sum / static_cast<double>(values.size()));
+}
+
+std::vector<MarkerKey> KeysMissingFrom(const MarkerMap& from, const MarkerMap& other) {
+  std::vector<MarkerKey> missing;
+  for (const MapMarker& marker : from.markers) {
+    if (other.Find(marker.key) == nullptr) missing.push_back(marker.key);
+  }
+  return missing;
+}
+
+}  // namespace
+
+const char* MapAlignmentMethodName(MapAlignmentMethod method) {
+  switch (method) {
+    case MapAlignmentMethod::kPositions:
+      return "positions";
+    case MapAlignmentMethod::kPoses:
+      return "poses";
+    case MapAlignmentMethod::kNone:
+      return "none";
+  }
+  return "unknown";
+}
+
+Sim3Alignment AlignByPoses(const std::vector<SE3d>& T_est_marker, const std::vector<SE3d>& T_gt_marker) {
+  if (T_est_marker.empty() || T_est_marker.size() != T_gt_marker.size()) {
+    throw std::invalid_argument("AlignByPoses: needs equal, non-zero numbers of poses");
+  }
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < T_est_marker.size(); ++i) {
+    M += T_gt_marker[i].rotation_matrix() * T_est_marker[i].rotation_matrix().transpose();
+  }
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Vector3d s_diag = Eigen::Vector3d::Ones();
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) s_diag.z() = -1.0;
+  Sim3Alignment alignment;
+  alignment.R_gt_est = svd.matrixU() * s_diag.asDiagonal() * svd.matrixV().transpose();
+  const double n = static_cast<double>(T_est_marker.size());
+  for (size_t i = 0; i < T_est_marker.size(); ++i) {
+    alignment.t_gt_est += (T_gt_marker[i].translation() - alignment.R_gt_est * T_est_marker[i].translation()) / n;
+  }
+  return alignment;
+}
+
+MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt) {
+  CheckUniqueKeys(est, "estimated");
+  CheckUniqueKeys(gt, "ground-truth");
+  MapEvalResult result;
+  std::vector<double> all_position_m, all_orientation_deg;
+  for (const auto& [component, matches] : MatchByComponent(est, gt)) {
+    ComponentResult c = AlignComponent(component, matches);
+    std::vector<double> position_m, orientation_deg;
+    for (size_t i = 0; i < matches.keys.size(); ++i) {
+      const SE3d T_gt_marker_est = c.alignment.Apply(matches.T_est_marker[i]);
+      MarkerError error;
+      error.key = matches.keys[i];
+      error.component = component;
+      error.position_error_m = (matches.T_gt_marker[i].translation() - T_gt_marker_est.translation()).norm();
+      error.orientation_error_deg = kRadToDeg * RotationAngleBetween(matches.T_gt_marker[i], T_gt_marker_est);
+      position_m.push_back(error.position_error_m);
+      orientation_deg.push_back(error.orientation_error_deg);
+      result.per_marker.push_back(error);
+    }
+    c.position_rmse_m = Rms(position_m);
+    c.orientation_rmse_deg = Rms(orientation_deg);
+    all_position_m.insert(all_position_m.end(), position_m.begin(), position_m.end());
+    all_orientation_deg.insert(all_orientation_deg.end(), orientation_deg.begin(), orientation_deg.end());
+    result.components.push_back(c);
+  }
+  result.markers = all_position_m.size();
+  if (result.markers == 0) throw std::runtime_error("no marker is in both maps (compare the families and ids)");
+  result.position_rmse_m = Rms(all_position_m);
+  result.orientation_rmse_deg = Rms(all_orientation_deg);
+  result.missing_in_estimate = KeysMissingFrom(gt, est);
+  result.missing_in_groundtruth = KeysMissingFrom(est, gt);
+  return result;
+}
+
+}  // namespace waymark::eval

@@ -1,0 +1,63 @@
+// Map against map: how far each estimated marker is from its true pose.
+//
+// Each component c of the estimated map (markers with the same `component`; markers
+// without one are component 0) has its own world frame, so each is aligned to the ground
+// truth on its own, using the markers present in both maps:
+//   - >= 3 markers, not all on one line: SE(3) Umeyama on the marker centres
+//       (R, t) = argmin sum_i || p_gt,i - (R p_est,i + t) ||^2         ("positions")
+//   - otherwise (1 or 2 markers, or collinear centres): from the marker poses themselves
+//       R = argmax_R tr(R^T sum_i R_gt,i R_est,i^T)   (chordal mean, by SVD, det = +1)
+//       t = mean_i (p_gt,i - R p_est,i)                                   ("poses")
+//     exact for a single marker.
+// Then, per matched marker i (T_gt_est = (R, t) of its component):
+//   position error    e_p,i = || p_gt,i - (R p_est,i + t) ||                      (m)
+//   orientation error e_r,i = angle( R_gt,i^T R R_est,i )                        (deg)
+// and RMS values sqrt(mean e^2) per component and over all matched markers.
+// Markers in only one of the two maps are listed, not counted.
+#pragma once
+
+#include <vector>
+
+#include "core/types.h"
+#include "eval/alignment.h"
+
+namespace waymark::eval {
+
+struct MarkerError {
+  MarkerKey key;
+  int component = 0;
+  double position_error_m = 0.0;
+  double orientation_error_deg = 0.0;
+};
+
+enum class MapAlignmentMethod { kPositions, kPoses, kNone };  // kNone: no marker in common
+const char* MapAlignmentMethodName(MapAlignmentMethod method);  // "positions", "poses", "none"
+
+struct ComponentResult {
+  int component = 0;
+  size_t markers = 0;  // matched with ground truth
+  size_t markers_total = 0;  // in the estimated map
+  MapAlignmentMethod method = MapAlignmentMethod::kNone;
+  Sim3Alignment alignment;  // scale 1
+  double position_rmse_m = 0.0;
+  double orientation_rmse_deg = 0.0;
+};
+
+struct MapEvalResult {
+  size_t markers = 0;  // matched
+  double position_rmse_m = 0.0;
+  double orientation_rmse_deg = 0.0;
+  std::vector<ComponentResult> components;  // by component number
+  std::vector<MarkerError> per_marker;      // by component, then in the estimated map's order
+  std::vector<MarkerKey> missing_in_estimate;      // in the ground truth only
+  std::vector<MarkerKey> missing_in_groundtruth;   // in the estimate only
+};
+
+// Throws std::invalid_argument if a map holds the same key twice, and std::runtime_error if
+// no marker is in both maps.
+MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt);
+
+// The pose-based fit of the header comment; exposed for tests. Sizes equal and >= 1.
+Sim3Alignment AlignByPoses(const std::vector<SE3d>& T_est_marker, const std::vector<SE3d>& T_gt_marker);
+
+}  // namespace waymark::eval

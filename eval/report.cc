@@ -1,0 +1,240 @@
+#include "eval/report.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace waymark::eval {
+namespace {
+
+using nlohmann::json;
+
+std::string Fixed(double value, int digits = 4) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, value);
+  return buffer;
+}
+
+json MatrixToJson(const Eigen::Matrix3d& R) {
+  json rows = json::array();
+  for (int r = 0; r < 3; ++r) rows.push_back({R(r, 0), R(r, 1), R(r, 2)});
+  return rows;
+}
+
+json KeyToJson(const MarkerKey& key) { return {{"family", key.family}, {"id", key.id}}; }
+
+json KeysToJson(const std::vector<MarkerKey>& keys) {
+  json out = json::array();
+  for (const MarkerKey& key : keys) out.push_back(KeyToJson(key));
+  return out;
+}
+
+json AlignmentToJson(const Sim3Alignment& alignment) {
+  return {{"scale", alignment.scale},
+          {"R_gt_est", MatrixToJson(alignment.R_gt_est)},
+          {"t_gt_est", {alignment.t_gt_est.x(), alignment.t_gt_est.y(), alignment.t_gt_est.z()}}};
+}
+
+// "| name | rmse | mean | median | std | min | max | n |" row of a Markdown table.
+std::string MarkdownRow(const std::string& name, const ErrorStats& s, int digits) {
+  std::ostringstream row;
+  row << "| " << name << " | " << Fixed(s.rmse, digits) << " | " << Fixed(s.mean, digits) << " | "
+      << Fixed(s.median, digits) << " | " << Fixed(s.std, digits) << " | " << Fixed(s.min, digits) << " | "
+      << Fixed(s.max, digits) << " | " << s.count << " |\n";
+  return row.str();
+}
+
+std::string TableLine(const std::string& name, const ErrorStats& s, int digits) {
+  char buffer[256];
+  std::snprintf(buffer, sizeof(buffer), "%-22s %10s %10s %10s %10s %10s %6zu\n", name.c_str(),
+                Fixed(s.rmse, digits).c_str(), Fixed(s.mean, digits).c_str(), Fixed(s.median, digits).c_str(),
+                Fixed(s.std, digits).c_str(), Fixed(s.max, digits).c_str(), s.count);
+  return buffer;
+}
+
+std::string TrajectoryMarkdown(const EvalReportInput& input) {
+  const TrajectoryEvaluation& e = *input.trajectory;
+  std::ostringstream md;
+  md << "## Trajectory\n\n"
+     << "- estimate: `" << input.est_path << "` (" << e.est_poses << " poses)\n"
+     << "- ground truth: `" << input.gt_path << "` (" << e.gt_poses << " poses)\n"
+     << "- associated pairs: " << e.ate.translation_m.count << " (max-dt " << e.options.max_dt_s << " s)\n"
+     << "- alignment: " << AlignmentModeName(e.options.align) << (e.options.scale ? " with scale" : "")
+     << " (scale " << Fixed(e.alignment.scale, 6) << ")\n\n"
+     << "| metric | rmse | mean | median | std | min | max | n |\n|---|---|---|---|---|---|---|---|\n"
+     << MarkdownRow("ATE translation (m)", e.ate.translation_m, 4)
+     << MarkdownRow("ATE rotation (deg)", e.ate.rotation_deg, 3);
+  if (e.rpe) {
+    const std::string delta = Fixed(e.rpe->options.delta, e.rpe->options.unit == RpeUnit::kFrames ? 0 : 3) +
+                              " " + RpeUnitName(e.rpe->options.unit);
+    md << MarkdownRow("RPE translation (m) / " + delta, e.rpe->translation_m, 4)
+       << MarkdownRow("RPE rotation (deg) / " + delta, e.rpe->rotation_deg, 3);
+  }
+  if (e.pe_te) {
+    md << MarkdownRow("PE planar (m)", e.pe_te->position_m, 4) << MarkdownRow("PE 3-D (m)", e.pe_te->position_3d_m, 4)
+       << MarkdownRow("TE heading (deg)", e.pe_te->heading_deg, 3);
+  }
+  md << "\nATE equals evo's APE (translation part) with the same association and alignment.\n";
+  if (e.pe_te) {
+    md << "PE/TE: predicted poses from `" << input.predicted_path << "` (" << e.predicted_poses << " poses, "
+       << e.pe_te->position_m.count << " correction instants), "
+       << (e.options.align_predicted ? "aligned like the estimate" : "not aligned (map frame = world frame)")
+       << "; PE = " << Fixed(e.pe_te->position_m.mean, 4) << " m, TE = " << Fixed(e.pe_te->heading_deg.mean, 3)
+       << " deg (means over the instants, seed 000 eq. 15).\n";
+  }
+  return md.str();
+}
+
+std::string MapMarkdown(const EvalReportInput& input) {
+  const MapEvalResult& m = *input.map;
+  std::ostringstream md;
+  md << "## Map\n\n- estimate: `" << input.map_path << "`\n- ground truth: `" << input.gt_map_path << "`\n"
+     << "- matched markers: " << m.markers << "; position RMS " << Fixed(m.position_rmse_m, 4)
+     << " m; orientation RMS " << Fixed(m.orientation_rmse_deg, 3) << " deg\n\n"
+     << "| component | markers | aligned by | position RMS (m) | orientation RMS (deg) |\n|---|---|---|---|---|\n";
+  for (const ComponentResult& c : m.components) {
+    md << "| " << c.component << " | " << c.markers << " of " << c.markers_total << " | "
+       << MapAlignmentMethodName(c.method) << " | " << Fixed(c.position_rmse_m, 4) << " | "
+       << Fixed(c.orientation_rmse_deg, 3) << " |\n";
+  }
+  md << "\n| marker | component | position error (m) | orientation error (deg) |\n|---|---|---|---|\n";
+  for (const MarkerError& e : m.per_marker) {
+    md << "| `" << e.key.ToString() << "` | " << e.component << " | " << Fixed(e.position_error_m, 4) << " | "
+       << Fixed(e.orientation_error_deg, 3) << " |\n";
+  }
+  const auto list = [&md](const char* title, const std::vector<MarkerKey>& keys) {
+    if (keys.empty()) return;
+    md << "\n" << title << ":";
+    for (const MarkerKey& key : keys) md << " `" << key.ToString() << "`";
+    md << "\n";
+  };
+  list("Missing from the estimate", m.missing_in_estimate);
+  list("Not in the ground truth", m.missing_in_groundtruth);
+  return md.str();
+}
+
+}  // namespace
+
+json StatsToJson(const ErrorStats& s) {
+  return {{"rmse", s.rmse}, {"mean", s.mean}, {"median", s.median}, {"std", s.std},
+          {"min", s.min},   {"max", s.max},   {"sse", s.sse},       {"count", s.count}};
+}
+
+json TrajectoryEvaluationToJson(const TrajectoryEvaluation& e) {
+  json out;
+  json ate = StatsToJson(e.ate.translation_m);
+  ate.erase("count");
+  ate["pairs"] = e.ate.translation_m.count;
+  ate["unit"] = "m";
+  ate["rotation_deg"] = StatsToJson(e.ate.rotation_deg);
+  out["ate"] = ate;
+  json alignment = AlignmentToJson(e.alignment);
+  alignment["mode"] = AlignmentModeName(e.options.align);
+  alignment["scale_corrected"] = e.options.scale;
+  out["alignment"] = alignment;
+  out["association"] = {{"max_dt_s", e.options.max_dt_s},
+                        {"gt_poses", e.gt_poses},
+                        {"est_poses", e.est_poses},
+                        {"pairs", e.ate.translation_m.count}};
+  if (e.rpe) {
+    out["rpe"] = {{"delta", e.rpe->options.delta},
+                  {"unit", RpeUnitName(e.rpe->options.unit)},
+                  {"pairs", e.rpe->index_pairs.size()},
+                  {"translation_m", StatsToJson(e.rpe->translation_m)},
+                  {"rotation_deg", StatsToJson(e.rpe->rotation_deg)}};
+  }
+  if (e.pe_te) {
+    out["pe_te"] = {{"instants", e.pe_te->position_m.count},
+                    {"predicted_poses", e.predicted_poses},
+                    {"aligned", e.options.align_predicted},
+                    {"pe_m", StatsToJson(e.pe_te->position_m)},
+                    {"pe_3d_m", StatsToJson(e.pe_te->position_3d_m)},
+                    {"te_deg", StatsToJson(e.pe_te->heading_deg)}};
+  }
+  return out;
+}
+
+json MapEvaluationToJson(const MapEvalResult& m) {
+  json components = json::array();
+  for (const ComponentResult& c : m.components) {
+    json component = AlignmentToJson(c.alignment);
+    component.erase("scale");
+    component["component"] = c.component;
+    component["markers"] = c.markers;
+    component["markers_total"] = c.markers_total;
+    component["alignment"] = MapAlignmentMethodName(c.method);
+    component["position_rmse"] = c.position_rmse_m;
+    component["orientation_rmse_deg"] = c.orientation_rmse_deg;
+    components.push_back(component);
+  }
+  json per_marker = json::array();
+  for (const MarkerError& e : m.per_marker) {
+    json marker = KeyToJson(e.key);
+    marker["component"] = e.component;
+    marker["position_error"] = e.position_error_m;
+    marker["orientation_error_deg"] = e.orientation_error_deg;
+    per_marker.push_back(marker);
+  }
+  return {{"position_rmse", m.position_rmse_m},
+          {"orientation_rmse_deg", m.orientation_rmse_deg},
+          {"markers", m.markers},
+          {"components", components},
+          {"per_marker", per_marker},
+          {"missing_in_estimate", KeysToJson(m.missing_in_estimate)},
+          {"missing_in_groundtruth", KeysToJson(m.missing_in_groundtruth)}};
+}
+
+json EvalReportToJson(const EvalReportInput& input) {
+  json out = json::object();
+  json inputs = json::object();
+  if (input.trajectory) {
+    out.update(TrajectoryEvaluationToJson(*input.trajectory));
+    inputs["est"] = input.est_path;
+    inputs["gt"] = input.gt_path;
+    if (!input.predicted_path.empty()) inputs["predicted"] = input.predicted_path;
+  }
+  if (input.map) {
+    out["map"] = MapEvaluationToJson(*input.map);
+    inputs["map"] = input.map_path;
+    inputs["gt_map"] = input.gt_map_path;
+  }
+  out["inputs"] = inputs;
+  return out;
+}
+
+std::string EvalReportToMarkdown(const EvalReportInput& input) {
+  std::string md = "# Waymark evaluation\n\n";
+  if (input.trajectory) md += TrajectoryMarkdown(input);
+  if (input.trajectory && input.map) md += "\n";
+  if (input.map) md += MapMarkdown(input);
+  return md;
+}
+
+std::string EvalSummaryTable(const EvalReportInput& input) {
+  std::string out;
+  char header[256];
+  std::snprintf(header, sizeof(header), "%-22s %10s %10s %10s %10s %10s %6s\n", "metric", "rmse", "mean", "median",
+                "std", "max", "n");
+  out += header;
+  if (const TrajectoryEvaluation* e = input.trajectory) {
+    out += TableLine("ATE trans (m)", e->ate.translation_m, 4) + TableLine("ATE rot (deg)", e->ate.rotation_deg, 3);
+    if (e->rpe) {
+      out += TableLine("RPE trans (m)", e->rpe->translation_m, 4) +
+             TableLine("RPE rot (deg)", e->rpe->rotation_deg, 3);
+    }
+    if (e->pe_te) out += TableLine("PE (m)", e->pe_te->position_m, 4) + TableLine("TE (deg)", e->pe_te->heading_deg, 3);
+  }
+  if (const MapEvalResult* m = input.map) {
+    char line[256];
+    std::snprintf(line, sizeof(line), "%-22s %10s %10s\n%-22s %10s %10s\n", "map position (m)",
+                  Fixed(m->position_rmse_m, 4).c_str(), std::to_string(m->markers).c_str(), "map orient (deg)",
+                  Fixed(m->orientation_rmse_deg, 3).c_str(), std::to_string(m->markers).c_str());
+    out += line;
+    if (!m->missing_in_estimate.empty() || !m->missing_in_groundtruth.empty()) {
+      out += "markers missing from the estimate: " + std::to_string(m->missing_in_estimate.size()) +
+             ", not in the ground truth: " + std::to_string(m->missing_in_groundtruth.size()) + "\n";
+    }
+  }
+  return out;
+}
+
+}  // namespace waymark::eval

@@ -1,0 +1,47 @@
+#include "eval/trajectory_eval.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace waymark::eval {
+
+bool TrajectoryEvalOptions::Check(std::string* why) const {
+  if (!std::isfinite(max_dt_s) || max_dt_s < 0.0) {
+    *why = "max-dt must be a finite number >= 0 s";
+    return false;
+  }
+  return !rpe || rpe->Check(why);
+}
+
+TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
+                                        const std::optional<Trajectory>& predicted,
+                                        const TrajectoryEvalOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument(why);
+  TrajectoryEvaluation evaluation;
+  evaluation.options = options;
+  evaluation.gt_poses = gt.size();
+  evaluation.est_poses = est.size();
+
+  AssociatedTrajectories associated = Associate(gt, est, options.max_dt_s);
+  const bool needs_fit = options.align != AlignmentMode::kNone || options.scale;
+  if (needs_fit) {
+    evaluation.alignment =
+        ComputeAlignment(options.align, options.scale, Positions(associated.est), Positions(associated.gt));
+  }
+  evaluation.gt_associated = std::move(associated.gt);
+  evaluation.est_aligned = evaluation.alignment.Apply(associated.est);
+  evaluation.ate = ComputeAte(evaluation.gt_associated, evaluation.est_aligned);
+  if (options.rpe) evaluation.rpe = ComputeRpe(evaluation.gt_associated, evaluation.est_aligned, *options.rpe);
+
+  if (predicted) {
+    evaluation.predicted_poses = predicted->size();
+    AssociatedTrajectories instants = Associate(gt, *predicted, options.max_dt_s, "predicted poses");
+    const Trajectory predicted_world =
+        options.align_predicted ? evaluation.alignment.Apply(instants.est) : instants.est;
+    evaluation.pe_te = ComputePeTe(instants.gt, predicted_world);
+  }
+  return evaluation;
+}
+
+}  // namespace waymark::eval

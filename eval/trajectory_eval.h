@@ -1,0 +1,48 @@
+// The whole trajectory evaluation, in evo's order:
+//   1. associate estimate and ground truth by stamp (eval/association.h, --max-dt);
+//   2. fit the alignment on the associated positions (eval/alignment.h, --align, --scale)
+//      and apply it to the estimate: T_gt_robot = align(T_est_robot);
+//   3. ATE on the associated, aligned pairs; RPE (if asked) on the same pairs;
+//   4. PE / TE (if a predicted trajectory is given): predicted poses associated to the
+//      ground truth the same way, with NO alignment (the localizer's map frame is the world
+//      frame) unless `align_predicted` is set, in which case the alignment of step 2 is used.
+#pragma once
+
+#include <optional>
+
+#include "core/types.h"
+#include "eval/alignment.h"
+#include "eval/association.h"
+#include "eval/trajectory_metrics.h"
+
+namespace waymark::eval {
+
+struct TrajectoryEvalOptions {
+  AlignmentMode align = AlignmentMode::kSE3;
+  bool scale = false;
+  double max_dt_s = kDefaultMaxDtS;
+  std::optional<RpeOptions> rpe;
+  bool align_predicted = false;
+  bool Check(std::string* why) const;
+};
+
+struct TrajectoryEvaluation {
+  TrajectoryEvalOptions options;
+  size_t gt_poses = 0;
+  size_t est_poses = 0;
+  Sim3Alignment alignment;         // estimate world -> ground-truth world
+  Trajectory gt_associated;        // the ground-truth pose of each pair
+  Trajectory est_aligned;          // the estimate's pose of each pair, aligned
+  AteResult ate;
+  std::optional<RpeResult> rpe;
+  size_t predicted_poses = 0;
+  std::optional<PeTeResult> pe_te;
+};
+
+// Throws std::invalid_argument for bad options, std::runtime_error when nothing associates,
+// the alignment is degenerate or the RPE delta leaves no pair.
+TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
+                                        const std::optional<Trajectory>& predicted,
+                                        const TrajectoryEvalOptions& options);
+
+}  // namespace waymark::eval
