@@ -268,6 +268,7 @@ YAML::Node YamlRequire(const std::filesystem::path& path, const YAML::Node& map,
 
 double YamlNumber(const std::filesystem::path& path, const YAML::Node& node, const std::string& what) {
   if (!node.IsScalar()) ThrowYamlError(path, node, what + ": expected a number, got " + YamlTypeName(node));
+  if (node.Tag() == "!") ThrowYamlError(path, node, what + ": expected a number, got a quoted string");
   const std::optional<double> value = ParseFiniteDouble(node.Scalar());
   if (!value) ThrowYamlError(path, node, what + ": expected a finite number, got '" + node.Scalar() + "'");
   return *value;
@@ -275,6 +276,7 @@ double YamlNumber(const std::filesystem::path& path, const YAML::Node& node, con
 
 long YamlInteger(const std::filesystem::path& path, const YAML::Node& node, const std::string& what) {
   if (!node.IsScalar()) ThrowYamlError(path, node, what + ": expected an integer, got " + YamlTypeName(node));
+  if (node.Tag() == "!") ThrowYamlError(path, node, what + ": expected an integer, got a quoted string");
   const std::optional<long> value = ParseInteger(node.Scalar());
   if (!value) ThrowYamlError(path, node, what + ": expected an integer, got '" + node.Scalar() + "'");
   return *value;
