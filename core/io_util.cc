@@ -525,6 +525,11 @@ void ThrowJsonError(const JsonSource& source, const std::string& field, const st
   throw FormatError(source.path, line, field.empty() ? message : field + ": " + message);
 }
 
+std::string JsonErrorText(const JsonSource& source, const std::string& field, const std::string& message) {
+  const std::optional<long> line = source.line_of ? source.line_of(field) : std::nullopt;
+  return FormatError(source.path, line, field.empty() ? message : field + ": " + message).what();
+}
+
 std::string JsonField(const std::string& parent, size_t index) {
   return parent + "[" + std::to_string(index) + "]";
 }

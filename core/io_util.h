@@ -131,6 +131,8 @@ nlohmann::json ParseJsonDocument(const std::string& text, const std::filesystem:
 JsonSource JsonSourceWithLines(const std::filesystem::path& path, std::map<std::string, long> lines);
 
 [[noreturn]] void ThrowJsonError(const JsonSource& source, const std::string& field, const std::string& message);
+// The one-line text ThrowJsonError would throw ("path:line: field: message"), for warnings.
+std::string JsonErrorText(const JsonSource& source, const std::string& field, const std::string& message);
 // "markers" + 3 -> "markers[3]"; "" + "t" -> "t"; "a" + "t" -> "a.t".
 std::string JsonField(const std::string& parent, size_t index);
 std::string JsonField(const std::string& parent, const std::string& key);
