@@ -97,7 +97,7 @@ class CornerObservation {
   static double CheckedSize(const CameraInfo& camera, double size_m) {
     if (!(std::isfinite(size_m) && size_m > 0.0)) {
       throw std::invalid_argument(Where(camera) + ": size_m must be finite and > 0, got " +
-                                  std::to_string(size_m));
+                                  FormatNumber(size_m));
     }
     return size_m;
   }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -36,11 +37,18 @@ Eigen::Matrix<double, N, N> SqrtInformation(const Eigen::Matrix<double, N, N>& c
   return llt.matrixL().solve(identity);
 }
 
+// A number for an error message, 6 significant digits ("0.001", "1e-09", "nan").
+inline std::string FormatNumber(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
 // 1 / sigma for an isotropic noise; throws std::invalid_argument naming `what` unless sigma is
 // finite and positive.
 inline double InverseSigma(double sigma, const std::string& what) {
   if (!(std::isfinite(sigma) && sigma > 0.0)) {
-    throw std::invalid_argument(what + ": sigma must be finite and > 0, got " + std::to_string(sigma));
+    throw std::invalid_argument(what + ": sigma must be finite and > 0, got " + FormatNumber(sigma));
   }
   return 1.0 / sigma;
 }
