@@ -6,7 +6,7 @@
 namespace waymark::eval {
 namespace {
 
-using nlohmann::json;
+using json = Json;
 
 std::string Fixed(double value, int digits = 4) {
   char buffer[64];
@@ -93,8 +93,8 @@ std::string MapMarkdown(const EvalReportInput& input) {
      << "| component | markers | aligned by | position RMS (m) | orientation RMS (deg) |\n|---|---|---|---|---|\n";
   for (const ComponentResult& c : m.components) {
     md << "| " << c.component << " | " << c.markers << " of " << c.markers_total << " | "
-       << MapAlignmentMethodName(c.method) << " | " << Fixed(c.position_rmse_m, 4) << " | "
-       << Fixed(c.orientation_rmse_deg, 3) << " |\n";
+       << MapAlignmentMethodName(c.method) << " | " << (c.markers > 0 ? Fixed(c.position_rmse_m, 4) : "n/a") << " | "
+       << (c.markers > 0 ? Fixed(c.orientation_rmse_deg, 3) : "n/a") << " |\n";
   }
   md << "\n| marker | component | position error (m) | orientation error (deg) |\n|---|---|---|---|\n";
   for (const MarkerError& e : m.per_marker) {
@@ -114,12 +114,12 @@ std::string MapMarkdown(const EvalReportInput& input) {
 
 }  // namespace
 
-json StatsToJson(const ErrorStats& s) {
+Json StatsToJson(const ErrorStats& s) {
   return {{"rmse", s.rmse}, {"mean", s.mean}, {"median", s.median}, {"std", s.std},
           {"min", s.min},   {"max", s.max},   {"sse", s.sse},       {"count", s.count}};
 }
 
-json TrajectoryEvaluationToJson(const TrajectoryEvaluation& e) {
+Json TrajectoryEvaluationToJson(const TrajectoryEvaluation& e) {
   json out;
   json ate = StatsToJson(e.ate.translation_m);
   ate.erase("count");
@@ -153,17 +153,18 @@ json TrajectoryEvaluationToJson(const TrajectoryEvaluation& e) {
   return out;
 }
 
-json MapEvaluationToJson(const MapEvalResult& m) {
+Json MapEvaluationToJson(const MapEvalResult& m) {
   json components = json::array();
   for (const ComponentResult& c : m.components) {
-    json component = AlignmentToJson(c.alignment);
-    component.erase("scale");
-    component["component"] = c.component;
-    component["markers"] = c.markers;
-    component["markers_total"] = c.markers_total;
-    component["alignment"] = MapAlignmentMethodName(c.method);
-    component["position_rmse"] = c.position_rmse_m;
-    component["orientation_rmse_deg"] = c.orientation_rmse_deg;
+    json component = {{"component", c.component},
+                      {"markers", c.markers},
+                      {"markers_total", c.markers_total},
+                      {"alignment", MapAlignmentMethodName(c.method)},
+                      {"position_rmse", c.markers > 0 ? json(c.position_rmse_m) : json(nullptr)},
+                      {"orientation_rmse_deg", c.markers > 0 ? json(c.orientation_rmse_deg) : json(nullptr)}};
+    const json transform = AlignmentToJson(c.alignment);
+    component["R_gt_est"] = transform["R_gt_est"];
+    component["t_gt_est"] = transform["t_gt_est"];
     components.push_back(component);
   }
   json per_marker = json::array();
@@ -183,7 +184,7 @@ json MapEvaluationToJson(const MapEvalResult& m) {
           {"missing_in_groundtruth", KeysToJson(m.missing_in_groundtruth)}};
 }
 
-json EvalReportToJson(const EvalReportInput& input) {
+Json EvalReportToJson(const EvalReportInput& input) {
   json out = json::object();
   json inputs = json::object();
   if (input.trajectory) {
@@ -225,9 +226,9 @@ std::string EvalSummaryTable(const EvalReportInput& input) {
   }
   if (const MapEvalResult* m = input.map) {
     char line[256];
-    std::snprintf(line, sizeof(line), "%-22s %10s %10s\n%-22s %10s %10s\n", "map position (m)",
-                  Fixed(m->position_rmse_m, 4).c_str(), std::to_string(m->markers).c_str(), "map orient (deg)",
-                  Fixed(m->orientation_rmse_deg, 3).c_str(), std::to_string(m->markers).c_str());
+    std::snprintf(line, sizeof(line), "%-22s %10s %50zu\n%-22s %10s %50zu\n", "map position (m)",
+                  Fixed(m->position_rmse_m, 4).c_str(), m->markers, "map orient (deg)",
+                  Fixed(m->orientation_rmse_deg, 3).c_str(), m->markers);
     out += line;
     if (!m->missing_in_estimate.empty() || !m->missing_in_groundtruth.empty()) {
       out += "markers missing from the estimate: " + std::to_string(m->missing_in_estimate.size()) +

@@ -23,6 +23,9 @@
 
 namespace waymark::eval {
 
+// Members keep the order they are written in (the reports read top-down: ate first).
+using Json = nlohmann::ordered_json;
+
 // What was evaluated, for the reports. Either or both of `trajectory` and `map` are set.
 struct EvalReportInput {
   std::string est_path, gt_path, predicted_path;  // trajectory files, as given
@@ -31,13 +34,14 @@ struct EvalReportInput {
   const MapEvalResult* map = nullptr;
 };
 
-nlohmann::json StatsToJson(const ErrorStats& stats);
+Json StatsToJson(const ErrorStats& stats);
 // The "ate", "alignment", "association", and (when present) "rpe" and "pe_te" members.
-nlohmann::json TrajectoryEvaluationToJson(const TrajectoryEvaluation& evaluation);
-// The value of the "map" member.
-nlohmann::json MapEvaluationToJson(const MapEvalResult& result);
+Json TrajectoryEvaluationToJson(const TrajectoryEvaluation& evaluation);
+// The value of the "map" member. A component with no marker in common with the truth has
+// null RMS values.
+Json MapEvaluationToJson(const MapEvalResult& result);
 // Everything in one object.
-nlohmann::json EvalReportToJson(const EvalReportInput& input);
+Json EvalReportToJson(const EvalReportInput& input);
 
 std::string EvalReportToMarkdown(const EvalReportInput& input);
 

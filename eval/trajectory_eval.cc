@@ -36,12 +36,15 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
 
   if (predicted) {
     evaluation.predicted_poses = predicted->size();
-    AssociatedTrajectories instants = Associate(gt, *predicted, options.max_dt_s, "predicted poses");
-    const Trajectory predicted_world =
-        options.align_predicted ? evaluation.alignment.Apply(instants.est) : instants.est;
-    evaluation.pe_te = ComputePeTe(instants.gt, predicted_world);
+    evaluation.pe_te = EvaluatePredicted(gt, *predicted, options, evaluation.alignment);
   }
   return evaluation;
+}
+
+PeTeResult EvaluatePredicted(const Trajectory& gt, const Trajectory& predicted, const TrajectoryEvalOptions& options,
+                             const Sim3Alignment& alignment) {
+  const AssociatedTrajectories instants = Associate(gt, predicted, options.max_dt_s, "predicted poses");
+  return ComputePeTe(instants.gt, options.align_predicted ? alignment.Apply(instants.est) : instants.est);
 }
 
 }  // namespace waymark::eval

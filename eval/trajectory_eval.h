@@ -39,6 +39,12 @@ struct TrajectoryEvaluation {
   std::optional<PeTeResult> pe_te;
 };
 
+// PE / TE of step 4 alone: `predicted` associated to `gt` with options.max_dt_s, moved by
+// `alignment` only when options.align_predicted. Throws std::runtime_error when no predicted
+// pose associates.
+PeTeResult EvaluatePredicted(const Trajectory& gt, const Trajectory& predicted, const TrajectoryEvalOptions& options,
+                             const Sim3Alignment& alignment);
+
 // Throws std::invalid_argument for bad options, std::runtime_error when nothing associates,
 // the alignment is degenerate or the RPE delta leaves no pair.
 TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,

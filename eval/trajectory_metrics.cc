@@ -1,6 +1,7 @@
 #include "eval/trajectory_metrics.h"
 
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 namespace waymark::eval {
@@ -82,9 +83,10 @@ RpeResult ComputeRpe(const Trajectory& gt, const Trajectory& est, const RpeOptio
   result.options = options;
   result.index_pairs = RpeIndexPairs(est, options);
   if (result.index_pairs.empty()) {
-    throw std::runtime_error("RPE: delta " + std::to_string(options.delta) + " " + RpeUnitName(options.unit) +
-                             " leaves no pose pair among " + std::to_string(est.size()) +
-                             " associated poses; try a smaller --rpe-delta");
+    std::ostringstream why_empty;
+    why_empty << "RPE: delta " << options.delta << " " << RpeUnitName(options.unit) << " leaves no pose pair among "
+              << est.size() << " associated poses; try a smaller --rpe-delta";
+    throw std::runtime_error(why_empty.str());
   }
   for (const auto& [i, j] : result.index_pairs) {
     const SE3d Q = gt[i].T.inverse() * gt[j].T;
