@@ -1,0 +1,21 @@
+// Writing a simulated dataset directory (DESIGN.md "Dataset directory") through
+// core/dataset_io.h, plus `sim_config.yaml`: the scenario, the seed and every effective key,
+// so that `waymark sim SCENARIO --config sim_config.yaml --seed N` reproduces it.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+
+#include "sim/params.h"
+#include "sim/simulator.h"
+
+namespace waymark::sim {
+
+// Everything is first written into a temporary sibling directory that is renamed to
+// `out_dir` at the end, so an error leaves no output directory behind. An existing
+// `out_dir` that is not an empty directory is an error (std::runtime_error naming it) unless
+// `force`, in which case it is replaced.
+void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint64_t seed,
+                     const std::filesystem::path& out_dir, bool force);
+
+}  // namespace waymark::sim
