@@ -1,6 +1,7 @@
 #include "online/localizer.h"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include <Eigen/Eigenvalues>
@@ -124,6 +125,20 @@ StepStatus Localizer::AddVelocity(double stamp_s, double v_mps, double omega_rad
 
 namespace waymark {
 
+namespace {
+
+// True when every predicted corner lies within the image grown by half its size on each side.
+bool NearImage(const CameraInfo& info, const Vector8d& px) {
+  const double margin_x = 0.5 * info.width, margin_y = 0.5 * info.height;
+  for (int j = 0; j < 4; ++j) {
+    const double u = px(2 * j), v = px(2 * j + 1);
+    if (!(u >= -margin_x && u <= info.width + margin_x && v >= -margin_y && v <= info.height + margin_y)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 SE3d Localizer::CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
                                size_t i) const {
   return marker.T_world_marker * sighting.T_camera_marker[i].inverse() * camera.info().T_robot_camera.inverse();
@@ -210,7 +225,15 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
   result.key = marker.key;
   result.gate = gate_tight_;
   const std::optional<CornerPrediction> prediction = PredictCorners(state_, camera, marker);
-  if (!prediction) return result;  // a corner behind the camera: kNotUsable
+  if (!prediction || !NearImage(camera.info(), prediction->px)) {
+    // The filter says this code cannot be in view (behind the camera, outside the valid field
+    // of view, or far outside the image) while it was seen: evidence against the state, gated
+    // like a large NIS. (Far outside, the linearization is meaningless anyway.)
+    result.outcome = CorrectionOutcome::kGated;
+    result.nis = std::numeric_limits<double>::infinity();
+    ++counters_.gated;
+    return result;
+  }
   const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
   const Vector8d innovation = StackCorners(sighting.observation.corners_px) - prediction->px;
   const Matrix8d R = CornerNoise(sigma_px, *prediction, marker.covariance);

@@ -78,9 +78,10 @@ struct CameraFrame {
 
 enum class CorrectionOutcome {
   kAccepted,         // used to correct the state
-  kGated,            // NIS above the gate: ignored (kept as a relocalization hypothesis)
+  kGated,            // NIS above the gate, or (tight) predicted out of view: ignored, kept as a
+                     // relocalization hypothesis
   kUnknownMarker,    // not in the map: counted and ignored
-  kNotUsable,        // behind the camera, no single-image pose for the loose mode, or S not PD
+  kNotUsable,        // no single-image pose (loose mode, initialization) or S not PD
   kInitialized,      // started (or restarted) the filter
   kHypothesis,       // lost or uninitialized: only collected as a relocalization hypothesis
 };

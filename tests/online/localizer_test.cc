@@ -1,0 +1,354 @@
+#include "online/localizer.h"
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include <gtest/gtest.h>
+
+#include "online/chi_square.h"
+#include "tests/online/synthetic_corridor.h"
+
+namespace waymark {
+namespace {
+
+using testing::CorridorConfig;
+using testing::CorridorSimulator;
+using testing::CorridorStep;
+
+// Per-run figures of one localizer on one simulated run.
+struct RunFigures {
+  std::vector<double> nees;        // per odometry step while tracking (-1 when not tracking)
+  std::vector<double> error_m;     // position error per step while tracking (-1 otherwise)
+  std::vector<TrackingStatus> tracking;
+  double rmse_m = 0.0;             // over the steps after the first second of tracking
+  double heading_rmse_rad = 0.0;
+  long wrong_pose_outputs = 0;     // poses output with an error above 0.5 m
+  LocalizerCounters counters;
+};
+
+LocalizerOptions CorridorOptions(const CorridorConfig& config, CorrectionMode mode) {
+  LocalizerOptions options;
+  options.mode = mode;
+  options.odometry = config.odometry;
+  return options;
+}
+
+RunFigures RunLocalizer(const std::vector<CorridorStep>& steps, const CorridorSimulator& sim,
+                        const LocalizerOptions& options) {
+  Localizer localizer(options, sim.map(), sim.cameras());
+  RunFigures figures;
+  double sum_sq = 0.0, sum_sq_heading = 0.0;
+  long count = 0;
+  std::optional<double> tracking_since_s;
+  for (const CorridorStep& step : steps) {
+    EXPECT_EQ(localizer.AddOdometry(step.stamp_s, step.T_odom_robot), StepStatus::kOk);
+    for (const CameraFrame& frame : step.frames) EXPECT_EQ(localizer.AddFrame(frame).status, StepStatus::kOk);
+    const PoseOutput output = localizer.Output();
+    figures.tracking.push_back(output.tracking);
+    EXPECT_EQ(output.T_world_robot.has_value(), output.tracking == TrackingStatus::kTracking);
+    if (!output.T_world_robot) {
+      figures.nees.push_back(-1.0);
+      figures.error_m.push_back(-1.0);
+      continue;
+    }
+    if (!tracking_since_s) tracking_since_s = step.stamp_s;
+    const double error_m = (output.T_world_robot->translation() - step.T_world_robot_true.translation()).norm();
+    figures.error_m.push_back(error_m);
+    figures.nees.push_back(testing::PlanarNees(step.T_world_robot_true, localizer));
+    figures.wrong_pose_outputs += error_m > 0.5;
+    if (step.stamp_s - *tracking_since_s >= 1.0) {
+      sum_sq += error_m * error_m;
+      const double heading_error = WrapAngle(output.T_world_robot->yaw() - step.T_world_robot_true.yaw());
+      sum_sq_heading += heading_error * heading_error;
+      ++count;
+    }
+  }
+  figures.rmse_m = std::sqrt(sum_sq / std::max(count, 1L));
+  figures.heading_rmse_rad = std::sqrt(sum_sq_heading / std::max(count, 1L));
+  figures.counters = localizer.counters();
+  return figures;
+}
+
+// Monte-Carlo consistency: at every step, the NEES averaged over N runs must lie inside the
+// two-sided 95 % band of chi2(3N)/N for (almost) all steps, and its mean over time too.
+TEST(LocalizerTest, MonteCarloNeesInsideChiSquareBounds) {
+  constexpr int kRuns = 25;
+  const CorridorConfig config;
+  std::vector<std::vector<double>> nees_by_run;
+  for (int run = 0; run < kRuns; ++run) {
+    CorridorSimulator sim(config, 1000 + run);
+    const RunFigures figures = RunLocalizer(sim.Run(), sim, CorridorOptions(config, CorrectionMode::kTightCorners));
+    nees_by_run.push_back(figures.nees);
+  }
+  const double lower = ChiSquareQuantile(0.025, 3 * kRuns) / kRuns;
+  const double upper = ChiSquareQuantile(0.975, 3 * kRuns) / kRuns;
+  size_t steps = nees_by_run[0].size();
+  int inside = 0, evaluated = 0;
+  double sum = 0.0;
+  for (size_t k = 0; k < steps; ++k) {
+    double step_sum = 0.0;
+    bool all_tracking = true;
+    for (const auto& nees : nees_by_run) {
+      all_tracking = all_tracking && nees[k] >= 0.0;
+      step_sum += nees[k];
+    }
+    if (!all_tracking) continue;
+    const double mean = step_sum / kRuns;
+    inside += mean >= lower && mean <= upper;
+    ++evaluated;
+    sum += mean;
+  }
+  const double mean_nees = sum / evaluated;
+  std::printf("MC NEES: %d runs, %d steps, mean NEES %.3f, band [%.3f, %.3f], %.1f %% of steps inside\n", kRuns,
+              evaluated, mean_nees, lower, upper, 100.0 * inside / evaluated);
+  ASSERT_GT(evaluated, 400);
+  EXPECT_GT(mean_nees, lower);
+  EXPECT_LT(mean_nees, upper);
+  EXPECT_GE(static_cast<double>(inside) / evaluated, 0.85);
+}
+
+TEST(LocalizerTest, TightCornersMoreAccurateThanLoosePose) {
+  constexpr int kRuns = 10;
+  const CorridorConfig config;
+  double tight_sum = 0.0, loose_sum = 0.0, tight_heading = 0.0, loose_heading = 0.0;
+  for (int run = 0; run < kRuns; ++run) {
+    CorridorSimulator sim(config, 2000 + run);
+    const std::vector<CorridorStep> steps = sim.Run();
+    const RunFigures tight = RunLocalizer(steps, sim, CorridorOptions(config, CorrectionMode::kTightCorners));
+    const RunFigures loose = RunLocalizer(steps, sim, CorridorOptions(config, CorrectionMode::kLoosePose));
+    tight_sum += tight.rmse_m;
+    loose_sum += loose.rmse_m;
+    tight_heading += tight.heading_rmse_rad;
+    loose_heading += loose.heading_rmse_rad;
+  }
+  std::printf("position RMSE: tight %.4f m, loose %.4f m; heading RMSE: tight %.4f rad, loose %.4f rad (%d runs)\n",
+              tight_sum / kRuns, loose_sum / kRuns, tight_heading / kRuns, loose_heading / kRuns, kRuns);
+  EXPECT_LT(tight_sum, 0.7 * loose_sum);
+}
+
+
+// Seed 003's situation: the robot is carried away mid-run (4 m down the corridor, unseen by
+// odometry). The filter must report lost, never a pose while lost, and restart at the next code.
+TEST(LocalizerTest, KidnappedRobotIsReportedLostThenRelocalized) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3000);
+  const int teleport_step = 160;  // x = 4 m
+  const std::vector<CorridorStep> steps = sim.Run(teleport_step, SE2d(4.0, 0.0, 0.0));
+  const RunFigures figures = RunLocalizer(steps, sim, CorridorOptions(config, CorrectionMode::kTightCorners));
+  int first_lost = -1, relocalized = -1;
+  for (int k = teleport_step; k < static_cast<int>(steps.size()); ++k) {
+    if (first_lost < 0 && figures.tracking[k] == TrackingStatus::kLost) first_lost = k;
+    if (first_lost >= 0 && figures.tracking[k] == TrackingStatus::kTracking) {
+      relocalized = k;
+      break;
+    }
+  }
+  ASSERT_GE(first_lost, teleport_step);
+  ASSERT_GT(relocalized, first_lost);
+  std::printf("kidnapped at step %d, lost at step %d, relocalized at step %d (%.2f s after the kidnapping)\n",
+              teleport_step, first_lost, relocalized, (relocalized - teleport_step) * config.odometry_period_s);
+  EXPECT_LT((relocalized - teleport_step) * config.odometry_period_s, 2.0);
+  EXPECT_EQ(figures.counters.initializations, 2);
+  EXPECT_EQ(figures.counters.times_lost, 1);
+  EXPECT_LT(figures.error_m[relocalized], 0.05);
+  EXPECT_LT(figures.error_m.back(), 0.05);
+  for (int k = 0; k < teleport_step; ++k) EXPECT_LT(figures.error_m[k], 0.5);
+  for (int k = first_lost; k < relocalized; ++k) EXPECT_EQ(figures.error_m[k], -1.0);  // no pose while lost
+}
+
+// Without codes for 7 m the uncertainty outgrows max_position_sigma_m: lost, then relocalized.
+TEST(LocalizerTest, GrowingUncertaintyIsReportedLost) {
+  CorridorConfig config;
+  config.code_spacing_m = 8.0;
+  CorridorSimulator sim(config, 3100);
+  LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
+  options.max_position_sigma_m = 0.05;
+  const RunFigures figures = RunLocalizer(sim.Run(), sim, options);
+  EXPECT_EQ(figures.counters.times_lost, 1);
+  EXPECT_EQ(figures.counters.initializations, 2);
+  EXPECT_EQ(figures.tracking.back(), TrackingStatus::kTracking);
+  EXPECT_LT(figures.error_m.back(), 0.05);
+}
+
+// Runs a localizer until it tracks and returns it with the index of the next step.
+std::pair<std::unique_ptr<Localizer>, size_t> TrackingLocalizer(const std::vector<CorridorStep>& steps,
+                                                                const CorridorSimulator& sim) {
+  auto localizer =
+      std::make_unique<Localizer>(CorridorOptions(sim.config(), CorrectionMode::kTightCorners), sim.map(),
+                                  sim.cameras());
+  size_t k = 0;
+  for (; k < steps.size() && localizer->counters().accepted < 5; ++k) {
+    localizer->AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot);
+    for (const CameraFrame& frame : steps[k].frames) localizer->AddFrame(frame);
+  }
+  return {std::move(localizer), k};
+}
+
+// The next frame with at least one sighting, from step k on.
+std::pair<size_t, CameraFrame> NextFrameWithCode(const std::vector<CorridorStep>& steps, size_t k) {
+  for (; k < steps.size(); ++k) {
+    for (const CameraFrame& frame : steps[k].frames) {
+      if (!frame.sightings.empty()) return {k, frame};
+    }
+  }
+  ADD_FAILURE() << "no frame with a code";
+  return {k, CameraFrame()};
+}
+
+TEST(LocalizerTest, GrossOutlierIsGatedOut) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3200);
+  const std::vector<CorridorStep> steps = sim.Run();
+  auto [localizer, k] = TrackingLocalizer(steps, sim);
+  ASSERT_EQ(localizer->tracking(), TrackingStatus::kTracking);
+  auto [k_frame, frame] = NextFrameWithCode(steps, k);
+  for (; k <= k_frame; ++k) localizer->AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot);
+  for (Eigen::Vector2d& corner : frame.sightings[0].observation.corners_px) corner += Eigen::Vector2d(40.0, -25.0);
+  frame.sightings.resize(1);
+  const Eigen::VectorXd mean_before = localizer->state().mean();
+  const Eigen::MatrixXd P_before = localizer->state().covariance();
+  const FrameResult result = localizer->AddFrame(frame);
+  ASSERT_EQ(result.corrections.size(), 1u);
+  EXPECT_EQ(result.corrections[0].outcome, CorrectionOutcome::kGated);
+  EXPECT_GT(result.corrections[0].nis, result.corrections[0].gate);
+  EXPECT_NEAR(result.corrections[0].gate, ChiSquareQuantile(0.997, 8), 1e-9);
+  EXPECT_EQ(localizer->state().mean(), mean_before);
+  EXPECT_EQ(localizer->state().covariance(), P_before);
+  EXPECT_EQ(localizer->tracking(), TrackingStatus::kTracking);  // one rejection is not a kidnapping
+}
+
+TEST(LocalizerTest, CodeNotInTheMapIsCountedAndIgnored) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3300);
+  const std::vector<CorridorStep> steps = sim.Run();
+  auto [localizer, k] = TrackingLocalizer(steps, sim);
+  auto [k_frame, frame] = NextFrameWithCode(steps, k);
+  for (; k <= k_frame; ++k) localizer->AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot);
+  frame.sightings.resize(1);
+  frame.sightings[0].observation.key = {kFamilyDataMatrix, "not-in-the-map"};
+  const Eigen::VectorXd mean_before = localizer->state().mean();
+  const Eigen::MatrixXd P_before = localizer->state().covariance();
+  const FrameResult result = localizer->AddFrame(frame);
+  EXPECT_EQ(result.status, StepStatus::kOk);
+  ASSERT_EQ(result.corrections.size(), 1u);
+  EXPECT_EQ(result.corrections[0].outcome, CorrectionOutcome::kUnknownMarker);
+  EXPECT_EQ(localizer->counters().unknown_markers, 1);
+  EXPECT_EQ(localizer->state().mean(), mean_before);
+  EXPECT_EQ(localizer->state().covariance(), P_before);
+}
+
+TEST(LocalizerTest, TimeGoingBackwardsIsRejectedWithAStatus) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3400);
+  const std::vector<CorridorStep> steps = sim.Run();
+  auto [localizer, k] = TrackingLocalizer(steps, sim);
+  const Eigen::VectorXd mean_before = localizer->state().mean();
+  const double last_s = steps[k - 1].stamp_s;
+  EXPECT_EQ(localizer->AddOdometry(last_s - 0.5, steps[k].T_odom_robot), StepStatus::kTimeWentBackwards);
+  CameraFrame frame = NextFrameWithCode(steps, k).second;
+  frame.stamp_s = last_s - 0.01;
+  const FrameResult result = localizer->AddFrame(frame);
+  EXPECT_EQ(result.status, StepStatus::kTimeWentBackwards);
+  EXPECT_TRUE(result.corrections.empty());
+  EXPECT_EQ(localizer->AddVelocity(last_s - 1.0, 0.5, 0.0), StepStatus::kTimeWentBackwards);
+  EXPECT_EQ(localizer->AddOdometry(std::nan(""), steps[k].T_odom_robot), StepStatus::kInvalidInput);
+  frame.camera = "no-such-camera";
+  frame.stamp_s = last_s + 1.0;
+  EXPECT_EQ(localizer->AddFrame(frame).status, StepStatus::kUnknownCamera);
+  EXPECT_EQ(localizer->counters().rejected_inputs, 5);
+  EXPECT_EQ(localizer->state().mean(), mean_before);
+  EXPECT_STREQ(StepStatusName(StepStatus::kTimeWentBackwards), "time went backwards");
+}
+
+// Seed 000's input: velocities (v, omega) instead of odometry poses.
+TEST(LocalizerTest, TracksFromVelocities) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3500);
+  const std::vector<CorridorStep> steps = sim.Run();
+  Localizer localizer(CorridorOptions(config, CorrectionMode::kTightCorners), sim.map(), sim.cameras());
+  double worst_m = 0.0;
+  for (size_t k = 0; k < steps.size(); ++k) {
+    if (k == 0) {
+      ASSERT_EQ(localizer.AddVelocity(steps[k].stamp_s, 0.0, 0.0), StepStatus::kOk);
+    } else {
+      const SE2d increment = SE2d::FromSE3(steps[k - 1].T_odom_robot.inverse() * steps[k].T_odom_robot);
+      const double dt_s = steps[k].stamp_s - steps[k - 1].stamp_s;
+      ASSERT_EQ(localizer.AddVelocity(steps[k].stamp_s, increment.translation().norm() / dt_s,
+                                      increment.theta() / dt_s),
+                StepStatus::kOk);
+    }
+    for (const CameraFrame& frame : steps[k].frames) localizer.AddFrame(frame);
+    const PoseOutput output = localizer.Output();
+    if (output.T_world_robot && k > 40) {
+      worst_m = std::max(worst_m, (output.T_world_robot->translation() - steps[k].T_world_robot_true.translation()).norm());
+    }
+  }
+  EXPECT_EQ(localizer.tracking(), TrackingStatus::kTracking);
+  EXPECT_LT(worst_m, 0.05);
+}
+
+// The 6-DoF model on the same corridor (a drone flying level at constant height).
+TEST(LocalizerTest, FreeMotionTracks) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3600);
+  const std::vector<CorridorStep> steps = sim.Run();
+  LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
+  options.motion = MotionModel::kFree;
+  options.loose_noise = Eigen::Vector4d::Constant(0.001);
+  const RunFigures figures = RunLocalizer(steps, sim, options);
+  EXPECT_EQ(figures.tracking.back(), TrackingStatus::kTracking);
+  EXPECT_EQ(figures.counters.initializations, 1);
+  EXPECT_LT(figures.rmse_m, 0.02);
+}
+
+// Seed 000's PE/TE: the prediction right before each correcting frame is kept, and it is
+// worse on average than the filtered pose.
+TEST(LocalizerTest, KeepsThePredictionBeforeEachCorrection) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3700);
+  const std::vector<CorridorStep> steps = sim.Run();
+  Localizer localizer(CorridorOptions(config, CorrectionMode::kTightCorners), sim.map(), sim.cameras());
+  double predicted_sum_m = 0.0, filtered_sum_m = 0.0;
+  for (const CorridorStep& step : steps) {
+    localizer.AddOdometry(step.stamp_s, step.T_odom_robot);
+    for (const CameraFrame& frame : step.frames) {
+      const size_t before = localizer.predicted_before_correction().size();
+      localizer.AddFrame(frame);
+      if (localizer.predicted_before_correction().size() == before) continue;
+      const StampedSE3& predicted = localizer.predicted_before_correction().back();
+      EXPECT_EQ(predicted.stamp_s, frame.stamp_s);
+      predicted_sum_m += (predicted.T.translation() - step.T_world_robot_true.translation()).norm();
+      filtered_sum_m += (localizer.state().T_world_robot().translation() - step.T_world_robot_true.translation()).norm();
+    }
+  }
+  EXPECT_GT(localizer.predicted_before_correction().size(), 20u);
+  EXPECT_LT(filtered_sum_m, predicted_sum_m);
+}
+
+TEST(LocalizerTest, InvalidOptionsAreRejected) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 1);
+  LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
+  std::string why;
+  options.gate_probability = 1.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("gate_probability"), std::string::npos);
+  EXPECT_THROW(Localizer(options, sim.map(), sim.cameras()), std::invalid_argument);
+  options = CorridorOptions(config, CorrectionMode::kTightCorners);
+  options.motion = MotionModel::kFree;  // loose_noise still has 3 entries
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("loose_noise"), std::string::npos);
+  options = CorridorOptions(config, CorrectionMode::kTightCorners);
+  std::vector<CameraInfo> twice = {sim.cameras()[0], sim.cameras()[0]};
+  EXPECT_THROW(Localizer(options, sim.map(), twice), std::invalid_argument);
+  Localizer planar(options, sim.map(), sim.cameras());
+  options.motion = MotionModel::kFree;
+  options.loose_noise = Eigen::Vector4d::Constant(0.001);
+  Localizer free(options, sim.map(), sim.cameras());
+  EXPECT_EQ(free.AddVelocity(0.0, 1.0, 0.0), StepStatus::kInvalidInput);  // unicycle is planar only
+  EXPECT_EQ(planar.AddVelocity(0.0, std::nan(""), 0.0), StepStatus::kInvalidInput);
+}
+
+}  // namespace
+}  // namespace waymark
