@@ -101,6 +101,7 @@ void CheckModes(const Args& args) {
   for (const char* name : {"scale", "align-predicted"}) {
     if (args.Flag(name) && !trajectory) throw std::invalid_argument(std::string("option --") + name + " needs --est and --gt");
   }
+  if (args.Has("markers") && !args.Has("plot")) throw std::invalid_argument("option --markers needs --plot");
   if (args.Flag("align-predicted") && !args.Has("predicted")) {
     throw std::invalid_argument("option --align-predicted needs --predicted");
   }
@@ -136,6 +137,25 @@ std::vector<eval::PlotMarker> MarkersToPlot(const Args& args, const eval::Trajec
   return {};
 }
 
+// Everything is computed before anything is written: an error leaves no partial output.
+void WriteOutputs(const Args& args, const eval::EvalReportInput& input, const std::optional<MarkerMap>& est_map,
+                  const std::optional<MarkerMap>& gt_map) {
+  std::optional<std::string> svg;
+  if (args.Has("plot")) {
+    eval::PlotInput plot;
+    plot.trajectory = input.trajectory;
+    plot.markers = MarkersToPlot(args, input.trajectory, input.map, est_map, gt_map);
+    plot.title = input.trajectory ? "waymark eval: " + input.est_path + " vs " + input.gt_path
+                                  : "waymark eval: " + input.map_path + " vs " + input.gt_map_path;
+    svg = eval::RenderSvg(plot);
+  }
+  const std::string json = eval::EvalReportToJson(input).dump(2) + "\n";
+  const std::string markdown = eval::EvalReportToMarkdown(input);
+  if (const auto path = args.Get("json")) AtomicWriteFile(*path, json);
+  if (const auto path = args.Get("report")) AtomicWriteFile(*path, markdown);
+  if (svg) AtomicWriteFile(*args.Get("plot"), *svg);
+}
+
 int RunEval(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"est", "gt", "align", "max-dt", "rpe-delta", "rpe-unit", "predicted", "json", "report", "plot",
@@ -165,19 +185,7 @@ int RunEval(const std::vector<std::string>& argv) {
   input.trajectory = trajectory ? &*trajectory : nullptr;
   input.map = map_result ? &*map_result : nullptr;
 
-  // Everything is computed before anything is written: an error leaves no partial output.
-  std::optional<std::string> svg;
-  if (args.Has("plot")) {
-    eval::PlotInput plot;
-    plot.trajectory = input.trajectory;
-    plot.markers = MarkersToPlot(args, input.trajectory, input.map, est_map, gt_map);
-    plot.title = trajectory ? "waymark eval: " + input.est_path + " vs " + input.gt_path
-                            : "waymark eval: " + input.map_path + " vs " + input.gt_map_path;
-    svg = eval::RenderSvg(plot);
-  }
-  if (const auto path = args.Get("json")) AtomicWriteFile(*path, eval::EvalReportToJson(input).dump(2) + "\n");
-  if (const auto path = args.Get("report")) AtomicWriteFile(*path, eval::EvalReportToMarkdown(input));
-  if (svg) AtomicWriteFile(*args.Get("plot"), *svg);
+  WriteOutputs(args, input, est_map, gt_map);
   std::cout << eval::EvalSummaryTable(input);
   return 0;
 }

@@ -198,6 +198,8 @@ TEST_F(EvalCliTest, BadArgumentsAndFiles) {
   EXPECT_EQ(Run(both + " --rpe-delta 1.5").exit_code, 1);
   EXPECT_EQ(Run(both + " --rpe-unit m").exit_code, 1);
   EXPECT_EQ(Run(both + " --max-dt -1").exit_code, 1);
+  EXPECT_EQ(Run(both + " --markers " + Path("gt.tum")).exit_code, 1);  // --markers only draws: needs --plot
+  EXPECT_EQ(Run(both + " --align-predicted").exit_code, 1);
   EXPECT_EQ(Run("--map " + Path("est.tum")).exit_code, 1);  // --gt-map missing
   AtomicWriteFile(Path("broken.json"), "{\"format\": \"waymark-map\", \"version\": 1, \"markers\": [\n{\"family\": 3}]}\n");
   r = Run("--map " + Path("broken.json") + " --gt-map " + Path("broken.json"));
