@@ -106,7 +106,7 @@ class Camera {
                                          Eigen::Matrix<double, 2, 3>* J_px_p = nullptr) const;
 
   // Ray through a pixel: normalized coordinates (x/z, y/z, 1) of the undistorted point,
-  // found by Gauss-Newton on the distortion model. nullopt if it does not converge
+  // found by Newton iterations on the distortion model. nullopt if it does not converge
   // (pixel far outside the calibrated field of view).
   std::optional<Eigen::Vector3d> Unproject(const Eigen::Vector2d& px) const;
 

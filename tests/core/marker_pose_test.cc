@@ -97,7 +97,7 @@ TEST(MarkerPoseTest, ExactRecoveryFisheye) {
 // estimates from noisy corners, in the right-perturbation tangent space of the truth.
 void ExpectCovarianceMatchesMonteCarlo(const Camera& camera, const SE3d& T_true, double size_m, unsigned seed) {
   constexpr double kSigmaPx = 0.5;
-  constexpr int kDraws = 500;
+  constexpr int kDraws = 1000;
   MarkerPoseOptions options;
   options.sigma_px = kSigmaPx;
   const Corners corners_px = ProjectCorners(camera, T_true, size_m);
