@@ -126,6 +126,35 @@ ParamSet CorridorParams() {
   return p;
 }
 
+// Wall faces along the loop, counter-clockwise: the inner block's (normals out of the block),
+// then the outer walls' (normals inwards). The centre line is [0, L] x [0, W].
+std::vector<WallFace> CorridorFaces(double L, double W, double half_w) {
+  const double li = L - 2 * half_w, wi = W - 2 * half_w, lo = L + 2 * half_w, wo = W + 2 * half_w;
+  return {{{half_w, half_w}, {1, 0}, {0, -1}, li},         {{L - half_w, half_w}, {0, 1}, {1, 0}, wi},
+          {{L - half_w, W - half_w}, {-1, 0}, {0, 1}, li}, {{half_w, W - half_w}, {0, -1}, {-1, 0}, wi},
+          {{-half_w, -half_w}, {1, 0}, {0, 1}, lo},        {{L + half_w, -half_w}, {0, 1}, {-1, 0}, wo},
+          {{L + half_w, W + half_w}, {-1, 0}, {0, -1}, lo}, {{-half_w, W + half_w}, {0, -1}, {1, 0}, wo}};
+}
+
+void AddCorridorCodes(const ParamSet& p, const std::vector<WallFace>& faces, World* world) {
+  const double size_m = p.Double("place.marker_size_m"), cam_h = p.Double("place.camera_height_m");
+  const long anchors = p.Int("place.anchors");
+  for (size_t f = 0; f < faces.size(); ++f) {
+    for (double s : PositionsAlong(faces[f].length_m, p.Double("place.spacing_m"), size_m)) {
+      const Eigen::Vector2d c = faces[f].from + s * faces[f].direction;
+      SimMarker m;
+      char id[32];
+      std::snprintf(id, sizeof(id), "C%03zu", world->markers.size());
+      m.key = {kFamilyQr, id};
+      m.size_m = size_m;
+      m.T_world_marker = WallMarkerPose({c.x(), c.y(), cam_h}, {faces[f].normal.x(), faces[f].normal.y(), 0.0});
+      m.anchor = static_cast<long>(world->markers.size()) < anchors;
+      m.region = static_cast<int>(f);
+      world->markers.push_back(m);
+    }
+  }
+}
+
 Scene BuildCorridor(const ParamSet& p) {
   Scene scene;
   World& world = scene.world;
@@ -133,35 +162,11 @@ Scene BuildCorridor(const ParamSet& p) {
   const double length_m = p.Double("place.loop_length_m"), width_m = p.Double("place.loop_width_m");
   const double half_w = 0.5 * p.Double("place.corridor_width_m");
   const double wall_h = p.Double("place.wall_height_m"), cam_h = p.Double("place.camera_height_m");
-  const double size_m = p.Double("place.marker_size_m");
   if (2.0 * half_w >= std::min(length_m, width_m)) throw std::invalid_argument("corridor wider than the loop");
-  world.default_marker_size_m = size_m;
+  world.default_marker_size_m = p.Double("place.marker_size_m");
   AddRectangleWalls(half_w, half_w, length_m - half_w, width_m - half_w, wall_h, &world.occluders);  // inner block
   AddRectangleWalls(-half_w, -half_w, length_m + half_w, width_m + half_w, wall_h, &world.occluders);  // outer
-  // Faces along the loop, counter-clockwise: inner faces (normals out of the block), then outer.
-  const double li = length_m - 2 * half_w, wi = width_m - 2 * half_w;
-  const double lo = length_m + 2 * half_w, wo = width_m + 2 * half_w;
-  const std::vector<WallFace> faces = {
-      {{half_w, half_w}, {1, 0}, {0, -1}, li},          {{length_m - half_w, half_w}, {0, 1}, {1, 0}, wi},
-      {{length_m - half_w, width_m - half_w}, {-1, 0}, {0, 1}, li}, {{half_w, width_m - half_w}, {0, -1}, {-1, 0}, wi},
-      {{-half_w, -half_w}, {1, 0}, {0, 1}, lo},         {{length_m + half_w, -half_w}, {0, 1}, {-1, 0}, wo},
-      {{length_m + half_w, width_m + half_w}, {-1, 0}, {0, -1}, lo}, {{-half_w, width_m + half_w}, {0, -1}, {1, 0}, wo},
-  };
-  const long anchors = p.Int("place.anchors");
-  for (size_t f = 0; f < faces.size(); ++f) {
-    for (double s : PositionsAlong(faces[f].length_m, p.Double("place.spacing_m"), size_m)) {
-      const Eigen::Vector2d c = faces[f].from + s * faces[f].direction;
-      SimMarker m;
-      char id[16];
-      std::snprintf(id, sizeof(id), "C%03zu", world.markers.size());
-      m.key = {kFamilyQr, id};
-      m.size_m = size_m;
-      m.T_world_marker = WallMarkerPose({c.x(), c.y(), cam_h}, {faces[f].normal.x(), faces[f].normal.y(), 0.0});
-      m.anchor = static_cast<long>(world.markers.size()) < anchors;
-      m.region = static_cast<int>(f);
-      world.markers.push_back(m);
-    }
-  }
+  AddCorridorCodes(p, CorridorFaces(length_m, width_m, half_w), &world);
   const std::vector<double> mild = {-0.05, 0.01, 0.0005, -0.0003, 0.0};
   world.cameras.push_back(MakeCamera("left", 640, 480, 450.0, mild, Mount({0, 0.12, cam_h}, {0, 1, 0}, {0, 0, -1})));
   world.cameras.push_back(MakeCamera("right", 640, 480, 450.0, mild, Mount({0, -0.12, cam_h}, {0, -1, 0}, {0, 0, -1})));
@@ -362,50 +367,50 @@ void AddLoadCodes(const ParamSet& p, int rack, double y_face, double normal_y, W
   }
 }
 
-Scene BuildWarehouseDrone(const ParamSet& p) {
-  Scene scene;
-  scene.odometry = OdometryKind::kVisual;
-  World& world = scene.world;
-  world.name = "sim-warehouse-drone";
-  world.motion = MotionModel::kFree;
-  world.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"kind", "x", "y"}};
+// Racks (solid boxes) with load codes on the faces that look into an aisle.
+void AddRacks(const ParamSet& p, World* world) {
   const int racks = static_cast<int>(p.Int("place.racks"));
-  const double length_m = p.Double("place.rack_length_m"), depth_m = p.Double("place.rack_depth_m");
-  const double aisle_m = p.Double("place.aisle_width_m"), height_m = p.Double("place.rack_height_m");
-  const double pitch_m = depth_m + aisle_m;
+  const double depth_m = p.Double("place.rack_depth_m"), pitch_m = depth_m + p.Double("place.aisle_width_m");
   for (int r = 0; r < racks; ++r) {
     const double y0 = r * pitch_m;
-    AddRectangleWalls(0, y0, length_m, y0 + depth_m, height_m, &world.occluders);
-    if (r > 0) AddLoadCodes(p, r, y0, -1.0, &world);
-    if (r + 1 < racks) AddLoadCodes(p, r, y0 + depth_m, 1.0, &world);
+    AddRectangleWalls(0, y0, p.Double("place.rack_length_m"), y0 + depth_m, p.Double("place.rack_height_m"),
+                      &world->occluders);
+    if (r > 0) AddLoadCodes(p, r, y0, -1.0, world);
+    if (r + 1 < racks) AddLoadCodes(p, r, y0 + depth_m, 1.0, world);
   }
-  const double floor_size_m = p.Double("place.marker_size_m");
-  for (int a = 0; a + 1 < racks; ++a) {
-    const double y_centre = a * pitch_m + depth_m + 0.5 * aisle_m;
-    for (double dy : {-p.Double("place.floor_row_offset_m"), p.Double("place.floor_row_offset_m")}) {
-      for (double x : PositionsAlong(length_m, p.Double("place.floor_spacing_m"), floor_size_m)) {
+}
+
+// Floor codes "0/x/y": two rows per aisle (one when the offset is zero), facing up.
+void AddFloorCodes(const ParamSet& p, World* world) {
+  const double depth_m = p.Double("place.rack_depth_m"), aisle_m = p.Double("place.aisle_width_m");
+  const double size_m = p.Double("place.marker_size_m"), offset_m = p.Double("place.floor_row_offset_m");
+  for (int a = 0; a + 1 < p.Int("place.racks"); ++a) {
+    const double y_centre = a * (depth_m + aisle_m) + depth_m + 0.5 * aisle_m;
+    for (double dy : {-offset_m, offset_m}) {
+      for (double x : PositionsAlong(p.Double("place.rack_length_m"), p.Double("place.floor_spacing_m"), size_m)) {
         const double xr = RoundMm(x), yr = RoundMm(y_centre + dy);
         SimMarker m;
         m.key = {kFamilyQr, "0/" + FormatNumber(xr) + "/" + FormatNumber(yr)};
-        m.size_m = floor_size_m;
-        m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(xr, yr, 0.0));  // face up, x along world x
+        m.size_m = size_m;
+        m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(xr, yr, 0.0));
         m.region = -1 - a;
-        world.markers.push_back(m);
-        if (dy == 0.0) break;  // a single row when the offset is zero
+        world->markers.push_back(m);
       }
+      if (offset_m == 0.0) break;
     }
   }
-  world.default_marker_size_m = p.Double("place.marker_size_m");
-  world.cameras.push_back(MakeCamera("down", 640, 480, 380.0, {-0.04, 0.008, 0.0, 0.0, 0.0},
-                                     Mount({0, 0, -0.05}, {0, 0, -1}, {-1, 0, 0})));
-  world.cameras.push_back(MakeCamera("front", 640, 480, 500.0, {-0.04, 0.008, 0.0, 0.0, 0.0},
-                                     Mount({0.1, 0, 0}, {1, 0, 0}, {0, 0, -1})));
+}
+
+// Each aisle: low pass facing +y, climb, high pass facing -y; between aisles around the rack ends.
+SimTrajectory FlyAisles(const ParamSet& p) {
+  const double depth_m = p.Double("place.rack_depth_m"), aisle_m = p.Double("place.aisle_width_m");
+  const double length_m = p.Double("place.rack_length_m");
   const double low = p.Double("place.altitude_low_m"), high = p.Double("place.altitude_high_m");
   const double y_first = depth_m + 0.5 * aisle_m;
   FlightPathBuilder flight({-0.5, y_first, low}, 0.5 * M_PI, p.Double("rate.odometry_hz"), p.Double("drone.speed_mps"),
                            p.Double("drone.yaw_rate_dps") * kDegToRad, p.Double("drone.wobble_deg") * kDegToRad);
-  for (int a = 0; a + 1 < racks; ++a) {
-    const double y = a * pitch_m + y_first;
+  for (int a = 0; a + 1 < p.Int("place.racks"); ++a) {
+    const double y = a * (depth_m + aisle_m) + y_first;
     flight.FlyTo({-0.5, y, low});
     flight.YawTo(0.5 * M_PI);
     flight.FlyTo({length_m + 0.5, y, low});
@@ -413,7 +418,23 @@ Scene BuildWarehouseDrone(const ParamSet& p) {
     flight.YawTo(-0.5 * M_PI);
     flight.FlyTo({-0.5, y, high});
   }
-  scene.truth = flight.Build();
+  return flight.Build();
+}
+
+Scene BuildWarehouseDrone(const ParamSet& p) {
+  Scene scene;
+  scene.odometry = OdometryKind::kVisual;
+  World& world = scene.world;
+  world.name = "sim-warehouse-drone";
+  world.motion = MotionModel::kFree;
+  world.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"kind", "x", "y"}};
+  world.default_marker_size_m = p.Double("place.marker_size_m");
+  AddRacks(p, &world);
+  AddFloorCodes(p, &world);
+  const std::vector<double> mild = {-0.04, 0.008, 0.0, 0.0, 0.0};
+  world.cameras.push_back(MakeCamera("down", 640, 480, 380.0, mild, Mount({0, 0, -0.05}, {0, 0, -1}, {-1, 0, 0})));
+  world.cameras.push_back(MakeCamera("front", 640, 480, 500.0, mild, Mount({0.1, 0, 0}, {1, 0, 0}, {0, 0, -1})));
+  scene.truth = FlyAisles(p);
   return scene;
 }
 

@@ -387,6 +387,42 @@ TEST(SimulatorTest, WheelOdometryNoiseMatchesOdometrySigma) {
   }
 }
 
+TEST(SimulatorTest, VisualOdometryNoiseMatchesOdometrySigma) {
+  const SimResult r = RunSim("warehouse-drone", {"odometry.scale_error=0", "odometry.yaw_drift_deg_per_m=0",
+                                                 "odometry.trans_per_m=0.04", "odometry.rot_per_rad=0.05"},
+                             10);
+  const Trajectory& truth = *r.dataset.groundtruth_trajectory;
+  const Trajectory& odometry = r.dataset.odometry;
+  std::vector<double> z_trans, z_rot;
+  for (size_t k = 1; k < truth.size(); ++k) {
+    const SE3d true_step = truth[k - 1].T.inverse() * truth[k].T;
+    const SE3d odom_step = odometry[k - 1].T.inverse() * odometry[k].T;
+    const double distance = true_step.translation().norm();
+    const double angle = LogSO3(true_step.rotation()).norm();
+    if (distance > 1e-6) {
+      const Eigen::Vector3d e = (odom_step.translation() - true_step.translation()) / (0.04 * distance);
+      z_trans.insert(z_trans.end(), {e.x(), e.y(), e.z()});
+    }
+    if (angle > 1e-6) {
+      const Eigen::Vector3d e = LogSO3(true_step.rotation().conjugate() * odom_step.rotation()) / (0.05 * angle);
+      z_rot.insert(z_rot.end(), {e.x(), e.y(), e.z()});
+    }
+  }
+  for (const auto* z : {&z_trans, &z_rot}) {
+    ASSERT_GT(z->size(), 1000u);
+    double sum_sq = 0.0;
+    for (double x : *z) sum_sq += x * x;
+    EXPECT_NEAR(std::sqrt(sum_sq / z->size()), 1.0, 5.0 / std::sqrt(2.0 * z->size()));
+  }
+}
+
+TEST(SimulatorTest, DroneFloorRowOffsetZeroGivesOneRowPerAisle) {
+  const SimResult r = RunSim("warehouse-drone", {"place.floor_row_offset_m=0"}, 1);
+  int floor = 0;
+  for (const MapMarker& m : r.dataset.groundtruth_markers->markers) floor += m.key.id.rfind("0/", 0) == 0;
+  EXPECT_EQ(floor, 16);  // 2 aisles x 8
+}
+
 TEST(SimulatorTest, InconsistentParametersAreRejected) {
   EXPECT_THROW(RunSim("corridor", {"rate.camera_hz=7"}, 1), std::invalid_argument);
   EXPECT_THROW(RunSim("corridor", {"detect.min_range_m=2", "detect.max_range_m=1"}, 1), std::invalid_argument);
