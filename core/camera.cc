@@ -183,8 +183,10 @@ std::optional<Eigen::Vector2d> Camera::UndistortRadtan(const Eigen::Vector2d& xy
     for (hi = 1.0; radial_map(hi, &slope) < r_d && hi < 1e6; hi *= 2.0) {
     }
   }
-  if (radial_map(hi, &slope) < r_d) return std::nullopt;
-  const std::optional<double> r = SolveIncreasing(radial_map, r_d, 0.0, hi);
+  // Past the radial peak no radius fits without tangential terms; start at the peak and let
+  // the full model below decide (tangential terms move the fold slightly).
+  std::optional<double> r = hi;
+  if (radial_map(hi, &slope) > r_d) r = SolveIncreasing(radial_map, r_d, 0.0, hi);
   if (!r) return std::nullopt;
   Eigen::Vector2d xy = r_d > 0.0 ? Eigen::Vector2d(xy_d * (*r / r_d)) : Eigen::Vector2d::Zero();
   // Newton on the full model, tangential terms included.

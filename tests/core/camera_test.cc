@@ -260,6 +260,33 @@ TEST(CameraTest, RadtanFoldIsOutsideTheValidFieldOfView) {
   EXPECT_FALSE(camera.Unproject(Eigen::Vector2d(1e5, 1e5)).has_value());
 }
 
+// Beyond the image, up to the fold: every ray inside the valid field of view comes back
+// from its pixel, and pixels past the fold's radius have no ray.
+TEST(CameraTest, RadtanUnprojectsUpToTheFold) {
+  const Camera camera(RadtanInfo());
+  const double r_max = camera.max_normalized_radius();
+  const auto& k = camera.info().intrinsics;
+  double worst = 0.0;
+  for (double angle = 0.0; angle < 2.0 * M_PI; angle += 0.05) {
+    const Eigen::Vector2d direction(std::cos(angle), std::sin(angle));
+    for (double f = 0.0; f <= 0.999; f += 0.003) {
+      const Eigen::Vector3d ray_true(f * r_max * direction.x(), f * r_max * direction.y(), 1.0);
+      const std::optional<Eigen::Vector2d> px = camera.Project(ray_true);
+      ASSERT_TRUE(px.has_value());
+      const std::optional<Eigen::Vector3d> ray = camera.Unproject(*px);
+      ASSERT_TRUE(ray.has_value()) << "fraction of r_max " << f << " angle " << angle;
+      worst = std::max(worst, (*ray - ray_true).norm());
+    }
+    // The distorted radius at the fold, then 2 % further out.
+    const Eigen::Vector2d px_fold = *camera.Project(Eigen::Vector3d(r_max * direction.x(), r_max * direction.y(), 1.0));
+    const Eigen::Vector2d xy_d_fold((px_fold.x() - k[2]) / k[0], (px_fold.y() - k[3]) / k[1]);
+    const Eigen::Vector2d xy_d_out = 1.02 * xy_d_fold;
+    EXPECT_FALSE(camera.Unproject(Eigen::Vector2d(k[0] * xy_d_out.x() + k[2], k[1] * xy_d_out.y() + k[3])))
+        << "angle " << angle;
+  }
+  EXPECT_LE(worst, 1e-10);
+}
+
 TEST(CameraTest, UndistortedCameraHasUnboundedFieldOfView) {
   CameraInfo info = RadtanInfo();
   info.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
