@@ -189,8 +189,8 @@ std::vector<DetectionFrame> ParseDetections(const std::string& text, const std::
     DetectionFrame frame = ParseFrame(source, root, cameras, warnings);
     const auto [it, inserted] = last_stamp_s.emplace(frame.camera, frame.stamp_s);
     if (!inserted) {
-      if (!(frame.stamp_s > it->second)) {
-        ThrowJsonError(source, "t", "expected stamps strictly increasing per camera, got " + FormatDouble(frame.stamp_s) +
+      if (frame.stamp_s < it->second) {
+        ThrowJsonError(source, "t", "expected stamps non-decreasing per camera, got " + FormatDouble(frame.stamp_s) +
                                         " after " + FormatDouble(it->second) + " for " + frame.camera);
       }
       it->second = frame.stamp_s;
@@ -246,8 +246,8 @@ std::string FormatDetections(const std::vector<DetectionFrame>& frames) {
   for (const DetectionFrame& frame : frames) {
     const auto [it, inserted] = last_stamp_s.emplace(frame.camera, frame.stamp_s);
     if (!inserted) {
-      if (!(frame.stamp_s > it->second)) {
-        throw std::invalid_argument("detections writer: stamps not strictly increasing for camera " + frame.camera +
+      if (frame.stamp_s < it->second) {
+        throw std::invalid_argument("detections writer: stamps decreasing for camera " + frame.camera +
                                     " (" + FormatDouble(frame.stamp_s) + " after " + FormatDouble(it->second) + ")");
       }
       it->second = frame.stamp_s;

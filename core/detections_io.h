@@ -8,12 +8,12 @@
 // Required: t (finite seconds), camera (non-empty string), markers (array, may be empty);
 // each marker: family, id (strings) and corners_px (4 points of 2 numbers, DESIGN.md corner
 // order, pixel coordinates). Optional: image (string), frame (integer), quality (number).
-// Stamps are strictly increasing per camera.
+// Stamps never decrease per camera (equal stamps are allowed: photos without a time).
 //
 // Errors (FormatError "path:line: field: what was expected"): a line that is not valid JSON,
-// a missing or mistyped field, a wrong count, a camera not in the dataset, stamps out of
-// order. Counted warnings (ReadWarnings; the marker is dropped, the frame kept): a marker
-// with an unknown family ("unknown family"), a non-finite corner ("non-finite corner",
+// a missing or mistyped field, a wrong count, a camera not in the dataset, a stamp smaller
+// than the camera's previous one. Counted warnings (ReadWarnings; the marker is dropped, the
+// frame kept): a marker with an unknown family ("unknown family"), a non-finite corner ("non-finite corner",
 // NaN/Infinity written as NaN, Infinity or null), a corner outside the camera's image
 // ("corner outside image", when camera sizes are given). Unknown keys are counted warnings.
 #pragma once
@@ -39,7 +39,7 @@ std::vector<DetectionFrame> ReadDetections(const std::filesystem::path& path, Re
 // std::invalid_argument for a frame the reader would reject or warn about (non-finite
 // numbers, empty camera, unknown family, empty id).
 std::string FormatDetectionLine(const DetectionFrame& frame);
-// All lines; throws std::invalid_argument when stamps are not strictly increasing per camera.
+// All lines; throws std::invalid_argument when stamps decrease for a camera.
 std::string FormatDetections(const std::vector<DetectionFrame>& frames);
 // FormatDetections written atomically.
 void WriteDetections(const std::filesystem::path& path, const std::vector<DetectionFrame>& frames);

@@ -75,8 +75,8 @@ TEST(DetectionsIoTest, MalformedLinesAreErrorsWithTheirLine) {
               HasSubstr("detections.jsonl:1: markers[0].id: expected a string, got a number"));
   EXPECT_THAT(ParseError(Line(1, R"({"family": "qr", "id": "a", "corners_px": [[1, 2], [3, 4], [5, 6], [7, "8"]]})")),
               HasSubstr("detections.jsonl:1: markers[0].corners_px[3][1]: expected a number"));
-  EXPECT_THAT(ParseError(Line(1, kMarker) + "\n" + Line(1, kMarker)),
-              HasSubstr("detections.jsonl:3: t: expected stamps strictly increasing per camera, got 1 after 1"));
+  EXPECT_THAT(ParseError(Line(2, kMarker) + "\n" + Line(2, kMarker) + Line(1.5, kMarker)),
+              HasSubstr("detections.jsonl:4: t: expected stamps non-decreasing per camera, got 1.5 after 2 for cam0"));
   EXPECT_THAT(ParseError(R"({"t": NaN, "camera": "cam0", "markers": []})"), HasSubstr("detections.jsonl:1: t: expected a number"));
   EXPECT_THAT(ParseError(R"({"t": 1, "camera": "cam0"})"), HasSubstr("detections.jsonl:1: missing key \"markers\""));
   EXPECT_THAT(ParseError(R"({"t": 1, "camera": "cam0", "markers": [], "frame": 2.5})"),
@@ -165,7 +165,9 @@ TEST(DetectionsIoTest, RoundTripIsExact) {
   EXPECT_EQ(FormatDetections(read), FormatDetections(frames));
   fs::remove_all(path.parent_path());
 
-  frames.push_back(frames.back());  // same camera, same stamp
+  frames.push_back(frames.back());  // same camera, same stamp: allowed (photos without a time)
+  EXPECT_NO_THROW(FormatDetections(frames));
+  frames.back().stamp_s -= 1.0;  // decreasing: rejected
   EXPECT_THROW(FormatDetections(frames), std::invalid_argument);
   frames.pop_back();
   frames.back().markers.push_back(MarkerObservation{{"aztec", "1"}, {}, std::nullopt});
