@@ -1,6 +1,7 @@
 // `waymark eval`: trajectory and map accuracy against ground truth. Parses arguments, reads
 // the files (core/tum_io.h, core/map_io.h), calls eval/ and writes the reports atomically.
 // The math and its definitions are in eval/ and docs/evaluation.md.
+#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <stdexcept>
@@ -145,8 +146,9 @@ void WriteOutputs(const Args& args, const eval::EvalReportInput& input, const st
     eval::PlotInput plot;
     plot.trajectory = input.trajectory;
     plot.markers = MarkersToPlot(args, input.trajectory, input.map, est_map, gt_map);
-    plot.title = input.trajectory ? "waymark eval: " + input.est_path + " vs " + input.gt_path
-                                  : "waymark eval: " + input.map_path + " vs " + input.gt_map_path;
+    const auto name = [](const std::string& path) { return std::filesystem::path(path).filename().string(); };
+    plot.title = input.trajectory ? "waymark eval: " + name(input.est_path) + " vs " + name(input.gt_path)
+                                  : "waymark eval: " + name(input.map_path) + " vs " + name(input.gt_map_path);
     svg = eval::RenderSvg(plot);
   }
   const std::string json = eval::EvalReportToJson(input).dump(2) + "\n";

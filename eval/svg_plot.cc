@@ -171,23 +171,29 @@ void DrawTopView(const PlotInput& input, std::ostringstream& svg) {
              svg);
 }
 
+// Time runs from the first stamp (epoch stamps would make unreadable tick labels).
 void DrawErrorPanel(const TrajectoryEvaluation& e, std::ostringstream& svg) {
   const std::vector<double>& t = e.ate.stamps_s;
   double max_error_m = e.ate.translation_m.max;
-  if (e.pe_te) max_error_m = std::max(max_error_m, e.pe_te->position_m.max);
   double t0 = t.front(), t1 = t.back();
-  if (e.pe_te) t0 = std::min(t0, e.pe_te->stamps_s.front()), t1 = std::max(t1, e.pe_te->stamps_s.back());
-  const Frame f{t0, t1 > t0 ? t1 : t0 + 1.0, 0.0, max_error_m > 0.0 ? 1.1 * max_error_m : 1.0,
+  if (e.pe_te) {
+    max_error_m = std::max(max_error_m, e.pe_te->position_m.max);
+    t0 = std::min(t0, e.pe_te->stamps_s.front());
+    t1 = std::max(t1, e.pe_te->stamps_s.back());
+  }
+  const Frame f{0.0, t1 > t0 ? t1 - t0 : 1.0, 0.0, max_error_m > 0.0 ? 1.1 * max_error_m : 1.0,
                 kLeftPx, kErrorTopPx, kWidthPx - kLeftPx - kRightPx, kErrorHeightPx};
-  DrawAxes(f, "time (s)", "error (m)", svg);
+  char axis_title[96];
+  std::snprintf(axis_title, sizeof(axis_title), "time (s) since t0 = %.3f s", t0);
+  DrawAxes(f, axis_title, "error (m)", svg);
   std::vector<Eigen::Vector2d> points;
-  for (size_t i = 0; i < t.size(); ++i) points.emplace_back(t[i], e.ate.translation_errors_m[i]);
+  for (size_t i = 0; i < t.size(); ++i) points.emplace_back(t[i] - t0, e.ate.translation_errors_m[i]);
   DrawPolyline(f, points, "#1f77b4", svg);
   std::vector<std::pair<std::string, std::string>> legend = {{"#1f77b4", "ATE translation error"}};
   if (e.pe_te) {
     for (size_t k = 0; k < e.pe_te->stamps_s.size(); ++k) {
-      svg << "<circle cx=\"" << Num(f.PxX(e.pe_te->stamps_s[k])) << "\" cy=\"" << Num(f.PxY(e.pe_te->position_errors_m[k]))
-          << "\" r=\"2.5\" fill=\"#ff7f0e\"/>\n";
+      svg << "<circle cx=\"" << Num(f.PxX(e.pe_te->stamps_s[k] - t0)) << "\" cy=\""
+          << Num(f.PxY(e.pe_te->position_errors_m[k])) << "\" r=\"2.5\" fill=\"#ff7f0e\"/>\n";
     }
     legend.push_back({"#ff7f0e", "PE before each correction"});
   }

@@ -2,7 +2,7 @@
 //   top panel   top view (x right, y up, equal axis scales, metres) of the ground-truth
 //               trajectory, the aligned estimate, and the markers: true (squares) and
 //               estimated (crosses, joined to their true pose by a thin line);
-//   bottom panel translation error over time: ATE per associated pair, PE at each
+//   bottom panel translation error against time since the first stamp: ATE per pair, PE at each
 //               correction instant (dots) when predicted poses were given.
 // All coordinates are in the ground truth's world frame.
 #pragma once
