@@ -11,6 +11,9 @@
 // The pattern is searched for in the text (std::regex_search): anchor it with ^...$ to
 // require the whole text to match. Payload text comes from the outside world: parsing never
 // throws on it. Only the spec (written by the dataset's author) is validated with errors.
+// std::regex backtracks: a pattern with nested quantifiers such as "^(a+)+$" can take
+// exponential time on a hostile text even below kMaxPayloadBytes. Keep patterns simple
+// (one quantifier per group), as in the example.
 #pragma once
 
 #include <cstddef>
