@@ -11,12 +11,15 @@
 #include <apriltag/tagStandard41h12.h>
 #include <apriltag/tagStandard52h13.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "core/detect_common.h"
 
 namespace waymark {
 namespace {
+
+constexpr int kMinImageSidePx = 32;
 
 struct FamilyEntry {
   const char* name;  // after "apriltag-"
@@ -69,6 +72,10 @@ class AprilTagDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
+    // libapriltag 3.3 crashes on images only a few pixels across once decimated (e.g.
+    // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
+    const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * options_.apriltag_decimate);
+    if (gray.cols < min_side_px || gray.rows < min_side_px) return {};
     image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]), gray.data};
     zarray_t* detections = apriltag_detector_detect(detector_, &view);
     std::vector<MarkerObservation> raw;
