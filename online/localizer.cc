@@ -31,6 +31,8 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(agree_trans_m > 0.0) || !(agree_rot_rad > 0.0) || !(max_position_sigma_m > 0.0)) {
     return fail("agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
   }
+  std::string marker_pose_why;
+  if (!marker_pose.Check(&marker_pose_why)) return fail(marker_pose_why);
   return true;
 }
 
@@ -178,6 +180,22 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   }
   result.tracking = tracking_;
   return result;
+}
+
+FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
+  CameraFrame frame;
+  frame.stamp_s = detections.stamp_s;
+  frame.camera = detections.camera;
+  const auto camera_it = cameras_.find(detections.camera);
+  for (const MarkerObservation& observation : detections.markers) {
+    const MapMarker* marker = map_.Find(observation.key);
+    if (!marker || camera_it == cameras_.end()) {
+      frame.sightings.push_back(CodeSighting{observation, {}, std::nullopt, false});
+      continue;
+    }
+    frame.sightings.push_back(MakeCodeSighting(camera_it->second, observation, marker->size_m, options_.marker_pose));
+  }
+  return AddFrame(frame);
 }
 
 CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSighting& sighting) {

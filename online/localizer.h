@@ -33,6 +33,7 @@
 #include "core/camera.h"
 #include "core/geometry.h"
 #include "core/types.h"
+#include "online/code_sighting.h"
 #include "online/ekf_state.h"
 #include "online/motion_model.h"
 #include "online/status.h"
@@ -57,16 +58,9 @@ struct LocalizerOptions {
   double agree_trans_m = 0.2;
   double agree_rot_rad = 0.2;
   double max_position_sigma_m = 2.0;
+  MarkerPoseOptions marker_pose;  // single-image poses computed by AddDetections
 
   bool Check(std::string* why) const;
-};
-
-// One code in one image with its single-image pose solutions (core/marker_pose.h).
-struct CodeSighting {
-  MarkerObservation observation;
-  std::vector<SE3d> T_camera_marker;   // best first (IPPE gives two); empty when unavailable
-  std::optional<Matrix6d> covariance;  // of T_camera_marker[0], right perturbation
-  bool ambiguous = false;              // the two solutions fit about equally well
 };
 
 // Everything one camera saw at one instant.
@@ -131,6 +125,9 @@ class Localizer {
   StepStatus AddVelocity(double stamp_s, double v_mps, double omega_radps);
   // Corrects with every code of the frame, in order.
   FrameResult AddFrame(const CameraFrame& frame);
+  // The same from raw detections: single-image poses are computed here (MakeCodeSighting)
+  // with the map's code sizes; codes absent from the map are counted as unknown.
+  FrameResult AddDetections(const DetectionFrame& detections);
 
   PoseOutput Output() const;
   TrackingStatus tracking() const { return tracking_; }

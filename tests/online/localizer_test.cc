@@ -378,6 +378,42 @@ TEST(LocalizerTest, KeepsThePredictionBeforeEachCorrection) {
   EXPECT_LT(filtered_sum_m, predicted_sum_m);
 }
 
+// Raw detections (what detections.jsonl holds): the localizer computes the single-image poses
+// itself with the map's sizes; an extra code outside the map is counted once per sighting.
+TEST(LocalizerTest, AddDetectionsTracksFromRawCorners) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3800);
+  const std::vector<CorridorStep> steps = sim.Run();
+  Localizer localizer(CorridorOptions(config, CorrectionMode::kTightCorners), sim.map(), sim.cameras());
+  long extra_codes = 0;
+  double worst_m = 0.0;
+  for (const CorridorStep& step : steps) {
+    ASSERT_EQ(localizer.AddOdometry(step.stamp_s, step.T_odom_robot), StepStatus::kOk);
+    for (const CameraFrame& frame : step.frames) {
+      DetectionFrame detections;
+      detections.stamp_s = frame.stamp_s;
+      detections.camera = frame.camera;
+      for (const CodeSighting& sighting : frame.sightings) detections.markers.push_back(sighting.observation);
+      if (!detections.markers.empty()) {
+        MarkerObservation extra = detections.markers[0];
+        extra.key = {kFamilyQr, "payload-not-in-map"};
+        detections.markers.push_back(extra);
+        ++extra_codes;
+      }
+      ASSERT_EQ(localizer.AddDetections(detections).status, StepStatus::kOk);
+    }
+    const PoseOutput output = localizer.Output();
+    if (output.T_world_robot && step.stamp_s > 2.0) {
+      worst_m = std::max(worst_m, (output.T_world_robot->translation() - step.T_world_robot_true.translation()).norm());
+    }
+  }
+  EXPECT_EQ(localizer.tracking(), TrackingStatus::kTracking);
+  EXPECT_EQ(localizer.counters().initializations, 1);
+  EXPECT_EQ(localizer.counters().unknown_markers, extra_codes);
+  EXPECT_GT(extra_codes, 20);
+  EXPECT_LT(worst_m, 0.05);
+}
+
 TEST(LocalizerTest, InvalidOptionsAreRejected) {
   const CorridorConfig config;
   CorridorSimulator sim(config, 1);

@@ -3,9 +3,7 @@
 // middle with noisy wheel odometry at 20 Hz, and two side cameras (left, right) whose
 // detected corners carry Gaussian pixel noise. Everything is drawn from one seeded engine.
 //
-// The single-image pose of each sighting is computed here, from the noisy corners, as
-// core/marker_pose does it (square IPPE, both solutions refined on the distorted model,
-// covariance sigma_px^2 (J^T J)^-1 of the right perturbation of T_camera_marker).
+// The single-image pose of each sighting comes from core/marker_pose (MakeCodeSighting).
 #pragma once
 
 #include <algorithm>
@@ -15,11 +13,11 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
-#include <opencv2/calib3d.hpp>
 
 #include "core/camera.h"
 #include "core/geometry.h"
 #include "core/types.h"
+#include "online/code_sighting.h"
 #include "online/localizer.h"
 #include "online/motion_model.h"
 
@@ -85,57 +83,6 @@ inline SE2d CorridorTruth(const CorridorConfig& config, double distance_m) {
   const double dy_dx = 0.1 * 2.0 * M_PI / 3.0 * std::cos(2.0 * M_PI * x / 3.0);
   (void)config;
   return SE2d(x, y, std::atan2(dy_dx, 1.0));
-}
-
-// Single-image pose of noisy corners (both IPPE solutions, refined, best first, with covariance).
-inline CodeSighting SightingFromCorners(const Camera& camera, const MarkerObservation& observation, double size_m,
-                                        double sigma_px) {
-  CodeSighting sighting;
-  sighting.observation = observation;
-  const std::array<Eigen::Vector3d, 4> corners_marker = MarkerCorners(size_m);
-  std::vector<cv::Point3d> object;
-  std::vector<cv::Point2d> image;
-  for (int j = 0; j < 4; ++j) {
-    object.emplace_back(corners_marker[j].x(), corners_marker[j].y(), corners_marker[j].z());
-    image.emplace_back(observation.corners_px[j].x(), observation.corners_px[j].y());
-  }
-  const auto& in = camera.info().intrinsics;
-  const cv::Matx33d K(in[0], 0, in[2], 0, in[1], in[3], 0, 0, 1);
-  const std::vector<double> distortion = camera.info().distortion;
-  std::vector<cv::Mat> rvecs, tvecs;
-  cv::solvePnPGeneric(object, image, K, distortion, rvecs, tvecs, false, cv::SOLVEPNP_IPPE_SQUARE);
-  std::vector<std::pair<double, SE3d>> solutions;
-  for (size_t i = 0; i < rvecs.size(); ++i) {
-    cv::solvePnPRefineLM(object, image, K, distortion, rvecs[i], tvecs[i]);
-    cv::Mat R_cv;
-    cv::Rodrigues(rvecs[i], R_cv);
-    Eigen::Matrix3d R;
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) R(r, c) = R_cv.at<double>(r, c);
-    const SE3d T_camera_marker(R, Eigen::Vector3d(tvecs[i].at<double>(0), tvecs[i].at<double>(1),
-                                                  tvecs[i].at<double>(2)));
-    double squared_px = 0.0;
-    for (int j = 0; j < 4; ++j) {
-      const auto px = camera.Project(T_camera_marker * corners_marker[j]);
-      squared_px += px ? (*px - observation.corners_px[j]).squaredNorm() : 1e12;
-    }
-    solutions.emplace_back(std::sqrt(squared_px / 4.0), T_camera_marker);
-  }
-  std::sort(solutions.begin(), solutions.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  for (const auto& solution : solutions) sighting.T_camera_marker.push_back(solution.second);
-  if (solutions.empty()) return sighting;
-  sighting.ambiguous = solutions.size() > 1 && solutions[1].first < 3.0 * std::max(solutions[0].first, 0.5);
-  // Covariance: sigma^2 (J^T J)^-1, J = d corners / d [dr, dt] (right perturbation).
-  const SE3d& T = sighting.T_camera_marker[0];
-  Eigen::Matrix<double, 8, 6> J;
-  for (int j = 0; j < 4; ++j) {
-    Eigen::Matrix<double, 2, 3> J_p;
-    if (!camera.Project(T * corners_marker[j], &J_p)) return sighting;
-    J.block<2, 3>(2 * j, 0) = -J_p * T.rotation_matrix() * Hat(corners_marker[j]);
-    J.block<2, 3>(2 * j, 3) = J_p * T.rotation_matrix();
-  }
-  sighting.covariance = (J.transpose() * J).ldlt().solve(Matrix6d::Identity()) * (sigma_px * sigma_px);
-  return sighting;
 }
 
 // One step of the simulation: odometry at every step, frames every `frame_every` steps.
@@ -212,7 +159,9 @@ class CorridorSimulator {
         if (visible) observation.corners_px[j] = *px + Eigen::Vector2d(normal(rng_), normal(rng_));
       }
       if (visible) {
-        frame.sightings.push_back(SightingFromCorners(camera, observation, marker.size_m, config_.pixel_sigma_px));
+        MarkerPoseOptions options;
+        options.sigma_px = config_.pixel_sigma_px;
+        frame.sightings.push_back(MakeCodeSighting(camera, observation, marker.size_m, options));
       }
     }
     return frame;

@@ -1,0 +1,30 @@
+// One code seen in one image, as the localizer consumes it: the detected corners plus the
+// code's single-image pose solutions (core/marker_pose.h), which initialization, the loosely
+// coupled update and relocalization need. The tightly coupled update uses only the corners.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/geometry.h"
+#include "core/marker_pose.h"
+#include "core/types.h"
+
+namespace waymark {
+
+struct CodeSighting {
+  MarkerObservation observation;
+  std::vector<SE3d> T_camera_marker;   // best first (IPPE gives two); empty when unavailable
+  std::optional<Matrix6d> covariance;  // of T_camera_marker[0], right perturbation
+  bool ambiguous = false;              // the two solutions fit about equally well
+};
+
+// Runs EstimateMarkerPose on the observation. When the estimator rejects the corners
+// (degenerate quad, code seen from behind, outside the field of view) the sighting keeps its
+// corners but has no pose, and `why` (if given) receives the estimator's message.
+CodeSighting MakeCodeSighting(const Camera& camera, const MarkerObservation& observation, double size_m,
+                              const MarkerPoseOptions& options = {}, std::string* why = nullptr);
+
+}  // namespace waymark
