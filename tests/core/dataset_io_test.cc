@@ -3,14 +3,18 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <string>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "core/camera_io.h"
+#include "core/detections_io.h"
 #include "core/io_util.h"
 #include "core/map_io.h"
+#include "core/tum_io.h"
 
 namespace waymark {
 namespace {
@@ -291,6 +295,55 @@ TEST(DatasetIoTest, OutOfImageCornersAndUnsizedMarkersAreWarnings) {
   EXPECT_TRUE(read.detections[0].markers.empty());
   // 10 distinct markers seen, the one kept in markers.json has a size; 0/0/1 was rejected on cam0 only.
   EXPECT_EQ(read.warnings.counts.at("marker without size"), 9);
+}
+
+// Bad input never crashes a reader and never escapes as anything but a FormatError: every
+// reader is fed 400 random mutations (fixed seed) of a valid file.
+TEST(DatasetIoTest, MutatedInputsOnlyThrowFormatError) {
+  const Dataset dataset = MakeDataset();
+  std::vector<DetectionFrame> frames(dataset.detections.begin(), dataset.detections.begin() + 4);
+  const std::vector<std::pair<std::string, std::function<void(const std::string&)>>> readers = {
+      {FormatDatasetYaml(dataset.config), [](const std::string& text) { ParseDatasetYaml(text, "dataset.yaml"); }},
+      {FormatCameraYaml(dataset.cameras.at("cam0")),
+       [](const std::string& text) { ParseCameraYaml(text, "cameras/cam0.yaml", "cam0"); }},
+      {FormatTum(Trajectory(dataset.odometry.begin(), dataset.odometry.begin() + 3)),
+       [](const std::string& text) { ParseTum(text, "odometry.tum"); }},
+      {FormatDetections(frames),
+       [&dataset](const std::string& text) {
+         ReadWarnings warnings;
+         ParseDetections(text, "detections.jsonl", &warnings, &dataset.cameras);
+       }},
+      {FormatMap(*dataset.known_markers), [](const std::string& text) { ParseMap(text, "markers.json"); }},
+      {FormatImagesCsv(std::vector<ImageEntry>(dataset.images.begin(), dataset.images.begin() + 3)),
+       [&dataset](const std::string& text) { ParseImagesCsv(text, "images.csv", &dataset.config.cameras); }},
+  };
+  std::mt19937 rng(2024);
+  const std::string alphabet = "{}[]\":,. -+eE0123456789\n\t#'!&*|>?%@`\\nulltrueNaN\x01\xff";
+  for (const auto& [good, read] : readers) {
+    ASSERT_NO_THROW(read(good)) << good;
+    int errors = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+      std::string text = good;
+      const int edits = 1 + static_cast<int>(rng() % 3);
+      for (int e = 0; e < edits && !text.empty(); ++e) {
+        const size_t at = rng() % text.size();
+        const char c = alphabet[rng() % alphabet.size()];
+        switch (rng() % 3) {
+          case 0: text[at] = c; break;
+          case 1: text.erase(at, 1 + rng() % 8); break;
+          default: text.insert(at, 1, c); break;
+        }
+      }
+      try {
+        read(text);
+      } catch (const FormatError&) {
+        ++errors;
+      } catch (const std::exception& e) {
+        ADD_FAILURE() << "not a FormatError: " << e.what() << "\nfor input:\n" << text;
+      }
+    }
+    EXPECT_GT(errors, 100) << good;  // most mutations are caught
+  }
 }
 
 TEST(DatasetIoTest, LoadsTagslamDatasets) {
