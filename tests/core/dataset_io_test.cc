@@ -176,6 +176,9 @@ TEST(DatasetIoTest, ImagesCsv) {
   EXPECT_THAT(error("nan,cam0,a.png\n"), HasSubstr("images.csv:1: t: expected a finite number, got 'nan'"));
   EXPECT_THAT(error("1,cam0,a.png\n2,cam9,b.png\n"), HasSubstr("images.csv:2: camera: 'cam9' is not in dataset.yaml cameras"));
   EXPECT_THAT(error("1,cam0,\n"), HasSubstr("images.csv:1: path: expected an image path"));
+  EXPECT_THAT(error("1,,a.png\n"), HasSubstr("images.csv:1: camera: expected a camera name"));
+  EXPECT_THAT(error("t,camera,path\n1;cam0;a.png\n"), HasSubstr("images.csv:2: expected 3 fields"));
+  EXPECT_THAT(error("2,cam0,a.png\nt,camera,path\n"), HasSubstr("images.csv:2: t: expected a finite number, got 't'"));
 }
 
 TEST(DatasetIoTest, WriteThenLoadIsExact) {
@@ -273,6 +276,12 @@ TEST(DatasetIoTest, LoadErrorsNameTheFile) {
   // A file named in dataset.yaml must exist.
   fs::remove(root / "odom" / "wheel.tum");
   EXPECT_THAT(LoadError(root), HasSubstr("dataset.yaml: odometry: file 'odom/wheel.tum' not found"));
+  WriteValid(dir);
+
+  AtomicWriteFile(root / "dataset.yaml", ReadTextFile(root / "dataset.yaml") + "images: frames.csv\n");
+  EXPECT_THAT(LoadError(root), HasSubstr("dataset.yaml: images: file 'frames.csv' not found"));
+  AtomicWriteFile(root / "frames.csv", "t,camera,path\n1,cam0,a.png\n1,cam2,b.png\n");
+  EXPECT_THAT(LoadError(root), HasSubstr("frames.csv:3: camera: 'cam2' is not in dataset.yaml cameras"));
   WriteValid(dir);
 
   AtomicWriteFile(root / "groundtruth" / "trajectory.tum", "1 0 0 0 0 0 1\n");
