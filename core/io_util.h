@@ -1,6 +1,7 @@
-// Small file helpers shared by every reader and writer of Waymark's formats (DESIGN.md
-// "Contracts"): one error type that names the file and the line, atomic writes, and
-// whole-file reads with a clear message.
+// File helpers shared by every reader and writer of Waymark's formats (DESIGN.md
+// "Contracts", docs/formats.md): one error type that names the file and the line, atomic
+// writes, whole-file reads with a clear message; then the strict number, pose, YAML and JSON
+// field readers that core/*_io.cc build on.
 #pragma once
 
 #include <filesystem>

@@ -1,11 +1,16 @@
 #include "core/io_util.h"
 
+#include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <random>
 
 namespace waymark {
 namespace {
@@ -92,6 +97,81 @@ TEST(ReadTextFileTest, MissingFileAndDirectoryAreNamed) {
   AtomicWriteFile(dir / "empty.txt", "");
   EXPECT_EQ(ReadTextFile(dir / "empty.txt"), "");
   fs::remove_all(dir);
+}
+
+TEST(NumberTextTest, FormatDoubleRoundTripsExactly) {
+  std::mt19937_64 rng(17);
+  std::uniform_int_distribution<uint64_t> bits;
+  int checked = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const uint64_t pattern = bits(rng);
+    double value;
+    std::memcpy(&value, &pattern, sizeof(value));
+    if (!std::isfinite(value)) continue;
+    const std::optional<double> read = ParseFiniteDouble(FormatDouble(value));
+    ASSERT_TRUE(read.has_value()) << FormatDouble(value);
+    ASSERT_EQ(std::memcmp(&*read, &value, sizeof(value)), 0) << FormatDouble(value);
+    ++checked;
+  }
+  EXPECT_GT(checked, 19000);
+  EXPECT_EQ(FormatDouble(0.1), "0.1");
+  EXPECT_EQ(FormatDouble(2.0), "2");
+  EXPECT_EQ(FormatDouble(1560889276.31902), "1560889276.31902");
+}
+
+TEST(NumberTextTest, ParseIsStrict) {
+  EXPECT_EQ(ParseFiniteDouble("+1.5e3"), 1500.0);
+  EXPECT_EQ(ParseFiniteDouble("-0.25"), -0.25);
+  for (const char* bad : {"", " 1", "1 ", "1x", "nan", "inf", "-inf", "1e999", "0x10", "+", "1,5"}) {
+    EXPECT_FALSE(ParseFiniteDouble(bad).has_value()) << bad;
+  }
+  EXPECT_EQ(ParseInteger("1280"), 1280);
+  EXPECT_EQ(ParseInteger("-3"), -3);
+  for (const char* bad : {"", "1.0", "1e3", "12a", "99999999999999999999"}) {
+    EXPECT_FALSE(ParseInteger(bad).has_value()) << bad;
+  }
+}
+
+TEST(PoseFromFileTest, ChecksNormAndKeepsUnitQuaternionsExactly) {
+  SE3d T;
+  std::string why;
+  EXPECT_FALSE(MakePoseFromFile(Eigen::Vector3d::Zero(), Eigen::Vector4d(0, 0, 0, 1.002), &T, &why));
+  EXPECT_EQ(why, "q_xyzw: expected unit norm within 0.001, got 1.002");
+  EXPECT_FALSE(MakePoseFromFile(Eigen::Vector3d(0, std::nan(""), 0), Eigen::Vector4d(0, 0, 0, 1), &T, &why));
+  ASSERT_TRUE(MakePoseFromFile(Eigen::Vector3d(1, 2, 3), Eigen::Vector4d(0, 0, 0, 1.0005), &T, &why));
+  EXPECT_NEAR(T.rotation().norm(), 1.0, 1e-15);
+  const Eigen::Quaterniond q = Eigen::Quaterniond(0.3, -0.1, 0.7, 0.2).normalized();
+  ASSERT_TRUE(MakePoseFromFile(Eigen::Vector3d::Zero(), q.coeffs(), &T, &why));
+  EXPECT_EQ(T.rotation().coeffs(), q.coeffs());
+}
+
+TEST(JsonLinesTest, LinesOfValuesAndSyntaxErrors) {
+  const std::string text = "{\"a\": 1,\n \"b\": [\n  {\"c\": \"x\"},\n  2]}\n";
+  std::map<std::string, long> lines;
+  const nlohmann::json json = ParseJsonDocument(text, "f.json", &lines);
+  EXPECT_EQ(json["b"][1], 2);
+  EXPECT_EQ(lines.at(""), 1);
+  EXPECT_EQ(lines.at("a"), 1);
+  EXPECT_EQ(lines.at("b"), 2);
+  EXPECT_EQ(lines.at("b[0]"), 3);
+  EXPECT_EQ(lines.at("b[0].c"), 3);
+  EXPECT_EQ(lines.at("b[1]"), 4);
+  const JsonSource source = JsonSourceWithLines("f.json", lines);
+  EXPECT_EQ(source.line_of("b[0].c.missing"), 3);  // nearest enclosing field
+  EXPECT_EQ(JsonErrorText(source, "b[1]", "expected a string"), "f.json:4: b[1]: expected a string");
+  try {
+    ParseJsonDocument("{\"a\": 1,\n\n \"b\": }", "f.json", nullptr);
+    FAIL() << "expected FormatError";
+  } catch (const FormatError& e) {
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("f.json:3: invalid JSON: syntax error"));
+  }
+}
+
+TEST(QuoteStringTest, EscapesForYamlAndJson) {
+  EXPECT_EQ(QuoteString("a\"b\\c\nd"), "\"a\\\"b\\\\c\\nd\"");
+  const std::string pattern = "^(\\d+)/(-?[0-9.]+)$";
+  EXPECT_EQ(nlohmann::json::parse(QuoteString(pattern)).get<std::string>(), pattern);
 }
 
 }  // namespace
