@@ -1,0 +1,312 @@
+// `waymark detect INPUT --out detections.jsonl`: runs the code detectors (core/detector.h)
+// on an image, a directory of images, a dataset directory (its images.csv) or a video,
+// and writes detections.jsonl (core/detections_io.h) atomically: one line per image or
+// frame. Progress goes to stderr on a terminal; a per-frame timing summary at the end.
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <optional>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <numeric>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "cli/args.h"
+#include "cli/command.h"
+#include "core/camera_io.h"
+#include "core/dataset_io.h"
+#include "core/detect_common.h"
+#include "core/detections_io.h"
+#include "core/detector.h"
+#include "core/io_util.h"
+
+namespace waymark::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kUsage = R"(Usage:
+  waymark detect INPUT --out detections.jsonl [--camera cam.yaml]
+                 [--families qr,datamatrix,apriltag-36h11] [--annotate DIR]
+                 [--budget-ms 10] [--apriltag-decimate 2]
+
+Detects printed codes and writes one JSON line per image or video frame (DESIGN.md
+detections.jsonl; frames without codes get a line too). INPUT is
+  - an image file: one line with "image": INPUT;
+  - a directory of images (.png .jpg .jpeg .bmp .tif .tiff .webp .pgm .ppm), by name;
+  - a dataset directory (with dataset.yaml): the rows of its images.csv, each with its
+    row's stamp and camera;
+  - a video file (.mp4 .avi .mkv .mov .webm .m4v .mpg .mpeg): "frame": N from 0, stamps
+    from the video's clock.
+Image inputs get t = 0 (photos have no time) unless they come from a dataset.
+
+Options:
+  --out FILE          detections.jsonl to write (atomically; nothing on error)
+  --camera FILE       camera YAML: its name goes into every line and every image must
+                      have its size (default camera name: cam0)
+  --families LIST     comma-separated families (default qr,datamatrix,apriltag-36h11);
+                      any of: qr, datamatrix, apriltag-{16h5,25h9,36h10,36h11,circle21h7,
+                      circle49h12,custom48h12,standard41h12,standard52h13}
+  --annotate DIR      also write each image with its detections drawn (PNG), corner 0
+                      (top-left of the upright code) marked
+  --budget-ms MS      CPU time per frame after which QR/DataMatrix second passes stop (10)
+  --apriltag-decimate F   libapriltag quad_decimate (2)
+
+Exit status 0 on success; 1 with one line on stderr for a corrupt image, an unreadable
+video, an empty directory or bad options.
+)";
+
+const std::set<std::string> kImageExtensions = {".png", ".jpg", ".jpeg", ".bmp", ".tif",
+                                                ".tiff", ".webp", ".pgm", ".ppm"};
+const std::set<std::string> kVideoExtensions = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".m4v", ".mpg", ".mpeg"};
+
+std::string LowerExtension(const fs::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+// One image to process.
+struct ImageJob {
+  fs::path file;        // where to read it
+  std::string as_given;  // written as "image"
+  double stamp_s = 0.0;
+  std::string camera;
+};
+
+struct RunOptions {
+  std::string default_camera = "cam0";
+  std::optional<CameraInfo> camera;  // --camera
+  std::optional<fs::path> annotate_dir;
+};
+
+// Per-frame wall-clock times and totals, summarized on stderr at the end.
+struct Timing {
+  std::vector<double> frame_ms;
+  long markers = 0;
+
+  std::string Summary() const {
+    std::vector<double> sorted = frame_ms;
+    std::sort(sorted.begin(), sorted.end());
+    const double mean = std::accumulate(sorted.begin(), sorted.end(), 0.0) / std::max<size_t>(sorted.size(), 1);
+    const double median = sorted.empty() ? 0.0 : sorted[sorted.size() / 2];
+    std::ostringstream out;
+    out << std::fixed << std::setprecision(1) << "detect: " << sorted.size() << " frames, " << markers
+        << " markers; detection time per frame: mean " << mean << " ms, median " << median << " ms, max "
+        << (sorted.empty() ? 0.0 : sorted.back()) << " ms";
+    return out.str();
+  }
+};
+
+void ShowProgress(size_t done, long total) {
+  if (!StderrIsTerminal()) return;
+  std::cerr << "\rdetect: " << done;
+  if (total > 0) std::cerr << "/" << total;
+  std::cerr << " frames" << std::flush;
+}
+
+// Annotated copies are written to a staging directory and moved into place only when the
+// whole run succeeds, so an error leaves nothing half-written there either.
+class Annotator {
+ public:
+  explicit Annotator(std::optional<fs::path> dir) : dir_(std::move(dir)) {
+    if (!dir_) return;
+    staging_ = *dir_ / (".partial-" + std::to_string(::getpid()));
+    fs::create_directories(staging_);
+  }
+  ~Annotator() {
+    std::error_code ignored;
+    if (!staging_.empty()) fs::remove_all(staging_, ignored);
+  }
+  Annotator(const Annotator&) = delete;
+  Annotator& operator=(const Annotator&) = delete;
+
+  void Add(const cv::Mat& image, const std::vector<MarkerObservation>& markers, const std::string& name) {
+    if (!dir_) return;
+    cv::Mat canvas;
+    if (image.channels() == 1) {
+      cv::cvtColor(image, canvas, cv::COLOR_GRAY2BGR);
+    } else if (image.channels() == 4) {
+      cv::cvtColor(image, canvas, cv::COLOR_BGRA2BGR);
+    } else {
+      canvas = image.clone();
+    }
+    for (const MarkerObservation& m : markers) Draw(m, &canvas);
+    const fs::path file = staging_ / (name + ".png");
+    if (!cv::imwrite(file.string(), canvas)) throw std::runtime_error(file.string() + ": cannot write image");
+    names_.push_back(name + ".png");
+  }
+
+  void Commit() {
+    if (!dir_) return;
+    for (const std::string& name : names_) fs::rename(staging_ / name, *dir_ / name);
+  }
+
+ private:
+  static void Draw(const MarkerObservation& m, cv::Mat* canvas) {
+    std::vector<cv::Point> quad;
+    for (const auto& c : m.corners_px) quad.emplace_back(cvRound(c.x()), cvRound(c.y()));
+    cv::polylines(*canvas, quad, true, cv::Scalar(0, 200, 0), 2);
+    cv::circle(*canvas, quad[0], 5, cv::Scalar(0, 0, 255), 2);
+    cv::putText(*canvas, m.key.ToString(), quad[0] + cv::Point(6, -6), cv::FONT_HERSHEY_SIMPLEX, 0.5,
+                cv::Scalar(255, 0, 0), 1);
+  }
+
+  std::optional<fs::path> dir_;
+  fs::path staging_;
+  std::vector<std::string> names_;
+};
+
+void CheckCameraSize(const cv::Mat& image, const std::optional<CameraInfo>& camera, const std::string& what) {
+  if (!camera) return;
+  if (image.cols != camera->width || image.rows != camera->height) {
+    throw std::runtime_error(what + ": image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                             " but camera " + camera->name + " is " + std::to_string(camera->width) + "x" +
+                             std::to_string(camera->height));
+  }
+}
+
+DetectionFrame DetectOne(MarkerDetector* detector, const cv::Mat& image, Timing* timing) {
+  const auto start = std::chrono::steady_clock::now();
+  DetectionFrame frame;
+  frame.markers = detector->Detect(image);
+  timing->frame_ms.push_back(
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  timing->markers += static_cast<long>(frame.markers.size());
+  return frame;
+}
+
+std::vector<DetectionFrame> RunImages(const std::vector<ImageJob>& jobs, MarkerDetector* detector,
+                                      const std::map<std::string, CameraInfo>& cameras, Annotator* annotator,
+                                      Timing* timing) {
+  std::vector<DetectionFrame> frames;
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    const ImageJob& job = jobs[i];
+    const cv::Mat image = cv::imread(job.file.string(), cv::IMREAD_UNCHANGED);
+    if (image.empty()) throw std::runtime_error(job.file.string() + ": cannot read image (missing, corrupt or not an image)");
+    const auto camera = cameras.find(job.camera);
+    CheckCameraSize(image, camera == cameras.end() ? std::nullopt : std::optional<CameraInfo>(camera->second),
+                    job.file.string());
+    DetectionFrame frame = DetectOne(detector, image, timing);
+    frame.stamp_s = job.stamp_s;
+    frame.camera = job.camera;
+    frame.image = job.as_given;
+    annotator->Add(image, frame.markers, std::to_string(i) + "_" + job.file.stem().string());
+    frames.push_back(std::move(frame));
+    ShowProgress(i + 1, static_cast<long>(jobs.size()));
+  }
+  return frames;
+}
+
+std::vector<DetectionFrame> RunVideo(const fs::path& path, const std::string& as_given, MarkerDetector* detector,
+                                     const RunOptions& run, Annotator* annotator, Timing* timing) {
+  cv::VideoCapture video(path.string());
+  if (!video.isOpened()) throw std::runtime_error(as_given + ": cannot open video");
+  const long total = static_cast<long>(video.get(cv::CAP_PROP_FRAME_COUNT));
+  std::vector<DetectionFrame> frames;
+  cv::Mat image;
+  for (long n = 0; video.read(image); ++n) {
+    if (image.empty()) break;
+    CheckCameraSize(image, run.camera, as_given + " frame " + std::to_string(n));
+    DetectionFrame frame = DetectOne(detector, image, timing);
+    frame.stamp_s = video.get(cv::CAP_PROP_POS_MSEC) * 1e-3;
+    if (!frames.empty()) frame.stamp_s = std::max(frame.stamp_s, frames.back().stamp_s);
+    frame.camera = run.camera ? run.camera->name : run.default_camera;
+    frame.frame = n;
+    std::ostringstream name;
+    name << "frame_" << std::setw(6) << std::setfill('0') << n;
+    annotator->Add(image, frame.markers, name.str());
+    frames.push_back(std::move(frame));
+    ShowProgress(frames.size(), total);
+  }
+  if (frames.empty()) throw std::runtime_error(as_given + ": no frame could be read from the video");
+  return frames;
+}
+
+std::vector<ImageJob> ListImageDir(const fs::path& dir, const std::string& as_given, const std::string& camera) {
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.is_regular_file() && kImageExtensions.count(LowerExtension(entry.path()))) files.push_back(entry.path());
+  }
+  if (files.empty()) throw std::runtime_error(as_given + ": no images in directory (expected .png, .jpg, ...)");
+  std::sort(files.begin(), files.end());
+  std::vector<ImageJob> jobs;
+  for (const fs::path& f : files) jobs.push_back({f, (fs::path(as_given) / f.filename()).string(), 0.0, camera});
+  return jobs;
+}
+
+std::vector<ImageJob> ListDataset(const Dataset& dataset, const std::string& as_given) {
+  if (dataset.images.empty()) throw std::runtime_error(as_given + ": dataset has no images.csv rows to detect on");
+  std::vector<ImageJob> jobs;
+  for (const ImageEntry& row : dataset.images) jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
+  // The file format wants stamps that never decrease per camera.
+  std::stable_sort(jobs.begin(), jobs.end(), [](const ImageJob& a, const ImageJob& b) { return a.stamp_s < b.stamp_s; });
+  return jobs;
+}
+
+std::unique_ptr<MarkerDetector> MakeDetector(const Args& args) {
+  DetectorOptions options;
+  if (const auto budget = args.GetDouble("budget-ms")) options.time_budget_ms = *budget;
+  if (const auto decimate = args.GetDouble("apriltag-decimate")) options.apriltag_decimate = *decimate;
+  return CreateMultiDetector(ParseFamilyList(args.GetOr("families", "qr,datamatrix,apriltag-36h11")), options);
+}
+
+std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* detector, const RunOptions& run,
+                                     Annotator* annotator, Timing* timing) {
+  const fs::path path(input);
+  std::map<std::string, CameraInfo> cameras;
+  const std::string camera_name = run.camera ? run.camera->name : run.default_camera;
+  if (run.camera) cameras[camera_name] = *run.camera;
+  if (fs::is_directory(path)) {
+    if (fs::exists(path / "dataset.yaml")) {
+      const Dataset dataset = LoadDataset(path);
+      return RunImages(ListDataset(dataset, input), detector, dataset.cameras, annotator, timing);
+    }
+    return RunImages(ListImageDir(path, input, camera_name), detector, cameras, annotator, timing);
+  }
+  if (!fs::exists(path)) throw std::runtime_error(input + ": no such file or directory");
+  if (kVideoExtensions.count(LowerExtension(path))) return RunVideo(path, input, detector, run, annotator, timing);
+  return RunImages({{path, input, 0.0, camera_name}}, detector, cameras, annotator, timing);
+}
+
+int RunDetect(const std::vector<std::string>& argv) {
+  const Args args(argv, {"out", "camera", "families", "annotate", "budget-ms", "apriltag-decimate"}, {});
+  if (args.Help()) {
+    std::cout << kUsage;
+    return 0;
+  }
+  args.ExpectPositionals(1, 1, "INPUT (an image, a directory, a dataset or a video)");
+  // OpenCV's video back ends log warnings for unreadable files; our own message says it.
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
+  const fs::path out = args.Require("out");
+  RunOptions run;
+  if (const auto camera = args.Get("camera")) run.camera = ReadCameraYaml(*camera);
+  if (const auto dir = args.Get("annotate")) run.annotate_dir = fs::path(*dir);
+  std::unique_ptr<MarkerDetector> detector = MakeDetector(args);
+  Annotator annotator(run.annotate_dir);
+  Timing timing;
+  const std::vector<DetectionFrame> frames = RunInput(args.positionals()[0], detector.get(), run, &annotator, &timing);
+  if (StderrIsTerminal()) std::cerr << "\n";
+  WriteDetections(out, frames);
+  annotator.Commit();
+  std::cerr << timing.Summary() << "\n";
+  return 0;
+}
+
+const CommandRegistrar kRegistrar({"detect", "detect QR, DataMatrix and AprilTag codes in images or video",
+                                   kUsage, RunDetect});
+
+}  // namespace
+}  // namespace waymark::cli

@@ -1,0 +1,169 @@
+// `waymark detect` end to end through the binary: an image, a directory of images, a
+// dataset directory and a video of synthetic codes; the output read back with the
+// detections.jsonl reader; and the error cases (corrupt image, empty directory,
+// unreadable video, unknown family): exit 1, one line, no output file.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "core/detect_synthetic.h"
+#include "core/detections_io.h"
+
+namespace waymark {
+namespace {
+
+namespace fs = std::filesystem;
+
+class DetectCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("waymark_detect_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Runs the binary; returns its exit status; stderr goes to dir_/stderr.txt.
+  int Run(const std::string& arguments) {
+    const std::string command = std::string(WAYMARK_BINARY) + " detect " + arguments + " 2> " +
+                                (dir_ / "stderr.txt").string();
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  std::string Stderr() const {
+    std::ifstream in(dir_ / "stderr.txt");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+
+  // A 640x480 image with a QR code and an AprilTag.
+  static cv::Mat Scene(const std::string& qr_text, int tag_id) {
+    cv::Mat image(480, 640, CV_8U, cv::Scalar(185));
+    DrawSymbol(QrSymbol(qr_text), MakeQuad({170.0, 240.0}, 170.0, 0.2), &image);
+    DrawSymbol(AprilTagSymbol("apriltag-36h11", tag_id), MakeQuad({470.0, 240.0}, 160.0, -0.3), &image);
+    return image;
+  }
+
+  std::vector<DetectionFrame> ReadBack(const fs::path& path) {
+    ReadWarnings warnings;
+    auto frames = ReadDetections(path, &warnings);
+    EXPECT_EQ(warnings.Total(), 0);
+    return frames;
+  }
+
+  fs::path dir_;
+};
+
+std::set<std::string> Keys(const DetectionFrame& frame) {
+  std::set<std::string> keys;
+  for (const auto& m : frame.markers) keys.insert(m.key.ToString());
+  return keys;
+}
+
+TEST_F(DetectCli, SingleImageAndDirectory) {
+  fs::create_directories(dir_ / "images");
+  cv::imwrite((dir_ / "images" / "a.png").string(), Scene("A/1", 1));
+  cv::imwrite((dir_ / "images" / "b.png").string(), Scene("B/2", 2));
+  cv::imwrite((dir_ / "images" / "c.png").string(), cv::Mat(480, 640, CV_8U, cv::Scalar(128)));
+  const fs::path one = dir_ / "one.jsonl";
+  ASSERT_EQ(Run((dir_ / "images" / "a.png").string() + " --out " + one.string()), 0) << Stderr();
+  auto frames = ReadBack(one);
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_EQ(frames[0].image, (dir_ / "images" / "a.png").string());
+  EXPECT_EQ(frames[0].camera, "cam0");
+  EXPECT_EQ(Keys(frames[0]), (std::set<std::string>{"qr:A/1", "apriltag-36h11:1"}));
+  EXPECT_NE(Stderr().find("median"), std::string::npos);
+
+  const fs::path all = dir_ / "all.jsonl";
+  ASSERT_EQ(Run((dir_ / "images").string() + " --families qr --out " + all.string() + " --annotate " +
+                (dir_ / "ann").string()),
+            0)
+      << Stderr();
+  frames = ReadBack(all);
+  ASSERT_EQ(frames.size(), 3u);  // the blank image still gets its line
+  EXPECT_EQ(Keys(frames[0]), std::set<std::string>{"qr:A/1"});
+  EXPECT_EQ(Keys(frames[1]), std::set<std::string>{"qr:B/2"});
+  EXPECT_TRUE(frames[2].markers.empty());
+  EXPECT_EQ(frames[2].image, (dir_ / "images" / "c.png").string());
+  int annotated = 0;
+  for (const auto& e : fs::directory_iterator(dir_ / "ann")) annotated += e.path().extension() == ".png";
+  EXPECT_EQ(annotated, 3);
+}
+
+TEST_F(DetectCli, DatasetDirectoryUsesRowsStampsAndCameras) {
+  const fs::path data = dir_ / "ds";
+  fs::create_directories(data / "cameras");
+  fs::create_directories(data / "img");
+  std::ofstream(data / "dataset.yaml") << "format: waymark-dataset\nversion: 1\nmotion: planar\ncameras: [front]\n";
+  std::ofstream(data / "cameras" / "front.yaml")
+      << "model: pinhole-radtan\nwidth: 640\nheight: 480\nintrinsics: [500, 500, 320, 240]\n"
+         "distortion: [0, 0, 0, 0, 0]\nT_robot_camera: {t: [0, 0, 0], q_xyzw: [0, 0, 0, 1]}\n";
+  cv::imwrite((data / "img" / "0.png").string(), Scene("P/0", 7));
+  cv::imwrite((data / "img" / "1.png").string(), Scene("P/1", 8));
+  std::ofstream(data / "images.csv") << "t,camera,path\n1.5,front,img/0.png\n2.5,front,img/1.png\n";
+  const fs::path out = dir_ / "ds.jsonl";
+  ASSERT_EQ(Run(data.string() + " --out " + out.string()), 0) << Stderr();
+  const auto frames = ReadBack(out);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[1].stamp_s, 2.5);
+  EXPECT_EQ(frames[1].camera, "front");
+  EXPECT_EQ(frames[1].image, "img/1.png");
+  EXPECT_EQ(Keys(frames[1]), (std::set<std::string>{"qr:P/1", "apriltag-36h11:8"}));
+}
+
+TEST_F(DetectCli, VideoFramesAreNumbered) {
+  const fs::path video = dir_ / "clip.avi";
+  cv::VideoWriter writer(video.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0, cv::Size(640, 480));
+  if (!writer.isOpened()) GTEST_SKIP() << "this OpenCV cannot write MJPG/AVI";
+  for (int i = 0; i < 3; ++i) {
+    cv::Mat bgr;
+    cv::cvtColor(Scene("V/" + std::to_string(i), i), bgr, cv::COLOR_GRAY2BGR);
+    writer.write(bgr);
+  }
+  writer.release();
+  const fs::path out = dir_ / "video.jsonl";
+  ASSERT_EQ(Run(video.string() + " --families apriltag-36h11 --out " + out.string()), 0) << Stderr();
+  const auto frames = ReadBack(out);
+  ASSERT_EQ(frames.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(frames[i].frame.has_value());
+    EXPECT_EQ(*frames[i].frame, i);
+    EXPECT_FALSE(frames[i].image.has_value());
+    EXPECT_EQ(Keys(frames[i]), std::set<std::string>{"apriltag-36h11:" + std::to_string(i)});
+  }
+}
+
+TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
+  const fs::path out = dir_ / "never.jsonl";
+  std::ofstream(dir_ / "corrupt.png") << "not a png at all";
+  fs::create_directories(dir_ / "empty");
+  std::ofstream(dir_ / "broken.mp4") << "no video here";
+  fs::create_directories(dir_ / "mixed");
+  cv::imwrite((dir_ / "mixed" / "a.png").string(), Scene("M/1", 1));
+  std::ofstream(dir_ / "mixed" / "b.png") << "truncated";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {(dir_ / "corrupt.png").string(), "cannot read image"},
+      {(dir_ / "empty").string(), "no images"},
+      {(dir_ / "broken.mp4").string(), "cannot open video"},
+      {(dir_ / "mixed").string(), "b.png: cannot read image"},
+      {(dir_ / "missing.png").string(), "no such file"},
+      {(dir_ / "mixed").string() + " --families qr,ean13", "unknown marker family"},
+  };
+  for (const auto& [input, message] : cases) {
+    EXPECT_EQ(Run(input + " --out " + out.string()), 1) << input;
+    EXPECT_NE(Stderr().find(message), std::string::npos) << input << ": " << Stderr();
+    EXPECT_FALSE(fs::exists(out)) << input;
+  }
+  EXPECT_EQ(Run((dir_ / "mixed" / "a.png").string()), 1);  // --out missing
+  EXPECT_NE(Stderr().find("--out"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace waymark
