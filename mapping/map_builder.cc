@@ -1,0 +1,472 @@
+#include "mapping/map_builder.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <limits>
+#include <cmath>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include <ceres/ceres.h>
+#include <ceres/covariance.h>
+
+#include "factors/odometry_se2_factor.h"
+#include "mapping/calibrated_odometry_factor.h"
+#include "factors/odometry_se3_factor.h"
+#include "factors/pose_prior_se3_factor.h"
+#include "factors/position_prior_factor.h"
+#include "factors/yaw_prior_factor.h"
+#include "mapping/residuals.h"
+
+namespace waymark {
+namespace {
+
+std::string Num(double value, int precision = 4) {
+  std::ostringstream out;
+  out.precision(precision);
+  out << value;
+  return out.str();
+}
+
+// Forwards Ceres iterations to the progress callback.
+class ProgressCallback : public ceres::IterationCallback {
+ public:
+  ProgressCallback(const std::function<void(const std::string&)>& progress, std::string stage)
+      : progress_(progress), stage_(std::move(stage)) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    progress_(stage_ + ": iteration " + std::to_string(s.iteration) + ", cost " + Num(s.cost, 8));
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const std::function<void(const std::string&)>& progress_;
+  std::string stage_;
+};
+
+// The global problem over the placed frames and markers of a survey.
+class GlobalProblem {
+ public:
+  GlobalProblem(const Survey& survey, const Initialization& init, const MapBuildOptions& options)
+      : survey_(survey), init_(init), options_(options) {
+    robot_.resize(survey.frames.size());
+    marker_.resize(survey.markers.size());
+    for (size_t f = 0; f < robot_.size(); ++f) {
+      if (init.T_world_robot[f]) RobotToBlock(survey.motion, *init.T_world_robot[f], &robot_[f]);
+    }
+    for (size_t m = 0; m < marker_.size(); ++m) {
+      if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
+    }
+  }
+
+  // One solve over the observations in `active` (indices), with or without the robust loss.
+  ceres::Solver::Summary Solve(const std::vector<int>& active, bool robust, std::vector<std::string>* gauges);
+  // Whitened squared norm of an observation at the current values (+inf behind the camera).
+  double SquaredError(int o) const;
+  // Marker covariances in map.json's convention; false when Ceres cannot compute them.
+  bool Covariances(std::vector<std::optional<Matrix6d>>* covariance) const;
+
+  bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
+  SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
+  SE3d Marker(int m) const { return SE3FromBlock(marker_[m].data()); }
+
+ private:
+  void AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges);
+  void AddOdometry();
+  void AddCalibratedOdometry(const OdometryLink& link);
+
+  const Survey& survey_;
+  const Initialization& init_;
+  const MapBuildOptions& options_;
+  std::vector<PoseBlock> robot_, marker_;
+  std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
+  std::unique_ptr<ceres::Problem> problem_;
+  std::vector<const double*> covariance_markers_;
+};
+
+ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool robust,
+                                            std::vector<std::string>* gauges) {
+  problem_ = std::make_unique<ceres::Problem>();
+  std::set<int> markers_used;
+  ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
+  for (int o : active) {
+    const SurveyObservation& obs = survey_.observations[o];
+    if (problem_->HasParameterBlock(robot_[obs.frame].data()) == false) {
+      AddRobotBlock(problem_.get(), survey_.motion, &robot_[obs.frame]);
+    }
+    if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
+    AddCornerResidual(problem_.get(), survey_.motion, survey_.cameras.at(obs.camera),
+                      survey_.markers[obs.marker].size_m, obs.corners_px, &robot_[obs.frame], &marker_[obs.marker],
+                      loss);
+  }
+  if (loss != nullptr && active.empty()) delete loss;
+  AddOdometry();
+  AddPriorsAndGauge(markers_used, gauges);
+  covariance_markers_.clear();
+  for (int m : markers_used) {
+    if (!problem_->IsParameterBlockConstant(marker_[m].data())) covariance_markers_.push_back(marker_[m].data());
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options_.max_iterations;
+  solver_options.num_threads = options_.num_threads;
+  solver_options.function_tolerance = 1e-10;
+  solver_options.parameter_tolerance = 1e-10;
+  std::unique_ptr<ProgressCallback> callback;
+  if (options_.progress) {
+    callback = std::make_unique<ProgressCallback>(options_.progress, robust ? "robust solve" : "final solve");
+    solver_options.callbacks.push_back(callback.get());
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, problem_.get(), &summary);
+  return summary;
+}
+
+// Odometry between placed frames that are both in the problem; frames seen by no code but
+// placed (odometry only) are added too, so the smoothed trajectory covers them.
+void GlobalProblem::AddOdometry() {
+  for (const OdometryLink& link : survey_.odometry_links) {
+    if (!FramePlaced(link.frame_a) || !FramePlaced(link.frame_b)) continue;
+    for (int f : {link.frame_a, link.frame_b}) {
+      if (!problem_->HasParameterBlock(robot_[f].data())) AddRobotBlock(problem_.get(), survey_.motion, &robot_[f]);
+    }
+    if (options_.calibrate_odometry) {
+      AddCalibratedOdometry(link);
+    } else if (survey_.motion == MotionModel::kPlanar) {
+      problem_->AddResidualBlock(OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2), nullptr,
+                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+    } else {
+      problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, link.covariance_se3), nullptr,
+                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+    }
+  }
+}
+
+void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
+  if (!problem_->HasParameterBlock(calibration_.data())) {
+    problem_->AddParameterBlock(calibration_.data(), kOdometryCalibrationSize);
+    problem_->AddResidualBlock(OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(options_.calibration_sigma)),
+                               nullptr, calibration_.data());
+  }
+  ceres::CostFunction* cost =
+      survey_.motion == MotionModel::kPlanar
+          ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2)
+          : CalibratedOdometrySE3Factor::Create(link.T_a_b, link.covariance_se3);
+  problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data(),
+                             calibration_.data());
+}
+
+void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {
+  gauges->assign(init_.components, "");
+  std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0);
+  for (int m : markers_used) {
+    const SurveyMarker& marker = survey_.markers[m];
+    const int c = init_.marker_component[m];
+    if (marker.known && marker.known->fixed) {
+      SE3ToBlock(marker.known->T_world_marker, marker_[m].data());
+      problem_->SetParameterBlockConstant(marker_[m].data());
+      ++anchors[c];
+    } else if (marker.known && marker.known->covariance) {
+      problem_->AddResidualBlock(PosePriorSE3Factor::Create(marker.known->T_world_marker, *marker.known->covariance),
+                                 nullptr, marker_[m].data());
+      ++anchors[c];
+    }
+  }
+  const bool planar = survey_.motion == MotionModel::kPlanar;
+  for (int m : markers_used) {
+    const SurveyMarker& marker = survey_.markers[m];
+    const int c = init_.marker_component[m];
+    if (!marker.payload || anchors[c] > 0) continue;
+    const PayloadData& p = *marker.payload;
+    if (p.z_m && !planar) {
+      problem_->AddResidualBlock(
+          PositionPriorFactor<3>::Create(Eigen::Vector3d(*p.x_m, *p.y_m, *p.z_m), options_.payload_sigma_m), nullptr,
+          marker_[m].data());
+    } else {
+      problem_->AddResidualBlock(PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m),
+                                 nullptr, marker_[m].data());
+    }
+    if (p.yaw_rad) {
+      problem_->AddResidualBlock(YawPriorFactor::Create(*p.yaw_rad, options_.payload_yaw_sigma_rad), nullptr,
+                                 marker_[m].data());
+    }
+    ++payloads[c];
+  }
+  for (int c = 0; c < init_.components; ++c) {
+    int first = -1;
+    for (size_t f = 0; f < survey_.frames.size() && first < 0; ++f) {
+      if (init_.frame_component[f] == c && problem_->HasParameterBlock(robot_[f].data())) first = static_cast<int>(f);
+    }
+    if (anchors[c] > 0) {
+      (*gauges)[c] = std::to_string(anchors[c]) + " anchor(s) from markers.json";
+    } else if (payloads[c] >= (planar ? 2 : 3)) {
+      (*gauges)[c] = std::to_string(payloads[c]) + " payload position prior(s)";
+      if (!planar && first >= 0) {
+        // Positions printed without z leave the height free: a weak prior on the first frame's
+        // pose, tight only in z (body frame), fixes it.
+        Vector6d variances;
+        variances << 1.0, 1.0, 1.0, 1e4, 1e4, 1e-6;
+        problem_->AddResidualBlock(PosePriorSE3Factor::Create(Robot(first), Matrix6d(variances.asDiagonal())), nullptr,
+                                   robot_[first].data());
+      }
+    } else if (first >= 0) {
+      problem_->SetParameterBlockConstant(robot_[first].data());
+      (*gauges)[c] = "first frame held fixed";
+    }
+  }
+}
+
+double GlobalProblem::SquaredError(int o) const {
+  const SurveyObservation& obs = survey_.observations[o];
+  const CameraInfo& camera = survey_.cameras.at(obs.camera);
+  std::unique_ptr<ceres::CostFunction> cost(
+      survey_.motion == MotionModel::kPlanar
+          ? PlanarMarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
+                                                   CornerSigmaPx(camera))
+          : MarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
+                                             CornerSigmaPx(camera)));
+  const double* blocks[2] = {robot_[obs.frame].data(), marker_[obs.marker].data()};
+  double residuals[8];
+  if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+  double s = 0.0;
+  for (double r : residuals) s += r * r;
+  return s;
+}
+
+bool GlobalProblem::Covariances(std::vector<std::optional<Matrix6d>>* covariance) const {
+  covariance->assign(survey_.markers.size(), std::nullopt);
+  ceres::Covariance::Options cov_options;
+  cov_options.algorithm_type = ceres::SPARSE_QR;
+  cov_options.num_threads = options_.num_threads;
+  ceres::Covariance estimator(cov_options);
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (const double* block : covariance_markers_) pairs.emplace_back(block, block);
+  if (!estimator.Compute(pairs, problem_.get())) return false;
+  for (size_t m = 0; m < survey_.markers.size(); ++m) {
+    const double* block = marker_[m].data();
+    if (std::find(covariance_markers_.begin(), covariance_markers_.end(), block) == covariance_markers_.end()) continue;
+    Eigen::Matrix<double, 6, 6, Eigen::RowMajor> manifold;
+    if (!estimator.GetCovarianceBlockInTangentSpace(block, block, manifold.data())) return false;
+    const Matrix6d J = ManifoldToBodyTangentJacobian(Marker(static_cast<int>(m)));
+    Matrix6d body = J * Matrix6d(manifold) * J.transpose();
+    (*covariance)[m] = 0.5 * (body + body.transpose());
+  }
+  return true;
+}
+
+// Observations usable in the optimization: a usable single view, both ends placed.
+std::vector<int> UsableObservations(const Survey& survey, const Initialization& init, MapBuildResult* result) {
+  std::vector<int> active;
+  for (size_t o = 0; o < survey.observations.size(); ++o) {
+    const SurveyObservation& obs = survey.observations[o];
+    std::string reason;
+    if (!init.views[o].usable) {
+      reason = "single view failed: " + init.views[o].why;
+    } else if (!init.T_world_robot[obs.frame] || !init.T_world_marker[obs.marker]) {
+      reason = "could not be placed";
+    }
+    if (reason.empty()) {
+      active.push_back(static_cast<int>(o));
+    } else {
+      result->outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0,
+                                  reason});
+    }
+  }
+  return active;
+}
+
+// Stage 3: drops outliers, then codes seen in fewer than min_frames frames.
+std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& problem, const std::vector<int>& active,
+                                const MapBuildOptions& options, MapBuildResult* result) {
+  std::vector<int> inliers;
+  std::vector<std::set<int>> frames_of_marker(survey.markers.size());
+  for (int o : active) {
+    const SurveyObservation& obs = survey.observations[o];
+    const double s = problem.SquaredError(o);
+    if (s > options.outlier_chi2) {
+      const double rms_px = std::sqrt(s / 4.0) * CornerSigmaPx(survey.cameras.at(obs.camera));
+      result->outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, rms_px,
+                                  "reprojection error above the outlier gate"});
+      continue;
+    }
+    inliers.push_back(o);
+    frames_of_marker[obs.marker].insert(obs.frame);
+  }
+  std::vector<int> kept;
+  for (int o : inliers) {
+    const int m = survey.observations[o].marker;
+    const SurveyMarker& marker = survey.markers[m];
+    if (static_cast<int>(frames_of_marker[m].size()) >= options.min_frames || marker.known) kept.push_back(o);
+  }
+  for (size_t m = 0; m < survey.markers.size(); ++m) {
+    const size_t n = frames_of_marker[m].size();
+    if (static_cast<int>(n) >= options.min_frames || (survey.markers[m].known && n > 0)) continue;
+    result->unmapped.push_back({survey.markers[m].key, n == 0 ? "no usable observation"
+                                                              : "seen in " + std::to_string(n) + " frame(s) only"});
+  }
+  return kept;
+}
+
+void FillReprojection(const Survey& survey, const GlobalProblem& problem, const std::vector<int>& kept,
+                      MapBuildResult* result) {
+  std::map<std::string, std::pair<size_t, double>> per_camera;  // observations, sum of squared px
+  for (int o : kept) {
+    const SurveyObservation& obs = survey.observations[o];
+    const double sigma = CornerSigmaPx(survey.cameras.at(obs.camera));
+    auto& entry = per_camera[obs.camera];
+    ++entry.first;
+    entry.second += problem.SquaredError(o) * sigma * sigma;
+  }
+  for (const auto& [camera, entry] : per_camera) {
+    result->reprojection.push_back({camera, entry.first, std::sqrt(entry.second / (4.0 * entry.first))});
+  }
+}
+
+void FillOutputs(const Survey& survey, const Initialization& init, const GlobalProblem& problem,
+                 const std::vector<int>& kept, const std::vector<std::string>& gauges, MapBuildResult* result) {
+  std::set<int> mapped;
+  std::vector<std::set<int>> component_frames(init.components);
+  for (int o : kept) {
+    mapped.insert(survey.observations[o].marker);
+    component_frames[init.frame_component[survey.observations[o].frame]].insert(survey.observations[o].frame);
+  }
+  for (int m : mapped) {
+    MapMarker marker;
+    marker.key = survey.markers[m].key;
+    marker.size_m = survey.markers[m].size_m;
+    marker.T_world_marker = problem.Marker(m);
+    marker.fixed = survey.markers[m].known && survey.markers[m].known->fixed;
+    marker.component = init.marker_component[m];
+    result->map.markers.push_back(marker);
+  }
+  for (int c = 0; c < init.components; ++c) {
+    ComponentSummary summary;
+    summary.component = c;
+    summary.markers = std::count_if(mapped.begin(), mapped.end(), [&](int m) { return init.marker_component[m] == c; });
+    summary.frames = component_frames[c].size();
+    summary.gauge = gauges[c];
+    result->components.push_back(summary);
+  }
+  for (size_t f = 0; f < survey.frames.size(); ++f) {
+    if (init.frame_component[f] == 0 && problem.FramePlaced(static_cast<int>(f))) {
+      result->trajectory.push_back({survey.frames[f].stamp_s, problem.Robot(static_cast<int>(f))});
+    }
+  }
+}
+
+}  // namespace
+
+bool MapBuildOptions::Check(std::string* why) const {
+  if (!ingest.Check(why)) return false;
+  const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!positive(calibration_sigma)) {
+    *why = "calibration_sigma must be finite and > 0";
+    return false;
+  }
+  if (!positive(cauchy_scale) || !positive(outlier_chi2) || !positive(payload_sigma_m) ||
+      !positive(payload_yaw_sigma_rad)) {
+    *why = "cauchy_scale, outlier_chi2, payload_sigma_m and payload_yaw_sigma_rad must be finite and > 0";
+    return false;
+  }
+  if (min_frames < 1 || max_iterations < 1 || num_threads < 1) {
+    *why = "min_frames, max_iterations and num_threads must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+MapBuildResult BuildMap(const Dataset& dataset, const MapBuildOptions& options) {
+  const Survey survey = IngestDataset(dataset, options.ingest);
+  MapBuildResult result = BuildMapFromSurvey(survey, options);
+  for (const auto& [reason, count] : dataset.warnings.counts) {
+    result.notes.push_back("input: " + std::to_string(count) + " x " + reason);
+  }
+  return result;
+}
+
+MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) throw std::runtime_error("map build options: " + why);
+  const auto progress = [&](const std::string& line) {
+    if (options.progress) options.progress(line);
+  };
+  MapBuildResult result;
+  result.frames = survey.frames.size();
+  result.notes = survey.notes;
+  progress("initializing " + std::to_string(survey.frames.size()) + " frames, " +
+           std::to_string(survey.markers.size()) + " codes, " + std::to_string(survey.observations.size()) +
+           " observations");
+  return OptimizeSurvey(survey, Initialize(survey, options.initializer), options, std::move(result));
+}
+
+MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
+                              MapBuildResult result) {
+  const auto progress = [&](const std::string& line) {
+    if (options.progress) options.progress(line);
+  };
+  GlobalProblem problem(survey, init, options);
+  const std::vector<int> active = UsableObservations(survey, init, &result);
+  std::vector<std::string> gauges;
+  const auto start = std::chrono::steady_clock::now();
+  const ceres::Solver::Summary robust = problem.Solve(active, true, &gauges);
+  const std::vector<int> kept = RejectOutliers(survey, problem, active, options, &result);
+  const ceres::Solver::Summary final_summary = problem.Solve(kept, false, &gauges);
+  result.solver_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.iterations = static_cast<int>(robust.iterations.size() + final_summary.iterations.size());
+  result.termination = ceres::TerminationTypeToString(final_summary.termination_type) + std::string(": ") +
+                       final_summary.message;
+  result.observations = kept.size();
+  result.initial_cost = robust.initial_cost;
+  result.final_cost = final_summary.final_cost;
+  FillReprojection(survey, problem, kept, &result);
+  FillOutputs(survey, init, problem, kept, gauges, &result);
+  if (options.compute_covariance) {
+    progress("marker covariances");
+    std::vector<std::optional<Matrix6d>> covariance;
+    result.covariance_computed = problem.Covariances(&covariance);
+    if (result.covariance_computed) {
+      for (MapMarker& marker : result.map.markers) marker.covariance = covariance[survey.FindMarker(marker.key)];
+    } else {
+      result.notes.push_back("marker covariances could not be computed (rank-deficient problem)");
+    }
+  }
+  return result;
+}
+
+}  // namespace waymark
+
+namespace waymark {
+
+std::string FormatBuildSummary(const MapBuildResult& result) {
+  std::ostringstream out;
+  out << "map: " << result.map.markers.size() << " markers in " << result.components.size() << " component(s), "
+      << result.frames << " frames, " << result.observations << " observations used\n";
+  for (const ComponentSummary& c : result.components) {
+    out << "  component " << c.component << ": " << c.markers << " markers, " << c.frames << " frames, gauge: "
+        << c.gauge << "\n";
+  }
+  for (const CameraReprojection& r : result.reprojection) {
+    out << "  reprojection " << r.camera << ": RMS " << Num(r.rms_px) << " px over " << r.observations
+        << " observations\n";
+  }
+  out << "outliers rejected: " << result.outliers.size() << "\n";
+  const size_t shown = std::min<size_t>(result.outliers.size(), 10);
+  for (size_t i = 0; i < shown; ++i) {
+    const RejectedObservation& o = result.outliers[i];
+    out << "  " << o.key.ToString() << " at t = " << Num(o.stamp_s, 12) << " s (" << o.camera << "): " << o.reason;
+    if (o.rms_px > 0.0) out << ", " << Num(o.rms_px) << " px";
+    out << "\n";
+  }
+  if (shown < result.outliers.size()) out << "  ... and " << result.outliers.size() - shown << " more\n";
+  out << "unmapped codes: " << result.unmapped.size() << "\n";
+  for (const UnmappedMarker& u : result.unmapped) out << "  " << u.key.ToString() << ": " << u.reason << "\n";
+  out << "solver: " << Num(result.solver_time_s) << " s, " << result.iterations << " iterations, cost "
+      << Num(result.initial_cost, 8) << " -> " << Num(result.final_cost, 8) << ", "
+      << result.termination << "\n";
+  out << "covariance: " << (result.covariance_computed ? "computed" : "not computed") << "\n";
+  for (const std::string& note : result.notes) out << "note: " << note << "\n";
+  return out.str();
+}
+
+}  // namespace waymark

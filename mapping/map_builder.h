@@ -1,0 +1,109 @@
+// Map learning: one global optimization over every marker pose and every frame's robot pose.
+//
+//   minimize  sum_obs rho(|r_obs|^2) + sum_links |r_odo|^2 + sum_priors |r_prior|^2
+//
+// r_obs:   corner reprojection of a code in an image (factors/marker_reprojection_factor.h,
+//          planar_marker_reprojection_factor.h), whitened by the camera's pixel_sigma;
+// r_odo:   odometry between consecutive frames (factors/odometry_se2_factor.h / _se3_factor.h)
+//          with the covariance of mapping/survey.h, by default with the odometry's systematic
+//          errors estimated alongside (mapping/calibrated_odometry_factor.h);
+// r_prior: anchors of markers.json held fixed (`fixed`) or by a pose prior (a `covariance`);
+//          payload coordinates as position priors (payload_sigma_m) and yaw priors.
+// Gauge, per component: anchors, else payload priors (>= 2 positions for planar surveys;
+// >= 3 for free ones, whose height is then held by a weak prior on the first frame's z), else
+// the component's first frame is held constant.
+//
+// Stages: (1) initialization (mapping/initializer.h); (2) solve with the Cauchy loss
+// rho(s) = c^2 log(1 + s / c^2) (misdecoded ids, planar flips); (3) observations whose whitened
+// squared error exceeds outlier_chi2 are outliers, reported and removed, and codes left with
+// fewer than min_frames frames are reported and not mapped; (4) solve again with the plain
+// squared loss; (5) marker covariances from ceres::Covariance, converted from the manifold's
+// tangent to map.json's right perturbation [rx ry rz tx ty tz] (factors/pose_block.h).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+#include "mapping/initializer.h"
+#include "mapping/survey.h"
+
+namespace waymark {
+
+struct MapBuildOptions {
+  IngestOptions ingest;
+  InitializerOptions initializer;
+  double cauchy_scale = 3.0;     // whitened units (sigmas)
+  double outlier_chi2 = 40.0;    // on the 8 whitened residuals of one observation
+  int min_frames = 2;            // codes seen in fewer frames are reported, not mapped
+  double payload_sigma_m = 0.01;
+  double payload_yaw_sigma_rad = 0.02;
+  // Estimate the odometry's systematic errors with the map (mapping/calibrated_odometry_factor.h),
+  // held near 0 by a prior of this sigma.
+  bool calibrate_odometry = true;
+  double calibration_sigma = 0.05;
+  int max_iterations = 200;
+  int num_threads = 1;
+  bool compute_covariance = true;
+  std::function<void(const std::string&)> progress;  // progress lines, if set
+  bool Check(std::string* why) const;
+};
+
+struct RejectedObservation {
+  MarkerKey key;
+  double stamp_s = 0.0;
+  std::string camera;
+  double rms_px = 0.0;   // after the robust solve; 0 when rejected before it
+  std::string reason;
+};
+
+struct UnmappedMarker {
+  MarkerKey key;
+  std::string reason;
+};
+
+struct CameraReprojection {
+  std::string camera;
+  size_t observations = 0;
+  double rms_px = 0.0;  // over corners
+};
+
+struct ComponentSummary {
+  int component = 0;
+  size_t markers = 0;
+  size_t frames = 0;
+  std::string gauge;
+};
+
+struct MapBuildResult {
+  MarkerMap map;
+  Trajectory trajectory;                 // smoothed T_world_robot of the frames of component 0
+  std::vector<ComponentSummary> components;
+  std::vector<CameraReprojection> reprojection;
+  std::vector<RejectedObservation> outliers;
+  std::vector<UnmappedMarker> unmapped;
+  size_t frames = 0;
+  size_t observations = 0;               // used in the final solve
+  double initial_cost = 0.0;             // of the robust solve
+  double final_cost = 0.0;               // of the final solve (half the sum of squares)
+  double solver_time_s = 0.0;
+  int iterations = 0;
+  std::string termination;               // Ceres' final termination type and message
+  bool covariance_computed = false;
+  std::vector<std::string> notes;
+};
+
+// Throws std::runtime_error for bad input (see mapping/survey.h) or options.
+MapBuildResult BuildMap(const Dataset& dataset, const MapBuildOptions& options = {});
+MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& options = {});
+
+// Stages (2) to (5) from a given initialization (e.g. one built by hand in a test); `result`
+// carries what earlier stages reported.
+MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
+                              MapBuildResult result = {});
+
+// The human summary: markers and components, reprojection RMS per camera, outliers, solver.
+std::string FormatBuildSummary(const MapBuildResult& result);
+
+}  // namespace waymark
