@@ -1,6 +1,6 @@
 // `waymark sim`: writes a simulated dataset directory with exact ground truth (sim/).
 #include <iostream>
-#include <set>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -49,33 +49,35 @@ std::string Usage() {
   return out.str();
 }
 
+// The key a shortcut option stands for, "" for --set itself, nullopt for other arguments.
+std::optional<std::string> AssignmentOption(const std::string& name) {
+  if (name == "--set") return std::string();
+  for (const auto& [flag, key] : kShortcuts) {
+    if (name == "--" + flag) return key;
+  }
+  return std::nullopt;
+}
+
 // Pulls every --set (and shortcut) out of argv, in order, leaving the rest for Args.
 std::vector<std::string> ExtractAssignments(const std::vector<std::string>& argv, std::vector<std::string>* rest) {
   std::vector<std::string> assignments;
   for (size_t i = 0; i < argv.size(); ++i) {
-    std::string name = argv[i], value;
-    const bool has_inline = name.rfind("--", 0) == 0 && name.find('=') != std::string::npos;
-    if (has_inline) {
-      value = name.substr(name.find('=') + 1);
-      name = name.substr(0, name.find('='));
+    const size_t eq = argv[i].rfind("--", 0) == 0 ? argv[i].find('=') : std::string::npos;
+    const std::string name = argv[i].substr(0, eq);
+    const std::optional<std::string> key = AssignmentOption(name);
+    if (!key) {
+      rest->push_back(argv[i]);
+      continue;
     }
-    std::string key;
-    if (name == "--set") key = "";
-    else {
-      bool found = false;
-      for (const auto& [flag, shortcut_key] : kShortcuts) {
-        if (name == "--" + flag) key = shortcut_key, found = true;
-      }
-      if (!found) {
-        rest->push_back(argv[i]);
-        continue;
-      }
-    }
-    if (!has_inline) {
-      if (i + 1 >= argv.size()) throw std::invalid_argument("option " + name + " needs a value");
+    std::string value;
+    if (eq != std::string::npos) {
+      value = argv[i].substr(eq + 1);
+    } else if (i + 1 < argv.size()) {
       value = argv[++i];
+    } else {
+      throw std::invalid_argument("option " + name + " needs a value");
     }
-    assignments.push_back(key.empty() ? value : key + "=" + value);
+    assignments.push_back(key->empty() ? value : *key + "=" + value);
   }
   return assignments;
 }

@@ -2,11 +2,12 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
-#include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 

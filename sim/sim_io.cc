@@ -28,7 +28,11 @@ void CheckOutput(const fs::path& out_dir, bool force) {
 void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint64_t seed, const fs::path& out_dir,
                      bool force) {
   CheckOutput(out_dir, force);
-  const fs::path target = fs::absolute(out_dir).lexically_normal();
+  fs::path target = fs::absolute(out_dir).lexically_normal();
+  if (!target.has_filename()) target = target.parent_path();  // "out/" names "out"
+  if (!target.has_filename() || target == target.root_path()) {
+    throw std::runtime_error(out_dir.string() + ": not usable as an output directory");
+  }
   const fs::path parent = target.parent_path();
   std::error_code ec;
   fs::create_directories(parent, ec);

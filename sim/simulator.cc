@@ -4,7 +4,6 @@
 #include <cstdio>
 #include <map>
 #include <random>
-#include <set>
 #include <stdexcept>
 
 #include "core/camera.h"

@@ -85,6 +85,7 @@ TEST_F(SimCliTest, WritesALoadableDatasetAndASummaryLine) {
   EXPECT_EQ(dataset.odometry.size(), dataset.groundtruth_trajectory->size());
   EXPECT_EQ(dataset.detections.size(), 2 * ((dataset.odometry.size() + 1) / 2));
   EXPECT_TRUE(dataset.config.payload.has_value());
+  EXPECT_EQ(dataset.warnings.Total(), 0);  // misdecoded ids included: nothing the reader rejects
   EXPECT_TRUE(fs::exists(dir_ / "out" / "sim_config.yaml"));
 }
 
@@ -148,6 +149,8 @@ TEST_F(SimCliTest, RefusesANonEmptyOutputUnlessForced) {
   fs::remove_all(dir_ / "empty");
   fs::create_directories(dir_ / "empty");
   EXPECT_EQ(Waymark("sim corridor --out empty").exit_code, 0);  // an empty directory is fine
+  EXPECT_EQ(Waymark("sim corridor --out slash/ --seed 2").exit_code, 0);
+  EXPECT_TRUE(fs::exists(dir_ / "slash" / "dataset.yaml"));
 }
 
 TEST_F(SimCliTest, HelpListsScenariosAndEveryKey) {
