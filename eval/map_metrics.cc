@@ -43,24 +43,37 @@ std::map<int, ComponentMatches> MatchByComponent(const MarkerMap& est, const Mar
   return components;
 }
 
+// True when the points lie close to one line: the second singular value of the centred
+// point matrix is below kMinSpreadRatio times the first (both in metres * sqrt(n)). Markers
+// along one wall at one height are the common case; their centres leave the rotation about
+// the wall's line to noise.
+bool NearlyCollinear(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) mean += p / static_cast<double>(points.size());
+  Eigen::MatrixXd centred(points.size(), 3);
+  for (size_t i = 0; i < points.size(); ++i) centred.row(i) = (points[i] - mean).transpose();
+  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(centred).singularValues();
+  return s(1) < kMinSpreadRatio * s(0);
+}
+
 ComponentResult AlignComponent(int component, const ComponentMatches& matches) {
   ComponentResult result;
   result.component = component;
   result.markers = matches.keys.size();
   result.markers_total = matches.markers_total;
   if (matches.keys.empty()) return result;
-  if (matches.keys.size() >= 3) {
-    std::vector<Eigen::Vector3d> p_est, p_gt;
-    for (size_t i = 0; i < matches.keys.size(); ++i) {
-      p_est.push_back(matches.T_est_marker[i].translation());
-      p_gt.push_back(matches.T_gt_marker[i].translation());
-    }
+  std::vector<Eigen::Vector3d> p_est, p_gt;
+  for (size_t i = 0; i < matches.keys.size(); ++i) {
+    p_est.push_back(matches.T_est_marker[i].translation());
+    p_gt.push_back(matches.T_gt_marker[i].translation());
+  }
+  if (matches.keys.size() >= 3 && !NearlyCollinear(p_gt)) {
     try {
       result.alignment = UmeyamaSim3(p_est, p_gt, /*with_scale=*/false);
       result.method = MapAlignmentMethod::kPositions;
       return result;
     } catch (const DegenerateAlignmentError&) {
-      // Collinear centres leave the rotation about their line free: use the poses.
+      // The estimated centres collapsed (e.g. all equal): fall back to the poses.
     }
   }
   result.alignment = AlignByPoses(matches.T_est_marker, matches.T_gt_marker);

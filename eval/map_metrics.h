@@ -5,7 +5,10 @@
 // truth on its own, using the markers present in both maps:
 //   - >= 3 markers, not all on one line: SE(3) Umeyama on the marker centres
 //       (R, t) = argmin sum_i || p_gt,i - (R p_est,i + t) ||^2         ("positions")
-//   - otherwise (1 or 2 markers, or collinear centres): from the marker poses themselves
+//     "on one line": the true centres' second singular value (centred) is below
+//     kMinSpreadRatio times the first, e.g. codes along one wall at one height, where the
+//     rotation about the line would be fitted to noise;
+//   - otherwise (1 or 2 markers, or nearly collinear centres): from the marker poses themselves
 //       R = argmax_R tr(R^T sum_i R_gt,i R_est,i^T)   (chordal mean, by SVD, det = +1)
 //       t = mean_i (p_gt,i - R p_est,i)                                   ("poses")
 //     exact for a single marker.
@@ -22,6 +25,10 @@
 #include "eval/alignment.h"
 
 namespace waymark::eval {
+
+// Centres whose spread across their main direction is below 5 % of the spread along it
+// count as one line (see the header comment).
+inline constexpr double kMinSpreadRatio = 0.05;
 
 struct MarkerError {
   MarkerKey key;
