@@ -25,7 +25,8 @@ const std::vector<std::pair<std::string, std::string>> kShortcuts = {
 
 std::string Usage() {
   std::ostringstream out;
-  out << "Usage: waymark sim SCENARIO --out DIR [--seed N] [--config FILE.yaml] [--set key=value ...] [--force]\n"
+  out << "Usage: waymark sim SCENARIO --out DIR [--seed N] [--config FILE.yaml] [--set key=value ...] "
+         "[--force]\n"
          "       waymark sim SCENARIO --print-config [--config FILE.yaml] [--set key=value ...]\n"
          "       waymark sim list\n\n"
          "Writes a dataset directory (DESIGN.md) with detections, odometry and exact ground truth.\n"
@@ -59,7 +60,8 @@ std::optional<std::string> AssignmentOption(const std::string& name) {
 }
 
 // Pulls every --set (and shortcut) out of argv, in order, leaving the rest for Args.
-std::vector<std::string> ExtractAssignments(const std::vector<std::string>& argv, std::vector<std::string>* rest) {
+std::vector<std::string> ExtractAssignments(const std::vector<std::string>& argv,
+                                            std::vector<std::string>* rest) {
   std::vector<std::string> assignments;
   for (size_t i = 0; i < argv.size(); ++i) {
     const size_t eq = argv[i].rfind("--", 0) == 0 ? argv[i].find('=') : std::string::npos;

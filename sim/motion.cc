@@ -39,7 +39,10 @@ double SimTrajectory::LengthM() const {
 
 PlanarPathBuilder::PlanarPathBuilder(const SE2d& T_world_start, double rate_hz, double speed_mps,
                                      double turn_rate_rad_s)
-    : dt_s_(1.0 / rate_hz), speed_mps_(speed_mps), turn_rate_rad_s_(turn_rate_rad_s), current_(T_world_start) {
+    : dt_s_(1.0 / rate_hz),
+      speed_mps_(speed_mps),
+      turn_rate_rad_s_(turn_rate_rad_s),
+      current_(T_world_start) {
   if (!(rate_hz > 0.0 && speed_mps > 0.0 && turn_rate_rad_s > 0.0)) {
     throw std::invalid_argument("path: rate, speed and turn rate must be positive");
   }
@@ -85,7 +88,8 @@ void PlanarPathBuilder::CarryTo(const SE2d& T_world_new, double duration_s) {
 
 SimTrajectory PlanarPathBuilder::Build(double height_m) const {
   SimTrajectory out;
-  for (const auto& [stamp_s, T_world_robot] : samples_) out.T_world_robot.push_back({stamp_s, T_world_robot.ToSE3(height_m)});
+  for (const auto& [stamp_s, T_world_robot] : samples_)
+    out.T_world_robot.push_back({stamp_s, T_world_robot.ToSE3(height_m)});
   out.segment = segments_;
   return out;
 }
@@ -141,7 +145,8 @@ SimTrajectory FlightPathBuilder::Build() const {
   return out;
 }
 
-Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometryModel& model, std::mt19937_64* rng) {
+Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometryModel& model,
+                                 std::mt19937_64* rng) {
   std::normal_distribution<double> normal(0.0, 1.0);
   const double half_track_m = 0.5 * model.track_width_m;
   const double nominal_track_m = model.track_width_m * (1.0 + model.track_width_error);
@@ -149,8 +154,8 @@ Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometry
   SE2d T_odom_robot;
   for (size_t k = 0; k < truth.T_world_robot.size(); ++k) {
     if (k > 0 && truth.segment[k] == truth.segment[k - 1]) {
-      const SE2d step = SE2d::FromSE3(truth.T_world_robot[k - 1].T).inverse() *
-                        SE2d::FromSE3(truth.T_world_robot[k].T);
+      const SE2d step =
+          SE2d::FromSE3(truth.T_world_robot[k - 1].T).inverse() * SE2d::FromSE3(truth.T_world_robot[k].T);
       const double dtheta = step.theta();
       const double s = ArcLength(step.x(), step.y(), dtheta);
       const double s_left = (s - dtheta * half_track_m) / (1.0 + model.wheel_radius_error_left);
@@ -189,7 +194,8 @@ Trajectory SimulateVisualOdometry(const SimTrajectory& truth, const VisualOdomet
           (1.0 + model.scale_error) * step.translation() + noise3(model.sigma.trans_per_m * distance_m);
       const Eigen::Quaterniond q_meas =
           step.rotation() * ExpSO3(noise3(model.sigma.rot_per_rad * angle_rad)) *
-          Eigen::Quaterniond(Eigen::AngleAxisd(model.yaw_drift_rad_per_m * distance_m, Eigen::Vector3d::UnitZ()));
+          Eigen::Quaterniond(
+              Eigen::AngleAxisd(model.yaw_drift_rad_per_m * distance_m, Eigen::Vector3d::UnitZ()));
       T_odom_robot = T_odom_robot * SE3d(q_meas, t_meas);
     } else {
       T_odom_robot = SE3d();

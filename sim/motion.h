@@ -22,10 +22,9 @@
 // (the yaw drift is about the body z axis, which stays near vertical in level flight).
 #pragma once
 
+#include <Eigen/Core>
 #include <random>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/geometry.h"
 #include "core/types.h"
@@ -33,9 +32,9 @@
 namespace waymark::sim {
 
 struct SimTrajectory {
-  Trajectory T_world_robot;   // true poses, stamps in seconds
-  std::vector<int> segment;   // per sample; increases by one at each carry
-  double LengthM() const;     // path length, carries excluded
+  Trajectory T_world_robot;  // true poses, stamps in seconds
+  std::vector<int> segment;  // per sample; increases by one at each carry
+  double LengthM() const;    // path length, carries excluded
 };
 
 // Builds a differential-drive path: turns in place and straight runs at constant rates,
@@ -44,10 +43,10 @@ class PlanarPathBuilder {
  public:
   PlanarPathBuilder(const SE2d& T_world_start, double rate_hz, double speed_mps, double turn_rate_rad_s);
 
-  void TurnBy(double angle_rad);          // in place, positive = counter-clockwise
-  void TurnTo(double yaw_rad);            // shortest turn to a heading
+  void TurnBy(double angle_rad);                      // in place, positive = counter-clockwise
+  void TurnTo(double yaw_rad);                        // shortest turn to a heading
   void DriveTo(const Eigen::Vector2d& target_world);  // turn to face the target, then straight
-  void Wait(double duration_s);           // stand still
+  void Wait(double duration_s);                       // stand still
   // Carried to `T_world_new` during `duration_s` (no samples; a new segment begins).
   void CarryTo(const SE2d& T_world_new, double duration_s);
 
@@ -89,9 +88,9 @@ class FlightPathBuilder {
 
 struct WheelOdometryModel {
   double track_width_m = 0.3;
-  double wheel_radius_error_left = 0.0;   // true radius / nominal - 1
+  double wheel_radius_error_left = 0.0;  // true radius / nominal - 1
   double wheel_radius_error_right = 0.0;
-  double track_width_error = 0.0;         // nominal track width / true - 1
+  double track_width_error = 0.0;  // nominal track width / true - 1
   OdometrySigma sigma;
 };
 
@@ -102,7 +101,8 @@ struct VisualOdometryModel {
 };
 
 // T_odom_robot at the stamps of `truth`, identity at the first sample of every segment.
-Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometryModel& model, std::mt19937_64* rng);
+Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometryModel& model,
+                                 std::mt19937_64* rng);
 Trajectory SimulateVisualOdometry(const SimTrajectory& truth, const VisualOdometryModel& model,
                                   std::mt19937_64* rng);
 

@@ -116,12 +116,15 @@ Param* ParamSet::Find(const std::string& key) {
 
 const Param& ParamSet::Get(const std::string& key, ParamType type) const {
   const Param* p = Find(key);
-  if (p == nullptr || p->type != type) throw std::logic_error("parameter not declared with this type: " + key);
+  if (p == nullptr || p->type != type)
+    throw std::logic_error("parameter not declared with this type: " + key);
   return *p;
 }
 
 double ParamSet::Double(const std::string& key) const { return Get(key, ParamType::kDouble).value; }
-long ParamSet::Int(const std::string& key) const { return static_cast<long>(Get(key, ParamType::kInt).value); }
+long ParamSet::Int(const std::string& key) const {
+  return static_cast<long>(Get(key, ParamType::kInt).value);
+}
 bool ParamSet::Bool(const std::string& key) const { return Get(key, ParamType::kBool).value != 0.0; }
 
 void ParamSet::SetFromText(const std::string& key, const std::string& text, const std::string& origin) {

@@ -30,20 +30,25 @@ void AddCommonParams(ParamSet* p, OdometryKind kind, const CommonDefaults& d) {
   p->AddDouble("detect.pixel_sigma_px", 0.5, 0.0, 50.0, "corner noise, per coordinate (Gaussian)");
   p->AddDouble("detect.min_range_m", d.min_range_m, 0.0, 100.0, "closest detectable camera-code distance");
   p->AddDouble("detect.max_range_m", d.max_range_m, 0.0, 100.0, "farthest detectable camera-code distance");
-  p->AddDouble("detect.max_angle_deg", d.max_angle_deg, 0.0, 89.0, "largest angle between code normal and view ray");
+  p->AddDouble("detect.max_angle_deg", d.max_angle_deg, 0.0, 89.0,
+               "largest angle between code normal and view ray");
   p->AddDouble("detect.border_px", 2.0, 0.0, 100.0, "corners closer to the image edge are not detected");
   p->AddDouble("detect.miss_fraction", 0.02, 0.0, 1.0, "fraction of visible codes missed at random");
   p->AddDouble("detect.misdecode_fraction", 0.0, 0.0, 1.0, "fraction of detections given a wrong id");
   p->AddDouble("detect.misdecode_random_share", 0.5, 0.0, 1.0,
                "share of wrong ids that are random text (the rest: another code's id)");
-  p->AddDouble("odometry.trans_per_m", d.trans_per_m, 0.0, 1.0, "white translation noise per metre (per step)");
+  p->AddDouble("odometry.trans_per_m", d.trans_per_m, 0.0, 1.0,
+               "white translation noise per metre (per step)");
   p->AddDouble("odometry.rot_per_rad", d.rot_per_rad, 0.0, 1.0, "white rotation noise per radian (per step)");
   if (kind == OdometryKind::kWheel) {
-    p->AddDouble("odometry.wheel_radius_error_left", 0.0005, -0.5, 0.5, "systematic: true/nominal radius - 1");
-    p->AddDouble("odometry.wheel_radius_error_right", -0.0005, -0.5, 0.5, "systematic: true/nominal radius - 1");
+    p->AddDouble("odometry.wheel_radius_error_left", 0.0005, -0.5, 0.5,
+                 "systematic: true/nominal radius - 1");
+    p->AddDouble("odometry.wheel_radius_error_right", -0.0005, -0.5, 0.5,
+                 "systematic: true/nominal radius - 1");
     p->AddDouble("odometry.track_width_error", 0.005, -0.5, 0.5, "systematic: nominal/true track width - 1");
   } else {
-    p->AddDouble("odometry.scale_error", 0.01, -0.5, 0.5, "systematic: scale of the measured translation - 1");
+    p->AddDouble("odometry.scale_error", 0.01, -0.5, 0.5,
+                 "systematic: scale of the measured translation - 1");
     p->AddDouble("odometry.yaw_drift_deg_per_m", 0.2, -45.0, 45.0, "systematic: yaw drift per metre flown");
   }
 }
@@ -62,7 +67,8 @@ CameraInfo MakeCamera(const std::string& name, int width, int height, double foc
 }
 
 // Camera looking along `forward_robot` with the image's down direction `down_robot`.
-SE3d Mount(const Eigen::Vector3d& t_robot, const Eigen::Vector3d& forward_robot, const Eigen::Vector3d& down_robot) {
+SE3d Mount(const Eigen::Vector3d& t_robot, const Eigen::Vector3d& forward_robot,
+           const Eigen::Vector3d& down_robot) {
   return SE3d(RotationFromZY(forward_robot, down_robot), t_robot);
 }
 
@@ -80,7 +86,8 @@ std::vector<double> PositionsAlong(double length_m, double spacing_m, double mar
 double RoundMm(double x) { return std::round(x * 1000.0) / 1000.0; }
 
 // Four walls of the axis-aligned rectangle [x0, x1] x [y0, y1], each from z = 0 to height_m.
-void AddRectangleWalls(double x0, double y0, double x1, double y1, double height_m, std::vector<Occluder>* out) {
+void AddRectangleWalls(double x0, double y0, double x1, double y1, double height_m,
+                       std::vector<Occluder>* out) {
   out->push_back(VerticalWall({x0, y0}, {x1, y0}, 0.0, height_m));
   out->push_back(VerticalWall({x1, y0}, {x1, y1}, 0.0, height_m));
   out->push_back(VerticalWall({x1, y1}, {x0, y1}, 0.0, height_m));
@@ -100,10 +107,13 @@ struct WallFace {
 
 const std::vector<ScenarioInfo>& Scenarios() {
   static const std::vector<ScenarioInfo> scenarios = {
-      {"corridor", "10 cm QR codes in a row on the walls of a ~40 m corridor loop, two side cameras (seed 000)"},
+      {"corridor",
+       "10 cm QR codes in a row on the walls of a ~40 m corridor loop, two side cameras (seed 000)"},
       {"ceiling-grid", "12 cm QR codes on a 2.45 m ceiling every 1.4 m, upward camera (seed 001)"},
-      {"rooms", "8 cm DataMatrix codes on the walls of rooms joined by doors, plus one unconnected room (seed 003)"},
-      {"warehouse-drone", "floor QR codes 0/x/y and load QR codes on racks, drone with down and front cameras (seed 004)"},
+      {"rooms",
+       "8 cm DataMatrix codes on the walls of rooms joined by doors, plus one unconnected room (seed 003)"},
+      {"warehouse-drone",
+       "floor QR codes 0/x/y and load QR codes on racks, drone with down and front cameras (seed 004)"},
   };
   return scenarios;
 }
@@ -130,9 +140,9 @@ ParamSet CorridorParams() {
 // then the outer walls' (normals inwards). The centre line is [0, L] x [0, W].
 std::vector<WallFace> CorridorFaces(double L, double W, double half_w) {
   const double li = L - 2 * half_w, wi = W - 2 * half_w, lo = L + 2 * half_w, wo = W + 2 * half_w;
-  return {{{half_w, half_w}, {1, 0}, {0, -1}, li},         {{L - half_w, half_w}, {0, 1}, {1, 0}, wi},
-          {{L - half_w, W - half_w}, {-1, 0}, {0, 1}, li}, {{half_w, W - half_w}, {0, -1}, {-1, 0}, wi},
-          {{-half_w, -half_w}, {1, 0}, {0, 1}, lo},        {{L + half_w, -half_w}, {0, 1}, {-1, 0}, wo},
+  return {{{half_w, half_w}, {1, 0}, {0, -1}, li},          {{L - half_w, half_w}, {0, 1}, {1, 0}, wi},
+          {{L - half_w, W - half_w}, {-1, 0}, {0, 1}, li},  {{half_w, W - half_w}, {0, -1}, {-1, 0}, wi},
+          {{-half_w, -half_w}, {1, 0}, {0, 1}, lo},         {{L + half_w, -half_w}, {0, 1}, {-1, 0}, wo},
           {{L + half_w, W + half_w}, {-1, 0}, {0, -1}, lo}, {{-half_w, W + half_w}, {0, -1}, {1, 0}, wo}};
 }
 
@@ -147,7 +157,8 @@ void AddCorridorCodes(const ParamSet& p, const std::vector<WallFace>& faces, Wor
       std::snprintf(id, sizeof(id), "C%03zu", world->markers.size());
       m.key = {kFamilyQr, id};
       m.size_m = size_m;
-      m.T_world_marker = WallMarkerPose({c.x(), c.y(), cam_h}, {faces[f].normal.x(), faces[f].normal.y(), 0.0});
+      m.T_world_marker =
+          WallMarkerPose({c.x(), c.y(), cam_h}, {faces[f].normal.x(), faces[f].normal.y(), 0.0});
       m.anchor = static_cast<long>(world->markers.size()) < anchors;
       m.region = static_cast<int>(f);
       world->markers.push_back(m);
@@ -162,14 +173,19 @@ Scene BuildCorridor(const ParamSet& p) {
   const double length_m = p.Double("place.loop_length_m"), width_m = p.Double("place.loop_width_m");
   const double half_w = 0.5 * p.Double("place.corridor_width_m");
   const double wall_h = p.Double("place.wall_height_m"), cam_h = p.Double("place.camera_height_m");
-  if (2.0 * half_w >= std::min(length_m, width_m)) throw std::invalid_argument("corridor wider than the loop");
+  if (2.0 * half_w >= std::min(length_m, width_m))
+    throw std::invalid_argument("corridor wider than the loop");
   world.default_marker_size_m = p.Double("place.marker_size_m");
-  AddRectangleWalls(half_w, half_w, length_m - half_w, width_m - half_w, wall_h, &world.occluders);  // inner block
-  AddRectangleWalls(-half_w, -half_w, length_m + half_w, width_m + half_w, wall_h, &world.occluders);  // outer
+  AddRectangleWalls(half_w, half_w, length_m - half_w, width_m - half_w, wall_h,
+                    &world.occluders);  // inner block
+  AddRectangleWalls(-half_w, -half_w, length_m + half_w, width_m + half_w, wall_h,
+                    &world.occluders);  // outer
   AddCorridorCodes(p, CorridorFaces(length_m, width_m, half_w), &world);
   const std::vector<double> mild = {-0.05, 0.01, 0.0005, -0.0003, 0.0};
-  world.cameras.push_back(MakeCamera("left", 640, 480, 450.0, mild, Mount({0, 0.12, cam_h}, {0, 1, 0}, {0, 0, -1})));
-  world.cameras.push_back(MakeCamera("right", 640, 480, 450.0, mild, Mount({0, -0.12, cam_h}, {0, -1, 0}, {0, 0, -1})));
+  world.cameras.push_back(
+      MakeCamera("left", 640, 480, 450.0, mild, Mount({0, 0.12, cam_h}, {0, 1, 0}, {0, 0, -1})));
+  world.cameras.push_back(
+      MakeCamera("right", 640, 480, 450.0, mild, Mount({0, -0.12, cam_h}, {0, -1, 0}, {0, 0, -1})));
   PlanarPathBuilder path(SE2d(0, 0, 0), p.Double("rate.odometry_hz"), p.Double("robot.speed_mps"),
                          p.Double("robot.turn_rate_dps") * kDegToRad);
   for (const Eigen::Vector2d& corner : {Eigen::Vector2d(length_m, 0), Eigen::Vector2d(length_m, width_m),
@@ -211,7 +227,8 @@ Scene BuildCeilingGrid(const ParamSet& p) {
     for (double x : PositionsAlong(room_x, pitch, 0.0)) {
       SimMarker m;
       const double xr = RoundMm(x), yr = RoundMm(y);
-      m.key = {kFamilyQr, std::to_string(world.markers.size()) + "/" + FormatNumber(xr) + "/" + FormatNumber(yr)};
+      m.key = {kFamilyQr,
+               std::to_string(world.markers.size()) + "/" + FormatNumber(xr) + "/" + FormatNumber(yr)};
       m.size_m = size_m;
       // Facing down; symbol x along world -x, y along world +y (all codes alike).
       m.T_world_marker = SE3d(RotationFromZY({0, 0, -1}, {0, 1, 0}), Eigen::Vector3d(xr, yr, ceiling_h));
@@ -269,7 +286,8 @@ void AddRoomCodes(int room, double x0, double size_room, const ParamSet& p, Worl
       SimMarker m;
       m.key = {kFamilyDataMatrix, std::to_string(1000 + 100 * room + 10 * static_cast<int>(f) + k)};
       m.size_m = p.Double("place.marker_size_m");
-      m.T_world_marker = WallMarkerPose({c.x(), c.y(), cam_h}, {faces[f].normal.x(), faces[f].normal.y(), 0.0});
+      m.T_world_marker =
+          WallMarkerPose({c.x(), c.y(), cam_h}, {faces[f].normal.x(), faces[f].normal.y(), 0.0});
       m.region = room;
       world->markers.push_back(m);
     }
@@ -277,7 +295,8 @@ void AddRoomCodes(int room, double x0, double size_room, const ParamSet& p, Worl
 }
 
 // A wall at x = const from y = 0 to `s`, with a centred door if `door`.
-void AddCrossWall(double x, double s, bool door, double door_width_m, double height_m, std::vector<Occluder>* out) {
+void AddCrossWall(double x, double s, bool door, double door_width_m, double height_m,
+                  std::vector<Occluder>* out) {
   if (!door) {
     out->push_back(VerticalWall({x, 0}, {x, s}, 0.0, height_m));
     return;
@@ -305,8 +324,9 @@ Scene BuildRooms(const ParamSet& p) {
   if (unconnected) AddRectangleWalls(x_far, 0, x_far + s, s, h, &world.occluders);
   for (int r = 0; r < rooms; ++r) AddRoomCodes(r, r * s, s, p, &world);
   if (unconnected) AddRoomCodes(rooms, x_far, s, p, &world);
-  world.cameras.push_back(MakeCamera("front", 1280, 960, 1100.0, {-0.08, 0.02, 0.0, 0.0, 0.0},
-                                     Mount({0.05, 0, p.Double("place.camera_height_m")}, {1, 0, 0}, {0, 0, -1})));
+  world.cameras.push_back(
+      MakeCamera("front", 1280, 960, 1100.0, {-0.08, 0.02, 0.0, 0.0, 0.0},
+                 Mount({0.05, 0, p.Double("place.camera_height_m")}, {1, 0, 0}, {0, 0, -1})));
   PlanarPathBuilder path(SE2d(0.5 * s, 0.5 * s, 0), p.Double("rate.odometry_hz"), p.Double("robot.speed_mps"),
                          p.Double("robot.turn_rate_dps") * kDegToRad);
   auto look_around = [&] {
@@ -350,7 +370,8 @@ ParamSet DroneParams() {
 
 void AddLoadCodes(const ParamSet& p, int rack, double y_face, double normal_y, World* world) {
   const double size_m = p.Double("place.marker_size_m");
-  const std::vector<double> bays = PositionsAlong(p.Double("place.rack_length_m"), p.Double("place.bay_spacing_m"), size_m);
+  const std::vector<double> bays =
+      PositionsAlong(p.Double("place.rack_length_m"), p.Double("place.bay_spacing_m"), size_m);
   for (size_t b = 0; b < bays.size(); ++b) {
     for (long level = 0; level < p.Int("place.load_levels"); ++level) {
       const double z = 0.5 + level * p.Double("place.level_spacing_m");
@@ -387,7 +408,8 @@ void AddFloorCodes(const ParamSet& p, World* world) {
   for (int a = 0; a + 1 < p.Int("place.racks"); ++a) {
     const double y_centre = a * (depth_m + aisle_m) + depth_m + 0.5 * aisle_m;
     for (double dy : {-offset_m, offset_m}) {
-      for (double x : PositionsAlong(p.Double("place.rack_length_m"), p.Double("place.floor_spacing_m"), size_m)) {
+      for (double x :
+           PositionsAlong(p.Double("place.rack_length_m"), p.Double("place.floor_spacing_m"), size_m)) {
         const double xr = RoundMm(x), yr = RoundMm(y_centre + dy);
         SimMarker m;
         m.key = {kFamilyQr, "0/" + FormatNumber(xr) + "/" + FormatNumber(yr)};
@@ -407,8 +429,9 @@ SimTrajectory FlyAisles(const ParamSet& p) {
   const double length_m = p.Double("place.rack_length_m");
   const double low = p.Double("place.altitude_low_m"), high = p.Double("place.altitude_high_m");
   const double y_first = depth_m + 0.5 * aisle_m;
-  FlightPathBuilder flight({-0.5, y_first, low}, 0.5 * M_PI, p.Double("rate.odometry_hz"), p.Double("drone.speed_mps"),
-                           p.Double("drone.yaw_rate_dps") * kDegToRad, p.Double("drone.wobble_deg") * kDegToRad);
+  FlightPathBuilder flight({-0.5, y_first, low}, 0.5 * M_PI, p.Double("rate.odometry_hz"),
+                           p.Double("drone.speed_mps"), p.Double("drone.yaw_rate_dps") * kDegToRad,
+                           p.Double("drone.wobble_deg") * kDegToRad);
   for (int a = 0; a + 1 < p.Int("place.racks"); ++a) {
     const double y = a * (depth_m + aisle_m) + y_first;
     flight.FlyTo({-0.5, y, low});
@@ -432,8 +455,10 @@ Scene BuildWarehouseDrone(const ParamSet& p) {
   AddRacks(p, &world);
   AddFloorCodes(p, &world);
   const std::vector<double> mild = {-0.04, 0.008, 0.0, 0.0, 0.0};
-  world.cameras.push_back(MakeCamera("down", 640, 480, 380.0, mild, Mount({0, 0, -0.05}, {0, 0, -1}, {-1, 0, 0})));
-  world.cameras.push_back(MakeCamera("front", 640, 480, 500.0, mild, Mount({0.1, 0, 0}, {1, 0, 0}, {0, 0, -1})));
+  world.cameras.push_back(
+      MakeCamera("down", 640, 480, 380.0, mild, Mount({0, 0, -0.05}, {0, 0, -1}, {-1, 0, 0})));
+  world.cameras.push_back(
+      MakeCamera("front", 640, 480, 500.0, mild, Mount({0.1, 0, 0}, {1, 0, 0}, {0, 0, -1})));
   scene.truth = FlyAisles(p);
   return scene;
 }

@@ -17,7 +17,8 @@ namespace fs = std::filesystem;
 void CheckOutput(const fs::path& out_dir, bool force) {
   std::error_code ec;
   if (!fs::exists(out_dir, ec)) return;
-  if (!fs::is_directory(out_dir, ec)) throw std::runtime_error(out_dir.string() + ": exists and is not a directory");
+  if (!fs::is_directory(out_dir, ec))
+    throw std::runtime_error(out_dir.string() + ": exists and is not a directory");
   if (!fs::is_empty(out_dir, ec) && !force) {
     throw std::runtime_error(out_dir.string() + ": directory is not empty (use --force to replace it)");
   }
@@ -25,8 +26,8 @@ void CheckOutput(const fs::path& out_dir, bool force) {
 
 }  // namespace
 
-void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint64_t seed, const fs::path& out_dir,
-                     bool force) {
+void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint64_t seed,
+                     const fs::path& out_dir, bool force) {
   CheckOutput(out_dir, force);
   fs::path target = fs::absolute(out_dir).lexically_normal();
   if (!target.has_filename()) target = target.parent_path();  // "out/" names "out"
@@ -37,13 +38,14 @@ void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint6
   std::error_code ec;
   fs::create_directories(parent, ec);
   if (ec) throw std::runtime_error(parent.string() + ": cannot create directory: " + ec.message());
-  const fs::path temp = parent / ("." + target.filename().string() + ".sim-tmp-" + std::to_string(::getpid()));
+  const fs::path temp =
+      parent / ("." + target.filename().string() + ".sim-tmp-" + std::to_string(::getpid()));
   fs::remove_all(temp, ec);
   try {
     WriteDataset(temp, result.dataset);
     AtomicWriteFile(temp / "sim_config.yaml", "# reproduce: waymark sim " + result.scenario + " --seed " +
-                                                   std::to_string(seed) + " --config sim_config.yaml --out DIR\n" +
-                                                   params.ToYaml());
+                                                  std::to_string(seed) +
+                                                  " --config sim_config.yaml --out DIR\n" + params.ToYaml());
     if (fs::exists(target)) fs::remove_all(target);  // empty, or replaced under --force
     fs::rename(temp, target);
   } catch (...) {

@@ -131,7 +131,8 @@ void FillPlace(const SimResult& result, const ParamSet& params, Dataset* dataset
   config.name = world.name;
   config.motion = world.motion;
   config.default_marker_size_m = world.default_marker_size_m;
-  config.odometry_sigma = OdometrySigma{params.Double("odometry.trans_per_m"), params.Double("odometry.rot_per_rad")};
+  config.odometry_sigma =
+      OdometrySigma{params.Double("odometry.trans_per_m"), params.Double("odometry.rot_per_rad")};
   config.payload = world.payload;
   const double sigma_px = params.Double("detect.pixel_sigma_px");
   for (CameraInfo camera : world.cameras) {

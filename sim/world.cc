@@ -60,7 +60,8 @@ std::optional<std::array<Eigen::Vector2d, 4>> VisibleCorners(const Camera& camer
   const double range_m = to_camera.norm();
   if (range_m < limits.min_range_m || range_m > limits.max_range_m) return std::nullopt;
   const Eigen::Vector3d normal_world = marker.T_world_marker.rotation() * Eigen::Vector3d::UnitZ();
-  if (normal_world.dot(to_camera) < range_m * std::cos(limits.max_angle_deg * M_PI / 180.0)) return std::nullopt;
+  if (normal_world.dot(to_camera) < range_m * std::cos(limits.max_angle_deg * M_PI / 180.0))
+    return std::nullopt;
 
   const SE3d T_camera_world = T_world_camera.inverse();
   const auto corners_marker = MarkerCorners(marker.size_m);
@@ -71,8 +72,8 @@ std::optional<std::array<Eigen::Vector2d, 4>> VisibleCorners(const Camera& camer
     if (corner_camera.z() <= kMinDepth) return std::nullopt;
     const std::optional<Eigen::Vector2d> px = camera.Project(corner_camera);
     if (!px) return std::nullopt;
-    if (px->x() < limits.border_px || px->y() < limits.border_px || px->x() > camera.width() - limits.border_px ||
-        px->y() > camera.height() - limits.border_px) {
+    if (px->x() < limits.border_px || px->y() < limits.border_px ||
+        px->x() > camera.width() - limits.border_px || px->y() > camera.height() - limits.border_px) {
       return std::nullopt;
     }
     if (SegmentOccluded(occluders, camera_world, corner_world)) return std::nullopt;

@@ -14,12 +14,11 @@
 //   occlusion  no occluder rectangle crosses the open segment from c to any corner
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/camera.h"
 #include "core/geometry.h"

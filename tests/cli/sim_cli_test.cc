@@ -32,9 +32,8 @@ std::string Slurp(const fs::path& path) {
 class SimCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("waymark_sim_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() / ("waymark_sim_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -42,7 +41,8 @@ class SimCliTest : public ::testing::Test {
 
   // Runs `waymark <args>` in dir_, capturing stdout and stderr.
   Outcome Waymark(const std::string& args) {
-    const std::string command = "cd '" + dir_.string() + "' && '" + WAYMARK_BINARY + "' " + args + " > stdout.txt 2> stderr.txt";
+    const std::string command =
+        "cd '" + dir_.string() + "' && '" + WAYMARK_BINARY + "' " + args + " > stdout.txt 2> stderr.txt";
     const int status = std::system(command.c_str());
     Outcome outcome;
     outcome.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -93,12 +93,13 @@ TEST_F(SimCliTest, SameSeedSameFilesOtherSeedSamePlace) {
   ASSERT_EQ(Waymark("sim corridor --out a --seed 11").exit_code, 0);
   ASSERT_EQ(Waymark("sim corridor --out b --seed 11").exit_code, 0);
   ASSERT_EQ(Waymark("sim corridor --out c --seed 12").exit_code, 0);
-  for (const char* file : {"dataset.yaml", "cameras/left.yaml", "odometry.tum", "detections.jsonl", "markers.json",
-                           "groundtruth/trajectory.tum", "groundtruth/markers.json"}) {
+  for (const char* file : {"dataset.yaml", "cameras/left.yaml", "odometry.tum", "detections.jsonl",
+                           "markers.json", "groundtruth/trajectory.tum", "groundtruth/markers.json"}) {
     EXPECT_EQ(Slurp(dir_ / "a" / file), Slurp(dir_ / "b" / file)) << file;
   }
   EXPECT_EQ(Slurp(dir_ / "a" / "groundtruth/markers.json"), Slurp(dir_ / "c" / "groundtruth/markers.json"));
-  EXPECT_EQ(Slurp(dir_ / "a" / "groundtruth/trajectory.tum"), Slurp(dir_ / "c" / "groundtruth/trajectory.tum"));
+  EXPECT_EQ(Slurp(dir_ / "a" / "groundtruth/trajectory.tum"),
+            Slurp(dir_ / "c" / "groundtruth/trajectory.tum"));
   EXPECT_NE(Slurp(dir_ / "a" / "detections.jsonl"), Slurp(dir_ / "c" / "detections.jsonl"));
   EXPECT_NE(Slurp(dir_ / "a" / "odometry.tum"), Slurp(dir_ / "c" / "odometry.tum"));
 }
@@ -119,19 +120,23 @@ TEST_F(SimCliTest, PrintedConfigReproducesTheRun) {
 
 TEST_F(SimCliTest, BadConfigFailsCleanly) {
   WriteFile("bad.yaml", "place:\n  spacing_m: 2\n  spacing: 4\n");
-  ExpectCleanFailure(Waymark("sim corridor --out out --config bad.yaml"), "bad.yaml:3: unknown key 'place.spacing'");
+  ExpectCleanFailure(Waymark("sim corridor --out out --config bad.yaml"),
+                     "bad.yaml:3: unknown key 'place.spacing'");
   fs::remove(dir_ / "bad.yaml");
   WriteFile("bad.yaml", "detect:\n  pixel_sigma_px: [1]\n");
-  ExpectCleanFailure(Waymark("sim corridor --out out --config bad.yaml"), "bad.yaml:2: detect.pixel_sigma_px: expected a number");
+  ExpectCleanFailure(Waymark("sim corridor --out out --config bad.yaml"),
+                     "bad.yaml:2: detect.pixel_sigma_px: expected a number");
   fs::remove(dir_ / "bad.yaml");
   ExpectCleanFailure(Waymark("sim corridor --out out --config missing.yaml"), "missing.yaml");
   ExpectCleanFailure(Waymark("sim corridor --out out --set rate.camera_hz=7"), "rate.camera_hz must divide");
   ExpectCleanFailure(Waymark("sim corridor --out out --spacing wide"), "place.spacing_m: expected a number");
-  ExpectCleanFailure(Waymark("sim ceiling-grid --out out --set place.anchors=1"), "unknown key 'place.anchors'");
+  ExpectCleanFailure(Waymark("sim ceiling-grid --out out --set place.anchors=1"),
+                     "unknown key 'place.anchors'");
 }
 
 TEST_F(SimCliTest, UnknownScenarioFailsCleanly) {
-  ExpectCleanFailure(Waymark("sim hallway --out out"), "unknown scenario 'hallway' (known: corridor, ceiling-grid, rooms, warehouse-drone)");
+  ExpectCleanFailure(Waymark("sim hallway --out out"),
+                     "unknown scenario 'hallway' (known: corridor, ceiling-grid, rooms, warehouse-drone)");
   ExpectCleanFailure(Waymark("sim --out out"), "missing scenario");
 }
 
@@ -157,8 +162,8 @@ TEST_F(SimCliTest, HelpListsScenariosAndEveryKey) {
   const Outcome o = Waymark("sim --help");
   ASSERT_EQ(o.exit_code, 0);
   for (const char* text : {"corridor:", "ceiling-grid:", "rooms:", "warehouse-drone:", "place.spacing_m (1)",
-                           "place.spacing_m (1.4)", "detect.misdecode_fraction (0)", "odometry.yaw_drift_deg_per_m (0.2)",
-                           "--print-config", "--force"}) {
+                           "place.spacing_m (1.4)", "detect.misdecode_fraction (0)",
+                           "odometry.yaw_drift_deg_per_m (0.2)", "--print-config", "--force"}) {
     EXPECT_THAT(o.out, HasSubstr(text));
   }
   const Outcome list = Waymark("sim list");

@@ -64,7 +64,8 @@ TEST_F(ParamsTest, PrintedYamlLoadsBackToTheSameValues) {
     loaded.LoadYamlFile(Write(changed.ToYaml()));
     ASSERT_EQ(loaded.params().size(), changed.params().size());
     for (size_t i = 0; i < loaded.params().size(); ++i) {
-      EXPECT_EQ(loaded.params()[i].value, changed.params()[i].value) << scenario.name << " " << loaded.params()[i].key;
+      EXPECT_EQ(loaded.params()[i].value, changed.params()[i].value)
+          << scenario.name << " " << loaded.params()[i].key;
     }
   }
 }
@@ -76,8 +77,10 @@ TEST_F(ParamsTest, UnknownKeyNamesFileLineAndKey) {
 }
 
 TEST_F(ParamsTest, WrongTypesAreErrors) {
-  EXPECT_THAT(LoadError("place:\n  spacing_m: wide\n"), HasSubstr("config.yaml:2: place.spacing_m: expected a number"));
-  EXPECT_THAT(LoadError("place:\n  spacing_m: [1, 2]\n"), HasSubstr("config.yaml:2: place.spacing_m: expected a number"));
+  EXPECT_THAT(LoadError("place:\n  spacing_m: wide\n"),
+              HasSubstr("config.yaml:2: place.spacing_m: expected a number"));
+  EXPECT_THAT(LoadError("place:\n  spacing_m: [1, 2]\n"),
+              HasSubstr("config.yaml:2: place.spacing_m: expected a number"));
   EXPECT_THAT(LoadError("place:\n  spacing_m: \"1\"\n"), HasSubstr("place.spacing_m: expected a number"));
   EXPECT_THAT(LoadError("place:\n  anchors: 1.5\n"), HasSubstr("place.anchors: expected an integer"));
   EXPECT_THAT(LoadError("place:\n  spacing_m:\n"), HasSubstr("place.spacing_m: expected a number"));
@@ -85,7 +88,8 @@ TEST_F(ParamsTest, WrongTypesAreErrors) {
 }
 
 TEST_F(ParamsTest, OutOfBoundsAndMalformedYamlAreErrors) {
-  EXPECT_THAT(LoadError("detect:\n  misdecode_fraction: 1.5\n"), HasSubstr("config.yaml:2: detect.misdecode_fraction: 1.5 is outside [0, 1]"));
+  EXPECT_THAT(LoadError("detect:\n  misdecode_fraction: 1.5\n"),
+              HasSubstr("config.yaml:2: detect.misdecode_fraction: 1.5 is outside [0, 1]"));
   EXPECT_THAT(LoadError("place: {spacing_m: 2\n"), HasSubstr("config.yaml:"));
   EXPECT_THAT(LoadError("- 1\n- 2\n"), HasSubstr("expected a map"));
   ParamSet params = ScenarioParams("corridor");
@@ -113,7 +117,8 @@ TEST_F(ParamsTest, UnknownScenarioListsTheKnownOnes) {
     ScenarioParams("hallway");
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_THAT(std::string(e.what()), HasSubstr("unknown scenario 'hallway' (known: corridor, ceiling-grid"));
+    EXPECT_THAT(std::string(e.what()),
+                HasSubstr("unknown scenario 'hallway' (known: corridor, ceiling-grid"));
   }
 }
 

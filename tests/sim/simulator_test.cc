@@ -52,8 +52,8 @@ std::vector<double> CornerResiduals(const SimResult& r) {
   std::vector<double> residuals;
   std::map<std::string, Camera> cameras;
   for (const auto& [name, info] : r.dataset.cameras) cameras.emplace(name, Camera(info));
-  ForEachObservation(r, [&](const DetectionFrame& frame, const MarkerObservation& obs, const SE3d& T_world_camera,
-                            const MapMarker& truth) {
+  ForEachObservation(r, [&](const DetectionFrame& frame, const MarkerObservation& obs,
+                            const SE3d& T_world_camera, const MapMarker& truth) {
     const auto corners = MarkerCorners(truth.size_m);
     for (int c = 0; c < 4; ++c) {
       const Eigen::Vector3d corner_camera = T_world_camera.inverse() * (truth.T_world_marker * corners[c]);
@@ -129,9 +129,11 @@ TEST(SimulatorTest, DifferentSeedSamePlaceDifferentNoise) {
     }
     ASSERT_EQ(a.dataset.groundtruth_trajectory->size(), b.dataset.groundtruth_trajectory->size());
     for (size_t k = 0; k < a.dataset.groundtruth_trajectory->size(); ++k) {
-      EXPECT_EQ((*a.dataset.groundtruth_trajectory)[k].T.matrix(), (*b.dataset.groundtruth_trajectory)[k].T.matrix());
+      EXPECT_EQ((*a.dataset.groundtruth_trajectory)[k].T.matrix(),
+                (*b.dataset.groundtruth_trajectory)[k].T.matrix());
     }
-    EXPECT_NE(a.dataset.odometry.back().T.translation(), b.dataset.odometry.back().T.translation()) << scenario.name;
+    EXPECT_NE(a.dataset.odometry.back().T.translation(), b.dataset.odometry.back().T.translation())
+        << scenario.name;
     const std::vector<double> ra = CornerResiduals(a), rb = CornerResiduals(b);
     ASSERT_FALSE(ra.empty());
     EXPECT_NE(ra.front(), rb.front()) << scenario.name;
@@ -178,17 +180,19 @@ TEST(SimulatorTest, RangeAngleAndImageLimitsHold) {
     const SimResult r = RunSim(scenario, all, 5);
     ParamSet params = ScenarioParams(scenario);
     for (const std::string& s : sets) params.SetAssignment(s);
-    const double min_range = params.Double("detect.min_range_m"), max_range = params.Double("detect.max_range_m");
+    const double min_range = params.Double("detect.min_range_m"),
+                 max_range = params.Double("detect.max_range_m");
     const double max_angle = params.Double("detect.max_angle_deg");
     long count = 0;
-    ForEachObservation(r, [&](const DetectionFrame& frame, const MarkerObservation& obs, const SE3d& T_world_camera,
-                              const MapMarker& truth) {
+    ForEachObservation(r, [&](const DetectionFrame& frame, const MarkerObservation& obs,
+                              const SE3d& T_world_camera, const MapMarker& truth) {
       const Eigen::Vector3d to_camera = T_world_camera.translation() - truth.T_world_marker.translation();
       const Eigen::Vector3d normal = truth.T_world_marker.rotation() * Eigen::Vector3d::UnitZ();
       EXPECT_GE(to_camera.norm(), min_range);
       EXPECT_LE(to_camera.norm(), max_range);
       EXPECT_LE(std::acos(normal.dot(to_camera.normalized())) * 180.0 / M_PI, max_angle + 1e-9);
-      for (const Eigen::Vector2d& px : obs.corners_px) EXPECT_TRUE(r.dataset.cameras.at(frame.camera).InImage(px));
+      for (const Eigen::Vector2d& px : obs.corners_px)
+        EXPECT_TRUE(r.dataset.cameras.at(frame.camera).InImage(px));
       ++count;
     });
     EXPECT_GT(count, 50) << scenario;
@@ -208,13 +212,14 @@ TEST(SimulatorTest, CorridorSpacingSetsTheNumberOfCodes) {
 // Rooms: 3 rooms of 4 m in a row (x in [0, 12]), doors at y in [1.5, 2.5] on x = 4 and 8; the
 // unconnected room is x in [16, 20]. Wide limits so that only walls stop the view.
 TEST(SimulatorTest, RoomsHaveExactlyTheIntendedComponents) {
-  const SimResult r = RunSim("rooms", {"detect.max_range_m=30", "detect.max_angle_deg=85", "detect.misdecode_fraction=0"}, 6);
+  const SimResult r =
+      RunSim("rooms", {"detect.max_range_m=30", "detect.max_angle_deg=85", "detect.misdecode_fraction=0"}, 6);
   auto room_of = [](double x) { return static_cast<int>(std::floor(x / 4.0)); };
   std::set<MarkerKey> before, after;
   const auto poses = PosesByStamp(*r.dataset.groundtruth_trajectory);
   long through_door = 0;
-  ForEachObservation(r, [&](const DetectionFrame& frame, const MarkerObservation& obs, const SE3d& T_world_camera,
-                            const MapMarker& truth) {
+  ForEachObservation(r, [&](const DetectionFrame& frame, const MarkerObservation& obs,
+                            const SE3d& T_world_camera, const MapMarker& truth) {
     const Eigen::Vector3d c = T_world_camera.translation(), m = truth.T_world_marker.translation();
     const int camera_room = room_of(c.x());
     (camera_room >= 4 ? after : before).insert(obs.key);
@@ -285,7 +290,8 @@ TEST(SimulatorTest, MisdecodeFractionIsRespected) {
   const auto poses = PosesByStamp(*r.dataset.groundtruth_trajectory);
   long wrong = 0, total = 0;
   for (const DetectionFrame& frame : r.dataset.detections) {
-    const SE3d T_camera_world = (poses.at(frame.stamp_s) * r.dataset.cameras.at(frame.camera).T_robot_camera).inverse();
+    const SE3d T_camera_world =
+        (poses.at(frame.stamp_s) * r.dataset.cameras.at(frame.camera).T_robot_camera).inverse();
     for (const MarkerObservation& obs : frame.markers) {
       // The code whose true corners are nearest the observed ones produced it.
       double best = 1e18;
@@ -335,10 +341,11 @@ TEST(SimulatorTest, WheelOdometryAteGrowsWithTheSystematicError) {
   EXPECT_LT(ate[0], 0.2);
   EXPECT_GT(ate[1], 3.0 * ate[0]);
   EXPECT_GT(ate[2], 2.0 * ate[1]);
-  const double exact = OdometryAte(RunSim("corridor",
-                                       {"odometry.trans_per_m=0", "odometry.rot_per_rad=0", "odometry.track_width_error=0",
-                                        "odometry.wheel_radius_error_left=0", "odometry.wheel_radius_error_right=0"},
-                                       9));
+  const double exact =
+      OdometryAte(RunSim("corridor",
+                         {"odometry.trans_per_m=0", "odometry.rot_per_rad=0", "odometry.track_width_error=0",
+                          "odometry.wheel_radius_error_left=0", "odometry.wheel_radius_error_right=0"},
+                         9));
   EXPECT_LT(exact, 1e-9);
 }
 
@@ -346,9 +353,9 @@ TEST(SimulatorTest, VisualOdometryAteGrowsWithScaleAndYawDrift) {
   std::vector<double> ate;
   for (double e : {0.0, 0.02, 0.08}) {
     ate.push_back(OdometryAte(RunSim("warehouse-drone",
-                                  {"odometry.scale_error=" + std::to_string(e),
-                                   "odometry.yaw_drift_deg_per_m=" + std::to_string(10 * e)},
-                                  9)));
+                                     {"odometry.scale_error=" + std::to_string(e),
+                                      "odometry.yaw_drift_deg_per_m=" + std::to_string(10 * e)},
+                                     9)));
   }
   EXPECT_GT(ate[1], 1.5 * ate[0]);
   EXPECT_GT(ate[2], 2.0 * ate[1]);
@@ -357,10 +364,11 @@ TEST(SimulatorTest, VisualOdometryAteGrowsWithScaleAndYawDrift) {
 // dataset.yaml's odometry_sigma states the per-step noise: increments divided by
 // (trans_per_m * distance) and (rot_per_rad * angle) are standard normal.
 TEST(SimulatorTest, WheelOdometryNoiseMatchesOdometrySigma) {
-  const SimResult r = RunSim("rooms", {"odometry.wheel_radius_error_left=0", "odometry.wheel_radius_error_right=0",
-                                    "odometry.track_width_error=0", "odometry.trans_per_m=0.05",
-                                    "odometry.rot_per_rad=0.03"},
-                          10);
+  const SimResult r =
+      RunSim("rooms",
+             {"odometry.wheel_radius_error_left=0", "odometry.wheel_radius_error_right=0",
+              "odometry.track_width_error=0", "odometry.trans_per_m=0.05", "odometry.rot_per_rad=0.03"},
+             10);
   ASSERT_TRUE(r.dataset.config.odometry_sigma.has_value());
   const OdometrySigma sigma = *r.dataset.config.odometry_sigma;
   EXPECT_EQ(sigma.trans_per_m, 0.05);
@@ -377,7 +385,8 @@ TEST(SimulatorTest, WheelOdometryNoiseMatchesOdometrySigma) {
       z_trans.push_back((odom_step.x() - true_step.x()) / (sigma.trans_per_m * distance));
       z_trans.push_back((odom_step.y() - true_step.y()) / (sigma.trans_per_m * distance));
     }
-    if (angle > 1e-6) z_rot.push_back(WrapAngle(odom_step.theta() - true_step.theta()) / (sigma.rot_per_rad * angle));
+    if (angle > 1e-6)
+      z_rot.push_back(WrapAngle(odom_step.theta() - true_step.theta()) / (sigma.rot_per_rad * angle));
   }
   for (const auto* z : {&z_trans, &z_rot}) {
     ASSERT_GT(z->size(), 500u);
@@ -388,8 +397,9 @@ TEST(SimulatorTest, WheelOdometryNoiseMatchesOdometrySigma) {
 }
 
 TEST(SimulatorTest, VisualOdometryNoiseMatchesOdometrySigma) {
-  const SimResult r = RunSim("warehouse-drone", {"odometry.scale_error=0", "odometry.yaw_drift_deg_per_m=0",
-                                                 "odometry.trans_per_m=0.04", "odometry.rot_per_rad=0.05"},
+  const SimResult r = RunSim("warehouse-drone",
+                             {"odometry.scale_error=0", "odometry.yaw_drift_deg_per_m=0",
+                              "odometry.trans_per_m=0.04", "odometry.rot_per_rad=0.05"},
                              10);
   const Trajectory& truth = *r.dataset.groundtruth_trajectory;
   const Trajectory& odometry = r.dataset.odometry;
@@ -404,7 +414,8 @@ TEST(SimulatorTest, VisualOdometryNoiseMatchesOdometrySigma) {
       z_trans.insert(z_trans.end(), {e.x(), e.y(), e.z()});
     }
     if (angle > 1e-6) {
-      const Eigen::Vector3d e = LogSO3(true_step.rotation().conjugate() * odom_step.rotation()) / (0.05 * angle);
+      const Eigen::Vector3d e =
+          LogSO3(true_step.rotation().conjugate() * odom_step.rotation()) / (0.05 * angle);
       z_rot.insert(z_rot.end(), {e.x(), e.y(), e.z()});
     }
   }
@@ -425,7 +436,8 @@ TEST(SimulatorTest, DroneFloorRowOffsetZeroGivesOneRowPerAisle) {
 
 TEST(SimulatorTest, InconsistentParametersAreRejected) {
   EXPECT_THROW(RunSim("corridor", {"rate.camera_hz=7"}, 1), std::invalid_argument);
-  EXPECT_THROW(RunSim("corridor", {"detect.min_range_m=2", "detect.max_range_m=1"}, 1), std::invalid_argument);
+  EXPECT_THROW(RunSim("corridor", {"detect.min_range_m=2", "detect.max_range_m=1"}, 1),
+               std::invalid_argument);
   EXPECT_THROW(RunSim("corridor", {"place.corridor_width_m=9"}, 1), std::invalid_argument);
   EXPECT_THROW(RunSim("ceiling-grid", {"place.camera_height_m=3"}, 1), std::invalid_argument);
 }

@@ -52,11 +52,11 @@ TEST(WorldTest, WallMarkerIsUprightAndFacesOut) {
 TEST(WorldTest, SegmentOcclusionByAWallButNotByItsOwnWall) {
   const std::vector<Occluder> walls = {VerticalWall({1, -1}, {1, 1}, 0.0, 2.0)};
   EXPECT_TRUE(SegmentOccluded(walls, {0, 0, 1}, {2, 0, 1}));
-  EXPECT_FALSE(SegmentOccluded(walls, {0, 0, 3}, {2, 0, 3}));            // above the wall
-  EXPECT_FALSE(SegmentOccluded(walls, {0, 1.5, 1}, {2, 1.5, 1}));        // beside it
-  EXPECT_FALSE(SegmentOccluded(walls, {0, 0, 1}, {1, 0.5, 1}));          // ends on the wall
-  EXPECT_FALSE(SegmentOccluded(walls, {0, 0, 1}, {0.9, 0, 1}));          // stops short
-  EXPECT_FALSE(SegmentOccluded(walls, {0, -2, 1}, {0, 2, 1}));           // parallel
+  EXPECT_FALSE(SegmentOccluded(walls, {0, 0, 3}, {2, 0, 3}));      // above the wall
+  EXPECT_FALSE(SegmentOccluded(walls, {0, 1.5, 1}, {2, 1.5, 1}));  // beside it
+  EXPECT_FALSE(SegmentOccluded(walls, {0, 0, 1}, {1, 0.5, 1}));    // ends on the wall
+  EXPECT_FALSE(SegmentOccluded(walls, {0, 0, 1}, {0.9, 0, 1}));    // stops short
+  EXPECT_FALSE(SegmentOccluded(walls, {0, -2, 1}, {0, 2, 1}));     // parallel
 }
 
 TEST(WorldTest, VisibleCornersAreTheProjectionsInDesignOrder) {
@@ -81,7 +81,7 @@ TEST(WorldTest, LimitsRangeAngleImageAndOcclusion) {
   EXPECT_TRUE(VisibleCorners(camera, T_world_camera, CodeAt(1.0, 44.0), {}, limits));
   EXPECT_FALSE(VisibleCorners(camera, T_world_camera, CodeAt(1.0, 46.0), {}, limits));   // too oblique
   EXPECT_FALSE(VisibleCorners(camera, T_world_camera, CodeAt(1.0, 180.0), {}, limits));  // its back
-  EXPECT_FALSE(VisibleCorners(camera, T_world_camera, CodeAt(-1.0, 180.0), {}, {}));    // behind the camera
+  EXPECT_FALSE(VisibleCorners(camera, T_world_camera, CodeAt(-1.0, 180.0), {}, {}));     // behind the camera
   // Partly outside the image: the code's centre 0.64 m to the side at 1 m (f = 500 px).
   SimMarker edge = CodeAt(1.0, 0.0);
   edge.T_world_marker = SE3d(edge.T_world_marker.rotation(), Eigen::Vector3d(1.0, -0.64, 0.0));
