@@ -133,7 +133,8 @@ std::vector<eval::PlotMarker> MarkersToPlot(const Args& args, const eval::Trajec
     const MarkerMap markers = ReadMap(*markers_path);
     return eval::PlotMarkersFromMaps(&markers, trajectory->alignment, gt_map ? &*gt_map : nullptr);
   }
-  if (map_result && !trajectory) return eval::PlotMarkersFromMapEval(*est_map, *gt_map, *map_result);
+  // The map evaluation's per-component alignments put the estimated markers in the truth's frame.
+  if (map_result) return eval::PlotMarkersFromMapEval(*est_map, *gt_map, *map_result);
   if (gt_map) return eval::PlotMarkersFromMaps(nullptr, eval::Sim3Alignment(), &*gt_map);
   return {};
 }

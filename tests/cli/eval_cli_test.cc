@@ -162,6 +162,26 @@ TEST_F(EvalCliTest, MapAgainstMap) {
   EXPECT_NE(ReadTextFile(Path("map_eval.md")).find("`qr:e`"), std::string::npos);
 }
 
+TEST_F(EvalCliTest, TrajectoryAndMapInOneCall) {
+  WriteHandCase(Path("gt.tum"), Path("est.tum"));
+  MarkerMap truth, estimate;
+  for (const auto& [id, x, y] : std::vector<std::tuple<std::string, double, double>>{{"a", 0, 0}, {"b", 3, 0}, {"c", 0, 2}}) {
+    truth.markers.push_back(CliMarker(id, x, y, std::nullopt));
+    estimate.markers.push_back(CliMarker(id, x + 0.5, y, 0));
+  }
+  WriteMap(Path("gt.json"), truth);
+  WriteMap(Path("map.json"), estimate);
+  const RunResult r = Run("--est " + Path("est.tum") + " --gt " + Path("gt.tum") + " --map " + Path("map.json") +
+                          " --gt-map " + Path("gt.json") + " --json " + Path("both.json") + " --plot " + Path("both.svg"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(ReadTextFile(Path("both.json")));
+  EXPECT_NEAR(j["ate"]["rmse"].get<double>(), 0.452769256906871, 1e-9);
+  EXPECT_LT(j["map"]["position_rmse"].get<double>(), 1e-9);  // a pure shift, aligned away
+  const std::string svg = ReadTextFile(Path("both.svg"));
+  EXPECT_NE(svg.find("qr:b (estimate)"), std::string::npos);  // estimated markers drawn
+  EXPECT_NE(svg.find("qr:b (true)"), std::string::npos);
+}
+
 TEST_F(EvalCliTest, MalformedTumNamesFileAndLineAndWritesNothing) {
   WriteHandCase(Path("gt.tum"), Path("est.tum"));
   AtomicWriteFile(Path("bad.tum"), "0 0 0 0 0 0 0 1\n1 0 0 zero 0 0 0 1\n");
