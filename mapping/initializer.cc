@@ -297,7 +297,51 @@ void AlignComponent(const Survey& survey, int component, Initialization* init) {
   }
 }
 
+// Cauchy cost of one observation for given poses (whitened units).
+double ObservationCost(const Survey& survey, const std::map<std::string, Camera>& cameras, int o,
+                       const SE3d& T_world_robot, const SE3d& T_world_marker, double cauchy_scale) {
+  const SurveyObservation& obs = survey.observations[o];
+  const Camera& camera = cameras.at(obs.camera);
+  const SE3d T_camera_marker = (T_world_robot * camera.info().T_robot_camera).inverse() * T_world_marker;
+  const double rms = MarkerReprojectionRms(obs.corners_px, survey.markers[obs.marker].size_m, camera, T_camera_marker);
+  const double c2 = cauchy_scale * cauchy_scale;
+  const double s = std::isfinite(rms) ? 4.0 * rms * rms / std::pow(CornerSigmaPx(camera.info()), 2) : 1e12;
+  return c2 * std::log1p(s / c2);
+}
+
 }  // namespace
+
+std::optional<SE3d> MarkerByConsensus(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                                      const std::vector<SingleView>& views,
+                                      const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
+                                      double cauchy_scale, size_t max_candidates) {
+  std::vector<int> seen;  // usable views from placed frames
+  for (int o : survey.markers[marker].observations) {
+    if (views[o].usable && T_world_robot[survey.observations[o].frame]) seen.push_back(o);
+  }
+  if (seen.empty()) return std::nullopt;
+  std::vector<int> proposers = seen;
+  std::sort(proposers.begin(), proposers.end(), [&](int a, int b) { return views[a].error_ratio > views[b].error_ratio; });
+  if (proposers.size() > max_candidates) proposers.resize(max_candidates);
+  std::optional<SE3d> best;
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (int p : proposers) {
+    for (const SE3d& T_robot_marker : views[p].T_robot_marker) {
+      const SE3d candidate = *T_world_robot[survey.observations[p].frame] * T_robot_marker;
+      double cost = 0.0;
+      for (int o : seen) {
+        cost += ObservationCost(survey, cameras, o, *T_world_robot[survey.observations[o].frame], candidate,
+                                cauchy_scale);
+        if (cost >= best_cost) break;
+      }
+      if (cost < best_cost) {
+        best_cost = cost;
+        best = candidate;
+      }
+    }
+  }
+  return best;
+}
 
 std::map<std::string, Camera> MakeCameras(const Survey& survey) {
   std::map<std::string, Camera> cameras;
@@ -375,6 +419,11 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   Placer placer(survey, cameras, options, &init);
   for (int c = 0; c < init.components; ++c) {
     placer.PlaceComponent(c);
+    for (size_t m = 0; m < survey.markers.size(); ++m) {
+      if (init.marker_component[m] != c || !init.T_world_marker[m]) continue;
+      init.T_world_marker[m] = MarkerByConsensus(survey, cameras, init.views, init.T_world_robot, static_cast<int>(m),
+                                                 options.cauchy_scale);
+    }
     AlignComponent(survey, c, &init);
   }
   return init;

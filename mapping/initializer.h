@@ -20,7 +20,11 @@
 //   - a code is placed from a placed frame by its strongest view: at once when the view is
 //     unambiguous (error ratio >= ambiguity_ratio, TagSLAM's gate), otherwise at the end of the
 //     sweep from the view with the largest error ratio among placed frames;
-//   - sweeps repeat until nothing changes.
+//   - sweeps repeat until nothing changes;
+//   - then every code is re-placed by consensus over its views (the fused local map of the
+//     code): each view's solutions (both, when ambiguous) are candidates, and the candidate with
+//     the least summed Cauchy cost over all of the code's views wins. This undoes a code placed
+//     from a flipped or misdecoded first view.
 // Planar surveys keep every robot pose in SE(2) (z = 0, yaw only).
 // Then the component is moved onto its priors: anchors (markers.json entries, fixed or with a
 // covariance) give the transform directly (SE(2) for planar surveys); otherwise two or more
@@ -73,6 +77,14 @@ std::vector<SingleView> ComputeSingleViews(const Survey& survey, const std::map<
 // Connected components of the header comment; fills frame_component, marker_component and
 // components of `init` from `init->views`.
 void FindComponents(const Survey& survey, Initialization* init);
+
+// The consensus placement of the header comment for one marker, given frame poses; nullopt
+// when no view of the marker is in a placed frame. At most `max_candidates` views (largest
+// error ratio first) propose candidates.
+std::optional<SE3d> MarkerByConsensus(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                                      const std::vector<SingleView>& views,
+                                      const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
+                                      double cauchy_scale, size_t max_candidates = 20);
 
 Initialization Initialize(const Survey& survey, const InitializerOptions& options = {});
 

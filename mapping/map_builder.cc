@@ -67,6 +67,10 @@ class GlobalProblem {
   // Marker covariances in map.json's convention; false when Ceres cannot compute them.
   bool Covariances(std::vector<std::optional<Matrix6d>>* covariance) const;
 
+  // Re-places the codes with an observation above the outlier gate by consensus over their
+  // views at the current frame poses (mapping/initializer.h); returns how many moved.
+  size_t ReplaceOutlyingMarkers(const std::vector<int>& active, const std::map<std::string, Camera>& cameras);
+
   bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
   SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
   SE3d Marker(int m) const { return SE3FromBlock(marker_[m].data()); }
@@ -121,6 +125,32 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, problem_.get(), &summary);
   return summary;
+}
+
+size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
+                                             const std::map<std::string, Camera>& cameras) {
+  std::set<int> outlying;
+  for (int o : active) {
+    if (SquaredError(o) > options_.outlier_chi2) outlying.insert(survey_.observations[o].marker);
+  }
+  std::vector<std::optional<SE3d>> T_world_robot(survey_.frames.size());
+  for (size_t f = 0; f < survey_.frames.size(); ++f) {
+    if (FramePlaced(static_cast<int>(f))) T_world_robot[f] = Robot(static_cast<int>(f));
+  }
+  size_t moved = 0;
+  for (int m : outlying) {
+    const SurveyMarker& marker = survey_.markers[m];
+    if (marker.known && marker.known->fixed) continue;
+    const std::optional<SE3d> T = MarkerByConsensus(survey_, cameras, init_.views, T_world_robot, m,
+                                                    options_.initializer.cauchy_scale);
+    if (!T) continue;
+    const SE3d before = Marker(m);
+    if ((T->translation() - before.translation()).norm() > 1e-3 || RotationAngleBetween(*T, before) > 1e-3) {
+      SE3ToBlock(*T, marker_[m].data());
+      ++moved;
+    }
+  }
+  return moved;
 }
 
 // Odometry between placed frames that are both in the problem; frames seen by no code but
@@ -369,6 +399,10 @@ bool MapBuildOptions::Check(std::string* why) const {
     *why = "cauchy_scale, outlier_chi2, payload_sigma_m and payload_yaw_sigma_rad must be finite and > 0";
     return false;
   }
+  if (replace_rounds < 0) {
+    *why = "replace_rounds must be >= 0";
+    return false;
+  }
   if (min_frames < 1 || max_iterations < 1 || num_threads < 1) {
     *why = "min_frames, max_iterations and num_threads must be >= 1";
     return false;
@@ -409,11 +443,22 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   const std::vector<int> active = UsableObservations(survey, init, &result);
   std::vector<std::string> gauges;
   const auto start = std::chrono::steady_clock::now();
-  const ceres::Solver::Summary robust = problem.Solve(active, true, &gauges);
+  ceres::Solver::Summary robust = problem.Solve(active, true, &gauges);
+  int iterations = static_cast<int>(robust.iterations.size());
+  const std::map<std::string, Camera> cameras = MakeCameras(survey);
+  for (int round = 0; round < options.replace_rounds; ++round) {
+    const size_t moved = problem.ReplaceOutlyingMarkers(active, cameras);
+    if (moved == 0) break;
+    progress("re-placed " + std::to_string(moved) + " code(s) with outlying views");
+    const double first_cost = robust.initial_cost;
+    robust = problem.Solve(active, true, &gauges);
+    robust.initial_cost = first_cost;
+    iterations += static_cast<int>(robust.iterations.size());
+  }
   const std::vector<int> kept = RejectOutliers(survey, problem, active, options, &result);
   const ceres::Solver::Summary final_summary = problem.Solve(kept, false, &gauges);
   result.solver_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  result.iterations = static_cast<int>(robust.iterations.size() + final_summary.iterations.size());
+  result.iterations = iterations + static_cast<int>(final_summary.iterations.size());
   result.termination = ceres::TerminationTypeToString(final_summary.termination_type) + std::string(": ") +
                        final_summary.message;
   result.observations = kept.size();

@@ -14,7 +14,8 @@
 // the component's first frame is held constant.
 //
 // Stages: (1) initialization (mapping/initializer.h); (2) solve with the Cauchy loss
-// rho(s) = c^2 log(1 + s / c^2) (misdecoded ids, planar flips); (3) observations whose whitened
+// rho(s) = c^2 log(1 + s / c^2) (misdecoded ids, planar flips), repeated after re-placing codes
+// with outlying views by consensus (replace_rounds); (3) observations whose whitened
 // squared error exceeds outlier_chi2 are outliers, reported and removed, and codes left with
 // fewer than min_frames frames are reported and not mapped; (4) solve again with the plain
 // squared loss; (5) marker covariances from ceres::Covariance, converted from the manifold's
@@ -36,6 +37,9 @@ struct MapBuildOptions {
   InitializerOptions initializer;
   double cauchy_scale = 3.0;     // whitened units (sigmas)
   double outlier_chi2 = 40.0;    // on the 8 whitened residuals of one observation
+  // After the robust solve, codes with outlying views are re-placed by consensus at the solved
+  // frame poses and the robust solve repeated, up to this many times.
+  int replace_rounds = 2;
   int min_frames = 2;            // codes seen in fewer frames are reported, not mapped
   double payload_sigma_m = 0.01;
   double payload_yaw_sigma_rad = 0.02;

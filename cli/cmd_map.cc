@@ -1,0 +1,182 @@
+// `waymark map`: learn a map from a survey (build), describe a map (info), and merge a new
+// survey into an existing map (merge). The math is in mapping/; this file parses arguments,
+// shows progress on a terminal and prints the summary.
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cli/args.h"
+#include "cli/command.h"
+#include "core/dataset_io.h"
+#include "core/io_util.h"
+#include "core/map_io.h"
+#include "core/tum_io.h"
+#include "mapping/map_builder.h"
+#include "mapping/map_merge.h"
+
+namespace waymark::cli {
+namespace {
+
+constexpr const char* kUsage = R"(Usage:
+  waymark map build DATASET --out MAP.json [--trajectory SMOOTHED.tum] [options]
+  waymark map merge MAP.json DATASET --out MERGED.json [--trajectory SMOOTHED.tum] [options]
+  waymark map info MAP.json
+
+build   learns the poses of the codes seen in the dataset directory DATASET (its detections,
+        odometry, cameras, known markers and payload coordinates; docs/mapping.md): codes and
+        frames are initialized from single-code poses and odometry, then one optimization over
+        every code and every frame pose (robust loss, outliers rejected and reported) gives the
+        map, with a covariance per code, and the smoothed trajectory. Disconnected groups of
+        codes become separate components, each in its own frame.
+merge   the same with the codes of MAP.json as priors (their covariance, or held fixed when
+        they have none); codes of MAP.json the survey does not see are kept as they were.
+info    markers, components, families, anchors and position uncertainty of a map.
+
+Progress goes to stderr on a terminal; the summary (markers and components, reprojection
+RMS per camera, outliers, solver time and termination) to stdout. Outputs are written
+atomically, and only when the whole build succeeded.
+
+Options (build, merge):
+  --out FILE          the map (map.json format)
+  --trajectory FILE   the smoothed trajectory T_world_robot of component 0 (TUM)
+  --threads N         solver threads (default 1)
+  --no-covariance     skip the marker covariances
+  --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
+  --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
+  --no-calibration    do not estimate the odometry's systematic errors
+  --max-gap S         odometry gaps longer than S seconds split it (default 1)
+)";
+
+// Progress on a terminal: one line rewritten in place.
+std::function<void(const std::string&)> TerminalProgress() {
+  if (!StderrIsTerminal()) return nullptr;
+  return [](const std::string& line) { std::cerr << "\r\033[K" << line << std::flush; };
+}
+
+MapBuildOptions ParseBuildOptions(const Args& args) {
+  MapBuildOptions options;
+  if (const auto n = args.GetInt("threads")) options.num_threads = static_cast<int>(*n);
+  if (const auto n = args.GetInt("min-frames")) options.min_frames = static_cast<int>(*n);
+  if (const auto x = args.GetDouble("outlier-chi2")) options.outlier_chi2 = *x;
+  if (const auto x = args.GetDouble("max-gap")) options.ingest.max_odometry_gap_s = *x;
+  options.compute_covariance = !args.Flag("no-covariance");
+  options.calibrate_odometry = !args.Flag("no-calibration");
+  options.progress = TerminalProgress();
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument("options: " + why);
+  return options;
+}
+
+const std::set<std::string> kBuildValues = {"out", "trajectory", "threads", "min-frames", "outlier-chi2", "max-gap"};
+const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration"};
+
+// Formats every output first, then writes them: a failure leaves no partial output.
+void WriteOutputs(const Args& args, const MapBuildResult& result) {
+  const std::string map_text = FormatMap(result.map);
+  std::string trajectory_text;
+  if (args.Has("trajectory")) {
+    trajectory_text = FormatTum(result.trajectory, "waymark map: smoothed T_world_robot of component 0");
+  }
+  AtomicWriteFile(args.Require("out"), map_text);
+  if (args.Has("trajectory")) AtomicWriteFile(*args.Get("trajectory"), trajectory_text);
+}
+
+int Finish(const Args& args, const MapBuildResult& result) {
+  if (StderrIsTerminal()) std::cerr << "\r\033[K";
+  WriteOutputs(args, result);
+  std::cout << FormatBuildSummary(result);
+  if (result.components.size() > 1 && args.Has("trajectory")) {
+    std::cout << "note: the trajectory holds the frames of component 0 only\n";
+  }
+  return 0;
+}
+
+int RunBuild(const std::vector<std::string>& argv) {
+  const Args args(argv, kBuildValues, kBuildFlags);
+  if (args.Help()) {
+    std::cout << kUsage;
+    return 0;
+  }
+  args.ExpectPositionals(1, 1, "dataset directory DATASET");
+  args.Require("out");
+  const MapBuildOptions options = ParseBuildOptions(args);
+  const Dataset dataset = LoadDataset(args.positionals()[0]);
+  return Finish(args, BuildMap(dataset, options));
+}
+
+int RunMerge(const std::vector<std::string>& argv) {
+  const Args args(argv, kBuildValues, kBuildFlags);
+  if (args.Help()) {
+    std::cout << kUsage;
+    return 0;
+  }
+  args.ExpectPositionals(2, 2, "MAP.json and dataset directory DATASET");
+  args.Require("out");
+  const MapBuildOptions options = ParseBuildOptions(args);
+  const MarkerMap existing = ReadMap(args.positionals()[0]);
+  const Dataset dataset = LoadDataset(args.positionals()[1]);
+  return Finish(args, MergeSurveyIntoMap(existing, dataset, options));
+}
+
+std::string Fixed(double value, int digits) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(digits) << value;
+  return out.str();
+}
+
+int RunInfo(const std::vector<std::string>& argv) {
+  const Args args(argv, {}, {});
+  if (args.Help()) {
+    std::cout << kUsage;
+    return 0;
+  }
+  args.ExpectPositionals(1, 1, "map file MAP.json");
+  const MarkerMap map = ReadMap(args.positionals()[0]);
+  std::map<int, size_t> components;
+  std::map<std::string, size_t> families;
+  size_t fixed = 0;
+  std::vector<double> sigma_mm;
+  for (const MapMarker& m : map.markers) {
+    ++components[m.component.value_or(0)];
+    ++families[m.key.family];
+    if (m.fixed) ++fixed;
+    if (m.covariance) sigma_mm.push_back(1e3 * std::sqrt(std::max(0.0, m.covariance->bottomRightCorner<3, 3>().trace())));
+  }
+  std::cout << "markers: " << map.markers.size() << " (" << fixed << " fixed)\n"
+            << "components: " << components.size() << "\n";
+  for (const auto& [c, n] : components) std::cout << "  component " << c << ": " << n << " markers\n";
+  std::cout << "families:";
+  for (const auto& [family, n] : families) std::cout << " " << family << " " << n;
+  std::cout << "\ncovariance: " << sigma_mm.size() << " markers";
+  if (!sigma_mm.empty()) {
+    std::sort(sigma_mm.begin(), sigma_mm.end());
+    std::cout << ", position sigma (sqrt of the trace) median " << Fixed(sigma_mm[sigma_mm.size() / 2], 2)
+              << " mm, max " << Fixed(sigma_mm.back(), 2) << " mm";
+  }
+  std::cout << "\n";
+  return 0;
+}
+
+int RunMap(const std::vector<std::string>& args) {
+  if (args.empty()) throw std::invalid_argument("missing verb (expected build, merge or info; see --help)");
+  const std::string& verb = args[0];
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (verb == "build") return RunBuild(rest);
+  if (verb == "merge") return RunMerge(rest);
+  if (verb == "info") return RunInfo(rest);
+  throw std::invalid_argument("unknown verb '" + verb + "' (expected build, merge or info; see --help)");
+}
+
+const CommandRegistrar kRegistrar(Command{"map", "learn a map from a survey (build), merge a survey, describe a map",
+                                          kUsage, RunMap});
+
+}  // namespace
+}  // namespace waymark::cli
