@@ -11,6 +11,8 @@
 // Always returns true.
 #pragma once
 
+#include <stdexcept>
+
 #include <Eigen/Core>
 #include <ceres/autodiff_cost_function.h>
 
