@@ -15,7 +15,7 @@
 // residual with true (COLMAP's choice) would make the cost drop discontinuously when a marker
 // passes behind a camera, rewarding exactly that wrong solution. The price: the initial values
 // must put every observed corner in front of its camera, or Solve fails at the first evaluation
-// (mapping initializes each marker from its single-view pose, which satisfies this).
+// (an initialization from each marker's single-view pose satisfies this).
 #pragma once
 
 #include <algorithm>
