@@ -45,7 +45,8 @@ std::string TruthText(const std::optional<Trajectory>& trajectory, const std::op
   std::string text = "trajectory ";
   if (trajectory) {
     text += std::to_string(trajectory->size()) + " poses";
-    if (trajectory->size() > 1) text += " over " + Fixed(trajectory->back().stamp_s - trajectory->front().stamp_s, 3) + " s";
+    if (trajectory->size() > 1)
+      text += " over " + Fixed(trajectory->back().stamp_s - trajectory->front().stamp_s, 3) + " s";
   } else {
     text += "absent";
   }
@@ -60,7 +61,8 @@ void PrintSummary(const Dataset& dataset, std::ostream& out) {
       << "cameras: " << dataset.cameras.size() << "\n";
   for (const std::string& name : config.cameras) {
     const CameraInfo& camera = dataset.cameras.at(name);
-    out << "  " << name << ": " << CameraModelName(camera.model) << " " << camera.width << "x" << camera.height << "\n";
+    out << "  " << name << ": " << CameraModelName(camera.model) << " " << camera.width << "x"
+        << camera.height << "\n";
   }
   if (dataset.has_detections_file) {
     out << "frames: " << summary.frames << " (" << config.detections_file << ")\n"
@@ -75,14 +77,18 @@ void PrintSummary(const Dataset& dataset, std::ostream& out) {
     out << "frames: none (no " << config.detections_file << ")\n";
   }
   out << "known markers: "
-      << (dataset.known_markers ? std::to_string(summary.known_markers) + " (" + config.markers_file + ")" : "none") << "\n";
+      << (dataset.known_markers ? std::to_string(summary.known_markers) + " (" + config.markers_file + ")"
+                                : "none")
+      << "\n";
   if (dataset.has_odometry_file) {
-    out << "odometry: " << summary.odometry_poses << " poses, " << Fixed(summary.odometry_span_s, 3) << " s, path "
-        << Fixed(summary.odometry_path_length_m, 3) << " m (" << config.odometry_file << ")\n";
+    out << "odometry: " << summary.odometry_poses << " poses, " << Fixed(summary.odometry_span_s, 3)
+        << " s, path " << Fixed(summary.odometry_path_length_m, 3) << " m (" << config.odometry_file << ")\n";
   } else {
     out << "odometry: none\n";
   }
-  out << "images: " << (dataset.has_images_file ? std::to_string(dataset.images.size()) + " (" + config.images_file + ")" : "none")
+  out << "images: "
+      << (dataset.has_images_file ? std::to_string(dataset.images.size()) + " (" + config.images_file + ")"
+                                  : "none")
       << "\n";
   out << "ground truth: " << TruthText(dataset.groundtruth_trajectory, dataset.groundtruth_markers) << "\n";
   out << "reference: " << TruthText(dataset.reference_trajectory, dataset.reference_markers) << "\n";
@@ -103,9 +109,11 @@ int RunInfo(const std::vector<std::string>& argv) {
   args.ExpectPositionals(1, 1, "dataset directory DIR");
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   PrintSummary(dataset, std::cout);
-  for (const std::string& message : dataset.warnings.first_messages) std::cerr << "warning: " << message << "\n";
+  for (const std::string& message : dataset.warnings.first_messages)
+    std::cerr << "warning: " << message << "\n";
   if (dataset.warnings.Total() > static_cast<long>(dataset.warnings.first_messages.size())) {
-    std::cerr << "warning: ... " << dataset.warnings.Total() - static_cast<long>(dataset.warnings.first_messages.size())
+    std::cerr << "warning: ... "
+              << dataset.warnings.Total() - static_cast<long>(dataset.warnings.first_messages.size())
               << " more\n";
   }
   if (args.Flag("strict") && dataset.warnings.Total() > 0) {
@@ -116,15 +124,16 @@ int RunInfo(const std::vector<std::string>& argv) {
 }
 
 int RunDataset(const std::vector<std::string>& args) {
-  if (args.empty()) throw std::invalid_argument("missing verb (expected `waymark dataset info DIR`; see --help)");
+  if (args.empty())
+    throw std::invalid_argument("missing verb (expected `waymark dataset info DIR`; see --help)");
   const std::string& verb = args[0];
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (verb == "info") return RunInfo(rest);
   throw std::invalid_argument("unknown verb '" + verb + "' (expected info; see --help)");
 }
 
-const CommandRegistrar kRegistrar(Command{"dataset", "validate a dataset directory and summarize it (info)", kUsage,
-                                          RunDataset});
+const CommandRegistrar kRegistrar(Command{"dataset", "validate a dataset directory and summarize it (info)",
+                                          kUsage, RunDataset});
 
 }  // namespace
 }  // namespace waymark::cli

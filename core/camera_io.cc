@@ -1,10 +1,10 @@
 #include "core/camera_io.h"
 
+#include <yaml-cpp/yaml.h>
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
-
-#include <yaml-cpp/yaml.h>
 
 #include "core/io_util.h"
 
@@ -35,8 +35,8 @@ int ReadSize(const std::filesystem::path& path, const YAML::Node& root, const st
 
 }  // namespace
 
-CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path& path, const std::string& name,
-                           ReadWarnings* warnings) {
+CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path& path,
+                           const std::string& name, ReadWarnings* warnings) {
   const YAML::Node root = YamlLoadMap(path, text);
   CameraInfo camera;
   camera.name = name;
@@ -52,16 +52,19 @@ CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path&
   for (int i = 0; i < 4; ++i) camera.intrinsics[i] = intrinsics[i];
 
   const size_t distortion_size = CameraInfo::DistortionSize(camera.model);
-  camera.distortion = YamlNumbers(path, YamlRequire(path, root, "distortion"),
-                                  std::string("distortion (") + CameraModelName(camera.model) + ")", distortion_size);
+  camera.distortion =
+      YamlNumbers(path, YamlRequire(path, root, "distortion"),
+                  std::string("distortion (") + CameraModelName(camera.model) + ")", distortion_size);
   camera.T_robot_camera = YamlPose(path, YamlRequire(path, root, "T_robot_camera"), "T_robot_camera");
 
   if (const YAML::Node sigma = root["pixel_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
     camera.pixel_sigma = YamlNumber(path, sigma, "pixel_sigma");
-    if (!(*camera.pixel_sigma > 0.0)) ThrowYamlError(path, sigma, "pixel_sigma: expected a positive number of pixels");
+    if (!(*camera.pixel_sigma > 0.0))
+      ThrowYamlError(path, sigma, "pixel_sigma: expected a positive number of pixels");
   }
-  YamlWarnUnknownKeys(path, root, {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera", "pixel_sigma"},
-                      "", warnings);
+  YamlWarnUnknownKeys(
+      path, root, {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera", "pixel_sigma"},
+      "", warnings);
   return camera;
 }
 
@@ -79,14 +82,16 @@ std::string NumberList(const double* values, size_t count) {
 
 void CheckWritable(const CameraInfo& camera) {
   const std::string name = "camera writer: " + camera.name + ": ";
-  if (camera.width <= 0 || camera.height <= 0) throw std::invalid_argument(name + "width and height must be positive");
+  if (camera.width <= 0 || camera.height <= 0)
+    throw std::invalid_argument(name + "width and height must be positive");
   if (!(camera.intrinsics[0] > 0.0 && camera.intrinsics[1] > 0.0) || !std::isfinite(camera.intrinsics[0]) ||
       !std::isfinite(camera.intrinsics[1]) || !std::isfinite(camera.intrinsics[2]) ||
       !std::isfinite(camera.intrinsics[3])) {
     throw std::invalid_argument(name + "intrinsics must be finite with positive fx, fy");
   }
   if (camera.distortion.size() != CameraInfo::DistortionSize(camera.model)) {
-    throw std::invalid_argument(name + "distortion needs " + std::to_string(CameraInfo::DistortionSize(camera.model)) +
+    throw std::invalid_argument(name + "distortion needs " +
+                                std::to_string(CameraInfo::DistortionSize(camera.model)) +
                                 " coefficients for " + CameraModelName(camera.model));
   }
   for (const double k : camera.distortion) {

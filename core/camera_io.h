@@ -21,8 +21,8 @@
 namespace waymark {
 
 // Parses camera YAML; `path` names the file in messages, `name` becomes CameraInfo::name.
-CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path& path, const std::string& name,
-                           ReadWarnings* warnings = nullptr);
+CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path& path,
+                           const std::string& name, ReadWarnings* warnings = nullptr);
 // Reads cameras/<name>.yaml; the name is the file's stem.
 CameraInfo ReadCameraYaml(const std::filesystem::path& path, ReadWarnings* warnings = nullptr);
 

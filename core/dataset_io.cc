@@ -1,13 +1,13 @@
 #include "core/dataset_io.h"
 
+#include <yaml-cpp/yaml.h>
+
 #include <algorithm>
 #include <cmath>
 #include <regex>
 #include <sstream>
 #include <stdexcept>
 #include <string_view>
-
-#include <yaml-cpp/yaml.h>
 
 #include "core/camera_io.h"
 #include "core/detections_io.h"
@@ -47,7 +47,8 @@ std::vector<std::string> ReadCameraNames(const fs::path& path, const YAML::Node&
   if (names.empty()) ThrowYamlError(path, node, "cameras: expected at least one camera name");
   std::set<std::string> seen;
   for (const std::string& name : names) {
-    if (!IsValidCameraName(name)) ThrowYamlError(path, node, "cameras: '" + name + "' is not a valid file name");
+    if (!IsValidCameraName(name))
+      ThrowYamlError(path, node, "cameras: '" + name + "' is not a valid file name");
     if (!seen.insert(name).second) ThrowYamlError(path, node, "cameras: '" + name + "' is listed twice");
   }
   return names;
@@ -64,7 +65,8 @@ OdometrySigma ReadOdometrySigma(const fs::path& path, const YAML::Node& node) {
   for (const auto& key_value : node) {
     const std::string key = key_value.first.Scalar();
     if (key != "trans_per_m" && key != "rot_per_rad") {
-      ThrowYamlError(path, key_value.first, "odometry_sigma: unknown key '" + key + "' (expected trans_per_m, rot_per_rad)");
+      ThrowYamlError(path, key_value.first,
+                     "odometry_sigma: unknown key '" + key + "' (expected trans_per_m, rot_per_rad)");
     }
   }
   return sigma;
@@ -81,7 +83,8 @@ PayloadSpec ReadPayload(const fs::path& path, const YAML::Node& node) {
       ThrowYamlError(path, key_value.first, "payload: unknown key '" + key + "' (expected pattern, fields)");
     }
   }
-  if (const std::string why = CheckPayloadSpec(spec); !why.empty()) ThrowYamlError(path, node, "payload: " + why);
+  if (const std::string why = CheckPayloadSpec(spec); !why.empty())
+    ThrowYamlError(path, node, "payload: " + why);
   return spec;
 }
 
@@ -98,12 +101,15 @@ void ReadFileName(const fs::path& path, const YAML::Node& root, const std::strin
 void CheckHeader(const fs::path& path, const YAML::Node& root) {
   const YAML::Node format = YamlRequire(path, root, "format");
   if (YamlString(path, format, "format") != kDatasetFormat) {
-    ThrowYamlError(path, format, std::string("format: expected ") + kDatasetFormat + ", got '" + format.Scalar() + "'");
+    ThrowYamlError(path, format,
+                   std::string("format: expected ") + kDatasetFormat + ", got '" + format.Scalar() + "'");
   }
   const YAML::Node version = YamlRequire(path, root, "version");
   const long number = YamlInteger(path, version, "version");
   if (number != kDatasetVersion) {
-    ThrowYamlError(path, version, "version: expected " + std::to_string(kDatasetVersion) + ", got " + std::to_string(number));
+    ThrowYamlError(
+        path, version,
+        "version: expected " + std::to_string(kDatasetVersion) + ", got " + std::to_string(number));
   }
 }
 
@@ -143,7 +149,8 @@ DatasetConfig ParseDatasetYaml(const std::string& text, const fs::path& path, Re
   config.cameras = ReadCameraNames(path, root);
   if (const YAML::Node size = root["default_marker_size_m"]; size.IsDefined() && !size.IsNull()) {
     config.default_marker_size_m = YamlNumber(path, size, "default_marker_size_m");
-    if (!(*config.default_marker_size_m > 0.0)) ThrowYamlError(path, size, "default_marker_size_m: expected a positive size");
+    if (!(*config.default_marker_size_m > 0.0))
+      ThrowYamlError(path, size, "default_marker_size_m: expected a positive size");
   }
   if (const YAML::Node sigma = root["odometry_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
     config.odometry_sigma = ReadOdometrySigma(path, sigma);
@@ -156,8 +163,8 @@ DatasetConfig ParseDatasetYaml(const std::string& text, const fs::path& path, Re
   ReadFileName(path, root, "images", &config.images_file, named_files);
   ReadFileName(path, root, "markers", &config.markers_file, named_files);
   YamlWarnUnknownKeys(path, root,
-                      {"format", "version", "name", "motion", "cameras", "default_marker_size_m", "odometry_sigma",
-                       "payload", "odometry", "detections", "images", "markers"},
+                      {"format", "version", "name", "motion", "cameras", "default_marker_size_m",
+                       "odometry_sigma", "payload", "odometry", "detections", "images", "markers"},
                       "", warnings);
   return config;
 }
@@ -175,7 +182,8 @@ std::string QuotedList(const std::vector<std::string>& items) {
 std::string FormatDatasetYaml(const DatasetConfig& config) {
   if (config.cameras.empty()) throw std::invalid_argument("dataset writer: no cameras");
   for (const std::string& name : config.cameras) {
-    if (!IsValidCameraName(name)) throw std::invalid_argument("dataset writer: invalid camera name '" + name + "'");
+    if (!IsValidCameraName(name))
+      throw std::invalid_argument("dataset writer: invalid camera name '" + name + "'");
   }
   std::ostringstream out;
   out << "format: " << kDatasetFormat << "\nversion: " << kDatasetVersion << "\n";
@@ -210,7 +218,8 @@ std::string FormatDatasetYaml(const DatasetConfig& config) {
       {"images", {config.images_file, defaults.images_file}},
       {"markers", {config.markers_file, defaults.markers_file}}};
   for (const auto& [key, names] : files) {
-    if (names.first.empty()) throw std::invalid_argument(std::string("dataset writer: empty ") + key + " file name");
+    if (names.first.empty())
+      throw std::invalid_argument(std::string("dataset writer: empty ") + key + " file name");
     if (names.first != names.second) out << key << ": " << QuoteString(names.first) << "\n";
   }
   return out.str();
@@ -238,7 +247,8 @@ std::vector<ImageEntry> ParseImagesCsv(const std::string& text, const fs::path& 
     ImageEntry entry;
     const std::string_view stamp = line.substr(0, comma1);
     const std::optional<double> stamp_s = ParseFiniteDouble(stamp);
-    if (!stamp_s) throw FormatError(path, line_number, "t: expected a finite number, got '" + std::string(stamp) + "'");
+    if (!stamp_s)
+      throw FormatError(path, line_number, "t: expected a finite number, got '" + std::string(stamp) + "'");
     entry.stamp_s = *stamp_s;
     entry.camera = std::string(line.substr(comma1 + 1, comma2 - comma1 - 1));
     entry.path = std::string(line.substr(comma2 + 1));
@@ -256,7 +266,8 @@ std::string FormatImagesCsv(const std::vector<ImageEntry>& images) {
   std::string text = std::string(kImagesHeader) + "\n";
   for (const ImageEntry& entry : images) {
     if (!std::isfinite(entry.stamp_s) || entry.camera.empty() || entry.path.empty() ||
-        entry.camera.find_first_of(",\n\r") != std::string::npos || entry.path.find_first_of("\n\r") != std::string::npos) {
+        entry.camera.find_first_of(",\n\r") != std::string::npos ||
+        entry.path.find_first_of("\n\r") != std::string::npos) {
       throw std::invalid_argument("images.csv writer: row at t=" + FormatDouble(entry.stamp_s) +
                                   " needs a finite t, a camera without commas and a one-line path");
     }
@@ -309,7 +320,8 @@ void WarnMarkersWithoutSize(Dataset* dataset) {
       if (dataset->MarkerSize(marker.key) || !warned.insert(marker.key).second) continue;
       dataset->warnings.Add("marker without size",
                             (dataset->dir / dataset->config.detections_file).string() + ": marker " +
-                                marker.key.ToString() + " has no size (not in markers.json, no default_marker_size_m)");
+                                marker.key.ToString() +
+                                " has no size (not in markers.json, no default_marker_size_m)");
     }
   }
 }
@@ -340,8 +352,10 @@ Dataset LoadDataset(const fs::path& dir) {
   const fs::path yaml_path = dir / "dataset.yaml";
   std::set<std::string> named_files;
   dataset.config = ParseDatasetYaml(ReadTextFile(yaml_path), yaml_path, &dataset.warnings, &named_files);
-  if (dataset.config.name.empty()) dataset.config.name = fs::absolute(dir).lexically_normal().filename().string();
-  if (dataset.config.name.empty()) dataset.config.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
+  if (dataset.config.name.empty())
+    dataset.config.name = fs::absolute(dir).lexically_normal().filename().string();
+  if (dataset.config.name.empty())
+    dataset.config.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
   LoadDatasetCameras(&dataset);
 
   const DatasetConfig& config = dataset.config;
@@ -356,7 +370,8 @@ Dataset LoadDataset(const fs::path& dir) {
     dataset.detections = ReadDetections(*path, &dataset.warnings, &dataset.cameras);
     dataset.has_detections_file = true;
   }
-  if (const auto path = OptionalFile(dir, config.images_file, "images", named_files)) LoadImages(&dataset, *path);
+  if (const auto path = OptionalFile(dir, config.images_file, "images", named_files))
+    LoadImages(&dataset, *path);
   LoadTruthAndReference(&dataset);
   WarnMarkersWithoutSize(&dataset);
   return dataset;
@@ -368,7 +383,8 @@ namespace {
 void CheckConsistent(const Dataset& dataset) {
   const std::vector<std::string>& names = dataset.config.cameras;
   for (const std::string& name : names) {
-    if (!dataset.cameras.count(name)) throw std::invalid_argument("dataset writer: camera " + name + " has no CameraInfo");
+    if (!dataset.cameras.count(name))
+      throw std::invalid_argument("dataset writer: camera " + name + " has no CameraInfo");
   }
   for (const auto& [name, camera] : dataset.cameras) {
     if (std::find(names.begin(), names.end(), name) == names.end()) {
@@ -377,12 +393,14 @@ void CheckConsistent(const Dataset& dataset) {
   }
   for (const DetectionFrame& frame : dataset.detections) {
     if (!dataset.cameras.count(frame.camera)) {
-      throw std::invalid_argument("dataset writer: detection at t=" + FormatDouble(frame.stamp_s) + " of unlisted camera " + frame.camera);
+      throw std::invalid_argument("dataset writer: detection at t=" + FormatDouble(frame.stamp_s) +
+                                  " of unlisted camera " + frame.camera);
     }
   }
   for (const ImageEntry& entry : dataset.images) {
     if (!dataset.cameras.count(entry.camera)) {
-      throw std::invalid_argument("dataset writer: image " + entry.path + " of unlisted camera " + entry.camera);
+      throw std::invalid_argument("dataset writer: image " + entry.path + " of unlisted camera " +
+                                  entry.camera);
     }
   }
 }
@@ -411,11 +429,13 @@ void WriteDataset(const fs::path& dir, const Dataset& dataset) {
   if (dataset.groundtruth_trajectory) {
     files.emplace_back(dir / "groundtruth" / "trajectory.tum", FormatTum(*dataset.groundtruth_trajectory));
   }
-  if (dataset.groundtruth_markers) files.emplace_back(dir / "groundtruth" / "markers.json", FormatMap(*dataset.groundtruth_markers));
+  if (dataset.groundtruth_markers)
+    files.emplace_back(dir / "groundtruth" / "markers.json", FormatMap(*dataset.groundtruth_markers));
   if (dataset.reference_trajectory) {
     files.emplace_back(dir / "reference" / "trajectory.tum", FormatTum(*dataset.reference_trajectory));
   }
-  if (dataset.reference_markers) files.emplace_back(dir / "reference" / "markers.json", FormatMap(*dataset.reference_markers));
+  if (dataset.reference_markers)
+    files.emplace_back(dir / "reference" / "markers.json", FormatMap(*dataset.reference_markers));
   for (const auto& [path, text] : files) AtomicWriteFile(path, text);
 }
 

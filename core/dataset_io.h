@@ -46,7 +46,8 @@ namespace waymark {
 // dataset.yaml. `path` names the file in messages. `named_files`, when not null, receives
 // the keys among odometry/detections/images/markers that the file sets explicitly.
 DatasetConfig ParseDatasetYaml(const std::string& text, const std::filesystem::path& path,
-                               ReadWarnings* warnings = nullptr, std::set<std::string>* named_files = nullptr);
+                               ReadWarnings* warnings = nullptr,
+                               std::set<std::string>* named_files = nullptr);
 std::string FormatDatasetYaml(const DatasetConfig& config);
 
 // Why a payload spec is unusable (empty string when it is fine).
@@ -73,14 +74,14 @@ void WriteDataset(const std::filesystem::path& dir, const Dataset& dataset);
 
 // Figures `waymark dataset info` prints.
 struct DatasetSummary {
-  long frames = 0;                               // lines of detections.jsonl
-  long detections = 0;                           // markers kept, all frames
+  long frames = 0;      // lines of detections.jsonl
+  long detections = 0;  // markers kept, all frames
   std::map<std::string, long> detections_per_family;
-  long distinct_markers = 0;                     // distinct (family, id) in detections
-  long known_markers = 0;                        // markers.json
+  long distinct_markers = 0;  // distinct (family, id) in detections
+  long known_markers = 0;     // markers.json
   long odometry_poses = 0;
-  double odometry_span_s = 0.0;                  // last stamp - first stamp
-  double odometry_path_length_m = 0.0;           // sum of |t_i+1 - t_i| of T_odom_robot
+  double odometry_span_s = 0.0;         // last stamp - first stamp
+  double odometry_path_length_m = 0.0;  // sum of |t_i+1 - t_i| of T_odom_robot
 };
 DatasetSummary SummarizeDataset(const Dataset& dataset);
 

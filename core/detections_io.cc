@@ -1,10 +1,9 @@
 #include "core/detections_io.h"
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string_view>
-
-#include <nlohmann/json.hpp>
 
 #include "core/io_util.h"
 
@@ -45,18 +44,21 @@ std::string NonFiniteLiteralsToNull(std::string_view line) {
 }
 
 // The four corners; nullopt (with a counted warning) when one is null or not finite.
-std::optional<std::array<Eigen::Vector2d, 4>> ParseCorners(const JsonSource& source, const nlohmann::json& value,
+std::optional<std::array<Eigen::Vector2d, 4>> ParseCorners(const JsonSource& source,
+                                                           const nlohmann::json& value,
                                                            const std::string& field, ReadWarnings* warnings) {
   if (!value.is_array() || value.size() != 4) {
-    ThrowJsonError(source, field, "expected 4 corners [[x, y], ...], got " +
-                                      (value.is_array() ? std::to_string(value.size()) : std::string("no array")));
+    ThrowJsonError(source, field,
+                   "expected 4 corners [[x, y], ...], got " +
+                       (value.is_array() ? std::to_string(value.size()) : std::string("no array")));
   }
   std::array<Eigen::Vector2d, 4> corners;
   bool finite = true;
   for (size_t i = 0; i < 4; ++i) {
     const std::string corner_field = JsonField(field, i);
     const nlohmann::json& point = value[i];
-    if (!point.is_array() || point.size() != 2) ThrowJsonError(source, corner_field, "expected a point [x, y]");
+    if (!point.is_array() || point.size() != 2)
+      ThrowJsonError(source, corner_field, "expected a point [x, y]");
     for (size_t k = 0; k < 2; ++k) {
       if (point[k].is_null() || (point[k].is_number() && !std::isfinite(point[k].get<double>()))) {
         finite = false;
@@ -77,16 +79,17 @@ std::optional<std::array<Eigen::Vector2d, 4>> ParseCorners(const JsonSource& sou
   return corners;
 }
 
-
 // One marker; nullopt (with a counted warning) when it must be ignored.
 std::optional<MarkerObservation> ParseMarker(const JsonSource& source, const nlohmann::json& value,
                                              const std::string& field, const CameraInfo* camera,
                                              ReadWarnings* warnings) {
   MarkerObservation marker;
-  marker.key.family = JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
+  marker.key.family =
+      JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
   marker.key.id = JsonString(source, *JsonMember(source, value, field, "id", true), JsonField(field, "id"));
   const std::optional<std::array<Eigen::Vector2d, 4>> corners =
-      ParseCorners(source, *JsonMember(source, value, field, "corners_px", true), JsonField(field, "corners_px"), warnings);
+      ParseCorners(source, *JsonMember(source, value, field, "corners_px", true),
+                   JsonField(field, "corners_px"), warnings);
   if (const nlohmann::json* quality = JsonMember(source, value, field, "quality", false)) {
     marker.quality = JsonNumber(source, *quality, JsonField(field, "quality"));
   }
@@ -95,8 +98,9 @@ std::optional<MarkerObservation> ParseMarker(const JsonSource& source, const nlo
   marker.corners_px = *corners;
   if (!IsKnownFamily(marker.key.family)) {
     if (warnings) {
-      warnings->Add("unknown family", JsonErrorText(source, JsonField(field, "family"),
-                                                    "unknown family \"" + marker.key.family + "\", marker ignored"));
+      warnings->Add("unknown family",
+                    JsonErrorText(source, JsonField(field, "family"),
+                                  "unknown family \"" + marker.key.family + "\", marker ignored"));
     }
     return std::nullopt;
   }
@@ -105,11 +109,12 @@ std::optional<MarkerObservation> ParseMarker(const JsonSource& source, const nlo
     for (const Eigen::Vector2d& corner_px : marker.corners_px) {
       if (camera->InImage(corner_px)) continue;
       if (warnings) {
-        warnings->Add("corner outside image",
-                      JsonErrorText(source, JsonField(field, "corners_px"),
-                                    "corner (" + FormatDouble(corner_px.x()) + ", " + FormatDouble(corner_px.y()) +
-                                        ") outside the " + std::to_string(camera->width) + "x" +
-                                        std::to_string(camera->height) + " image, marker ignored"));
+        warnings->Add(
+            "corner outside image",
+            JsonErrorText(source, JsonField(field, "corners_px"),
+                          "corner (" + FormatDouble(corner_px.x()) + ", " + FormatDouble(corner_px.y()) +
+                              ") outside the " + std::to_string(camera->width) + "x" +
+                              std::to_string(camera->height) + " image, marker ignored"));
       }
       return std::nullopt;
     }
@@ -130,7 +135,8 @@ const CameraInfo* FindCamera(const JsonSource& source, const std::string& name,
 
 DetectionFrame ParseFrame(const JsonSource& source, const nlohmann::json& root,
                           const std::map<std::string, CameraInfo>* cameras, ReadWarnings* warnings) {
-  if (!root.is_object()) ThrowJsonError(source, "", "expected a JSON object {\"t\", \"camera\", \"markers\"}");
+  if (!root.is_object())
+    ThrowJsonError(source, "", "expected a JSON object {\"t\", \"camera\", \"markers\"}");
   DetectionFrame frame;
   frame.stamp_s = JsonNumber(source, *JsonMember(source, root, "", "t", true), "t");
   frame.camera = JsonString(source, *JsonMember(source, root, "", "camera", true), "camera");
@@ -143,7 +149,8 @@ DetectionFrame ParseFrame(const JsonSource& source, const nlohmann::json& root,
     frame.frame = JsonInteger(source, *number, "frame");
   }
   const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
-  if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array (empty when nothing was seen)");
+  if (!markers.is_array())
+    ThrowJsonError(source, "markers", "expected an array (empty when nothing was seen)");
   for (size_t i = 0; i < markers.size(); ++i) {
     std::optional<MarkerObservation> marker =
         ParseMarker(source, markers[i], JsonField("markers", i), camera, warnings);
@@ -190,8 +197,9 @@ std::vector<DetectionFrame> ParseDetections(const std::string& text, const std::
     const auto [it, inserted] = last_stamp_s.emplace(frame.camera, frame.stamp_s);
     if (!inserted) {
       if (frame.stamp_s < it->second) {
-        ThrowJsonError(source, "t", "expected stamps non-decreasing per camera, got " + FormatDouble(frame.stamp_s) +
-                                        " after " + FormatDouble(it->second) + " for " + frame.camera);
+        ThrowJsonError(source, "t",
+                       "expected stamps non-decreasing per camera, got " + FormatDouble(frame.stamp_s) +
+                           " after " + FormatDouble(it->second) + " for " + frame.camera);
       }
       it->second = frame.stamp_s;
     }
@@ -216,7 +224,8 @@ std::string FormatDetectionLine(const DetectionFrame& frame) {
   if (frame.frame) json["frame"] = *frame.frame;
   json["markers"] = nlohmann::ordered_json::array();
   for (const MarkerObservation& marker : frame.markers) {
-    if (!IsKnownFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family " + marker.key.family);
+    if (!IsKnownFamily(marker.key.family))
+      throw std::invalid_argument(name + "unknown family " + marker.key.family);
     if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
     nlohmann::ordered_json entry;
     entry["family"] = marker.key.family;
@@ -227,7 +236,8 @@ std::string FormatDetectionLine(const DetectionFrame& frame) {
     }
     entry["corners_px"] = nlohmann::ordered_json::array();
     for (const Eigen::Vector2d& corner_px : marker.corners_px) {
-      if (!corner_px.allFinite()) throw std::invalid_argument(name + "corner not finite for " + marker.key.ToString());
+      if (!corner_px.allFinite())
+        throw std::invalid_argument(name + "corner not finite for " + marker.key.ToString());
       entry["corners_px"].push_back({corner_px.x(), corner_px.y()});
     }
     json["markers"].push_back(std::move(entry));
@@ -247,8 +257,8 @@ std::string FormatDetections(const std::vector<DetectionFrame>& frames) {
     const auto [it, inserted] = last_stamp_s.emplace(frame.camera, frame.stamp_s);
     if (!inserted) {
       if (frame.stamp_s < it->second) {
-        throw std::invalid_argument("detections writer: stamps decreasing for camera " + frame.camera +
-                                    " (" + FormatDouble(frame.stamp_s) + " after " + FormatDouble(it->second) + ")");
+        throw std::invalid_argument("detections writer: stamps decreasing for camera " + frame.camera + " (" +
+                                    FormatDouble(frame.stamp_s) + " after " + FormatDouble(it->second) + ")");
       }
       it->second = frame.stamp_s;
     }

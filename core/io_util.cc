@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -10,15 +11,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <limits>
 #include <fstream>
+#include <iterator>
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 #include <system_error>
-
-#include <iterator>
-#include <nlohmann/json.hpp>
-#include <yaml-cpp/yaml.h>
 
 namespace waymark {
 namespace {
@@ -39,8 +38,7 @@ std::string ErrnoText() { return std::strerror(errno); }
 
 // A name that no other writer uses at the same time: ".<name>.tmp-<pid>-<random>".
 std::filesystem::path TempPathFor(const std::filesystem::path& path) {
-  static thread_local std::mt19937_64 rng(std::random_device{}() ^
-                                          static_cast<unsigned long>(::getpid()));
+  static thread_local std::mt19937_64 rng(std::random_device{}() ^ static_cast<unsigned long>(::getpid()));
   std::ostringstream name;
   name << "." << path.filename().string() << ".tmp-" << ::getpid() << "-" << std::hex << rng();
   return path.parent_path() / name.str();
@@ -151,8 +149,7 @@ long LineOfOffset(std::string_view text, size_t offset) {
   return 1 + static_cast<long>(std::count(text.begin(), text.begin() + offset, '\n'));
 }
 
-bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, SE3d* T,
-                      std::string* why) {
+bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, SE3d* T, std::string* why) {
   if (!t.allFinite()) {
     *why = "t: expected 3 finite numbers";
     return false;
@@ -170,7 +167,7 @@ bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, S
   const Eigen::Quaterniond q(q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]);
   // Within a few ulps of 1: already normalized by a writer, keep it exactly.
   *T = std::abs(norm - 1.0) <= 4.0 * std::numeric_limits<double>::epsilon() ? SE3d::FromUnitQuaternion(q, t)
-                                                                             : SE3d(q, t);
+                                                                            : SE3d(q, t);
   return true;
 }
 
@@ -252,7 +249,8 @@ YAML::Node YamlLoadMap(const std::filesystem::path& path, const std::string& tex
     if (e.mark.line >= 0) line = e.mark.line + 1;
     throw FormatError(path, line, "invalid YAML: " + e.msg);
   }
-  if (!root.IsMap()) ThrowYamlError(path, root, std::string("expected a map of keys, got ") + YamlTypeName(root));
+  if (!root.IsMap())
+    ThrowYamlError(path, root, std::string("expected a map of keys, got ") + YamlTypeName(root));
   return root;
 }
 
@@ -293,8 +291,9 @@ std::vector<double> YamlNumbers(const std::filesystem::path& path, const YAML::N
     ThrowYamlError(path, node, what + ": expected a list of numbers, got " + YamlTypeName(node));
   }
   if (expected_count && node.size() != *expected_count) {
-    ThrowYamlError(path, node, what + ": expected " + std::to_string(*expected_count) + " numbers, got " +
-                                   std::to_string(node.size()));
+    ThrowYamlError(path, node,
+                   what + ": expected " + std::to_string(*expected_count) + " numbers, got " +
+                       std::to_string(node.size()));
   }
   std::vector<double> values;
   for (size_t i = 0; i < node.size(); ++i) {
@@ -316,17 +315,20 @@ std::vector<std::string> YamlStrings(const std::filesystem::path& path, const YA
 }
 
 SE3d YamlPose(const std::filesystem::path& path, const YAML::Node& node, const std::string& what) {
-  if (!node.IsMap()) ThrowYamlError(path, node, what + ": expected a map {t, q_xyzw}, got " + YamlTypeName(node));
+  if (!node.IsMap())
+    ThrowYamlError(path, node, what + ": expected a map {t, q_xyzw}, got " + YamlTypeName(node));
   const std::vector<double> t = YamlNumbers(path, YamlRequire(path, node, "t"), what + ".t", 3);
   const YAML::Node q_node = YamlRequire(path, node, "q_xyzw");
   const std::vector<double> q = YamlNumbers(path, q_node, what + ".q_xyzw", 4);
   for (const auto& key_value : node) {
     const std::string key = key_value.first.Scalar();
-    if (key != "t" && key != "q_xyzw") ThrowYamlError(path, key_value.first, what + ": unknown key '" + key + "'");
+    if (key != "t" && key != "q_xyzw")
+      ThrowYamlError(path, key_value.first, what + ": unknown key '" + key + "'");
   }
   SE3d T;
   std::string why;
-  if (!MakePoseFromFile(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Vector4d(q[0], q[1], q[2], q[3]), &T, &why)) {
+  if (!MakePoseFromFile(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Vector4d(q[0], q[1], q[2], q[3]), &T,
+                        &why)) {
     ThrowYamlError(path, q_node, what + "." + why);
   }
   return T;
@@ -341,7 +343,8 @@ void YamlWarnUnknownKeys(const std::filesystem::path& path, const YAML::Node& ma
     if (allowed.count(key)) continue;
     const std::optional<long> line = YamlLine(key_value.first);
     const std::string prefix = what.empty() ? "" : what + ": ";
-    warnings->Add("unknown key", FormatError(path, line, prefix + "unknown key '" + key + "' ignored").what());
+    warnings->Add("unknown key",
+                  FormatError(path, line, prefix + "unknown key '" + key + "' ignored").what());
   }
 }
 
@@ -491,8 +494,9 @@ nlohmann::json ParseJsonDocument(const std::string& text, const std::filesystem:
   size_t furthest = 0;
   LineRecorder recorder(text, &furthest, lines != nullptr ? lines : &local_lines);
   const char* begin = text.data();
-  const bool valid = nlohmann::json::sax_parse(TrackingIterator(begin, begin, &furthest),
-                                               TrackingIterator(begin, begin + text.size(), &furthest), &recorder);
+  const bool valid =
+      nlohmann::json::sax_parse(TrackingIterator(begin, begin, &furthest),
+                                TrackingIterator(begin, begin + text.size(), &furthest), &recorder);
   if (!valid) {
     const size_t offset = recorder.error_offset().value_or(furthest);
     throw FormatError(path, LineOfOffset(text, offset > 0 ? offset - 1 : 0),
@@ -552,7 +556,8 @@ const nlohmann::json* JsonMember(const JsonSource& source, const nlohmann::json&
 }
 
 double JsonNumber(const JsonSource& source, const nlohmann::json& value, const std::string& field) {
-  if (!value.is_number()) ThrowJsonError(source, field, std::string("expected a number, got ") + JsonTypeName(value));
+  if (!value.is_number())
+    ThrowJsonError(source, field, std::string("expected a number, got ") + JsonTypeName(value));
   const double x = value.get<double>();
   if (!std::isfinite(x)) ThrowJsonError(source, field, "expected a finite number, got " + value.dump());
   return x;
@@ -560,14 +565,16 @@ double JsonNumber(const JsonSource& source, const nlohmann::json& value, const s
 
 long JsonInteger(const JsonSource& source, const nlohmann::json& value, const std::string& field) {
   if (!value.is_number_integer()) {
-    ThrowJsonError(source, field, std::string("expected an integer, got ") +
-                                      (value.is_number() ? value.dump() : JsonTypeName(value)));
+    ThrowJsonError(
+        source, field,
+        std::string("expected an integer, got ") + (value.is_number() ? value.dump() : JsonTypeName(value)));
   }
   return value.get<long>();
 }
 
 std::string JsonString(const JsonSource& source, const nlohmann::json& value, const std::string& field) {
-  if (!value.is_string()) ThrowJsonError(source, field, std::string("expected a string, got ") + JsonTypeName(value));
+  if (!value.is_string())
+    ThrowJsonError(source, field, std::string("expected a string, got ") + JsonTypeName(value));
   return value.get<std::string>();
 }
 
@@ -578,18 +585,21 @@ bool JsonBool(const JsonSource& source, const nlohmann::json& value, const std::
   return value.get<bool>();
 }
 
-std::vector<double> JsonNumbers(const JsonSource& source, const nlohmann::json& value, const std::string& field,
-                                size_t expected_count) {
+std::vector<double> JsonNumbers(const JsonSource& source, const nlohmann::json& value,
+                                const std::string& field, size_t expected_count) {
   if (!value.is_array()) {
-    ThrowJsonError(source, field, "expected an array of " + std::to_string(expected_count) + " numbers, got " +
-                                      JsonTypeName(value));
+    ThrowJsonError(
+        source, field,
+        "expected an array of " + std::to_string(expected_count) + " numbers, got " + JsonTypeName(value));
   }
   if (value.size() != expected_count) {
-    ThrowJsonError(source, field, "expected " + std::to_string(expected_count) + " numbers, got " +
-                                      std::to_string(value.size()));
+    ThrowJsonError(
+        source, field,
+        "expected " + std::to_string(expected_count) + " numbers, got " + std::to_string(value.size()));
   }
   std::vector<double> numbers;
-  for (size_t i = 0; i < value.size(); ++i) numbers.push_back(JsonNumber(source, value[i], JsonField(field, i)));
+  for (size_t i = 0; i < value.size(); ++i)
+    numbers.push_back(JsonNumber(source, value[i], JsonField(field, i)));
   return numbers;
 }
 
@@ -605,7 +615,8 @@ SE3d JsonPose(const JsonSource& source, const nlohmann::json& value, const std::
   }
   SE3d T;
   std::string why;
-  if (!MakePoseFromFile(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Vector4d(q[0], q[1], q[2], q[3]), &T, &why)) {
+  if (!MakePoseFromFile(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Vector4d(q[0], q[1], q[2], q[3]), &T,
+                        &why)) {
     ThrowJsonError(source, JsonField(field, "q_xyzw"), why.substr(why.find(": ") + 2));
   }
   return T;
@@ -618,7 +629,8 @@ void JsonWarnUnknownKeys(const JsonSource& source, const nlohmann::json& object,
     if (allowed.count(item.key())) continue;
     const std::string key_field = JsonField(field, item.key());
     const std::optional<long> line = source.line_of ? source.line_of(key_field) : std::nullopt;
-    warnings->Add("unknown key", FormatError(source.path, line, "unknown key \"" + key_field + "\" ignored").what());
+    warnings->Add("unknown key",
+                  FormatError(source.path, line, "unknown key \"" + key_field + "\" ignored").what());
   }
 }
 

@@ -4,18 +4,17 @@
 // field readers that core/*_io.cc build on.
 #pragma once
 
+#include <Eigen/Core>
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <set>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json_fwd.hpp>
 
 #include "core/geometry.h"
 #include "core/types.h"
@@ -77,8 +76,7 @@ long LineOfOffset(std::string_view text, size_t offset);
 // ("q_xyzw: expected unit norm within 0.001, got 1.2") when a number is not finite or the
 // quaternion is not unit within kQuaternionNormTolerance. A quaternion already unit to
 // double precision is kept bit for bit (exact round trips); others are normalized.
-bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, SE3d* T,
-                      std::string* why);
+bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, SE3d* T, std::string* why);
 
 // A double-quoted YAML/JSON string literal with \\, \" and control characters escaped.
 std::string QuoteString(const std::string& text);
@@ -131,7 +129,8 @@ nlohmann::json ParseJsonDocument(const std::string& text, const std::filesystem:
 // enclosing field.
 JsonSource JsonSourceWithLines(const std::filesystem::path& path, std::map<std::string, long> lines);
 
-[[noreturn]] void ThrowJsonError(const JsonSource& source, const std::string& field, const std::string& message);
+[[noreturn]] void ThrowJsonError(const JsonSource& source, const std::string& field,
+                                 const std::string& message);
 // The one-line text ThrowJsonError would throw ("path:line: field: message"), for warnings.
 std::string JsonErrorText(const JsonSource& source, const std::string& field, const std::string& message);
 // "markers" + 3 -> "markers[3]"; "" + "t" -> "t"; "a" + "t" -> "a.t".
@@ -146,8 +145,8 @@ long JsonInteger(const JsonSource& source, const nlohmann::json& value, const st
 std::string JsonString(const JsonSource& source, const nlohmann::json& value, const std::string& field);
 bool JsonBool(const JsonSource& source, const nlohmann::json& value, const std::string& field);
 // An array of `expected_count` finite numbers ("expected 4 numbers, got 3").
-std::vector<double> JsonNumbers(const JsonSource& source, const nlohmann::json& value, const std::string& field,
-                                size_t expected_count);
+std::vector<double> JsonNumbers(const JsonSource& source, const nlohmann::json& value,
+                                const std::string& field, size_t expected_count);
 // {"t": [x, y, z], "q_xyzw": [qx, qy, qz, qw]} (see MakePoseFromFile).
 SE3d JsonPose(const JsonSource& source, const nlohmann::json& value, const std::string& field);
 // Counted warning ("unknown key") per member of `object` not in `allowed`, if `warnings`.

@@ -1,10 +1,9 @@
 #include "core/map_io.h"
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
-
-#include <nlohmann/json.hpp>
 
 #include "core/io_util.h"
 
@@ -33,16 +32,20 @@ Matrix6d ParseCovariance(const JsonSource& source, const nlohmann::json& value, 
 MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
                       ReadWarnings* warnings) {
   MapMarker marker;
-  marker.key.family = JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
+  marker.key.family =
+      JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
   if (!IsKnownFamily(marker.key.family)) {
-    ThrowJsonError(source, JsonField(field, "family"),
-                   "unknown family \"" + marker.key.family + "\" (expected qr, datamatrix, square or apriltag-<name>)");
+    ThrowJsonError(
+        source, JsonField(field, "family"),
+        "unknown family \"" + marker.key.family + "\" (expected qr, datamatrix, square or apriltag-<name>)");
   }
   marker.key.id = JsonString(source, *JsonMember(source, value, field, "id", true), JsonField(field, "id"));
   if (marker.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
-  marker.size_m = JsonNumber(source, *JsonMember(source, value, field, "size_m", true), JsonField(field, "size_m"));
+  marker.size_m =
+      JsonNumber(source, *JsonMember(source, value, field, "size_m", true), JsonField(field, "size_m"));
   if (!(marker.size_m > 0.0)) {
-    ThrowJsonError(source, JsonField(field, "size_m"), "expected a positive size, got " + FormatDouble(marker.size_m));
+    ThrowJsonError(source, JsonField(field, "size_m"),
+                   "expected a positive size, got " + FormatDouble(marker.size_m));
   }
   marker.T_world_marker = JsonPose(source, *JsonMember(source, value, field, "T_world_marker", true),
                                    JsonField(field, "T_world_marker"));
@@ -55,12 +58,14 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
   if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
     const long number = JsonInteger(source, *component, JsonField(field, "component"));
     if (number < 0 || number > std::numeric_limits<int>::max()) {
-      ThrowJsonError(source, JsonField(field, "component"), "expected a non-negative integer, got " + component->dump());
+      ThrowJsonError(source, JsonField(field, "component"),
+                     "expected a non-negative integer, got " + component->dump());
     }
     marker.component = static_cast<int>(number);
   }
   JsonWarnUnknownKeys(source, value, field,
-                      {"family", "id", "size_m", "T_world_marker", "covariance", "fixed", "component"}, warnings);
+                      {"family", "id", "size_m", "T_world_marker", "covariance", "fixed", "component"},
+                      warnings);
   return marker;
 }
 
@@ -71,7 +76,8 @@ void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
   }
   const long version = JsonInteger(source, *JsonMember(source, root, "", "version", true), "version");
   if (version != kMapVersion) {
-    ThrowJsonError(source, "version", "expected " + std::to_string(kMapVersion) + ", got " + std::to_string(version));
+    ThrowJsonError(source, "version",
+                   "expected " + std::to_string(kMapVersion) + ", got " + std::to_string(version));
   }
 }
 
@@ -130,9 +136,11 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
   const std::string name = "map writer: marker " + marker.key.ToString() + ": ";
   if (!IsKnownFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family");
   if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
-  if (!(marker.size_m > 0.0) || !std::isfinite(marker.size_m)) throw std::invalid_argument(name + "size_m not positive");
+  if (!(marker.size_m > 0.0) || !std::isfinite(marker.size_m))
+    throw std::invalid_argument(name + "size_m not positive");
   if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "T_world_marker not finite");
-  if (marker.covariance && !marker.covariance->allFinite()) throw std::invalid_argument(name + "covariance not finite");
+  if (marker.covariance && !marker.covariance->allFinite())
+    throw std::invalid_argument(name + "covariance not finite");
   if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");
   if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
 }
@@ -141,8 +149,8 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
 
 std::string FormatMap(const MarkerMap& map) {
   std::set<MarkerKey> seen;
-  std::string text = std::string("{\"format\": \"") + kMapFormat + "\", \"version\": " + std::to_string(kMapVersion) +
-                     ",\n \"markers\": [";
+  std::string text = std::string("{\"format\": \"") + kMapFormat +
+                     "\", \"version\": " + std::to_string(kMapVersion) + ",\n \"markers\": [";
   for (size_t i = 0; i < map.markers.size(); ++i) {
     CheckWritable(map.markers[i], &seen);
     text += (i == 0 ? "\n  " : ",\n  ") + MarkerJson(map.markers[i]).dump();

@@ -25,7 +25,8 @@ namespace waymark {
 
 // Parses map JSON; `path` names the file in messages. Unknown keys are added to `warnings`
 // when it is not null.
-MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, ReadWarnings* warnings = nullptr);
+MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path,
+                   ReadWarnings* warnings = nullptr);
 MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings = nullptr);
 
 // Map JSON with full double precision, one marker per line. Throws std::invalid_argument for a

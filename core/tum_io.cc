@@ -28,17 +28,18 @@ std::vector<std::string_view> SplitWhitespace(std::string_view line) {
 StampedSE3 ParseTumLine(std::string_view line, const std::filesystem::path& path, long line_number) {
   const std::vector<std::string_view> tokens = SplitWhitespace(line);
   if (tokens.size() != 8) {
-    throw FormatError(path, line_number,
-                      "expected 8 numbers 't tx ty tz qx qy qz qw', got " + std::to_string(tokens.size()) +
-                          " fields");
+    throw FormatError(
+        path, line_number,
+        "expected 8 numbers 't tx ty tz qx qy qz qw', got " + std::to_string(tokens.size()) + " fields");
   }
   static const char* const kNames[8] = {"t", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
   double values[8];
   for (int i = 0; i < 8; ++i) {
     const std::optional<double> value = ParseFiniteDouble(tokens[i]);
     if (!value) {
-      throw FormatError(path, line_number,
-                        std::string(kNames[i]) + ": expected a finite number, got '" + std::string(tokens[i]) + "'");
+      throw FormatError(
+          path, line_number,
+          std::string(kNames[i]) + ": expected a finite number, got '" + std::string(tokens[i]) + "'");
     }
     values[i] = *value;
   }

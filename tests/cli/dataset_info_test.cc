@@ -1,14 +1,13 @@
 // End to end: `waymark dataset info` through the built binary, on a real tagslam set and on
 // broken copies of it in a temporary directory.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/io_util.h"
 
@@ -27,8 +26,10 @@ struct RunResult {
 
 // Runs `waymark ARGS`, capturing stdout and stderr.
 RunResult RunWaymark(const std::string& args) {
-  const fs::path err_path = fs::temp_directory_path() / ("waymark_dataset_info_err_" + std::to_string(::getpid()));
-  const std::string command = std::string("'") + WAYMARK_BINARY + "' " + args + " 2>'" + err_path.string() + "'";
+  const fs::path err_path =
+      fs::temp_directory_path() / ("waymark_dataset_info_err_" + std::to_string(::getpid()));
+  const std::string command =
+      std::string("'") + WAYMARK_BINARY + "' " + args + " 2>'" + err_path.string() + "'";
   RunResult result;
   FILE* pipe = ::popen(command.c_str(), "r");
   if (pipe == nullptr) return result;
@@ -48,7 +49,8 @@ fs::path TagslamSet(const std::string& name) { return fs::path(WAYMARK_SHARED_DA
 class BrokenCopy {
  public:
   explicit BrokenCopy(const std::string& name)
-      : dir_(fs::temp_directory_path() / ("waymark_dataset_info_" + name + "_" + std::to_string(::getpid()))) {
+      : dir_(fs::temp_directory_path() /
+             ("waymark_dataset_info_" + name + "_" + std::to_string(::getpid()))) {
     fs::remove_all(dir_);
     fs::copy(TagslamSet(name), dir_, fs::copy_options::recursive);
     for (const auto& entry : fs::recursive_directory_iterator(dir_)) {
@@ -70,8 +72,8 @@ class BrokenCopy {
   fs::path dir_;
 };
 
-#define SKIP_WITHOUT_TAGSLAM()                                                                     \
-  if (!fs::exists(TagslamSet("tagslam-test16"))) {                                                 \
+#define SKIP_WITHOUT_TAGSLAM()                                                                   \
+  if (!fs::exists(TagslamSet("tagslam-test16"))) {                                               \
     GTEST_SKIP() << "shared data absent: " << TagslamSet("tagslam-test16") << " (test not run)"; \
   }
 
@@ -137,7 +139,8 @@ TEST(DatasetInfoCliTest, WarningsAreCountedAndStrictFails) {
   EXPECT_THAT(r.out, HasSubstr("detections: 1470 (apriltag-36h11: 1470)\n"));
   EXPECT_THAT(r.out, HasSubstr("warnings: 2 (corner outside image: 1, unknown key: 1)\n"));
   EXPECT_THAT(r.err, HasSubstr("warning: "));
-  EXPECT_THAT(r.err, HasSubstr("detections.jsonl:1: markers[0].corners_px: corner (1529.04, 321.199) outside"));
+  EXPECT_THAT(r.err,
+              HasSubstr("detections.jsonl:1: markers[0].corners_px: corner (1529.04, 321.199) outside"));
   const RunResult strict = RunWaymark("dataset info --strict '" + copy.dir().string() + "'");
   EXPECT_EQ(strict.exit_code, 1);
   EXPECT_THAT(strict.out, HasSubstr("warnings: 2"));

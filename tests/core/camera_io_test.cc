@@ -1,12 +1,11 @@
 #include "core/camera_io.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/io_util.h"
 
@@ -63,9 +62,10 @@ TEST(CameraIoTest, ParsesGoodCamera) {
 TEST(CameraIoTest, ErrorsNameFileLineAndField) {
   EXPECT_THAT(ParseError(GoodCameraWith("[1506.9, 1506.28, 641.176, 524.495]", "[1506.9, 1506.28, 641.176]")),
               HasSubstr("cameras/cam0.yaml:4: intrinsics: expected 4 numbers, got 3"));
-  EXPECT_THAT(ParseError(GoodCameraWith("pinhole-radtan", "fisheye")),
-              HasSubstr("cameras/cam0.yaml:1: model: unknown camera model 'fisheye' (expected pinhole-radtan or "
-                        "pinhole-equidistant)"));
+  EXPECT_THAT(
+      ParseError(GoodCameraWith("pinhole-radtan", "fisheye")),
+      HasSubstr("cameras/cam0.yaml:1: model: unknown camera model 'fisheye' (expected pinhole-radtan or "
+                "pinhole-equidistant)"));
   EXPECT_THAT(ParseError(GoodCameraWith("pinhole-radtan", "pinhole-equidistant")),
               HasSubstr("cameras/cam0.yaml:5: distortion (pinhole-equidistant): expected 4 numbers, got 5"));
   EXPECT_THAT(ParseError(GoodCameraWith("641.176", ".nan")),
@@ -78,13 +78,18 @@ TEST(CameraIoTest, ErrorsNameFileLineAndField) {
               HasSubstr("cameras/cam0.yaml:2: width: expected an integer, got '1280.5'"));
   EXPECT_THAT(ParseError(GoodCameraWith("width: 1280", "width: \"1280\"")),
               HasSubstr("cameras/cam0.yaml:2: width: expected an integer, got a quoted string"));
-  EXPECT_THAT(ParseError(GoodCameraWith("height: 1024", "height: -3")), HasSubstr("cameras/cam0.yaml:3: height: expected a positive"));
-  EXPECT_THAT(ParseError(GoodCameraWith("height: 1024\n", "")), HasSubstr("cameras/cam0.yaml:1: missing key 'height'"));
+  EXPECT_THAT(ParseError(GoodCameraWith("height: 1024", "height: -3")),
+              HasSubstr("cameras/cam0.yaml:3: height: expected a positive"));
+  EXPECT_THAT(ParseError(GoodCameraWith("height: 1024\n", "")),
+              HasSubstr("cameras/cam0.yaml:1: missing key 'height'"));
   EXPECT_THAT(ParseError(GoodCameraWith("pixel_sigma: 1.0", "pixel_sigma: [1]")),
               HasSubstr("cameras/cam0.yaml:9: pixel_sigma: expected a number, got a list"));
-  EXPECT_THAT(ParseError(GoodCameraWith("pixel_sigma: 1.0", "pixel_sigma: 0")), HasSubstr("pixel_sigma: expected a positive"));
-  EXPECT_THAT(ParseError(GoodCameraWith("[1506.9, 1506.28", "[-1506.9, 1506.28")), HasSubstr("intrinsics: expected positive focal"));
-  EXPECT_THAT(ParseError(GoodCameraWith("  t: [0.1, 0.0, 0.0]", "  t: [0.1, 0.0, 0.0\n")), HasSubstr("cameras/cam0.yaml:9: invalid YAML: end of sequence flow not found"));
+  EXPECT_THAT(ParseError(GoodCameraWith("pixel_sigma: 1.0", "pixel_sigma: 0")),
+              HasSubstr("pixel_sigma: expected a positive"));
+  EXPECT_THAT(ParseError(GoodCameraWith("[1506.9, 1506.28", "[-1506.9, 1506.28")),
+              HasSubstr("intrinsics: expected positive focal"));
+  EXPECT_THAT(ParseError(GoodCameraWith("  t: [0.1, 0.0, 0.0]", "  t: [0.1, 0.0, 0.0\n")),
+              HasSubstr("cameras/cam0.yaml:9: invalid YAML: end of sequence flow not found"));
   EXPECT_THAT(ParseError("- a\n- b\n"), HasSubstr("cameras/cam0.yaml:1: expected a map of keys, got a list"));
   EXPECT_THAT(ParseError(""), HasSubstr("cameras/cam0.yaml: expected a map of keys"));
 }
@@ -97,7 +102,8 @@ TEST(CameraIoTest, MissingFileAndUnknownKeys) {
     EXPECT_THAT(e.what(), HasSubstr("/nonexistent/cameras/cam9.yaml: cannot open"));
   }
   ReadWarnings warnings;
-  ParseCameraYaml(std::string(kGoodCamera) + "rolling_shutter: true\n", "cameras/cam0.yaml", "cam0", &warnings);
+  ParseCameraYaml(std::string(kGoodCamera) + "rolling_shutter: true\n", "cameras/cam0.yaml", "cam0",
+                  &warnings);
   EXPECT_EQ(warnings.counts["unknown key"], 1);
   ASSERT_EQ(warnings.first_messages.size(), 1u);
   EXPECT_EQ(warnings.first_messages[0], "cameras/cam0.yaml:10: unknown key 'rolling_shutter' ignored");
@@ -111,7 +117,8 @@ TEST(CameraIoTest, RoundTripIsExact) {
   camera.height = 848;
   camera.intrinsics = {283.943 + 1e-11, 284.986, 421.0 / 3.0, 400.527};
   camera.distortion = {0.00132, 0.1 / 3.0, -0.02875, 1e-300};
-  camera.T_robot_camera = SE3d(Eigen::Quaterniond(0.3, -0.2, 0.9, 0.1), Eigen::Vector3d(0.1 / 7.0, -2.0, 1e-9));
+  camera.T_robot_camera =
+      SE3d(Eigen::Quaterniond(0.3, -0.2, 0.9, 0.1), Eigen::Vector3d(0.1 / 7.0, -2.0, 1e-9));
   const fs::path path = fs::temp_directory_path() / ("waymark_camera_io_test_" + std::to_string(::getpid())) /
                         "cameras" / "fisheye.yaml";
   WriteCameraYaml(path, camera);

@@ -1,14 +1,13 @@
 #include "core/dataset_io.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <functional>
 #include <random>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/camera_io.h"
 #include "core/detections_io.h"
@@ -52,7 +51,8 @@ std::string ParseError(const std::string& text) {
 // A fresh temporary directory, removed by the destructor.
 struct TempDir {
   explicit TempDir(const std::string& tag)
-      : path(fs::temp_directory_path() / ("waymark_dataset_io_test_" + tag + "_" + std::to_string(::getpid()))) {
+      : path(fs::temp_directory_path() /
+             ("waymark_dataset_io_test_" + tag + "_" + std::to_string(::getpid()))) {
     fs::remove_all(path);
     fs::create_directories(path);
   }
@@ -68,7 +68,8 @@ CameraInfo MakeCamera(const std::string& name, CameraModel model) {
   camera.height = 480;
   camera.intrinsics = {500.0 + 1.0 / 3.0, 501.0, 320.5, 240.25};
   camera.distortion.assign(CameraInfo::DistortionSize(model), 1e-3 / 7.0);
-  camera.T_robot_camera = SE3d(Eigen::Quaterniond(0.5, -0.5, 0.5, -0.5), Eigen::Vector3d(0.1, 0.2 / 3.0, 0.3));
+  camera.T_robot_camera =
+      SE3d(Eigen::Quaterniond(0.5, -0.5, 0.5, -0.5), Eigen::Vector3d(0.1, 0.2 / 3.0, 0.3));
   camera.pixel_sigma = 0.5;
   return camera;
 }
@@ -97,7 +98,8 @@ Dataset MakeDataset() {
       frame.image = "images/" + std::string(camera) + "_" + std::to_string(i) + ".png";
       if (i % 2 == 0) {
         MarkerObservation marker{{"qr", "0/" + std::to_string(i) + "/1"}, {}, 0.9};
-        for (Eigen::Vector2d& corner_px : marker.corners_px) corner_px = {uniform(rng) * 640, uniform(rng) * 480};
+        for (Eigen::Vector2d& corner_px : marker.corners_px)
+          corner_px = {uniform(rng) * 640, uniform(rng) * 480};
         frame.markers.push_back(marker);
       }
       dataset.detections.push_back(frame);
@@ -118,8 +120,8 @@ Dataset MakeDataset() {
 TEST(DatasetIoTest, ParsesDatasetYaml) {
   ReadWarnings warnings;
   std::set<std::string> named;
-  const DatasetConfig config =
-      ParseDatasetYaml(std::string(kGoodYaml) + "odometry: wheel.tum\ncolour: red\n", "dataset.yaml", &warnings, &named);
+  const DatasetConfig config = ParseDatasetYaml(std::string(kGoodYaml) + "odometry: wheel.tum\ncolour: red\n",
+                                                "dataset.yaml", &warnings, &named);
   EXPECT_EQ(config.name, "corridor-1m");
   EXPECT_EQ(config.motion, MotionModel::kPlanar);
   EXPECT_EQ(config.cameras, (std::vector<std::string>{"cam0", "cam1"}));
@@ -139,26 +141,38 @@ TEST(DatasetIoTest, ParsesDatasetYaml) {
 TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
   EXPECT_THAT(ParseError(GoodYamlWith("motion: planar", "motion: flying")),
               HasSubstr("dataset.yaml:4: motion: expected planar or free, got 'flying'"));
-  EXPECT_THAT(ParseError(GoodYamlWith("version: 1", "version: 2")), HasSubstr("dataset.yaml:2: version: expected 1, got 2"));
-  EXPECT_THAT(ParseError(GoodYamlWith("waymark-dataset", "waymark-map")), HasSubstr("dataset.yaml:1: format: expected waymark-dataset"));
-  EXPECT_THAT(ParseError(GoodYamlWith("[cam0, cam1]", "cam0")), HasSubstr("dataset.yaml:5: cameras: expected a list of strings"));
-  EXPECT_THAT(ParseError(GoodYamlWith("[cam0, cam1]", "[cam0, cam0]")), HasSubstr("dataset.yaml:5: cameras: 'cam0' is listed twice"));
-  EXPECT_THAT(ParseError(GoodYamlWith("[cam0, cam1]", "[../cam0]")), HasSubstr("dataset.yaml:5: cameras: '../cam0' is not a valid"));
-  EXPECT_THAT(ParseError(GoodYamlWith("0.10", ".inf")), HasSubstr("dataset.yaml:6: default_marker_size_m: expected a finite number"));
+  EXPECT_THAT(ParseError(GoodYamlWith("version: 1", "version: 2")),
+              HasSubstr("dataset.yaml:2: version: expected 1, got 2"));
+  EXPECT_THAT(ParseError(GoodYamlWith("waymark-dataset", "waymark-map")),
+              HasSubstr("dataset.yaml:1: format: expected waymark-dataset"));
+  EXPECT_THAT(ParseError(GoodYamlWith("[cam0, cam1]", "cam0")),
+              HasSubstr("dataset.yaml:5: cameras: expected a list of strings"));
+  EXPECT_THAT(ParseError(GoodYamlWith("[cam0, cam1]", "[cam0, cam0]")),
+              HasSubstr("dataset.yaml:5: cameras: 'cam0' is listed twice"));
+  EXPECT_THAT(ParseError(GoodYamlWith("[cam0, cam1]", "[../cam0]")),
+              HasSubstr("dataset.yaml:5: cameras: '../cam0' is not a valid"));
+  EXPECT_THAT(ParseError(GoodYamlWith("0.10", ".inf")),
+              HasSubstr("dataset.yaml:6: default_marker_size_m: expected a finite number"));
   EXPECT_THAT(ParseError(GoodYamlWith("rot_per_rad: 0.03", "rot_per_rad: x")),
               HasSubstr("dataset.yaml:7: odometry_sigma.rot_per_rad: expected a finite number, got 'x'"));
-  EXPECT_THAT(ParseError(GoodYamlWith(", rot_per_rad: 0.03", "")), HasSubstr("dataset.yaml:7: missing key 'rot_per_rad'"));
+  EXPECT_THAT(ParseError(GoodYamlWith(", rot_per_rad: 0.03", "")),
+              HasSubstr("dataset.yaml:7: missing key 'rot_per_rad'"));
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x]")),
-              HasSubstr("dataset.yaml:8: payload: expected one field name per capture group: pattern has 3 groups, fields has 2"));
-  EXPECT_THAT(ParseError(GoodYamlWith("(\\\\d+)/", "(\\\\d+/")), HasSubstr("dataset.yaml:8: payload: pattern does not compile"));
-  EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, x]")), HasSubstr("payload: fields: 'x' is repeated"));
-  EXPECT_THAT(ParseError(GoodYamlWith("motion: planar\n", "")), HasSubstr("dataset.yaml:1: missing key 'motion'"));
+              HasSubstr("dataset.yaml:8: payload: expected one field name per capture group: pattern has 3 "
+                        "groups, fields has 2"));
+  EXPECT_THAT(ParseError(GoodYamlWith("(\\\\d+)/", "(\\\\d+/")),
+              HasSubstr("dataset.yaml:8: payload: pattern does not compile"));
+  EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, x]")),
+              HasSubstr("payload: fields: 'x' is repeated"));
+  EXPECT_THAT(ParseError(GoodYamlWith("motion: planar\n", "")),
+              HasSubstr("dataset.yaml:1: missing key 'motion'"));
   EXPECT_THAT(ParseError("format: [\n"), HasSubstr("dataset.yaml:2: invalid YAML"));
 }
 
 TEST(DatasetIoTest, ImagesCsv) {
   const std::vector<std::string> cameras = {"cam0"};
-  const std::vector<ImageEntry> images = ParseImagesCsv("t,camera,path\n1.5,cam0,a,b.png\n\n2,cam0,c.png\r\n", "images.csv", &cameras);
+  const std::vector<ImageEntry> images =
+      ParseImagesCsv("t,camera,path\n1.5,cam0,a,b.png\n\n2,cam0,c.png\r\n", "images.csv", &cameras);
   ASSERT_EQ(images.size(), 2u);
   EXPECT_EQ(images[0].path, "a,b.png");
   EXPECT_EQ(images[1].stamp_s, 2.0);
@@ -174,11 +188,13 @@ TEST(DatasetIoTest, ImagesCsv) {
   };
   EXPECT_THAT(error("t,camera,path\n1,cam0\n"), HasSubstr("images.csv:2: expected 3 fields 't,camera,path'"));
   EXPECT_THAT(error("nan,cam0,a.png\n"), HasSubstr("images.csv:1: t: expected a finite number, got 'nan'"));
-  EXPECT_THAT(error("1,cam0,a.png\n2,cam9,b.png\n"), HasSubstr("images.csv:2: camera: 'cam9' is not in dataset.yaml cameras"));
+  EXPECT_THAT(error("1,cam0,a.png\n2,cam9,b.png\n"),
+              HasSubstr("images.csv:2: camera: 'cam9' is not in dataset.yaml cameras"));
   EXPECT_THAT(error("1,cam0,\n"), HasSubstr("images.csv:1: path: expected an image path"));
   EXPECT_THAT(error("1,,a.png\n"), HasSubstr("images.csv:1: camera: expected a camera name"));
   EXPECT_THAT(error("t,camera,path\n1;cam0;a.png\n"), HasSubstr("images.csv:2: expected 3 fields"));
-  EXPECT_THAT(error("2,cam0,a.png\nt,camera,path\n"), HasSubstr("images.csv:2: t: expected a finite number, got 't'"));
+  EXPECT_THAT(error("2,cam0,a.png\nt,camera,path\n"),
+              HasSubstr("images.csv:2: t: expected a finite number, got 't'"));
 }
 
 TEST(DatasetIoTest, WriteThenLoadIsExact) {
@@ -207,7 +223,8 @@ TEST(DatasetIoTest, WriteThenLoadIsExact) {
   ASSERT_TRUE(read.known_markers && read.groundtruth_markers && read.reference_markers);
   EXPECT_EQ(FormatMap(*read.reference_markers), FormatMap(*dataset.reference_markers));
   ASSERT_TRUE(read.groundtruth_trajectory && read.reference_trajectory);
-  EXPECT_EQ(read.reference_trajectory->at(7).T.rotation().coeffs(), dataset.odometry.at(7).T.rotation().coeffs());
+  EXPECT_EQ(read.reference_trajectory->at(7).T.rotation().coeffs(),
+            dataset.odometry.at(7).T.rotation().coeffs());
   // Only the 30 image files not created are warned about.
   EXPECT_EQ(read.warnings.Total(), 30);
   EXPECT_EQ(read.warnings.counts.at("missing image"), 30);
@@ -270,7 +287,8 @@ TEST(DatasetIoTest, LoadErrorsNameTheFile) {
   const size_t third_line = detections.find('\n', detections.find('\n') + 1) + 1;
   detections.replace(detections.find("\"cam0\"", third_line), 6, "\"cam7\"");
   AtomicWriteFile(root / "detections.jsonl", detections);
-  EXPECT_THAT(LoadError(root), HasSubstr("detections.jsonl:3: camera: camera \"cam7\" is not in the dataset"));
+  EXPECT_THAT(LoadError(root),
+              HasSubstr("detections.jsonl:3: camera: camera \"cam7\" is not in the dataset"));
   WriteValid(dir);
 
   // A file named in dataset.yaml must exist.
@@ -288,7 +306,8 @@ TEST(DatasetIoTest, LoadErrorsNameTheFile) {
   EXPECT_THAT(LoadError(root), HasSubstr("groundtruth/trajectory.tum:1: expected 8 numbers"));
   WriteValid(dir);
 
-  AtomicWriteFile(root / "markers.json", "{\"format\": \"waymark-map\", \"version\": 1, \"markers\": [\n{}]}");
+  AtomicWriteFile(root / "markers.json",
+                  "{\"format\": \"waymark-map\", \"version\": 1, \"markers\": [\n{}]}");
   EXPECT_THAT(LoadError(root), HasSubstr("markers.json:2: markers[0]: missing key \"family\""));
 }
 
@@ -312,7 +331,8 @@ TEST(DatasetIoTest, MutatedInputsOnlyThrowFormatError) {
   const Dataset dataset = MakeDataset();
   std::vector<DetectionFrame> frames(dataset.detections.begin(), dataset.detections.begin() + 4);
   const std::vector<std::pair<std::string, std::function<void(const std::string&)>>> readers = {
-      {FormatDatasetYaml(dataset.config), [](const std::string& text) { ParseDatasetYaml(text, "dataset.yaml"); }},
+      {FormatDatasetYaml(dataset.config),
+       [](const std::string& text) { ParseDatasetYaml(text, "dataset.yaml"); }},
       {FormatCameraYaml(dataset.cameras.at("cam0")),
        [](const std::string& text) { ParseCameraYaml(text, "cameras/cam0.yaml", "cam0"); }},
       {FormatTum(Trajectory(dataset.odometry.begin(), dataset.odometry.begin() + 3)),
@@ -338,9 +358,15 @@ TEST(DatasetIoTest, MutatedInputsOnlyThrowFormatError) {
         const size_t at = rng() % text.size();
         const char c = alphabet[rng() % alphabet.size()];
         switch (rng() % 3) {
-          case 0: text[at] = c; break;
-          case 1: text.erase(at, 1 + rng() % 8); break;
-          default: text.insert(at, 1, c); break;
+          case 0:
+            text[at] = c;
+            break;
+          case 1:
+            text.erase(at, 1 + rng() % 8);
+            break;
+          default:
+            text.insert(at, 1, c);
+            break;
         }
       }
       try {
@@ -377,8 +403,9 @@ TEST(DatasetIoTest, LoadsTagslamDatasets) {
     EXPECT_TRUE(dataset.reference_trajectory.has_value());
     EXPECT_TRUE(dataset.reference_markers.has_value());
     EXPECT_FALSE(dataset.groundtruth_trajectory.has_value());
-    EXPECT_EQ(dataset.warnings.Total(), 0) << expected.name << ": "
-                                           << (dataset.warnings.first_messages.empty() ? "" : dataset.warnings.first_messages[0]);
+    EXPECT_EQ(dataset.warnings.Total(), 0)
+        << expected.name << ": "
+        << (dataset.warnings.first_messages.empty() ? "" : dataset.warnings.first_messages[0]);
   }
 }
 

@@ -1,13 +1,12 @@
 #include "core/detections_io.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <random>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/io_util.h"
 
@@ -45,10 +44,11 @@ std::string ParseError(const std::string& text) {
 }
 
 TEST(DetectionsIoTest, ParsesFramesWithAndWithoutMarkers) {
-  const std::string text = Line(1.0, kMarker) + "\n" + Line(2.0, "") +
-                           R"({"t": 3, "camera": "cam0", "image": "img/3.png", "frame": 3, "markers": [)" +
-                           R"({"family": "apriltag-36h11", "id": "7", "quality": 0.5, "corners_px": [[1,2],[3,4],[5,6],[7,8]]}]})" +
-                           "\n";
+  const std::string text =
+      Line(1.0, kMarker) + "\n" + Line(2.0, "") +
+      R"({"t": 3, "camera": "cam0", "image": "img/3.png", "frame": 3, "markers": [)" +
+      R"({"family": "apriltag-36h11", "id": "7", "quality": 0.5, "corners_px": [[1,2],[3,4],[5,6],[7,8]]}]})" +
+      "\n";
   ReadWarnings warnings;
   const std::map<std::string, CameraInfo> cameras = OneCamera();
   const std::vector<DetectionFrame> frames = ParseDetections(text, "detections.jsonl", &warnings, &cameras);
@@ -69,16 +69,23 @@ TEST(DetectionsIoTest, MalformedLinesAreErrorsWithTheirLine) {
               HasSubstr("detections.jsonl:2: invalid JSON"));
   EXPECT_THAT(ParseError(Line(1, kMarker) + Line(2, kMarker, "cam7")),
               HasSubstr("detections.jsonl:2: camera: camera \"cam7\" is not in the dataset (cameras: cam0)"));
-  EXPECT_THAT(ParseError(Line(1, R"({"family": "qr", "id": "a", "corners_px": [[1, 2], [3, 4], [5, 6]]})")),
-              HasSubstr("detections.jsonl:1: markers[0].corners_px: expected 4 corners [[x, y], ...], got 3"));
-  EXPECT_THAT(ParseError(Line(1, R"({"family": "qr", "id": 5, "corners_px": [[1, 2], [3, 4], [5, 6], [7, 8]]})")),
-              HasSubstr("detections.jsonl:1: markers[0].id: expected a string, got a number"));
-  EXPECT_THAT(ParseError(Line(1, R"({"family": "qr", "id": "a", "corners_px": [[1, 2], [3, 4], [5, 6], [7, "8"]]})")),
-              HasSubstr("detections.jsonl:1: markers[0].corners_px[3][1]: expected a number"));
-  EXPECT_THAT(ParseError(Line(2, kMarker) + "\n" + Line(2, kMarker) + Line(1.5, kMarker)),
-              HasSubstr("detections.jsonl:4: t: expected stamps non-decreasing per camera, got 1.5 after 2 for cam0"));
-  EXPECT_THAT(ParseError(R"({"t": NaN, "camera": "cam0", "markers": []})"), HasSubstr("detections.jsonl:1: t: expected a number"));
-  EXPECT_THAT(ParseError(R"({"t": 1, "camera": "cam0"})"), HasSubstr("detections.jsonl:1: missing key \"markers\""));
+  EXPECT_THAT(
+      ParseError(Line(1, R"({"family": "qr", "id": "a", "corners_px": [[1, 2], [3, 4], [5, 6]]})")),
+      HasSubstr("detections.jsonl:1: markers[0].corners_px: expected 4 corners [[x, y], ...], got 3"));
+  EXPECT_THAT(
+      ParseError(Line(1, R"({"family": "qr", "id": 5, "corners_px": [[1, 2], [3, 4], [5, 6], [7, 8]]})")),
+      HasSubstr("detections.jsonl:1: markers[0].id: expected a string, got a number"));
+  EXPECT_THAT(
+      ParseError(Line(1, R"({"family": "qr", "id": "a", "corners_px": [[1, 2], [3, 4], [5, 6], [7, "8"]]})")),
+      HasSubstr("detections.jsonl:1: markers[0].corners_px[3][1]: expected a number"));
+  EXPECT_THAT(
+      ParseError(Line(2, kMarker) + "\n" + Line(2, kMarker) + Line(1.5, kMarker)),
+      HasSubstr(
+          "detections.jsonl:4: t: expected stamps non-decreasing per camera, got 1.5 after 2 for cam0"));
+  EXPECT_THAT(ParseError(R"({"t": NaN, "camera": "cam0", "markers": []})"),
+              HasSubstr("detections.jsonl:1: t: expected a number"));
+  EXPECT_THAT(ParseError(R"({"t": 1, "camera": "cam0"})"),
+              HasSubstr("detections.jsonl:1: missing key \"markers\""));
   EXPECT_THAT(ParseError(R"({"t": 1, "camera": "cam0", "markers": [], "frame": 2.5})"),
               HasSubstr("detections.jsonl:1: frame: expected an integer, got 2.5"));
   EXPECT_THAT(ParseError("[1, 2]"), HasSubstr("detections.jsonl:1: expected a JSON object"));
@@ -86,7 +93,8 @@ TEST(DetectionsIoTest, MalformedLinesAreErrorsWithTheirLine) {
 
 TEST(DetectionsIoTest, RejectedMarkersAreCountedWarnings) {
   const std::string text =
-      Line(1, std::string(R"({"family": "aztec", "id": "x", "corners_px": [[1,2],[3,4],[5,6],[7,8]]}, )") + kMarker) +
+      Line(1, std::string(R"({"family": "aztec", "id": "x", "corners_px": [[1,2],[3,4],[5,6],[7,8]]}, )") +
+                  kMarker) +
       Line(2, R"({"family": "qr", "id": "n", "corners_px": [[1,2],[3,NaN],[5,6],[7,8]]})") +
       Line(3, R"({"family": "qr", "id": "n", "corners_px": [[1,2],[3,4],[5,-Infinity],[7,8]]})") +
       Line(4, R"({"family": "qr", "id": "o", "corners_px": [[1,2],[3,4],[5,6],[700,8]]})") +
@@ -105,9 +113,12 @@ TEST(DetectionsIoTest, RejectedMarkersAreCountedWarnings) {
   EXPECT_EQ(warnings.counts["corner outside image"], 1);
   EXPECT_EQ(warnings.counts["unknown key"], 1);
   ASSERT_EQ(warnings.first_messages.size(), 5u);
-  EXPECT_THAT(warnings.first_messages[0], HasSubstr("detections.jsonl:1: markers[0].family: unknown family \"aztec\""));
-  EXPECT_THAT(warnings.first_messages[1], HasSubstr("detections.jsonl:2: markers[0].corners_px: non-finite corner"));
-  EXPECT_THAT(warnings.first_messages[3], HasSubstr("detections.jsonl:4: markers[0].corners_px: corner (700, 8) outside the 640x480"));
+  EXPECT_THAT(warnings.first_messages[0],
+              HasSubstr("detections.jsonl:1: markers[0].family: unknown family \"aztec\""));
+  EXPECT_THAT(warnings.first_messages[1],
+              HasSubstr("detections.jsonl:2: markers[0].corners_px: non-finite corner"));
+  EXPECT_THAT(warnings.first_messages[3],
+              HasSubstr("detections.jsonl:4: markers[0].corners_px: corner (700, 8) outside the 640x480"));
 
   // Without camera sizes, out-of-image corners cannot be checked and are kept.
   ReadWarnings no_camera_warnings;
@@ -143,8 +154,8 @@ TEST(DetectionsIoTest, RoundTripIsExact) {
     }
     frames.push_back(frame);
   }
-  const fs::path path =
-      fs::temp_directory_path() / ("waymark_detections_io_test_" + std::to_string(::getpid())) / "detections.jsonl";
+  const fs::path path = fs::temp_directory_path() /
+                        ("waymark_detections_io_test_" + std::to_string(::getpid())) / "detections.jsonl";
   WriteDetections(path, frames);
   ReadWarnings warnings;
   const std::vector<DetectionFrame> read = ReadDetections(path, &warnings);
@@ -176,9 +187,11 @@ TEST(DetectionsIoTest, RoundTripIsExact) {
 
 TEST(DetectionsIoTest, ReadsTagslamDetections) {
   const fs::path root = fs::path(WAYMARK_SHARED_DATA) / "tagslam";
-  if (!fs::exists(root)) GTEST_SKIP() << "shared data absent: " << root << " (tagslam detections not checked)";
+  if (!fs::exists(root))
+    GTEST_SKIP() << "shared data absent: " << root << " (tagslam detections not checked)";
   ReadWarnings warnings;
-  const std::vector<DetectionFrame> frames = ReadDetections(root / "tagslam-test16" / "detections.jsonl", &warnings);
+  const std::vector<DetectionFrame> frames =
+      ReadDetections(root / "tagslam-test16" / "detections.jsonl", &warnings);
   EXPECT_EQ(frames.size(), 297u);
   EXPECT_EQ(warnings.Total(), 0);
 }

@@ -1,16 +1,16 @@
 #include "core/io_util.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <string>
 
 namespace waymark {
 namespace {
@@ -18,9 +18,10 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path MakeTempDir(const std::string& tag) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("waymark_io_util_" + tag + "_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-                        "_" + std::to_string(reinterpret_cast<uintptr_t>(&tag)));
+  const fs::path dir =
+      fs::temp_directory_path() /
+      ("waymark_io_util_" + tag + "_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+       "_" + std::to_string(reinterpret_cast<uintptr_t>(&tag)));
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

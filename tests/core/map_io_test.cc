@@ -1,13 +1,12 @@
 #include "core/map_io.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <random>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/io_util.h"
 
@@ -85,14 +84,19 @@ TEST(MapIoTest, ErrorsNameFileLineAndField) {
               HasSubstr("map.json:5: markers[0].covariance: expected 36 numbers, got 2"));
   EXPECT_THAT(ParseError(GoodMapWith("\"id\": \"7\"", "\"id\": \"A01\", \"family\": \"datamatrix\"")),
               HasSubstr("markers[1]: duplicate marker datamatrix:A01"));
-  EXPECT_THAT(ParseError(GoodMapWith("\"size_m\": 0.08,", "")), HasSubstr("map.json:3: markers[0]: missing key \"size_m\""));
+  EXPECT_THAT(ParseError(GoodMapWith("\"size_m\": 0.08,", "")),
+              HasSubstr("map.json:3: markers[0]: missing key \"size_m\""));
 }
 
 TEST(MapIoTest, HeaderAndSyntaxErrors) {
-  EXPECT_THAT(ParseError(GoodMapWith("waymark-map", "other")), HasSubstr("map.json:1: format: expected \"waymark-map\""));
-  EXPECT_THAT(ParseError(GoodMapWith("\"version\": 1", "\"version\": 2")), HasSubstr("map.json:1: version: expected 1, got 2"));
-  EXPECT_THAT(ParseError(GoodMapWith("\"version\": 1", "\"version\": \"1\"")), HasSubstr("version: expected an integer"));
-  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", "\"fixed\": true")), HasSubstr("map.json:5: invalid JSON"));
+  EXPECT_THAT(ParseError(GoodMapWith("waymark-map", "other")),
+              HasSubstr("map.json:1: format: expected \"waymark-map\""));
+  EXPECT_THAT(ParseError(GoodMapWith("\"version\": 1", "\"version\": 2")),
+              HasSubstr("map.json:1: version: expected 1, got 2"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"version\": 1", "\"version\": \"1\"")),
+              HasSubstr("version: expected an integer"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", "\"fixed\": true")),
+              HasSubstr("map.json:5: invalid JSON"));
   EXPECT_THAT(ParseError(GoodMapWith("0.08", "NaN")), HasSubstr("map.json:3: invalid JSON"));
   EXPECT_THAT(ParseError("[]"), HasSubstr("map.json:1: expected an object, got an array"));
   EXPECT_THAT(ParseError(""), HasSubstr("map.json:1: invalid JSON"));
@@ -100,12 +104,14 @@ TEST(MapIoTest, HeaderAndSyntaxErrors) {
 
 TEST(MapIoTest, UnknownKeysAreCountedWarnings) {
   ReadWarnings warnings;
-  const MarkerMap map = ParseMap(GoodMapWith("\"fixed\": true", "\"fixed\": true, \"colour\": \"red\"").replace(1, 0, "\"note\": 1, "),
-                                 "map.json", &warnings);
+  const MarkerMap map = ParseMap(
+      GoodMapWith("\"fixed\": true", "\"fixed\": true, \"colour\": \"red\"").replace(1, 0, "\"note\": 1, "),
+      "map.json", &warnings);
   EXPECT_EQ(map.markers.size(), 2u);
   EXPECT_EQ(warnings.counts["unknown key"], 2);
   ASSERT_EQ(warnings.first_messages.size(), 2u);
-  EXPECT_THAT(warnings.first_messages[0] + warnings.first_messages[1], HasSubstr("map.json:5: unknown key \"markers[0].colour\""));
+  EXPECT_THAT(warnings.first_messages[0] + warnings.first_messages[1],
+              HasSubstr("map.json:5: unknown key \"markers[0].colour\""));
 }
 
 TEST(MapIoTest, MissingFileIsNamed) {
@@ -139,7 +145,8 @@ TEST(MapIoTest, RoundTripIsExact) {
     if (i % 4 == 0) marker.component = i / 4;
     map.markers.push_back(marker);
   }
-  const fs::path path = fs::temp_directory_path() / ("waymark_map_io_test_" + std::to_string(::getpid())) / "map.json";
+  const fs::path path =
+      fs::temp_directory_path() / ("waymark_map_io_test_" + std::to_string(::getpid())) / "map.json";
   WriteMap(path, map);
   ReadWarnings warnings;
   const MarkerMap read = ReadMap(path, &warnings);

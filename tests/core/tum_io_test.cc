@@ -1,14 +1,13 @@
 #include "core/tum_io.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <random>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/io_util.h"
 
@@ -44,15 +43,18 @@ TEST(TumIoTest, MalformedInputNamesFileAndLine) {
   EXPECT_THAT(ParseError("# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 1\n"),
               HasSubstr("traj.tum:3: expected 8 numbers 't tx ty tz qx qy qz qw', got 7 fields"));
   EXPECT_THAT(ParseError("1 0 0 0 0 0 0 1 9\n"), HasSubstr("traj.tum:1: expected 8 numbers"));
-  EXPECT_THAT(ParseError("1 0 0 nan 0 0 0 1\n"), HasSubstr("traj.tum:1: tz: expected a finite number, got 'nan'"));
+  EXPECT_THAT(ParseError("1 0 0 nan 0 0 0 1\n"),
+              HasSubstr("traj.tum:1: tz: expected a finite number, got 'nan'"));
   EXPECT_THAT(ParseError("1 0 0 0 0 0 0 inf\n"), HasSubstr("traj.tum:1: qw: expected a finite number"));
-  EXPECT_THAT(ParseError("1 0 0 0x 0 0 0 1\n"), HasSubstr("traj.tum:1: tz: expected a finite number, got '0x'"));
+  EXPECT_THAT(ParseError("1 0 0 0x 0 0 0 1\n"),
+              HasSubstr("traj.tum:1: tz: expected a finite number, got '0x'"));
   EXPECT_THAT(ParseError("1 0 0 0 0 0 0 1.01\n"),
               HasSubstr("traj.tum:1: q_xyzw: expected unit norm within 0.001, got 1.01"));
   EXPECT_THAT(ParseError("1 0 0 0 0 0 0 0\n"), HasSubstr("traj.tum:1: q_xyzw: expected unit norm"));
   EXPECT_THAT(ParseError("2 0 0 0 0 0 0 1\n\n2 0 0 0 0 0 0 1\n"),
               HasSubstr("traj.tum:3: t: expected stamps strictly increasing, got 2 after 2"));
-  EXPECT_THAT(ParseError("2 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n"), HasSubstr("traj.tum:2: t: expected stamps strictly"));
+  EXPECT_THAT(ParseError("2 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n"),
+              HasSubstr("traj.tum:2: t: expected stamps strictly"));
 }
 
 TEST(TumIoTest, MissingFileIsNamed) {
@@ -74,7 +76,8 @@ TEST(TumIoTest, RoundTripIsExact) {
     const Eigen::Quaterniond q(normal(rng), normal(rng), normal(rng), normal(rng));
     trajectory.push_back({stamp_s, SE3d(q, Eigen::Vector3d(normal(rng), normal(rng), normal(rng)))});
   }
-  const fs::path path = fs::temp_directory_path() / ("waymark_tum_io_test_" + std::to_string(::getpid())) / "t.tum";
+  const fs::path path =
+      fs::temp_directory_path() / ("waymark_tum_io_test_" + std::to_string(::getpid())) / "t.tum";
   WriteTum(path, trajectory, "written by tum_io_test\nsecond line");
   const Trajectory read = ReadTum(path);
   ASSERT_EQ(read.size(), trajectory.size());
