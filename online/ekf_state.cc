@@ -1,5 +1,7 @@
 #include "online/ekf_state.h"
 
+#include <algorithm>
+
 #include <Eigen/Cholesky>
 
 namespace waymark {
@@ -104,6 +106,55 @@ UpdateResult EkfState::Update(const Eigen::VectorXd& innovation, const Eigen::Ma
   result.status = WriteCovariance(I_KH * covariance_ * I_KH.transpose() + K * R * K.transpose());
   if (result.status != StepStatus::kOk) return result;
   mean_ = BoxPlus(mean_, K * innovation, yaw_index());
+  result.accepted = true;
+  return result;
+}
+
+UpdateResult EkfState::UpdateIterated(const MeasurementFunction& linearize, std::optional<double> nis_gate,
+                                      int max_iterations) {
+  UpdateResult result;
+  const Eigen::VectorXd x0 = mean_;
+  EkfState iterate = *this;
+  std::optional<Linearization> lin = linearize(iterate);
+  if (!lin) {
+    result.status = StepStatus::kInvalidInput;
+    return result;
+  }
+  result.innovation = lin->innovation;
+  Eigen::MatrixXd K;
+  for (int i = 0; i < std::max(max_iterations, 1); ++i) {
+    if (!lin->innovation.allFinite() || !lin->H.allFinite() || !lin->R.allFinite()) {
+      result.status = StepStatus::kInvalidInput;
+      return result;
+    }
+    const Eigen::MatrixXd PHt = covariance_ * lin->H.transpose();
+    const Eigen::MatrixXd S = lin->H * PHt + lin->R;
+    const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (S + S.transpose()));
+    if (llt.info() != Eigen::Success) {
+      result.status = StepStatus::kNotPositiveDefinite;
+      return result;
+    }
+    if (i == 0) {
+      result.nis = lin->innovation.dot(llt.solve(lin->innovation));
+      if (nis_gate && result.nis > *nis_gate) {
+        result.gated = true;
+        return result;
+      }
+    }
+    K = llt.solve(PHt.transpose()).transpose();
+    const Eigen::VectorXd dx = BoxMinus(x0, iterate.mean_, yaw_index());
+    const Eigen::VectorXd x_next = BoxPlus(x0, K * (lin->innovation + lin->H * dx), yaw_index());
+    const double step = BoxMinus(iterate.mean_, x_next, yaw_index()).norm();
+    iterate.mean_ = x_next;
+    if (step < 1e-9 || i + 1 >= max_iterations) break;
+    std::optional<Linearization> next = linearize(iterate);
+    if (!next) break;  // h undefined at the new iterate: keep the last complete step
+    lin = std::move(next);
+  }
+  const Eigen::MatrixXd I_KH = Eigen::MatrixXd::Identity(dim(), dim()) - K * lin->H;
+  result.status = WriteCovariance(I_KH * covariance_ * I_KH.transpose() + K * lin->R * K.transpose());
+  if (result.status != StepStatus::kOk) return result;
+  mean_ = iterate.mean_;
   result.accepted = true;
   return result;
 }

@@ -21,8 +21,10 @@
 //   Update:    y = z [-] h(x),  S = H P H^T + R,  K = P H^T S^-1 (from the LLT of S),
 //              NIS = y^T S^-1 y, gated when NIS > gate,
 //              x = x [+] K y,   P = (I - K H) P (I - K H)^T + K R K^T   (Joseph form)
+//   UpdateIterated: the iterated EKF form of Update (see below)
 #pragma once
 
+#include <functional>
 #include <optional>
 
 #include <Eigen/Core>
@@ -55,6 +57,17 @@ struct UpdateResult {
   Eigen::VectorXd innovation; // y
 };
 
+// A measurement linearized at some mean: y = z [-] h(mean), H = dh/dx there, R its noise.
+struct Linearization {
+  Eigen::VectorXd innovation;
+  Eigen::MatrixXd H;
+  Eigen::MatrixXd R;
+};
+
+class EkfState;
+// Linearizes a measurement at the given state; nullopt when h is undefined there.
+using MeasurementFunction = std::function<std::optional<Linearization>(const EkfState& at)>;
+
 class EkfState {
  public:
   explicit EkfState(MotionModel motion);
@@ -83,6 +96,14 @@ class EkfState {
   // Correction step with innovation y = z [-] h(mean). Gated (no change) when NIS > nis_gate.
   UpdateResult Update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H, const Eigen::MatrixXd& R,
                       std::optional<double> nis_gate);
+  // Iterated EKF (Gauss-Newton on the MAP cost) for strongly non-linear h, e.g. pixels after
+  // metres of dead reckoning. With x0, P0 the prior and x_i the current iterate:
+  //   y_i = z [-] h(x_i),  H_i, R_i linearized at x_i,  S_i = H_i P0 H_i^T + R_i,
+  //   x_{i+1} = x0 [+] K_i (y_i + H_i (x_i [-] x0)),  K_i = P0 H_i^T S_i^-1,
+  // until |x_{i+1} [-] x_i| < 1e-9 or max_iterations; P from the last K_i, H_i, R_i (Joseph).
+  // The gate uses the NIS at the prior (i = 0); max_iterations = 1 is the plain EKF update.
+  UpdateResult UpdateIterated(const MeasurementFunction& linearize, std::optional<double> nis_gate,
+                              int max_iterations);
 
  private:
   // The one writer of covariance_: symmetrizes, and keeps the old P (returning an error)

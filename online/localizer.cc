@@ -31,6 +31,7 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(agree_trans_m > 0.0) || !(agree_rot_rad > 0.0) || !(max_position_sigma_m > 0.0)) {
     return fail("agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
   }
+  if (tight_iterations < 1) return fail("tight_iterations must be >= 1");
   std::string marker_pose_why;
   if (!marker_pose.Check(&marker_pose_why)) return fail(marker_pose_why);
   return true;
@@ -253,9 +254,13 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
     return result;
   }
   const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
-  const Vector8d innovation = StackCorners(sighting.observation.corners_px) - prediction->px;
-  const Matrix8d R = CornerNoise(sigma_px, *prediction, marker.covariance);
-  FinishCorrection(state_.Update(innovation, prediction->H, R, gate_tight_), &result);
+  const Vector8d z = StackCorners(sighting.observation.corners_px);
+  const MeasurementFunction linearize = [&](const EkfState& at) -> std::optional<Linearization> {
+    const std::optional<CornerPrediction> p = PredictCorners(at, camera, marker);
+    if (!p || !NearImage(camera.info(), p->px)) return std::nullopt;
+    return Linearization{z - p->px, p->H, CornerNoise(sigma_px, *p, marker.covariance)};
+  };
+  FinishCorrection(state_.UpdateIterated(linearize, gate_tight_, options_.tight_iterations), &result);
   if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker &&
       !sighting.T_camera_marker.empty() && !sighting.ambiguous) {
     state_.SetLevel(CodeHypothesis(camera, marker, sighting, 0).rotation_matrix());

@@ -95,6 +95,43 @@ TEST(EkfStateTest, CovarianceStaysSymmetricPositiveDefiniteOverALongRun) {
   EXPECT_TRUE(IsSymmetricPositiveDefinite(state.covariance()));
 }
 
+// For a linear h the iterated update converges in one step to the plain EKF update; for a
+// non-linear h it reaches the MAP estimate (here: a range to the origin).
+TEST(EkfStateTest, IteratedUpdateMatchesPlainUpdateForLinearMeasurements) {
+  EkfState plain(MotionModel::kPlanar);
+  ASSERT_EQ(plain.Reset(Eigen::Vector3d(1.0, 2.0, 0.5), SomeCovariance()), StepStatus::kOk);
+  EkfState iterated = plain;
+  Eigen::Matrix<double, 2, 3> H;
+  H << 1.0, 0.5, 0.0, 0.0, 0.2, 1.0;
+  const Eigen::Vector2d z(1.3, 0.9);
+  const Eigen::Matrix2d R = Eigen::Matrix2d::Identity() * 0.01;
+  const auto linearize = [&](const EkfState& at) -> std::optional<Linearization> {
+    return Linearization{z - H * at.mean(), H, R};
+  };
+  const UpdateResult a = plain.Update(z - H * plain.mean(), H, R, std::nullopt);
+  const UpdateResult b = iterated.UpdateIterated(linearize, std::nullopt, 5);
+  ASSERT_TRUE(a.accepted && b.accepted);
+  EXPECT_NEAR(a.nis, b.nis, 1e-12);
+  EXPECT_LT((plain.mean() - iterated.mean()).norm(), 1e-12);
+  EXPECT_LT((plain.covariance() - iterated.covariance()).norm(), 1e-12);
+
+  // Squared range r^2 = x^2 + y^2 measured as 1.0 from a prior at (3, 0.5) with a loose prior:
+  // the iterated update lands on the unit circle, one linearization far from it.
+  EkfState prior(MotionModel::kPlanar);
+  ASSERT_EQ(prior.Reset(Eigen::Vector3d(3.0, 0.5, 0.0), Eigen::Matrix3d::Identity()), StepStatus::kOk);
+  const auto range = [](const EkfState& at) -> std::optional<Linearization> {
+    const Eigen::Vector2d p = at.mean().head<2>();
+    Eigen::Matrix<double, 1, 3> J;
+    J << 2.0 * p.x(), 2.0 * p.y(), 0.0;
+    return Linearization{Eigen::VectorXd::Constant(1, 1.0 - p.squaredNorm()), J, Eigen::MatrixXd::Constant(1, 1, 1e-6)};
+  };
+  EkfState once = prior, many = prior;
+  ASSERT_TRUE(once.UpdateIterated(range, std::nullopt, 1).accepted);
+  ASSERT_TRUE(many.UpdateIterated(range, std::nullopt, 20).accepted);
+  EXPECT_GT(std::abs(once.mean().head<2>().norm() - 1.0), 0.05);
+  EXPECT_LT(std::abs(many.mean().head<2>().norm() - 1.0), 1e-4);
+}
+
 TEST(EkfStateTest, FreeStateKeepsLevelRotation) {
   EkfState state(MotionModel::kFree);
   ASSERT_EQ(state.dim(), 4);
