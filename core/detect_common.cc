@@ -133,7 +133,12 @@ double ScoreBox(const cv::Mat& small, const cv::Mat& edges, const std::vector<cv
   cv::meanStdDev(small(box), mean, stddev);
   const double contrast = std::min(1.0, stddev[0] / 60.0);
   const double squareness = 1.0 - 0.5 * (aspect - 1.0) / std::max(options.max_aspect - 1.0, 1e-9);
-  return fill * std::min(1.0, edge_density / 0.3) * contrast * squareness;
+  // Larger blobs first (text glyphs and small clutter are small); a box cut by the image
+  // border holds at most part of a code.
+  const double size = std::min(1.0, short_side / scale_to_full / options.preferred_side_px);
+  const bool at_border = box.x <= 1 || box.y <= 1 || box.x + box.width >= small.cols - 1 ||
+                         box.y + box.height >= small.rows - 1;
+  return fill * std::min(1.0, edge_density / 0.3) * contrast * squareness * size * (at_border ? 0.5 : 1.0);
 }
 
 }  // namespace
@@ -150,7 +155,9 @@ std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const Candi
   cv::Canny(small, edges, 50, 150);
   cv::dilate(edges, blobs, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)), cv::Point(-1, -1), 2);
   std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(blobs, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  // Every contour, not only the outermost: a code on a card, or touching clutter, is a blob
+  // nested inside the card's outline.
+  cv::findContours(blobs, contours, cv::RETR_LIST, cv::CHAIN_APPROX_SIMPLE);
   std::vector<CandidateRegion> regions;
   const cv::Rect full(0, 0, gray.cols, gray.rows);
   for (const auto& contour : contours) {
@@ -166,16 +173,27 @@ std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const Candi
   }
   std::sort(regions.begin(), regions.end(),
             [](const CandidateRegion& a, const CandidateRegion& b) { return a.score > b.score; });
-  if (static_cast<int>(regions.size()) > options.max_regions) regions.resize(options.max_regions);
-  return regions;
+  // Greedy: drop a region overlapping a better one by more than 40 % (intersection over
+  // union): a code's blob and its card's blob are the same candidate.
+  std::vector<CandidateRegion> kept;
+  for (const CandidateRegion& r : regions) {
+    const bool overlaps = std::any_of(kept.begin(), kept.end(), [&](const CandidateRegion& k) {
+      const double inter = (r.rect & k.rect).area();
+      return inter > 0.4 * (r.rect.area() + k.rect.area() - inter);
+    });
+    if (!overlaps) kept.push_back(r);
+    if (static_cast<int>(kept.size()) >= options.max_regions) break;
+  }
+  return kept;
 }
 
 std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates) {
   CandidateOptions options;
   options.max_regions = max_candidates;
   std::vector<cv::Rect> regions;
-  for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
+  // A close-up first: its code may fill the image and its candidates be parts of it.
   if (gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
+  for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
   return regions;
 }
 

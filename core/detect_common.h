@@ -42,12 +42,13 @@ bool SameDetection(const MarkerObservation& a, const MarkerObservation& b);
 void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<MarkerObservation>* all);
 
 // Candidate regions that may hold a 2-D code (seed 003: Canny edges, dilation, the
-// bounding box of each connected blob, scored by size, aspect ratio, fill and edge
-// density), best first, padded by a quiet-zone margin and clipped to the image. Regions
+// bounding box of every blob contour, nested ones included, scored by size, aspect ratio,
+// fill, edge density, contrast and not touching the image border), best first, padded by a quiet-zone margin and clipped to the image. Regions
 // are searched on a copy downscaled to at most `work_width_px` wide.
 struct CandidateOptions {
   int work_width_px = 640;
   double min_side_px = 16.0;       // in full-resolution pixels
+  double preferred_side_px = 100.0;  // smaller boxes score proportionally less
   double max_aspect = 4.0;         // longer / shorter side of the box
   double min_edge_density = 0.06;  // Canny pixels / box area (at work resolution)
   double margin_fraction = 0.25;   // padding added on each side, fraction of the box side
@@ -67,8 +68,8 @@ bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect);
 // convention kept (scaling is about pixel edges: (p + 0.5) / scale - 0.5).
 void MapFromCrop(const cv::Point& offset, double scale, std::vector<MarkerObservation>* observations);
 
-// The regions a second pass tries: FindCodeCandidates, then the whole image when it has
-// at most 640x480 pixels (a close-up: the code may fill it, leaving no blob boundary).
+// The regions a second pass tries: the whole image when it has at most 640x480 pixels (a
+// close-up: the code may fill it, leaving no blob boundary), then FindCodeCandidates.
 std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates);
 
 // One way of decoding a crop: returns observations with corners in crop pixels.

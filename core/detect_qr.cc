@@ -27,7 +27,12 @@ class QrDetector : public MarkerDetector {
       const std::vector<CropAttempt> attempts = {
           [](const cv::Mat& crop) { return ReadInverted(crop); },
           [](const cv::Mat& crop) { return ReadUpscaled(crop); },
-          [this](const cv::Mat& crop) { return ReadWeChat(crop); },
+          [](const cv::Mat& crop) { return ReadGlobalHistogram(crop); },
+          // WeChat costs milliseconds per crop: only for close-ups, where the crop is the
+          // whole image (pass 1 and the cheap attempts read codes in larger frames).
+          [this, full = gray.size()](const cv::Mat& crop) {
+            return crop.size() == full ? ReadWeChat(crop) : std::vector<MarkerObservation>{};
+          },
       };
       RunSecondPass(gray, SecondPassRegions(gray, options_.max_candidates), attempts, clock,
                     options_.time_budget_ms, &found);
@@ -40,6 +45,12 @@ class QrDetector : public MarkerDetector {
     cv::Mat inverted;
     cv::bitwise_not(crop, inverted);
     return ReadWithZxing(inverted, ZxingSymbology::kQrCode, ZxingPass{});
+  }
+
+  static std::vector<MarkerObservation> ReadGlobalHistogram(const cv::Mat& crop) {
+    ZxingPass pass;
+    pass.local_average_binarizer = false;
+    return ReadWithZxing(crop, ZxingSymbology::kQrCode, pass);
   }
 
   static std::vector<MarkerObservation> ReadUpscaled(const cv::Mat& crop) {

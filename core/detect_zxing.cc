@@ -67,7 +67,9 @@ std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology
     obs.key.family = symbology == ZxingSymbology::kQrCode ? kFamilyQr : kFamilyDataMatrix;
     obs.key.id = TextToId(r.text());
     const ZXing::Position& position = r.position();
-    for (int i = 0; i < 4; ++i) obs.corners_px[i] = Eigen::Vector2d(position[i].x, position[i].y);
+    // zxing's integer corners count pixel edges (a symbol filling a WxH image spans
+    // (0,0)..(W,H)); OpenCV's pixel centres are half a pixel further in.
+    for (int i = 0; i < 4; ++i) obs.corners_px[i] = Eigen::Vector2d(position[i].x - 0.5, position[i].y - 0.5);
     out.push_back(std::move(obs));
   }
   return out;

@@ -1,6 +1,7 @@
 // zxing-cpp 1.4 behind Waymark's types, shared by the QR and DataMatrix detectors.
 // zxing reports each symbol's position as (top-left, top-right, bottom-right, bottom-left)
-// of the upright symbol, DESIGN.md's order, in integer pixels; the detectors refine them.
+// of the upright symbol, DESIGN.md's order, in integer pixel-edge coordinates, shifted
+// here by -0.5 to OpenCV's pixel centres; the detectors refine them.
 #pragma once
 
 #include <string>

@@ -42,11 +42,14 @@ struct DetectorOptions {
   // time this thread spent on the frame is below `time_budget_ms` (checked before each
   // attempt; CPU time, so that machine load does not change what is found).
   bool second_pass = true;
-  double time_budget_ms = 10.0;
-  int max_candidates = 6;  // candidate regions tried per frame, best score first
+  double time_budget_ms = 8.0;
+  int max_candidates = 8;  // candidate regions tried per frame, best score first
 
   // AprilTag (libapriltag's apriltag_detector_t fields).
-  double apriltag_decimate = 2.0;     // quad_decimate: detect quads at 1/decimate resolution
+  // quad_decimate: quads are found at 1/decimate resolution (corners are refined at full
+  // resolution). 4 keeps the benchmark's cluttered 1280x960 frame near 10 ms of CPU on one
+  // core (bench/detection_bench.cc); smaller, farther tags need 2, several times slower.
+  double apriltag_decimate = 4.0;
   double apriltag_blur_sigma = 0.0;   // quad_sigma
   int apriltag_max_bits_corrected = 1;
   int threads = 1;                    // libapriltag worker threads
