@@ -21,7 +21,7 @@ namespace waymark::cli {
 namespace {
 
 constexpr const char* kUsage = R"(Usage:
-  waymark eval --est EST.tum --gt GT.tum [--align se3|se2|none] [--scale] [--max-dt S]
+  waymark eval --est EST.tum --gt GT.tum [--align se3|se2|origin|none] [--scale] [--max-dt S]
                [--rpe-delta N --rpe-unit frames|m] [--predicted PRED.tum [--align-predicted]]
                [--json OUT.json] [--report OUT.md] [--plot OUT.svg] [--markers MAP.json [--gt-map GT.json]]
   waymark eval --map MAP.json --gt-map GT.json [--json OUT.json] [--report OUT.md] [--plot OUT.svg]
@@ -32,7 +32,8 @@ against GT (both waymark-map JSON). Both forms may be combined in one call.
 Trajectory options:
   --est FILE         estimated trajectory (TUM)
   --gt FILE          ground-truth trajectory (TUM)
-  --align MODE       se3 (default; Umeyama, = evo_ape -a), se2 (yaw + x, y; planar robots), none
+  --align MODE       se3 (default; Umeyama, = evo_ape -a), se2 (yaw + x, y; planar robots),
+                     origin (first poses made equal, = evo --align_origin: dead reckoning), none
   --scale            also fit a scale (Sim(3); with --align none: scale only, = evo -s)
   --max-dt S         association: nearest stamp within S seconds (default 0.01, as evo)
   --rpe-delta N      also compute the RPE over N frames or N metres (evo's consecutive pairs)

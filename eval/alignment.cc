@@ -68,6 +68,8 @@ const char* AlignmentModeName(AlignmentMode mode) {
       return "se3";
     case AlignmentMode::kSE2:
       return "se2";
+    case AlignmentMode::kOrigin:
+      return "origin";
   }
   return "unknown";
 }
@@ -76,7 +78,8 @@ AlignmentMode ParseAlignmentMode(const std::string& name) {
   if (name == "none") return AlignmentMode::kNone;
   if (name == "se3") return AlignmentMode::kSE3;
   if (name == "se2") return AlignmentMode::kSE2;
-  throw std::invalid_argument("alignment '" + name + "': expected se3, se2 or none");
+  if (name == "origin") return AlignmentMode::kOrigin;
+  throw std::invalid_argument("alignment '" + name + "': expected se3, se2, origin or none");
 }
 
 SE3d Sim3Alignment::Apply(const SE3d& T_est_robot) const {
@@ -117,6 +120,14 @@ Sim3Alignment UmeyamaSE2(const std::vector<Eigen::Vector3d>& src, const std::vec
   return alignment;
 }
 
+Sim3Alignment AlignOrigin(const SE3d& T_gt_robot, const SE3d& T_est_robot) {
+  const SE3d T_gt_est = T_gt_robot * T_est_robot.inverse();
+  Sim3Alignment alignment;
+  alignment.R_gt_est = T_gt_est.rotation_matrix();
+  alignment.t_gt_est = T_gt_est.translation();
+  return alignment;
+}
+
 Sim3Alignment ComputeAlignment(AlignmentMode mode, bool with_scale, const std::vector<Eigen::Vector3d>& src,
                                const std::vector<Eigen::Vector3d>& dst) {
   switch (mode) {
@@ -124,6 +135,8 @@ Sim3Alignment ComputeAlignment(AlignmentMode mode, bool with_scale, const std::v
       return UmeyamaSim3(src, dst, with_scale);
     case AlignmentMode::kSE2:
       return UmeyamaSE2(src, dst, with_scale);
+    case AlignmentMode::kOrigin:
+      throw std::invalid_argument("alignment origin needs poses, not positions");
     case AlignmentMode::kNone:
       break;
   }

@@ -19,6 +19,10 @@
 //         error. With `with_scale`, s (from the 2-D fit) scales x, y and z alike.
 //   kNone Identity. With `with_scale` only the scale of the SE3 Umeyama fit is applied,
 //         about the origin (evo's `-s` without `-a`).
+//   kOrigin The first associated estimate pose is moved onto the first ground-truth pose:
+//         T_gt_est = T_gt_robot(0) * T_est_robot(0)^-1 (evo's `--align_origin`). This is the
+//         honest alignment for dead reckoning, which knows its start pose and nothing after.
+//         Needs poses, not positions: see AlignOrigin. No scale.
 //
 // Degenerate point sets (rank of Sigma_xy below dim - 1, e.g. all points equal, or on a line
 // for kSE3) throw DegenerateAlignmentError, as evo refuses them too.
@@ -39,9 +43,9 @@ class DegenerateAlignmentError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class AlignmentMode { kNone, kSE3, kSE2 };
+enum class AlignmentMode { kNone, kSE3, kSE2, kOrigin };
 
-// "none", "se3", "se2"; ParseAlignmentMode throws std::invalid_argument otherwise.
+// "none", "se3", "se2", "origin"; ParseAlignmentMode throws std::invalid_argument otherwise.
 const char* AlignmentModeName(AlignmentMode mode);
 AlignmentMode ParseAlignmentMode(const std::string& name);
 
@@ -67,7 +71,11 @@ Sim3Alignment UmeyamaSim3(const std::vector<Eigen::Vector3d>& src, const std::ve
 Sim3Alignment UmeyamaSE2(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
                          bool with_scale);
 
+// T_gt_est = T_gt_robot * T_est_robot^-1 from one associated pair (kOrigin).
+Sim3Alignment AlignOrigin(const SE3d& T_gt_robot, const SE3d& T_est_robot);
+
 // Dispatches on the mode; `src` are the estimate's positions, `dst` the ground truth's.
+// kOrigin needs poses: it throws std::invalid_argument here (use AlignOrigin).
 Sim3Alignment ComputeAlignment(AlignmentMode mode, bool with_scale, const std::vector<Eigen::Vector3d>& src,
                                const std::vector<Eigen::Vector3d>& dst);
 

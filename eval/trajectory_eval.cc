@@ -25,7 +25,10 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
 
   AssociatedTrajectories associated = Associate(gt, est, options.max_dt_s);
   const bool needs_fit = options.align != AlignmentMode::kNone || options.scale;
-  if (needs_fit) {
+  if (options.align == AlignmentMode::kOrigin) {
+    if (options.scale) throw std::invalid_argument("--scale does not apply to alignment origin");
+    evaluation.alignment = AlignOrigin(associated.gt.front().T, associated.est.front().T);
+  } else if (needs_fit) {
     evaluation.alignment =
         ComputeAlignment(options.align, options.scale, Positions(associated.est), Positions(associated.gt));
   }

@@ -136,3 +136,27 @@ TEST(AlignmentTest, DegenerateSetsThrow) {
 
 }  // namespace
 }  // namespace waymark::eval
+
+namespace waymark::eval {
+namespace {
+
+// --align origin: the first estimated pose is moved exactly onto the first true pose, and the
+// same rigid motion carries every later pose (evo's --align_origin).
+TEST(AlignOriginTest, MovesTheFirstPoseOntoTheTruthAndKeepsRelativeMotion) {
+  const SE3d T_gt_first = SE3d::FromXYZYaw(2.0, -1.0, 0.0, 0.7);
+  const SE3d T_est_first = SE3d::FromXYZYaw(0.0, 0.0, 0.0, 0.0);
+  const Sim3Alignment alignment = AlignOrigin(T_gt_first, T_est_first);
+  const SE3d moved_first = alignment.Apply(T_est_first);
+  EXPECT_LT((moved_first.translation() - T_gt_first.translation()).norm(), 1e-12);
+  EXPECT_LT(RotationAngleBetween(moved_first, T_gt_first), 1e-12);
+  // A pose 1 m ahead of the estimate's origin lands 1 m ahead of the true start, along yaw 0.7.
+  const SE3d moved_ahead = alignment.Apply(SE3d::FromXYZYaw(1.0, 0.0, 0.0, 0.0));
+  EXPECT_NEAR(moved_ahead.translation().x(), 2.0 + std::cos(0.7), 1e-12);
+  EXPECT_NEAR(moved_ahead.translation().y(), -1.0 + std::sin(0.7), 1e-12);
+  EXPECT_NEAR(moved_ahead.yaw(), 0.7, 1e-12);
+  EXPECT_EQ(ParseAlignmentMode("origin"), AlignmentMode::kOrigin);
+  EXPECT_THROW(ComputeAlignment(AlignmentMode::kOrigin, false, {}, {}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace waymark::eval
