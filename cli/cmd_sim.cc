@@ -1,4 +1,9 @@
 // `waymark sim`: writes a simulated dataset directory with exact ground truth (sim/).
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -9,6 +14,8 @@
 #include "cli/args.h"
 #include "cli/command.h"
 #include "sim/params.h"
+#include "sim/render.h"
+#include "sim/render_io.h"
 #include "sim/scenarios.h"
 #include "sim/sim_io.h"
 #include "sim/simulator.h"
@@ -27,6 +34,7 @@ std::string Usage() {
   std::ostringstream out;
   out << "Usage: waymark sim SCENARIO --out DIR [--seed N] [--config FILE.yaml] [--set key=value ...] "
          "[--force]\n"
+         "                   [--render [--render-every N]]\n"
          "       waymark sim SCENARIO --print-config [--config FILE.yaml] [--set key=value ...]\n"
          "       waymark sim list\n\n"
          "Writes a dataset directory (DESIGN.md) with detections, odometry and exact ground truth.\n"
@@ -38,7 +46,11 @@ std::string Usage() {
          "  --seed N            noise seed (default 0)\n"
          "  --config FILE.yaml  keys to override (nested by the dots; unknown keys are errors)\n"
          "  --set key=value     one key (repeatable; applied after --config, in order)\n"
-         "  --print-config      print the effective keys as YAML and exit\n";
+         "  --print-config      print the effective keys as YAML and exit\n"
+         "  --render            also render PNG images of the camera frames (images/<camera>/<n>.png,\n"
+         "                      images.csv) and their exact code corners (groundtruth/corners.jsonl);\n"
+         "                      photometry from the render.* keys\n"
+         "  --render-every N    render every N-th camera frame only (default 1)\n";
   for (const auto& [flag, key] : kShortcuts) {
     out << "  --" << flag << " V" << std::string(16 - flag.size(), ' ') << "same as --set " << key << "=V\n";
   }
@@ -48,6 +60,13 @@ std::string Usage() {
   }
   out << "\nDetails: docs/sim.md\n";
   return out.str();
+}
+
+// "rendering 12/40" on a terminal, rewritten in place; nothing in pipes.
+void ShowProgress(long done, long total) {
+  if (!::isatty(STDERR_FILENO)) return;
+  std::fprintf(stderr, "\rrendering %ld/%ld", done, total);
+  if (done >= total) std::fprintf(stderr, "\n");
 }
 
 // The key a shortcut option stands for, "" for --set itself, nullopt for other arguments.
@@ -87,7 +106,7 @@ std::vector<std::string> ExtractAssignments(const std::vector<std::string>& argv
 int RunSim(const std::vector<std::string>& argv) {
   std::vector<std::string> rest;
   const std::vector<std::string> assignments = ExtractAssignments(argv, &rest);
-  const Args args(rest, {"out", "seed", "config"}, {"force", "print-config"});
+  const Args args(rest, {"out", "seed", "config", "render-every"}, {"force", "print-config", "render"});
   if (args.Help()) {
     std::cout << Usage();
     return 0;
@@ -108,9 +127,28 @@ int RunSim(const std::vector<std::string>& argv) {
   const std::string out_dir = args.Require("out");
   const long seed = args.GetInt("seed").value_or(0);
   if (seed < 0) throw std::invalid_argument("option --seed: expected a non-negative integer");
+  const long render_every = args.GetInt("render-every").value_or(1);
+  if (render_every < 1) throw std::invalid_argument("option --render-every: expected a positive integer");
+  if (args.Get("render-every") && !args.Flag("render")) {
+    throw std::invalid_argument("option --render-every needs --render");
+  }
   const sim::SimResult result = sim::Simulate(scenario, params, static_cast<std::uint64_t>(seed));
-  sim::WriteSimDataset(result, params, static_cast<std::uint64_t>(seed), out_dir, args.Flag("force"));
+  sim::RenderStats render_stats;
+  std::function<void(const std::filesystem::path&)> render;
+  if (args.Flag("render")) {
+    const sim::RenderOptions options = sim::RenderOptionsFromParams(params);
+    render = [&, options](const std::filesystem::path& dir) {
+      render_stats = sim::RenderRun(result, options, static_cast<std::uint64_t>(seed), render_every, dir,
+                                    ShowProgress);
+    };
+  }
+  sim::WriteSimDataset(result, params, static_cast<std::uint64_t>(seed), out_dir, args.Flag("force"), render);
   std::cerr << sim::SummaryLine(result) << " -> " << out_dir << "\n";
+  if (render_stats.images > 0) {
+    std::fprintf(stderr, "rendered %ld images (%ld visible codes) in %.1f s: %.0f ms per image\n",
+                 render_stats.images, render_stats.codes, render_stats.seconds,
+                 1000.0 * render_stats.seconds / render_stats.images);
+  }
   return 0;
 }
 

@@ -1,7 +1,10 @@
 #include "sim/scenarios.h"
 
 #include <cmath>
+#include <optional>
 #include <stdexcept>
+
+#include "sim/render.h"
 
 namespace waymark::sim {
 namespace {
@@ -463,13 +466,22 @@ Scene BuildWarehouseDrone(const ParamSet& p) {
   return scene;
 }
 
-}  // namespace
-
-ParamSet ScenarioParams(const std::string& scenario) {
+// The scenario's own keys, without the render.* keys.
+std::optional<ParamSet> PlaceParams(const std::string& scenario) {
   if (scenario == "corridor") return CorridorParams();
   if (scenario == "ceiling-grid") return CeilingParams();
   if (scenario == "rooms") return RoomsParams();
   if (scenario == "warehouse-drone") return DroneParams();
+  return std::nullopt;
+}
+
+}  // namespace
+
+ParamSet ScenarioParams(const std::string& scenario) {
+  if (std::optional<ParamSet> params = PlaceParams(scenario)) {
+    AddRenderParams(&*params);
+    return *params;
+  }
   std::string known;
   for (const ScenarioInfo& s : Scenarios()) known += (known.empty() ? "" : ", ") + s.name;
   throw std::invalid_argument("unknown scenario '" + scenario + "' (known: " + known + ")");

@@ -27,7 +27,8 @@ void CheckOutput(const fs::path& out_dir, bool force) {
 }  // namespace
 
 void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint64_t seed,
-                     const fs::path& out_dir, bool force) {
+                     const fs::path& out_dir, bool force,
+                     const std::function<void(const fs::path&)>& extra) {
   CheckOutput(out_dir, force);
   fs::path target = fs::absolute(out_dir).lexically_normal();
   if (!target.has_filename()) target = target.parent_path();  // "out/" names "out"
@@ -46,6 +47,7 @@ void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint6
     AtomicWriteFile(temp / "sim_config.yaml", "# reproduce: waymark sim " + result.scenario + " --seed " +
                                                   std::to_string(seed) +
                                                   " --config sim_config.yaml --out DIR\n" + params.ToYaml());
+    if (extra) extra(temp);
     if (fs::exists(target)) fs::remove_all(target);  // empty, or replaced under --force
     fs::rename(temp, target);
   } catch (...) {

@@ -1,0 +1,427 @@
+#include "sim/render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/detect_synthetic.h"
+
+namespace waymark::sim {
+
+// A code's symbol as a texture on its marker plane (see the header for the mapping).
+struct CodeTexture {
+  cv::Mat modules;        // 0 dark, 255 light, quiet zone included
+  cv::Rect symbol;        // in modules
+  double module_m = 0.0;  // module edge on the plane
+  double size_m = 0.0;
+};
+
+namespace {
+
+constexpr float kDarkAlbedo = 0.06f;
+constexpr float kLightAlbedo = 0.85f;
+constexpr double kCodeWinsRelative = 1e-5;  // coplanar code vs wall: the printed code wins
+constexpr int kOutlineSamplesPerEdge = 16;
+constexpr double kBoxPaddingPx = 2.0;
+
+enum class SurfaceKind { kWall, kFloor, kCeiling, kCode };
+
+// A plane in the camera frame: n_camera . p = d_camera; points map into the plane frame by
+// p_plane = R_plane_camera p_camera + t_plane_camera.
+struct Surface {
+  SurfaceKind kind = SurfaceKind::kWall;
+  int index = 0;  // occluder or code index
+  Eigen::Matrix3d R_plane_camera;
+  Eigen::Vector3d t_plane_camera;
+  Eigen::Vector3d n_camera;
+  double d_camera = 0.0;
+  double half_width_m = 0.0;  // walls only; floor and ceiling are unbounded
+  double half_height_m = 0.0;
+  cv::Rect box_px;  // codes only: pixels that can see it
+};
+
+Surface MakeSurface(SurfaceKind kind, int index, const SE3d& T_camera_world, const SE3d& T_world_plane) {
+  const SE3d T_camera_plane = T_camera_world * T_world_plane;
+  const SE3d T_plane_camera = T_camera_plane.inverse();
+  Surface s;
+  s.kind = kind;
+  s.index = index;
+  s.R_plane_camera = T_plane_camera.rotation();
+  s.t_plane_camera = T_plane_camera.translation();
+  s.n_camera = T_camera_plane.rotation() * Eigen::Vector3d::UnitZ();
+  s.d_camera = s.n_camera.dot(T_camera_plane.translation());
+  return s;
+}
+
+// Integer lattice hash -> [0, 1).
+float Hash(int ix, int iy, int salt) {
+  std::uint32_t h = static_cast<std::uint32_t>(ix) * 0x8da6b343u ^ static_cast<std::uint32_t>(iy) * 0xd8163841u ^
+                    static_cast<std::uint32_t>(salt) * 0xcb1ab31fu;
+  h ^= h >> 13;
+  h *= 0x5bd1e995u;
+  h ^= h >> 15;
+  return static_cast<float>(h & 0xffffffu) / 16777216.0f;
+}
+
+// Smooth value noise in [0, 1) at (x, y) / cell_m.
+float ValueNoise(double x, double y, double cell_m, int salt) {
+  const double u = x / cell_m, v = y / cell_m;
+  const double fu = std::floor(u), fv = std::floor(v);
+  const int iu = static_cast<int>(fu), iv = static_cast<int>(fv);
+  const double a = u - fu, b = v - fv;
+  const double sa = a * a * (3.0 - 2.0 * a), sb = b * b * (3.0 - 2.0 * b);
+  const double top = Hash(iu, iv, salt) * (1.0 - sa) + Hash(iu + 1, iv, salt) * sa;
+  const double bottom = Hash(iu, iv + 1, salt) * (1.0 - sa) + Hash(iu + 1, iv + 1, salt) * sa;
+  return static_cast<float>(top * (1.0 - sb) + bottom * sb);
+}
+
+float BackgroundAlbedo(const Surface& s, const Eigen::Vector3d& p_plane, double contrast) {
+  const double x = p_plane.x(), y = p_plane.y();
+  const int salt = static_cast<int>(s.kind) * 1000 + s.index;
+  const double texture = contrast * (ValueNoise(x, y, 0.06, salt) - 0.5 + ValueNoise(x, y, 0.45, salt + 7) - 0.5);
+  switch (s.kind) {
+    case SurfaceKind::kFloor: {
+      const double jx = std::abs(x - 0.5 * std::round(x / 0.5)), jy = std::abs(y - 0.5 * std::round(y / 0.5));
+      const double joint = (jx < 0.004 || jy < 0.004) ? -0.12 : 0.0;
+      return static_cast<float>(0.38 + texture + joint);
+    }
+    case SurfaceKind::kCeiling:
+      return static_cast<float>(0.72 + texture);
+    default:
+      return static_cast<float>(0.55 + texture);
+  }
+}
+
+CodeTexture MakeCodeTexture(const SimMarker& marker) {
+  const std::string& family = marker.key.family;
+  SymbolImage symbol;
+  if (family == "qr") {
+    symbol = QrSymbol(marker.key.id);
+  } else if (family == "datamatrix") {
+    symbol = DataMatrixSymbol(marker.key.id);
+  } else if (family.rfind("apriltag-", 0) == 0) {
+    size_t used = 0;
+    int id = -1;
+    try {
+      id = std::stoi(marker.key.id, &used);
+    } catch (const std::exception&) {
+    }
+    if (id < 0 || used != marker.key.id.size()) {
+      throw std::invalid_argument("render: AprilTag id '" + marker.key.id + "' is not a tag number");
+    }
+    symbol = AprilTagSymbol(family, id);
+  } else {
+    throw std::invalid_argument("render: cannot draw family '" + family + "'");
+  }
+  if (!(marker.size_m > 0.0)) throw std::invalid_argument("render: code " + marker.key.ToString() + " has no size");
+  CodeTexture texture;
+  cv::copyMakeBorder(symbol.modules, texture.modules, kExtraQuietModules, kExtraQuietModules, kExtraQuietModules,
+                     kExtraQuietModules, cv::BORDER_CONSTANT, cv::Scalar(255));
+  texture.symbol = symbol.symbol + cv::Point(kExtraQuietModules, kExtraQuietModules);
+  texture.module_m = marker.size_m / symbol.symbol.width;
+  texture.size_m = marker.size_m;
+  return texture;
+}
+
+// Module of the code texture at p_marker, or -1 outside the quiet zone.
+int CodeModule(const CodeTexture& code, const Eigen::Vector3d& p_marker) {
+  const double col = code.symbol.x + (p_marker.x() + 0.5 * code.size_m) / code.module_m;
+  const double row = code.symbol.y + (0.5 * code.size_m - p_marker.y()) / code.module_m;
+  if (!(col >= 0.0 && row >= 0.0 && col < code.modules.cols && row < code.modules.rows)) return -1;
+  return code.modules.at<std::uint8_t>(static_cast<int>(row), static_cast<int>(col));
+}
+
+// Pixel box that can see the code's quiet-zone outline; empty if none.
+cv::Rect CodeBox(const Camera& camera, const CodeTexture& code, const SE3d& T_camera_marker) {
+  const double m = code.module_m;
+  const double x0 = -0.5 * code.size_m - code.symbol.x * m;
+  const double y1 = 0.5 * code.size_m + code.symbol.y * m;
+  const double x1 = x0 + code.modules.cols * m, y0 = y1 - code.modules.rows * m;
+  const Eigen::Vector2d outline[4] = {{x0, y1}, {x1, y1}, {x1, y0}, {x0, y0}};
+  const cv::Rect image(0, 0, camera.width(), camera.height());
+  double min_x = 1e18, min_y = 1e18, max_x = -1e18, max_y = -1e18;
+  int behind = 0;
+  for (int corner = 0; corner < 4; ++corner) {
+    behind += (T_camera_marker * Eigen::Vector3d(outline[corner].x(), outline[corner].y(), 0.0)).z() <= kMinDepth;
+  }
+  if (behind == 4) return cv::Rect();  // wholly behind the camera
+  if (behind > 0) return image;        // straddles the camera plane: test every pixel
+  for (int edge = 0; edge < 4; ++edge) {
+    for (int k = 0; k < kOutlineSamplesPerEdge; ++k) {
+      const double a = static_cast<double>(k) / kOutlineSamplesPerEdge;
+      const Eigen::Vector2d q = (1.0 - a) * outline[edge] + a * outline[(edge + 1) % 4];
+      const Eigen::Vector3d p_camera = T_camera_marker * Eigen::Vector3d(q.x(), q.y(), 0.0);
+      const std::optional<Eigen::Vector2d> px = camera.Project(p_camera);
+      if (!px) continue;  // beyond the lens model's field of view: no pixel sees it
+      min_x = std::min(min_x, px->x()), max_x = std::max(max_x, px->x());
+      min_y = std::min(min_y, px->y()), max_y = std::max(max_y, px->y());
+    }
+  }
+  if (min_x > max_x) return cv::Rect();
+  const double lo_x = std::max(-1.0, min_x - kBoxPaddingPx), lo_y = std::max(-1.0, min_y - kBoxPaddingPx);
+  const double hi_x = std::min(camera.width() + 1.0, max_x + kBoxPaddingPx);
+  const double hi_y = std::min(camera.height() + 1.0, max_y + kBoxPaddingPx);
+  if (lo_x > hi_x || lo_y > hi_y) return cv::Rect();
+  const cv::Rect box(cv::Point(static_cast<int>(std::floor(lo_x)), static_cast<int>(std::floor(lo_y))),
+                     cv::Point(static_cast<int>(std::ceil(hi_x)) + 1, static_cast<int>(std::ceil(hi_y)) + 1));
+  return box & image;
+}
+
+// Depth of the ray's hit with `s`, or +inf; *p_plane receives the point on the plane.
+double Intersect(const Surface& s, const Eigen::Vector3d& ray_camera, Eigen::Vector3d* p_plane) {
+  const double denom = s.n_camera.dot(ray_camera);
+  if (std::abs(denom) < 1e-12) return INFINITY;
+  const double t = s.d_camera / denom;
+  if (!(t > 1e-9)) return INFINITY;
+  *p_plane = s.R_plane_camera * (t * ray_camera) + s.t_plane_camera;
+  if (s.kind == SurfaceKind::kWall &&
+      (std::abs(p_plane->x()) > s.half_width_m || std::abs(p_plane->y()) > s.half_height_m)) {
+    return INFINITY;
+  }
+  return t;
+}
+
+// The surfaces of one frame: background (walls, floor, ceiling) and the codes facing the
+// camera whose box is not empty.
+struct FramePlanes {
+  std::vector<Surface> background;
+  std::vector<Surface> codes;
+};
+
+// Albedo seen along ray_camera (z = 1 normalized), and the id of the surface it hit
+// (-1: nothing; codes are numbered after the background surfaces).
+float Shade(const Eigen::Vector3d& ray_camera, const std::vector<Surface>& background,
+            const std::vector<const Surface*>& codes, const std::vector<CodeTexture>& textures,
+            double contrast, int* surface_id) {
+  double best_t = INFINITY;
+  float albedo = 0.0f;
+  *surface_id = -1;
+  Eigen::Vector3d p_plane;
+  for (size_t i = 0; i < background.size(); ++i) {
+    const double t = Intersect(background[i], ray_camera, &p_plane);
+    if (t < best_t) {
+      best_t = t;
+      albedo = BackgroundAlbedo(background[i], p_plane, contrast);
+      *surface_id = static_cast<int>(i);
+    }
+  }
+  double best_code_t = INFINITY;
+  for (const Surface* s : codes) {
+    const double t = Intersect(*s, ray_camera, &p_plane);
+    if (!(t <= best_t * (1.0 + kCodeWinsRelative)) || t >= best_code_t) continue;
+    const int module = CodeModule(textures[s->index], p_plane);
+    if (module < 0) continue;
+    best_code_t = t;
+    albedo = module < 128 ? kDarkAlbedo : kLightAlbedo;
+    *surface_id = static_cast<int>(background.size()) + s->index;
+  }
+  return albedo;
+}
+
+}  // namespace
+
+bool RenderOptions::Check(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (supersample < 1 || supersample > 16) return fail("render.supersample must be in [1, 16]");
+  if (!(blur_sigma_px >= 0.0 && blur_sigma_px <= 20.0)) return fail("render.blur_sigma_px must be in [0, 20]");
+  if (!(noise_sigma >= 0.0 && noise_sigma <= 100.0)) return fail("render.noise_sigma must be in [0, 100]");
+  if (!(gradient >= 0.0 && gradient < 1.0)) return fail("render.gradient must be in [0, 1)");
+  if (!(exposure_sigma >= 0.0 && exposure_sigma <= 2.0)) return fail("render.exposure_sigma must be in [0, 2]");
+  if (!(texture_contrast >= 0.0 && texture_contrast <= 0.5)) {
+    return fail("render.texture_contrast must be in [0, 0.5]");
+  }
+  return true;
+}
+
+void AddRenderParams(ParamSet* params) {
+  const RenderOptions d;
+  params->AddInt("render.supersample", d.supersample, 1, 16, "sub-pixel rays per axis on codes and edges");
+  params->AddDouble("render.blur_sigma_px", d.blur_sigma_px, 0.0, 20.0, "Gaussian blur sigma (px); 0 = none");
+  params->AddDouble("render.noise_sigma", d.noise_sigma, 0.0, 100.0, "pixel noise sigma (gray levels of 255)");
+  params->AddDouble("render.gradient", d.gradient, 0.0, 0.99,
+                    "illumination change from the image centre to its side (relative)");
+  params->AddDouble("render.exposure_sigma", d.exposure_sigma, 0.0, 2.0, "per-image log-exposure sigma");
+  params->AddDouble("render.texture_contrast", d.texture_contrast, 0.0, 0.5,
+                    "albedo amplitude of the wall, floor and ceiling texture");
+}
+
+RenderOptions RenderOptionsFromParams(const ParamSet& params) {
+  RenderOptions o;
+  o.supersample = static_cast<int>(params.Int("render.supersample"));
+  o.blur_sigma_px = params.Double("render.blur_sigma_px");
+  o.noise_sigma = params.Double("render.noise_sigma");
+  o.gradient = params.Double("render.gradient");
+  o.exposure_sigma = params.Double("render.exposure_sigma");
+  o.texture_contrast = params.Double("render.texture_contrast");
+  return o;
+}
+
+Renderer::Renderer(const World& world, const RenderOptions& options) : world_(world), options_(options) {
+  std::string why;
+  if (!options_.Check(&why)) throw std::invalid_argument(why);
+  double top_m = 0.0;
+  for (const SimMarker& m : world_.markers) {
+    codes_.push_back(MakeCodeTexture(m));
+    top_m = std::max(top_m, m.T_world_marker.translation().z());
+  }
+  for (const Occluder& o : world_.occluders) {
+    for (double sy : {-1.0, 1.0}) {
+      top_m = std::max(top_m, (o.T_world_panel * Eigen::Vector3d(0.0, sy * o.half_height_m, 0.0)).z());
+    }
+  }
+  ceiling_z_m_ = top_m < 2.0 ? 2.5 : top_m;
+}
+
+Renderer::~Renderer() = default;
+
+const std::vector<Eigen::Vector3f>& Renderer::PixelRays(const Camera& camera) const {
+  std::ostringstream key;
+  key.precision(17);
+  key << camera.name() << " " << camera.width() << "x" << camera.height();
+  for (double v : camera.info().intrinsics) key << " " << v;
+  for (double v : camera.info().distortion) key << " " << v;
+  auto [it, inserted] = ray_cache_.emplace(key.str(), std::vector<Eigen::Vector3f>());
+  if (!inserted) return it->second;
+  std::vector<Eigen::Vector3f>& rays = it->second;
+  rays.resize(static_cast<size_t>(camera.width()) * camera.height());
+  for (int r = 0; r < camera.height(); ++r) {
+    for (int c = 0; c < camera.width(); ++c) {
+      const std::optional<Eigen::Vector3d> ray = camera.Unproject(Eigen::Vector2d(c, r));
+      rays[static_cast<size_t>(r) * camera.width() + c] =
+          ray ? Eigen::Vector3f(ray->cast<float>()) : Eigen::Vector3f::Constant(NAN);
+    }
+  }
+  return rays;
+}
+
+cv::Mat Renderer::RenderAlbedo(const Camera& camera, const SE3d& T_world_camera) const {
+  const SE3d T_camera_world = T_world_camera.inverse();
+  FramePlanes planes;
+  for (size_t i = 0; i < world_.occluders.size(); ++i) {
+    const Occluder& o = world_.occluders[i];
+    Surface s = MakeSurface(SurfaceKind::kWall, static_cast<int>(i), T_camera_world, o.T_world_panel);
+    s.half_width_m = o.half_width_m;
+    s.half_height_m = o.half_height_m;
+    planes.background.push_back(s);
+  }
+  planes.background.push_back(MakeSurface(SurfaceKind::kFloor, 0, T_camera_world, SE3d()));
+  planes.background.push_back(MakeSurface(SurfaceKind::kCeiling, 0, T_camera_world,
+                                          SE3d(Eigen::Quaterniond::Identity(),
+                                               Eigen::Vector3d(0.0, 0.0, ceiling_z_m_))));
+  for (size_t i = 0; i < world_.markers.size(); ++i) {
+    const SE3d T_camera_marker = T_camera_world * world_.markers[i].T_world_marker;
+    Surface s = MakeSurface(SurfaceKind::kCode, static_cast<int>(i), T_camera_world,
+                            world_.markers[i].T_world_marker);
+    if (s.t_plane_camera.z() <= 0.0) continue;  // seen from behind (or edge-on)
+    s.box_px = CodeBox(camera, codes_[i], T_camera_marker);
+    if (!s.box_px.empty()) planes.codes.push_back(s);
+  }
+
+  const int width = camera.width(), height = camera.height();
+  const std::vector<Eigen::Vector3f>& rays = PixelRays(camera);
+  cv::Mat albedo(height, width, CV_32F, cv::Scalar(0.0f));
+  cv::Mat surface_id(height, width, CV_32S, cv::Scalar(-1));
+  cv::Mat fine(height, width, CV_8U, cv::Scalar(0));
+  const std::vector<const Surface*> no_codes;
+  for (int r = 0; r < height; ++r) {
+    for (int c = 0; c < width; ++c) {
+      const Eigen::Vector3f& ray = rays[static_cast<size_t>(r) * width + c];
+      if (!std::isfinite(ray.x())) continue;
+      albedo.at<float>(r, c) = Shade(ray.cast<double>(), planes.background, no_codes, codes_,
+                                     options_.texture_contrast, &surface_id.at<int>(r, c));
+    }
+  }
+  for (const Surface& s : planes.codes) fine(s.box_px).setTo(1);
+  for (int r = 0; r < height; ++r) {
+    for (int c = 0; c < width; ++c) {
+      const int id = surface_id.at<int>(r, c);
+      if (c + 1 < width && surface_id.at<int>(r, c + 1) != id) fine.at<uchar>(r, c) = fine.at<uchar>(r, c + 1) = 1;
+      if (r + 1 < height && surface_id.at<int>(r + 1, c) != id) fine.at<uchar>(r, c) = fine.at<uchar>(r + 1, c) = 1;
+    }
+  }
+  const int n = options_.supersample;
+  std::vector<const Surface*> codes_here;
+  for (int r = 0; r < height; ++r) {
+    for (int c = 0; c < width; ++c) {
+      if (!fine.at<uchar>(r, c)) continue;
+      codes_here.clear();
+      for (const Surface& s : planes.codes) {
+        if (s.box_px.contains(cv::Point(c, r))) codes_here.push_back(&s);
+      }
+      double sum = 0.0;
+      int id = -1;
+      for (int k = 0; k < n * n; ++k) {
+        const Eigen::Vector2d px(c - 0.5 + (k % n + 0.5) / n, r - 0.5 + (k / n + 0.5) / n);
+        const std::optional<Eigen::Vector3d> ray = camera.Unproject(px);
+        if (ray) sum += Shade(*ray, planes.background, codes_here, codes_, options_.texture_contrast, &id);
+      }
+      albedo.at<float>(r, c) = static_cast<float>(sum / (n * n));
+    }
+  }
+  return albedo;
+}
+
+cv::Mat Renderer::Render(const Camera& camera, const SE3d& T_world_camera, std::uint64_t seed,
+                         std::uint64_t image_index) const {
+  cv::Mat radiance = RenderAlbedo(camera, T_world_camera);
+  std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
+                    static_cast<std::uint32_t>(image_index), static_cast<std::uint32_t>(image_index >> 32),
+                    0x52454e44u};
+  std::mt19937_64 rng(seq);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 2.0 * M_PI);
+  const double exposure = std::exp(options_.exposure_sigma * normal(rng));
+  const double phi = uniform(rng);
+  const double gx = std::cos(phi) * options_.gradient / (0.5 * camera.width());
+  const double gy = std::sin(phi) * options_.gradient / (0.5 * camera.width());
+  const double cx = 0.5 * (camera.width() - 1), cy = 0.5 * (camera.height() - 1);
+  for (int r = 0; r < radiance.rows; ++r) {
+    float* row = radiance.ptr<float>(r);
+    for (int c = 0; c < radiance.cols; ++c) {
+      row[c] = static_cast<float>(255.0 * row[c] * exposure * (1.0 + gx * (c - cx) + gy * (r - cy)));
+    }
+  }
+  if (options_.blur_sigma_px > 0.0) {
+    cv::GaussianBlur(radiance, radiance, cv::Size(0, 0), options_.blur_sigma_px, options_.blur_sigma_px,
+                     cv::BORDER_REPLICATE);
+  }
+  cv::Mat image(radiance.rows, radiance.cols, CV_8U);
+  for (int r = 0; r < radiance.rows; ++r) {
+    const float* in = radiance.ptr<float>(r);
+    std::uint8_t* out = image.ptr<std::uint8_t>(r);
+    for (int c = 0; c < radiance.cols; ++c) {
+      const double noise = options_.noise_sigma > 0.0 ? options_.noise_sigma * normal(rng) : 0.0;
+      out[c] = static_cast<std::uint8_t>(std::clamp(std::lround(in[c] + noise), 0L, 255L));
+    }
+  }
+  return image;
+}
+
+std::vector<MarkerObservation> Renderer::GroundTruth(const Camera& camera, const SE3d& T_world_camera) const {
+  const VisibilityLimits limits{0.0, 1e9, 89.0, 1.0};
+  std::vector<MarkerObservation> out;
+  for (const SimMarker& m : world_.markers) {
+    const auto corners = VisibleCorners(camera, T_world_camera, m, world_.occluders, limits);
+    if (!corners) continue;
+    MarkerObservation obs;
+    obs.key = m.key;
+    obs.corners_px = *corners;
+    out.push_back(obs);
+  }
+  return out;
+}
+
+double ShortestSidePx(const std::array<Eigen::Vector2d, 4>& corners_px) {
+  double shortest = INFINITY;
+  for (int i = 0; i < 4; ++i) shortest = std::min(shortest, (corners_px[(i + 1) % 4] - corners_px[i]).norm());
+  return shortest;
+}
+
+}  // namespace waymark::sim
