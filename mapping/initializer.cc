@@ -139,6 +139,13 @@ SE3d Placer::RefineFrame(int frame, const SE3d& T_world_robot) const {
     const SurveyObservation& obs = survey_.observations[o];
     const auto& T_world_marker = init_->T_world_marker[obs.marker];
     if (!init_->views[o].usable || !T_world_marker) continue;
+    const Camera& camera = cameras_.at(obs.camera);
+    const SE3d T_camera_marker = (T_world_robot * camera.info().T_robot_camera).inverse() * *T_world_marker;
+    // A code behind the camera at the start would make the solve fail at its first evaluation.
+    if (!std::isfinite(MarkerReprojectionRms(obs.corners_px, survey_.markers[obs.marker].size_m, camera,
+                                             T_camera_marker))) {
+      continue;
+    }
     markers.emplace_back();
     SE3ToBlock(*T_world_marker, markers.back().data());
     AddMarkerBlock(&problem, &markers.back());

@@ -443,7 +443,17 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   const std::vector<int> active = UsableObservations(survey, init, &result);
   std::vector<std::string> gauges;
   const auto start = std::chrono::steady_clock::now();
-  ceres::Solver::Summary robust = problem.Solve(active, true, &gauges);
+  // A corner behind its camera at the current values makes the whole evaluation fail
+  // (factors/corner_observation.h): such observations (a misdecoded id, a wrong placement) are
+  // set aside for the solve that follows.
+  const auto in_front = [&](const std::vector<int>& observations) {
+    std::vector<int> kept;
+    for (int o : observations) {
+      if (std::isfinite(problem.SquaredError(o))) kept.push_back(o);
+    }
+    return kept;
+  };
+  ceres::Solver::Summary robust = problem.Solve(in_front(active), true, &gauges);
   int iterations = static_cast<int>(robust.iterations.size());
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
   for (int round = 0; round < options.replace_rounds; ++round) {
@@ -451,7 +461,7 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     if (moved == 0) break;
     progress("re-placed " + std::to_string(moved) + " code(s) with outlying views");
     const double first_cost = robust.initial_cost;
-    robust = problem.Solve(active, true, &gauges);
+    robust = problem.Solve(in_front(active), true, &gauges);
     robust.initial_cost = first_cost;
     iterations += static_cast<int>(robust.iterations.size());
   }
