@@ -15,8 +15,10 @@ CodeSighting MakeCodeSighting(const Camera& camera, const MarkerObservation& obs
     if (why) *why = error.what();
     return sighting;
   }
-  for (const MarkerPoseSolution& solution : estimate.solutions) sighting.T_camera_marker.push_back(solution.T_camera_marker);
-  if (!sighting.T_camera_marker.empty() && estimate.covariance.allFinite()) sighting.covariance = estimate.covariance;
+  for (const MarkerPoseSolution& solution : estimate.solutions)
+    sighting.T_camera_marker.push_back(solution.T_camera_marker);
+  if (!sighting.T_camera_marker.empty() && estimate.covariance.allFinite())
+    sighting.covariance = estimate.covariance;
   sighting.ambiguous = estimate.ambiguous;
   return sighting;
 }

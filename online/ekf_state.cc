@@ -1,8 +1,7 @@
 #include "online/ekf_state.h"
 
-#include <algorithm>
-
 #include <Eigen/Cholesky>
+#include <algorithm>
 
 namespace waymark {
 
@@ -45,7 +44,8 @@ SE3d EkfState::T_world_robot() const {
   return SE3d(Eigen::Matrix3d(R_yaw * R_level_), Eigen::Vector3d(mean_.head<3>()));
 }
 
-Eigen::VectorXd EkfState::BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b, int yaw_index) {
+Eigen::VectorXd EkfState::BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b,
+                                   int yaw_index) {
   Eigen::VectorXd delta = mean_b - mean_a;
   delta(yaw_index) = WrapAngle(delta(yaw_index));
   return delta;
@@ -72,8 +72,8 @@ StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& c
   return StepStatus::kOk;
 }
 
-StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::MatrixXd& F, const Eigen::MatrixXd& G,
-                               const Eigen::MatrixXd& Qu) {
+StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::MatrixXd& F,
+                               const Eigen::MatrixXd& G, const Eigen::MatrixXd& Qu) {
   if (mean_new.size() != dim() || !mean_new.allFinite()) return StepStatus::kInvalidInput;
   const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose());
   if (status != StepStatus::kOk) return status;
@@ -81,8 +81,8 @@ StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::Mat
   return StepStatus::kOk;
 }
 
-UpdateResult EkfState::Update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H, const Eigen::MatrixXd& R,
-                              std::optional<double> nis_gate) {
+UpdateResult EkfState::Update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H,
+                              const Eigen::MatrixXd& R, std::optional<double> nis_gate) {
   UpdateResult result;
   result.innovation = innovation;
   if (!innovation.allFinite() || !H.allFinite() || !R.allFinite()) {

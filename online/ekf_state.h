@@ -24,10 +24,9 @@
 //   UpdateIterated: the iterated EKF form of Update (see below)
 #pragma once
 
+#include <Eigen/Core>
 #include <functional>
 #include <optional>
-
-#include <Eigen/Core>
 
 #include "core/geometry.h"
 #include "core/types.h"
@@ -51,10 +50,10 @@ Eigen::RowVector3d YawJacobianWorld(const Eigen::Matrix3d& R_world_robot);
 // Result of one measurement update.
 struct UpdateResult {
   StepStatus status = StepStatus::kOk;
-  bool accepted = false;      // the update was applied
-  bool gated = false;         // NIS above the gate: state untouched
-  double nis = 0.0;           // y^T S^-1 y
-  Eigen::VectorXd innovation; // y
+  bool accepted = false;       // the update was applied
+  bool gated = false;          // NIS above the gate: state untouched
+  double nis = 0.0;            // y^T S^-1 y
+  Eigen::VectorXd innovation;  // y
 };
 
 // A measurement linearized at some mean: y = z [-] h(mean), H = dh/dx there, R its noise.
@@ -84,7 +83,8 @@ class EkfState {
   // T_world_robot of the mean (z = 0 and level for planar).
   SE3d T_world_robot() const;
   // delta with mean_b = mean_a [+] delta (yaw wrapped).
-  static Eigen::VectorXd BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b, int yaw_index);
+  static Eigen::VectorXd BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b,
+                                  int yaw_index);
   // mean [+] delta.
   static Eigen::VectorXd BoxPlus(const Eigen::VectorXd& mean, const Eigen::VectorXd& delta, int yaw_index);
 

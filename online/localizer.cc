@@ -1,10 +1,9 @@
 #include "online/localizer.h"
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-
-#include <Eigen/Eigenvalues>
 
 #include "online/chi_square.h"
 #include "online/marker_measurement.h"
@@ -22,9 +21,11 @@ bool LocalizerOptions::Check(std::string* why) const {
     return fail("default_pixel_sigma_px must be finite and > 0");
   }
   if (loose_noise.size() != StateDim(motion)) {
-    return fail("loose_noise must have " + std::to_string(StateDim(motion)) + " variances for this motion model");
+    return fail("loose_noise must have " + std::to_string(StateDim(motion)) +
+                " variances for this motion model");
   }
-  if (!loose_noise.allFinite() || (loose_noise.array() <= 0.0).any()) return fail("loose_noise must be finite and > 0");
+  if (!loose_noise.allFinite() || (loose_noise.array() <= 0.0).any())
+    return fail("loose_noise must be finite and > 0");
   if (lost_after_rejected_frames < 1 || relocalize_after_agreeing < 1) {
     return fail("lost_after_rejected_frames and relocalize_after_agreeing must be >= 1");
   }
@@ -52,8 +53,10 @@ Localizer::Localizer(LocalizerOptions options, MarkerMap map, const std::vector<
 
 StepStatus Localizer::Accept(double stamp_s) {
   StepStatus status = StepStatus::kOk;
-  if (!std::isfinite(stamp_s)) status = StepStatus::kInvalidInput;
-  else if (last_stamp_s_ && stamp_s < *last_stamp_s_) status = StepStatus::kTimeWentBackwards;
+  if (!std::isfinite(stamp_s))
+    status = StepStatus::kInvalidInput;
+  else if (last_stamp_s_ && stamp_s < *last_stamp_s_)
+    status = StepStatus::kTimeWentBackwards;
   if (status != StepStatus::kOk) {
     ++counters_.rejected_inputs;
     return status;
@@ -73,7 +76,8 @@ void Localizer::CheckUncertainty() {
   const int n = state_.dim() - 1;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(state_.covariance().topLeftCorner(n, n),
                                                              Eigen::EigenvaluesOnly);
-  if (!(eigen.eigenvalues().maxCoeff() <= options_.max_position_sigma_m * options_.max_position_sigma_m)) SetLost();
+  if (!(eigen.eigenvalues().maxCoeff() <= options_.max_position_sigma_m * options_.max_position_sigma_m))
+    SetLost();
 }
 
 StepStatus Localizer::ApplyPrediction(const MotionPrediction& prediction, const SE3d& increment) {
@@ -105,8 +109,10 @@ StepStatus Localizer::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
     return ApplyPrediction(PredictPlanarIncrement(state_.mean(), increment_2d, options_.odometry),
                            increment_2d.ToSE3());
   }
-  MotionPrediction prediction = PredictFreeIncrement(state_.mean(), state_.R_level(), increment, options_.odometry);
-  if (options_.attitude_source == AttitudeSource::kOdometry) prediction.R_world_robot = T_odom_robot.rotation_matrix();
+  MotionPrediction prediction =
+      PredictFreeIncrement(state_.mean(), state_.R_level(), increment, options_.odometry);
+  if (options_.attitude_source == AttitudeSource::kOdometry)
+    prediction.R_world_robot = T_odom_robot.rotation_matrix();
   return ApplyPrediction(prediction, increment);
 }
 
@@ -121,7 +127,8 @@ StepStatus Localizer::AddVelocity(double stamp_s, double v_mps, double omega_rad
   const double dt_s = stamp_s - *previous_s;
   const double d = v_mps * dt_s, a = omega_radps * dt_s;
   const SE3d increment = SE2d(d * std::cos(0.5 * a), d * std::sin(0.5 * a), a).ToSE3();
-  return ApplyPrediction(PredictUnicycle(state_.mean(), v_mps, omega_radps, dt_s, options_.odometry), increment);
+  return ApplyPrediction(PredictUnicycle(state_.mean(), v_mps, omega_radps, dt_s, options_.odometry),
+                         increment);
 }
 
 }  // namespace waymark
@@ -135,7 +142,8 @@ bool NearImage(const CameraInfo& info, const Vector8d& px) {
   const double margin_x = 0.5 * info.width, margin_y = 0.5 * info.height;
   for (int j = 0; j < 4; ++j) {
     const double u = px(2 * j), v = px(2 * j + 1);
-    if (!(u >= -margin_x && u <= info.width + margin_x && v >= -margin_y && v <= info.height + margin_y)) return false;
+    if (!(u >= -margin_x && u <= info.width + margin_x && v >= -margin_y && v <= info.height + margin_y))
+      return false;
   }
   return true;
 }
@@ -144,7 +152,8 @@ bool NearImage(const CameraInfo& info, const Vector8d& px) {
 
 SE3d Localizer::CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
                                size_t i) const {
-  return marker.T_world_marker * sighting.T_camera_marker[i].inverse() * camera.info().T_robot_camera.inverse();
+  return marker.T_world_marker * sighting.T_camera_marker[i].inverse() *
+         camera.info().T_robot_camera.inverse();
 }
 
 FrameResult Localizer::AddFrame(const CameraFrame& frame) {
@@ -165,11 +174,13 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   for (const CodeSighting& sighting : frame.sightings) {
     result.corrections.push_back(ProcessSighting(camera_it->second, sighting));
     const CorrectionResult& correction = result.corrections.back();
-    if (correction.status != StepStatus::kOk && result.status == StepStatus::kOk) result.status = correction.status;
+    if (correction.status != StepStatus::kOk && result.status == StepStatus::kOk)
+      result.status = correction.status;
     accepted += correction.outcome == CorrectionOutcome::kAccepted;
     gated += correction.outcome == CorrectionOutcome::kGated;
   }
-  if (was_tracking && accepted > 0) predicted_before_correction_.push_back({frame.stamp_s, T_world_robot_predicted});
+  if (was_tracking && accepted > 0)
+    predicted_before_correction_.push_back({frame.stamp_s, T_world_robot_predicted});
   if (tracking_ == TrackingStatus::kTracking) {
     if (accepted > 0) {
       rejected_frames_in_a_row_ = 0;
@@ -194,7 +205,8 @@ FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
       frame.sightings.push_back(CodeSighting{observation, {}, std::nullopt, false});
       continue;
     }
-    frame.sightings.push_back(MakeCodeSighting(camera_it->second, observation, marker->size_m, options_.marker_pose));
+    frame.sightings.push_back(
+        MakeCodeSighting(camera_it->second, observation, marker->size_m, options_.marker_pose));
   }
   return AddFrame(frame);
 }
@@ -210,10 +222,10 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
   }
   if (tracking_ == TrackingStatus::kUninitialized) {
     result.outcome = Initialize(camera, *marker, sighting) ? CorrectionOutcome::kInitialized
-                                                            : CorrectionOutcome::kNotUsable;
+                                                           : CorrectionOutcome::kNotUsable;
   } else if (tracking_ == TrackingStatus::kLost) {
     result.outcome = OfferHypothesis(camera, *marker, sighting) ? CorrectionOutcome::kInitialized
-                                                                 : CorrectionOutcome::kHypothesis;
+                                                                : CorrectionOutcome::kHypothesis;
   } else {
     result = options_.mode == CorrectionMode::kTightCorners ? CorrectTight(camera, *marker, sighting)
                                                             : CorrectLoose(camera, *marker, sighting);
@@ -239,7 +251,8 @@ void Localizer::FinishCorrection(const UpdateResult& update, CorrectionResult* r
   }
 }
 
-CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& marker,
+                                         const CodeSighting& sighting) {
   CorrectionResult result;
   result.key = marker.key;
   result.gate = gate_tight_;
@@ -268,7 +281,8 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
   return result;
 }
 
-CorrectionResult Localizer::CorrectLoose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+CorrectionResult Localizer::CorrectLoose(const Camera& camera, const MapMarker& marker,
+                                         const CodeSighting& sighting) {
   CorrectionResult result;
   result.key = marker.key;
   result.gate = gate_loose_;
@@ -284,9 +298,9 @@ CorrectionResult Localizer::CorrectLoose(const Camera& camera, const MapMarker& 
   }
   const int dim = state_.dim();
   const Eigen::MatrixXd R = options_.loose_noise.asDiagonal();
-  FinishCorrection(
-      state_.Update(LooseInnovation(state_, T_world_robot_code), Eigen::MatrixXd::Identity(dim, dim), R, gate_loose_),
-      &result);
+  FinishCorrection(state_.Update(LooseInnovation(state_, T_world_robot_code),
+                                 Eigen::MatrixXd::Identity(dim, dim), R, gate_loose_),
+                   &result);
   if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker) {
     state_.SetLevel(T_world_robot_code.rotation_matrix());
   }
@@ -301,7 +315,8 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
       Eigen::LLT<Eigen::MatrixXd>(code.covariance).info() != Eigen::Success) {
     return false;
   }
-  if (state_.Reset(PoseToStateVector(code.T_world_robot, options_.motion), code.covariance) != StepStatus::kOk) {
+  if (state_.Reset(PoseToStateVector(code.T_world_robot, options_.motion), code.covariance) !=
+      StepStatus::kOk) {
     return false;
   }
   state_.SetLevel(code.T_world_robot.rotation_matrix());
@@ -330,7 +345,8 @@ bool Localizer::OfferHypothesis(const Camera& camera, const MapMarker& marker, c
         ++hypotheses_agreeing_;
         hypothesis_T_world_robot_ = T_world_robot_code;
         return tracking_ == TrackingStatus::kLost &&
-               hypotheses_agreeing_ >= options_.relocalize_after_agreeing && Initialize(camera, marker, sighting);
+               hypotheses_agreeing_ >= options_.relocalize_after_agreeing &&
+               Initialize(camera, marker, sighting);
       }
     }
   }

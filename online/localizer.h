@@ -26,12 +26,11 @@
 // are rejected (StepStatus::kTimeWentBackwards) and change nothing.
 #pragma once
 
+#include <Eigen/Core>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/camera.h"
 #include "core/geometry.h"
@@ -52,9 +51,9 @@ struct LocalizerOptions {
   CorrectionMode mode = CorrectionMode::kTightCorners;
   AttitudeSource attitude_source = AttitudeSource::kOdometry;
   OdometryNoise odometry;
-  double gate_probability = 0.997;     // chi-square gate of every correction
-  int tight_iterations = 5;            // iterated EKF steps of the corner update (1: plain EKF)
-  double default_pixel_sigma_px = 1.0; // when CameraInfo::pixel_sigma is absent
+  double gate_probability = 0.997;      // chi-square gate of every correction
+  int tight_iterations = 5;             // iterated EKF steps of the corner update (1: plain EKF)
+  double default_pixel_sigma_px = 1.0;  // when CameraInfo::pixel_sigma is absent
   // Seed 000's fixed G: variances of [x y theta] (planar) or [x y z yaw] (free).
   Eigen::VectorXd loose_noise = Eigen::Vector3d::Constant(0.001);
   int lost_after_rejected_frames = 3;
@@ -75,13 +74,13 @@ struct CameraFrame {
 };
 
 enum class CorrectionOutcome {
-  kAccepted,         // used to correct the state
-  kGated,            // NIS above the gate, or (tight) predicted out of view: ignored, kept as a
-                     // relocalization hypothesis
-  kUnknownMarker,    // not in the map: counted and ignored
-  kNotUsable,        // no single-image pose (loose mode, initialization) or S not PD
-  kInitialized,      // started (or restarted) the filter
-  kHypothesis,       // lost or uninitialized: only collected as a relocalization hypothesis
+  kAccepted,       // used to correct the state
+  kGated,          // NIS above the gate, or (tight) predicted out of view: ignored, kept as a
+                   // relocalization hypothesis
+  kUnknownMarker,  // not in the map: counted and ignored
+  kNotUsable,      // no single-image pose (loose mode, initialization) or S not PD
+  kInitialized,    // started (or restarted) the filter
+  kHypothesis,     // lost or uninitialized: only collected as a relocalization hypothesis
 };
 
 struct CorrectionResult {
@@ -89,8 +88,8 @@ struct CorrectionResult {
   StepStatus status = StepStatus::kOk;  // a numerical failure of this correction, if any
   CorrectionOutcome outcome = CorrectionOutcome::kNotUsable;
   double nis = 0.0;
-  double gate = 0.0;          // NIS threshold used
-  Eigen::VectorXd innovation; // z [-] h(x) before the update
+  double gate = 0.0;           // NIS threshold used
+  Eigen::VectorXd innovation;  // z [-] h(x) before the update
 };
 
 struct FrameResult {
@@ -113,9 +112,9 @@ struct LocalizerCounters {
   long gated = 0;
   long unknown_markers = 0;
   long not_usable = 0;
-  long initializations = 0;   // first start and every relocalization
+  long initializations = 0;  // first start and every relocalization
   long times_lost = 0;
-  long rejected_inputs = 0;   // time going backwards, invalid input, unknown camera
+  long rejected_inputs = 0;  // time going backwards, invalid input, unknown camera
 };
 
 class Localizer {
@@ -149,7 +148,8 @@ class Localizer {
   CorrectionResult CorrectLoose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
   void FinishCorrection(const UpdateResult& update, CorrectionResult* result);
   // The robot pose implied by solution i of a sighting.
-  SE3d CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i) const;
+  SE3d CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                      size_t i) const;
   // Offers a gated or lost-time sighting as a relocalization hypothesis; true if it restarted the filter.
   bool OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
   bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);

@@ -5,8 +5,9 @@ namespace {
 
 // Rows of a world-position Jacobian (3 x n) and a world-rotation Jacobian (3 x n) that make
 // up the state: [x y (z)] and yaw.
-Eigen::MatrixXd ToStateRows(const Eigen::Matrix<double, 3, 6>& d_position, const Eigen::Matrix<double, 3, 6>& d_phi,
-                            const Eigen::Matrix3d& R_world_robot, MotionModel motion) {
+Eigen::MatrixXd ToStateRows(const Eigen::Matrix<double, 3, 6>& d_position,
+                            const Eigen::Matrix<double, 3, 6>& d_phi, const Eigen::Matrix3d& R_world_robot,
+                            MotionModel motion) {
   const int dim = StateDim(motion);
   Eigen::MatrixXd J(dim, 6);
   J.topRows(dim - 1) = d_position.topRows(dim - 1);
@@ -67,7 +68,8 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
     out.px.segment<2>(2 * j) = *px;
     const Eigen::Matrix<double, 2, 3> J_robot = J_p * R_cr;  // d px / d c_r
     out.H.block(2 * j, 0, 2, dim - 1) = -(J_robot * R_wr_T).leftCols(dim - 1);
-    out.H.block<2, 1>(2 * j, dim - 1) = -J_robot * R_wr_T * Hat(Eigen::Vector3d::UnitZ().eval()) * offset_world;
+    out.H.block<2, 1>(2 * j, dim - 1) =
+        -J_robot * R_wr_T * Hat(Eigen::Vector3d::UnitZ().eval()) * offset_world;
     const Eigen::Matrix<double, 2, 3> J_world = J_robot * R_wr_T;  // d px / d c_w
     out.J_marker.block<2, 3>(2 * j, 0) = -J_world * R_wm * Hat(corners_marker[j]);
     out.J_marker.block<2, 3>(2 * j, 3) = J_world * R_wm;
@@ -75,7 +77,8 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
   return out;
 }
 
-Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance) {
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction,
+                     const std::optional<Matrix6d>& covariance) {
   Matrix8d R = Matrix8d::Identity() * (sigma_px * sigma_px);
   if (covariance) R += prediction.J_marker * (*covariance) * prediction.J_marker.transpose();
   return R;

@@ -11,8 +11,9 @@
 // (b) Tightly coupled on the four corners (ours). For corner j (object point c_m, DESIGN.md order):
 //       c_w = T_world_marker * c_m
 //       c_r = R_world_robot^T (c_w - t_world_robot)          (robot frame)
-//       c_c = T_camera_robot * c_r                            (camera frame, T_camera_robot = T_robot_camera^-1)
-//       h_j = project(c_c)                                    (core/camera.h, 2x3 Jacobian J_p)
+//       c_c = T_camera_robot * c_r                            (camera frame, T_camera_robot =
+//       T_robot_camera^-1) h_j = project(c_c)                                    (core/camera.h, 2x3 Jacobian
+//       J_p)
 //     with R_world_robot = Rz(yaw) R_level and t_world_robot = [x, y, 0] (planar) or [x, y, z]:
 //       d c_r / d t_world_robot = -R_world_robot^T
 //       d c_r / d yaw           = -R_world_robot^T Hat(e_z) (c_w - t_world_robot)
@@ -25,9 +26,8 @@
 //     so a marker the map is unsure about is trusted less (its four corners move together).
 #pragma once
 
-#include <optional>
-
 #include <Eigen/Core>
+#include <optional>
 
 #include "core/camera.h"
 #include "core/geometry.h"
@@ -71,7 +71,8 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
                                                const MapMarker& marker);
 
 // R = sigma_px^2 I8 + J_marker Sigma_marker J_marker^T (second term only with a covariance).
-Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance);
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction,
+                     const std::optional<Matrix6d>& covariance);
 
 // The 8-vector of detected corners, DESIGN.md order.
 Vector8d StackCorners(const std::array<Eigen::Vector2d, 4>& corners_px);

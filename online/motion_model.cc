@@ -25,7 +25,8 @@ bool OdometryNoise::Check(std::string* why) const {
   return true;
 }
 
-MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment, const OdometryNoise& noise) {
+MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment,
+                                        const OdometryNoise& noise) {
   const double c = std::cos(x(2)), s = std::sin(x(2));
   const double dx = increment.x(), dy = increment.y(), dtheta = increment.theta();
   MotionPrediction p;
@@ -36,7 +37,8 @@ MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& in
   p.G = (Eigen::Matrix3d() << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0).finished();
   const double sigma_trans = noise.sigma.trans_per_m * std::hypot(dx, dy) + noise.floor_trans_m;
   const double sigma_rot = noise.sigma.rot_per_rad * std::abs(dtheta) + noise.floor_rot_rad;
-  p.Qu = Eigen::Vector3d(sigma_trans * sigma_trans, sigma_trans * sigma_trans, sigma_rot * sigma_rot).asDiagonal();
+  p.Qu = Eigen::Vector3d(sigma_trans * sigma_trans, sigma_trans * sigma_trans, sigma_rot * sigma_rot)
+             .asDiagonal();
   p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return p;
 }
@@ -77,7 +79,8 @@ MotionPrediction PredictFreeIncrement(const Eigen::Vector4d& x, const Eigen::Mat
   const double sigma_rot =
       noise.sigma.rot_per_rad * RotationAngleBetween(SE3d(), increment) + noise.floor_rot_rad;
   Eigen::Matrix<double, 6, 1> variances;
-  variances << Eigen::Vector3d::Constant(sigma_trans * sigma_trans), Eigen::Vector3d::Constant(sigma_rot * sigma_rot);
+  variances << Eigen::Vector3d::Constant(sigma_trans * sigma_trans),
+      Eigen::Vector3d::Constant(sigma_rot * sigma_rot);
   p.Qu = variances.asDiagonal();
   p.R_world_robot = R_new;
   return p;

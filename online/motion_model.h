@@ -32,23 +32,24 @@ namespace waymark {
 
 struct OdometryNoise {
   OdometrySigma sigma{0.02, 0.02};
-  double floor_trans_m = 1e-4;   // per increment
-  double floor_rot_rad = 1e-4;   // per increment
+  double floor_trans_m = 1e-4;  // per increment
+  double floor_rot_rad = 1e-4;  // per increment
 
   bool Check(std::string* why) const;
 };
 
 // Everything EkfState::Propagate needs.
 struct MotionPrediction {
-  Eigen::VectorXd mean;  // f(x, u)
-  Eigen::MatrixXd F;     // df/dx  (dim x dim)
-  Eigen::MatrixXd G;     // df/du  (dim x |u|)
-  Eigen::MatrixXd Qu;    // covariance of u
+  Eigen::VectorXd mean;           // f(x, u)
+  Eigen::MatrixXd F;              // df/dx  (dim x dim)
+  Eigen::MatrixXd G;              // df/du  (dim x |u|)
+  Eigen::MatrixXd Qu;             // covariance of u
   Eigen::Matrix3d R_world_robot;  // free only: the full predicted rotation R' (for the attitude source)
 };
 
 // Planar increment (x, y, theta of T_odom_robot(k-1)^-1 T_odom_robot(k)).
-MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment, const OdometryNoise& noise);
+MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment,
+                                        const OdometryNoise& noise);
 
 // Seed 000's unicycle with velocities v (m/s) and omega (rad/s) over dt_s seconds.
 MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double omega_radps, double dt_s,

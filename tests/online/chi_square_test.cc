@@ -1,9 +1,9 @@
 #include "online/chi_square.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 namespace waymark {
 namespace {

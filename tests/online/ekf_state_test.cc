@@ -1,9 +1,9 @@
 #include "online/ekf_state.h"
 
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
-#include <gtest/gtest.h>
+#include <random>
 
 #include "online/motion_model.h"
 
@@ -17,7 +17,8 @@ Eigen::Matrix3d SomeCovariance() {
 }
 
 bool IsSymmetricPositiveDefinite(const Eigen::MatrixXd& P) {
-  return (P - P.transpose()).norm() <= 1e-12 * P.norm() && Eigen::LLT<Eigen::MatrixXd>(P).info() == Eigen::Success &&
+  return (P - P.transpose()).norm() <= 1e-12 * P.norm() &&
+         Eigen::LLT<Eigen::MatrixXd>(P).info() == Eigen::Success &&
          P.llt().matrixL().toDenseMatrix().diagonal().minCoeff() > 0.0;
 }
 
@@ -25,8 +26,8 @@ TEST(EkfStateTest, ZeroInnovationKeepsMeanAndShrinksCovariance) {
   EkfState state(MotionModel::kPlanar);
   ASSERT_EQ(state.Reset(Eigen::Vector3d(1.0, 2.0, 0.5), SomeCovariance()), StepStatus::kOk);
   const Eigen::MatrixXd P_before = state.covariance();
-  const UpdateResult result =
-      state.Update(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity() * 0.01, 10.0);
+  const UpdateResult result = state.Update(Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(),
+                                           Eigen::Matrix3d::Identity() * 0.01, 10.0);
   ASSERT_TRUE(result.accepted);
   EXPECT_EQ(result.nis, 0.0);
   EXPECT_LT((state.mean() - Eigen::Vector3d(1.0, 2.0, 0.5)).norm(), 1e-15);
@@ -60,8 +61,9 @@ TEST(EkfStateTest, NonFiniteCovarianceIsAnErrorAndKeepsTheOldOne) {
   ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), SomeCovariance()), StepStatus::kOk);
   Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
   F(0, 2) = std::numeric_limits<double>::infinity();
-  EXPECT_EQ(state.Propagate(Eigen::Vector3d::Zero(), F, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity()),
-            StepStatus::kNonFiniteCovariance);
+  EXPECT_EQ(
+      state.Propagate(Eigen::Vector3d::Zero(), F, Eigen::Matrix3d::Identity(), Eigen::Matrix3d::Identity()),
+      StepStatus::kNonFiniteCovariance);
   EXPECT_EQ(state.covariance(), SomeCovariance());
   Eigen::Matrix3d bad = SomeCovariance();
   bad(1, 1) = std::nan("");
@@ -123,7 +125,8 @@ TEST(EkfStateTest, IteratedUpdateMatchesPlainUpdateForLinearMeasurements) {
     const Eigen::Vector2d p = at.mean().head<2>();
     Eigen::Matrix<double, 1, 3> J;
     J << 2.0 * p.x(), 2.0 * p.y(), 0.0;
-    return Linearization{Eigen::VectorXd::Constant(1, 1.0 - p.squaredNorm()), J, Eigen::MatrixXd::Constant(1, 1, 1e-6)};
+    return Linearization{Eigen::VectorXd::Constant(1, 1.0 - p.squaredNorm()), J,
+                         Eigen::MatrixXd::Constant(1, 1, 1e-6)};
   };
   EkfState once = prior, many = prior;
   ASSERT_TRUE(once.UpdateIterated(range, std::nullopt, 1).accepted);
@@ -135,9 +138,10 @@ TEST(EkfStateTest, IteratedUpdateMatchesPlainUpdateForLinearMeasurements) {
 TEST(EkfStateTest, FreeStateKeepsLevelRotation) {
   EkfState state(MotionModel::kFree);
   ASSERT_EQ(state.dim(), 4);
-  const Eigen::Matrix3d R = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
-                             Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY()) *
-                             Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitX())).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
   state.SetLevel(R);  // the yaw part is removed
   ASSERT_EQ(state.Reset(Eigen::Vector4d(1.0, 2.0, 3.0, 0.7), Eigen::Matrix4d::Identity()), StepStatus::kOk);
   const SE3d T = state.T_world_robot();

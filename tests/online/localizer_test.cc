@@ -1,10 +1,10 @@
 #include "online/localizer.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
-
-#include <gtest/gtest.h>
 
 #include "online/chi_square.h"
 #include "tests/online/synthetic_corridor.h"
@@ -18,12 +18,12 @@ using testing::CorridorStep;
 
 // Per-run figures of one localizer on one simulated run.
 struct RunFigures {
-  std::vector<double> nees;        // per odometry step while tracking (-1 when not tracking)
-  std::vector<double> error_m;     // position error per step while tracking (-1 otherwise)
+  std::vector<double> nees;     // per odometry step while tracking (-1 when not tracking)
+  std::vector<double> error_m;  // position error per step while tracking (-1 otherwise)
   std::vector<TrackingStatus> tracking;
-  double rmse_m = 0.0;             // over the steps after the first second of tracking
+  double rmse_m = 0.0;  // over the steps after the first second of tracking
   double heading_rmse_rad = 0.0;
-  long wrong_pose_outputs = 0;     // poses output with an error above 0.5 m
+  long wrong_pose_outputs = 0;  // poses output with an error above 0.5 m
   LocalizerCounters counters;
 };
 
@@ -54,7 +54,8 @@ RunFigures RunLocalizer(const std::vector<CorridorStep>& steps, const CorridorSi
       continue;
     }
     if (!tracking_since_s) tracking_since_s = step.stamp_s;
-    const double error_m = (output.T_world_robot->translation() - step.T_world_robot_true.translation()).norm();
+    const double error_m =
+        (output.T_world_robot->translation() - step.T_world_robot_true.translation()).norm();
     figures.error_m.push_back(error_m);
     figures.nees.push_back(testing::PlanarNees(step.T_world_robot_true, localizer));
     figures.wrong_pose_outputs += error_m > 0.5;
@@ -116,10 +117,12 @@ TEST(LocalizerTest, MonteCarloNeesInsideChiSquareBounds) {
   for (double spacing_m : {1.0, 3.0}) {
     CorridorConfig config;
     config.code_spacing_m = spacing_m;
-    const NeesFigures nees = MonteCarloNees(config, CorridorOptions(config, CorrectionMode::kTightCorners), kRuns);
-    std::printf("MC NEES, codes every %.0f m: %d runs, %d steps, mean NEES %.3f, band [%.3f, %.3f], %.1f %% of "
-                "steps inside\n", spacing_m, kRuns, nees.steps, nees.mean, nees.lower, nees.upper,
-                100.0 * nees.fraction_inside);
+    const NeesFigures nees =
+        MonteCarloNees(config, CorridorOptions(config, CorrectionMode::kTightCorners), kRuns);
+    std::printf(
+        "MC NEES, codes every %.0f m: %d runs, %d steps, mean NEES %.3f, band [%.3f, %.3f], %.1f %% of "
+        "steps inside\n",
+        spacing_m, kRuns, nees.steps, nees.mean, nees.lower, nees.upper, 100.0 * nees.fraction_inside);
     ASSERT_GT(nees.steps, 400);
     EXPECT_GT(nees.mean, nees.lower);
     EXPECT_LT(nees.mean, nees.upper);
@@ -135,8 +138,8 @@ TEST(LocalizerTest, PlainEkfCornerUpdateIsOverconfidentAfterLongGaps) {
   LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
   options.tight_iterations = 1;
   const NeesFigures nees = MonteCarloNees(config, options, 25);
-  std::printf("MC NEES, codes every 3 m, plain EKF update: mean NEES %.3f, %.1f %% of steps inside\n", nees.mean,
-              100.0 * nees.fraction_inside);
+  std::printf("MC NEES, codes every 3 m, plain EKF update: mean NEES %.3f, %.1f %% of steps inside\n",
+              nees.mean, 100.0 * nees.fraction_inside);
   EXPECT_GT(nees.mean, nees.upper);
 }
 
@@ -154,11 +157,11 @@ TEST(LocalizerTest, TightCornersMoreAccurateThanLoosePose) {
     tight_heading += tight.heading_rmse_rad;
     loose_heading += loose.heading_rmse_rad;
   }
-  std::printf("position RMSE: tight %.4f m, loose %.4f m; heading RMSE: tight %.4f rad, loose %.4f rad (%d runs)\n",
-              tight_sum / kRuns, loose_sum / kRuns, tight_heading / kRuns, loose_heading / kRuns, kRuns);
+  std::printf(
+      "position RMSE: tight %.4f m, loose %.4f m; heading RMSE: tight %.4f rad, loose %.4f rad (%d runs)\n",
+      tight_sum / kRuns, loose_sum / kRuns, tight_heading / kRuns, loose_heading / kRuns, kRuns);
   EXPECT_LT(tight_sum, 0.7 * loose_sum);
 }
-
 
 // An uncertain map must not be over-trusted: markers displaced by draws from their stated
 // covariance. With the covariance propagated into pixel space (R = sigma^2 I + J Sigma J^T) the
@@ -201,8 +204,9 @@ TEST(LocalizerTest, MapCovarianceKeepsTheFilterHonest) {
     rmse_with += with.rmse_m / kRuns;
     rmse_without += without.rmse_m / kRuns;
   }
-  std::printf("noisy map (1 cm, 0.3 deg): mean NEES %.2f with map covariance, %.2f without; RMSE %.4f m vs %.4f m\n",
-              nees_with, nees_without, rmse_with, rmse_without);
+  std::printf(
+      "noisy map (1 cm, 0.3 deg): mean NEES %.2f with map covariance, %.2f without; RMSE %.4f m vs %.4f m\n",
+      nees_with, nees_without, rmse_with, rmse_without);
   // A marker's error is the same at every sighting while R treats sightings as independent, so
   // some overconfidence remains (a Schmidt filter over marker poses would remove it): the bound
   // is a factor 3 of the state dimension, not the 95 % band.
@@ -230,7 +234,8 @@ TEST(LocalizerTest, KidnappedRobotIsReportedLostThenRelocalized) {
   ASSERT_GE(first_lost, teleport_step);
   ASSERT_GT(relocalized, first_lost);
   std::printf("kidnapped at step %d, lost at step %d, relocalized at step %d (%.2f s after the kidnapping)\n",
-              teleport_step, first_lost, relocalized, (relocalized - teleport_step) * config.odometry_period_s);
+              teleport_step, first_lost, relocalized,
+              (relocalized - teleport_step) * config.odometry_period_s);
   EXPECT_LT((relocalized - teleport_step) * config.odometry_period_s, 2.0);
   EXPECT_EQ(figures.counters.initializations, 2);
   EXPECT_EQ(figures.counters.times_lost, 1);
@@ -257,9 +262,8 @@ TEST(LocalizerTest, GrowingUncertaintyIsReportedLost) {
 // Runs a localizer until it tracks and returns it with the index of the next step.
 std::pair<std::unique_ptr<Localizer>, size_t> TrackingLocalizer(const std::vector<CorridorStep>& steps,
                                                                 const CorridorSimulator& sim) {
-  auto localizer =
-      std::make_unique<Localizer>(CorridorOptions(sim.config(), CorrectionMode::kTightCorners), sim.map(),
-                                  sim.cameras());
+  auto localizer = std::make_unique<Localizer>(CorridorOptions(sim.config(), CorrectionMode::kTightCorners),
+                                               sim.map(), sim.cameras());
   size_t k = 0;
   for (; k < steps.size() && localizer->counters().accepted < 5; ++k) {
     localizer->AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot);
@@ -287,7 +291,8 @@ TEST(LocalizerTest, GrossOutlierIsGatedOut) {
   ASSERT_EQ(localizer->tracking(), TrackingStatus::kTracking);
   auto [k_frame, frame] = NextFrameWithCode(steps, k);
   for (; k <= k_frame; ++k) localizer->AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot);
-  for (Eigen::Vector2d& corner : frame.sightings[0].observation.corners_px) corner += Eigen::Vector2d(40.0, -25.0);
+  for (Eigen::Vector2d& corner : frame.sightings[0].observation.corners_px)
+    corner += Eigen::Vector2d(40.0, -25.0);
   frame.sightings.resize(1);
   const Eigen::VectorXd mean_before = localizer->state().mean();
   const Eigen::MatrixXd P_before = localizer->state().covariance();
@@ -364,7 +369,8 @@ TEST(LocalizerTest, TracksFromVelocities) {
     for (const CameraFrame& frame : steps[k].frames) localizer.AddFrame(frame);
     const PoseOutput output = localizer.Output();
     if (output.T_world_robot && k > 40) {
-      worst_m = std::max(worst_m, (output.T_world_robot->translation() - steps[k].T_world_robot_true.translation()).norm());
+      worst_m = std::max(
+          worst_m, (output.T_world_robot->translation() - steps[k].T_world_robot_true.translation()).norm());
     }
   }
   EXPECT_EQ(localizer.tracking(), TrackingStatus::kTracking);
@@ -402,7 +408,8 @@ TEST(LocalizerTest, KeepsThePredictionBeforeEachCorrection) {
       const StampedSE3& predicted = localizer.predicted_before_correction().back();
       EXPECT_EQ(predicted.stamp_s, frame.stamp_s);
       predicted_sum_m += (predicted.T.translation() - step.T_world_robot_true.translation()).norm();
-      filtered_sum_m += (localizer.state().T_world_robot().translation() - step.T_world_robot_true.translation()).norm();
+      filtered_sum_m +=
+          (localizer.state().T_world_robot().translation() - step.T_world_robot_true.translation()).norm();
     }
   }
   EXPECT_GT(localizer.predicted_before_correction().size(), 20u);
@@ -435,7 +442,8 @@ TEST(LocalizerTest, AddDetectionsTracksFromRawCorners) {
     }
     const PoseOutput output = localizer.Output();
     if (output.T_world_robot && step.stamp_s > 2.0) {
-      worst_m = std::max(worst_m, (output.T_world_robot->translation() - step.T_world_robot_true.translation()).norm());
+      worst_m = std::max(
+          worst_m, (output.T_world_robot->translation() - step.T_world_robot_true.translation()).norm());
     }
   }
   EXPECT_EQ(localizer.tracking(), TrackingStatus::kTracking);

@@ -1,7 +1,8 @@
 #include "online/marker_measurement.h"
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
 
 #include "tests/online/jacobian_check.h"
 #include "tests/online/synthetic_corridor.h"
@@ -28,9 +29,10 @@ Matrix6d SomeMarkerCovariance() {
 }
 
 TEST(MarkerMeasurementTest, YawJacobianWorldMatchesCentralDifferences) {
-  const Eigen::Matrix3d R = (Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()) *
-                             Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()) *
-                             Eigen::AngleAxisd(-0.4, Eigen::Vector3d::UnitX())).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(-0.4, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
   const auto yaw = [&](const Eigen::VectorXd& phi) -> Eigen::VectorXd {
     const Eigen::Matrix3d Rp = ExpSO3(phi).toRotationMatrix() * R;
     return Eigen::VectorXd::Constant(1, std::atan2(Rp(1, 0), Rp(0, 0)));
@@ -44,10 +46,12 @@ TEST(MarkerMeasurementTest, CornerJacobiansMatchCentralDifferences) {
   const MapMarker marker = LeftWallMarker();
   for (MotionModel motion : {MotionModel::kPlanar, MotionModel::kFree}) {
     EkfState state(motion);
-    const Eigen::VectorXd x = motion == MotionModel::kPlanar ? Eigen::VectorXd(Eigen::Vector3d(1.4, 0.05, 0.1))
-                                                             : Eigen::VectorXd(Eigen::Vector4d(1.4, 0.05, 0.02, 0.1));
+    const Eigen::VectorXd x = motion == MotionModel::kPlanar
+                                  ? Eigen::VectorXd(Eigen::Vector3d(1.4, 0.05, 0.1))
+                                  : Eigen::VectorXd(Eigen::Vector4d(1.4, 0.05, 0.02, 0.1));
     state.SetLevel((Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY()) *
-                    Eigen::AngleAxisd(-0.03, Eigen::Vector3d::UnitX())).toRotationMatrix());
+                    Eigen::AngleAxisd(-0.03, Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix());
     ASSERT_EQ(state.Reset(x, Eigen::MatrixXd::Identity(x.size(), x.size())), StepStatus::kOk);
     const std::optional<CornerPrediction> prediction = PredictCorners(state, camera, marker);
     ASSERT_TRUE(prediction);
@@ -79,18 +83,21 @@ TEST(MarkerMeasurementTest, RobotPoseFromCodeCovarianceMatchesCentralDifferences
   for (MotionModel motion : {MotionModel::kPlanar, MotionModel::kFree}) {
     const Eigen::VectorXd x0 = PoseToStateVector(T_world_robot, motion);
     const auto f_code = [&](const Eigen::VectorXd& delta) -> Eigen::VectorXd {
-      const SE3d T = marker.T_world_marker * T_camera_marker.BoxPlus(delta).inverse() * info.T_robot_camera.inverse();
+      const SE3d T =
+          marker.T_world_marker * T_camera_marker.BoxPlus(delta).inverse() * info.T_robot_camera.inverse();
       return PoseToStateVector(T, motion);
     };
     const auto f_map = [&](const Eigen::VectorXd& eps) -> Eigen::VectorXd {
-      const SE3d T = marker.T_world_marker.BoxPlus(eps) * T_camera_marker.inverse() * info.T_robot_camera.inverse();
+      const SE3d T =
+          marker.T_world_marker.BoxPlus(eps) * T_camera_marker.inverse() * info.T_robot_camera.inverse();
       return PoseToStateVector(T, motion);
     };
     const Eigen::MatrixXd J_code = NumericJacobian(f_code, Vector6d::Zero(), 1e-6, WrapLast);
     const Eigen::MatrixXd J_map = NumericJacobian(f_map, Vector6d::Zero(), 1e-6, WrapLast);
     const Matrix6d Sigma_code = SomeMarkerCovariance();
     marker.covariance = SomeMarkerCovariance();
-    const CodeRobotPose code = RobotPoseFromCode(marker, T_camera_marker, Sigma_code, info.T_robot_camera, motion);
+    const CodeRobotPose code =
+        RobotPoseFromCode(marker, T_camera_marker, Sigma_code, info.T_robot_camera, motion);
     EXPECT_LT((PoseToStateVector(code.T_world_robot, motion) - x0).norm(), 1e-12);
     const Eigen::MatrixXd expected =
         J_code * Sigma_code * J_code.transpose() + J_map * (*marker.covariance) * J_map.transpose();

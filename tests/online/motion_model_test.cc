@@ -51,7 +51,8 @@ TEST(MotionModelTest, UnicycleMatchesSeed000AndItsJacobians) {
     return PredictUnicycle(x, uu(0) / dt, uu(1) / dt, dt, noise).mean;
   };
   EXPECT_LT((p.F - NumericJacobian(f_x, x, 1e-6, WrapLast)).norm(), kTolerance);
-  EXPECT_LT((p.G - NumericJacobian(f_u, Eigen::Vector2d(v * dt, omega * dt), 1e-7, WrapLast)).norm(), kTolerance);
+  EXPECT_LT((p.G - NumericJacobian(f_u, Eigen::Vector2d(v * dt, omega * dt), 1e-7, WrapLast)).norm(),
+            kTolerance);
 }
 
 TEST(MotionModelTest, FreeIncrementJacobiansMatchCentralDifferences) {
@@ -60,8 +61,9 @@ TEST(MotionModelTest, FreeIncrementJacobiansMatchCentralDifferences) {
       (Eigen::AngleAxisd(0.15, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(-0.1, Eigen::Vector3d::UnitX()))
           .toRotationMatrix();
   const Eigen::Vector4d x(1.0, 2.0, 1.5, 0.8);
-  const SE3d increment(Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())),
-                       Eigen::Vector3d(0.1, 0.02, -0.03));
+  const SE3d increment(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d(0.2, -0.3, 1.0).normalized())),
+      Eigen::Vector3d(0.1, 0.02, -0.03));
   const MotionPrediction p = PredictFreeIncrement(x, R_level, increment, noise);
   const auto f_x = [&](const Eigen::VectorXd& xx) -> Eigen::VectorXd {
     return PredictFreeIncrement(xx, R_level, increment, noise).mean;
@@ -74,9 +76,9 @@ TEST(MotionModelTest, FreeIncrementJacobiansMatchCentralDifferences) {
   EXPECT_LT((p.F - NumericJacobian(f_x, x, 1e-6, WrapLast)).norm(), kTolerance);
   EXPECT_LT((p.G - NumericJacobian(f_u, Eigen::VectorXd::Zero(6), 1e-6, WrapLast)).norm(), kTolerance);
   // The mean is the composition T_world_robot * increment.
-  const SE3d T_world_robot(Eigen::Matrix3d(Eigen::AngleAxisd(x(3), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                                           R_level),
-                           Eigen::Vector3d(x.head<3>()));
+  const SE3d T_world_robot(
+      Eigen::Matrix3d(Eigen::AngleAxisd(x(3), Eigen::Vector3d::UnitZ()).toRotationMatrix() * R_level),
+      Eigen::Vector3d(x.head<3>()));
   const SE3d composed = T_world_robot * increment;
   EXPECT_LT((p.mean.head<3>() - composed.translation()).norm(), 1e-12);
   EXPECT_NEAR(p.mean(3), composed.yaw(), 1e-12);

@@ -6,13 +6,12 @@
 // The single-image pose of each sighting comes from core/marker_pose (MakeCodeSighting).
 #pragma once
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <Eigen/Cholesky>
 
 #include "core/camera.h"
 #include "core/geometry.h"
@@ -25,7 +24,7 @@ namespace waymark::testing {
 
 struct CorridorConfig {
   double length_m = 12.0;
-  double half_width_m = 0.5;      // codes 0.5 m from the robot's centre line (seed 000: 0.2-0.8 m)
+  double half_width_m = 0.5;  // codes 0.5 m from the robot's centre line (seed 000: 0.2-0.8 m)
   double code_spacing_m = 1.0;
   double code_size_m = 0.10;
   double camera_height_m = 0.3;
@@ -68,8 +67,8 @@ inline MarkerMap CorridorMap(const CorridorConfig& config) {
       marker.key = {kFamilyQr, "code-" + std::to_string(id++)};
       marker.size_m = config.code_size_m;
       const double y = left ? config.half_width_m : -config.half_width_m;
-      marker.T_world_marker = SE3d(left ? R_left : R_right, Eigen::Vector3d(x + (left ? 0.0 : 0.5), y,
-                                                                             config.camera_height_m));
+      marker.T_world_marker =
+          SE3d(left ? R_left : R_right, Eigen::Vector3d(x + (left ? 0.0 : 0.5), y, config.camera_height_m));
       map.markers.push_back(marker);
     }
   }
@@ -119,7 +118,8 @@ class CorridorSimulator {
       const SE2d truth_path = CorridorTruth(config_, k * step_m);
       const SE2d increment = previous_truth.inverse() * truth_path;
       previous_truth = truth_path;
-      const MotionPrediction noise = PredictPlanarIncrement(Eigen::Vector3d::Zero(), increment, config_.odometry);
+      const MotionPrediction noise =
+          PredictPlanarIncrement(Eigen::Vector3d::Zero(), increment, config_.odometry);
       const SE2d noisy(increment.x() + std::sqrt(noise.Qu(0, 0)) * normal(rng_),
                        increment.y() + std::sqrt(noise.Qu(1, 1)) * normal(rng_),
                        increment.theta() + std::sqrt(noise.Qu(2, 2)) * normal(rng_));
