@@ -198,7 +198,7 @@ std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates)
 }
 
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, double budget_ms,
+                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, const FrameBudget& budget,
                    std::vector<MarkerObservation>* found) {
   for (const cv::Rect& region : regions) {
     if (region.width < 8 || region.height < 8) continue;
@@ -207,7 +207,7 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
     if (covered) continue;
     const cv::Mat crop = gray(region);
     for (const CropAttempt& attempt : attempts) {
-      if (clock.ElapsedMs() >= budget_ms) return;
+      if (clock.ElapsedMs() >= budget.For(*found)) return;
       std::vector<MarkerObservation> decoded = attempt(crop);
       if (decoded.empty()) continue;
       MapFromCrop(region.tl(), 1.0, &decoded);

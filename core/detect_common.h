@@ -77,11 +77,18 @@ using CropAttempt = std::function<std::vector<MarkerObservation>(const cv::Mat& 
 
 class FrameClock;
 
+// The CPU budget in force: `empty_ms` while nothing is decoded, `with_codes_ms` after.
+struct FrameBudget {
+  double empty_ms;
+  double with_codes_ms;
+  double For(const std::vector<MarkerObservation>& found) const { return found.empty() ? empty_ms : with_codes_ms; }
+};
+
 // For each region holding no code of `found` yet, runs `attempts` in order on the crop
 // until one decodes something (appended to *found in full-image pixels), while
-// clock.ElapsedMs() < budget_ms (checked before every attempt).
+// clock.ElapsedMs() < budget.For(*found) (checked before every attempt).
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, double budget_ms,
+                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, const FrameBudget& budget,
                    std::vector<MarkerObservation>* found);
 
 // The last step of every detector: refines each quad (if options.refine_corners; the

@@ -49,18 +49,19 @@ class DataMatrixDetector : public MarkerDetector {
     std::vector<MarkerObservation> found;
     const std::vector<CropAttempt> first = {
         [](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); }};
-    RunSecondPass(gray, regions, first, clock, std::numeric_limits<double>::infinity(), &found);
+    const double unlimited = std::numeric_limits<double>::infinity();
+    RunSecondPass(gray, regions, first, clock, {unlimited, unlimited}, &found);
     if (options_.second_pass) {
-      const double budget_ms = options_.time_budget_ms;
+      const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
       const std::vector<CropAttempt> second = {
-          [&clock, budget_ms](const cv::Mat& crop) {
-            const double left_ms = budget_ms - clock.ElapsedMs();
+          [&clock, &budget, &found](const cv::Mat& crop) {
+            const double left_ms = budget.For(found) - clock.ElapsedMs();
             if (left_ms < kMinDmtxTimeoutMs) return std::vector<MarkerObservation>{};
             return ReadWithLibdmtx(crop, left_ms);
           },
           [](const cv::Mat& crop) { return ReadUpscaled(crop); },
       };
-      RunSecondPass(gray, regions, second, clock, budget_ms, &found);
+      RunSecondPass(gray, regions, second, clock, budget, &found);
     }
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
   }

@@ -19,6 +19,7 @@ bool DetectorOptions::Check(std::string* why) const {
   };
   if (!(min_side_px >= 1.0)) return fail("min_side_px must be >= 1");
   if (!(time_budget_ms >= 0.0)) return fail("time_budget_ms must be >= 0");
+  if (!(time_budget_with_codes_ms >= 0.0)) return fail("time_budget_with_codes_ms must be >= 0");
   if (max_candidates < 0) return fail("max_candidates must be >= 0");
   if (!(apriltag_decimate >= 1.0)) return fail("apriltag_decimate must be >= 1");
   if (!(apriltag_blur_sigma >= 0.0)) return fail("apriltag_blur_sigma must be >= 0");

@@ -23,7 +23,7 @@ class QrDetector : public MarkerDetector {
     const FrameClock clock;
     const cv::Mat gray = ToGray8(image);
     std::vector<MarkerObservation> found = ReadWithZxing(gray, ZxingSymbology::kQrCode, ZxingPass{});
-    if (options_.second_pass && clock.ElapsedMs() < options_.time_budget_ms) {
+    if (options_.second_pass) {
       const std::vector<CropAttempt> attempts = {
           [](const cv::Mat& crop) { return ReadInverted(crop); },
           [](const cv::Mat& crop) { return ReadUpscaled(crop); },
@@ -35,7 +35,7 @@ class QrDetector : public MarkerDetector {
           },
       };
       RunSecondPass(gray, SecondPassRegions(gray, options_.max_candidates), attempts, clock,
-                    options_.time_budget_ms, &found);
+                    {options_.time_budget_ms, options_.time_budget_with_codes_ms}, &found);
     }
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
   }

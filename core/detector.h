@@ -43,6 +43,9 @@ struct DetectorOptions {
   // attempt; CPU time, so that machine load does not change what is found).
   bool second_pass = true;
   double time_budget_ms = 8.0;
+  // The budget once the frame has a decoded code of the family (a frame with codes in it
+  // is worth more time than an empty one).
+  double time_budget_with_codes_ms = 24.0;
   int max_candidates = 8;  // candidate regions tried per frame, best score first
 
   // AprilTag (libapriltag's apriltag_detector_t fields).
