@@ -18,13 +18,12 @@
 // (an initialization from each marker's single-view pose satisfies this).
 #pragma once
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "core/camera.h"
 #include "core/types.h"
@@ -37,8 +36,8 @@ class CornerObservation {
  public:
   // Throws std::invalid_argument on a malformed camera, a size_m or sigma_px that is not finite
   // and > 0, or a non-finite corner.
-  CornerObservation(const CameraInfo& camera, double size_m,
-                    const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
+  CornerObservation(const CameraInfo& camera, double size_m, const std::array<Eigen::Vector2d, 4>& corners_px,
+                    double sigma_px)
       : model_(camera.model),
         intrinsics_(CheckedIntrinsics(camera)),
         distortion_(CheckedDistortion(camera)),
@@ -102,7 +101,7 @@ class CornerObservation {
     return size_m;
   }
   static std::array<Eigen::Vector2d, 4> CheckedCorners(const CameraInfo& camera,
-                                                      const std::array<Eigen::Vector2d, 4>& corners_px) {
+                                                       const std::array<Eigen::Vector2d, 4>& corners_px) {
     for (const Eigen::Vector2d& corner : corners_px) {
       if (!corner.allFinite()) throw std::invalid_argument(Where(camera) + ": non-finite corner");
     }

@@ -17,10 +17,10 @@
 // Behind the camera: returns false (see factors/corner_observation.h for why).
 #pragma once
 
-#include <array>
+#include <ceres/autodiff_cost_function.h>
 
 #include <Eigen/Core>
-#include <ceres/autodiff_cost_function.h>
+#include <array>
 
 #include "core/types.h"
 #include "factors/corner_observation.h"

@@ -18,11 +18,10 @@
 // state odometry_sigma per increment of their own odometry stream.
 #pragma once
 
+#include <Eigen/Core>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "core/geometry.h"
 #include "core/types.h"

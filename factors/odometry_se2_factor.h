@@ -14,10 +14,10 @@
 // Always returns true.
 #pragma once
 
-#include <cmath>
+#include <ceres/autodiff_cost_function.h>
 
 #include <Eigen/Core>
-#include <ceres/autodiff_cost_function.h>
+#include <cmath>
 
 #include "core/geometry.h"
 #include "factors/pose_block.h"
@@ -29,7 +29,8 @@ class OdometrySE2Factor {
  public:
   // Throws std::invalid_argument if `covariance` is not finite, symmetric and positive definite.
   OdometrySE2Factor(const SE2d& T_a_b_measured, const Eigen::Matrix3d& covariance)
-      : T_a_b_measured_(T_a_b_measured), sqrt_information_(SqrtInformation<3>(covariance, "odometry SE(2) factor")) {}
+      : T_a_b_measured_(T_a_b_measured),
+        sqrt_information_(SqrtInformation<3>(covariance, "odometry SE(2) factor")) {}
 
   template <typename T>
   bool operator()(const T* const T_world_robot_a, const T* const T_world_robot_b, T* residuals) const {

@@ -14,8 +14,9 @@
 // Always returns true.
 #pragma once
 
-#include <Eigen/Core>
 #include <ceres/autodiff_cost_function.h>
+
+#include <Eigen/Core>
 
 #include "core/geometry.h"
 #include "factors/pose_block.h"
@@ -27,7 +28,8 @@ class OdometrySE3Factor {
  public:
   // Throws std::invalid_argument if `covariance` is not finite, symmetric and positive definite.
   OdometrySE3Factor(const SE3d& T_a_b_measured, const Matrix6d& covariance)
-      : T_a_b_measured_(T_a_b_measured), sqrt_information_(SqrtInformation<6>(covariance, "odometry SE(3) factor")) {}
+      : T_a_b_measured_(T_a_b_measured),
+        sqrt_information_(SqrtInformation<6>(covariance, "odometry SE(3) factor")) {}
 
   template <typename T>
   bool operator()(const T* const T_world_robot_a, const T* const T_world_robot_b, T* residuals) const {

@@ -12,10 +12,10 @@
 // Behind the camera: returns false (see factors/corner_observation.h for why).
 #pragma once
 
-#include <array>
+#include <ceres/autodiff_cost_function.h>
 
 #include <Eigen/Core>
-#include <ceres/autodiff_cost_function.h>
+#include <array>
 
 #include "core/types.h"
 #include "factors/corner_observation.h"
@@ -28,11 +28,13 @@ class PlanarMarkerReprojectionFactor {
   // Throws std::invalid_argument on bad input (see CornerObservation).
   PlanarMarkerReprojectionFactor(const CameraInfo& camera, double size_m,
                                  const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
-      : observation_(camera, size_m, corners_px, sigma_px), T_camera_robot_(camera.T_robot_camera.inverse()) {}
+      : observation_(camera, size_m, corners_px, sigma_px),
+        T_camera_robot_(camera.T_robot_camera.inverse()) {}
 
   template <typename T>
   bool operator()(const T* const T_world_robot, const T* const T_world_marker, T* residuals) const {
-    const SE3T<T> T_camera_world = SE3TFromSE3<T>(T_camera_robot_) * SE3TFromSE2Block(T_world_robot).inverse();
+    const SE3T<T> T_camera_world =
+        SE3TFromSE3<T>(T_camera_robot_) * SE3TFromSE2Block(T_world_robot).inverse();
     return observation_.Residuals(T_camera_world * SE3TFromBlock(T_world_marker), residuals);
   }
 

@@ -21,12 +21,12 @@
 // ManifoldToBodyTangentJacobian, delta = J m, J = blockdiag(2 R^T, R^T), Sigma = J Sigma_m J^T.
 #pragma once
 
-#include <cmath>
+#include <ceres/manifold.h>
+#include <ceres/product_manifold.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
-#include <ceres/manifold.h>
-#include <ceres/product_manifold.h>
+#include <cmath>
 
 #include "core/geometry.h"
 

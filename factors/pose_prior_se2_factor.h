@@ -11,10 +11,10 @@
 // Always returns true.
 #pragma once
 
-#include <cmath>
+#include <ceres/autodiff_cost_function.h>
 
 #include <Eigen/Core>
-#include <ceres/autodiff_cost_function.h>
+#include <cmath>
 
 #include "core/geometry.h"
 #include "factors/pose_block.h"
@@ -31,7 +31,8 @@ class PosePriorSE2Factor {
 
   template <typename T>
   bool operator()(const T* const T_world_robot, T* residuals) const {
-    const double cos_p = std::cos(T_world_robot_prior_.theta()), sin_p = std::sin(T_world_robot_prior_.theta());
+    const double cos_p = std::cos(T_world_robot_prior_.theta()),
+                 sin_p = std::sin(T_world_robot_prior_.theta());
     const T dx_world = T_world_robot[0] - T(T_world_robot_prior_.x());
     const T dy_world = T_world_robot[1] - T(T_world_robot_prior_.y());
     Eigen::Matrix<T, 3, 1> delta;

@@ -11,8 +11,9 @@
 // Always returns true.
 #pragma once
 
-#include <Eigen/Core>
 #include <ceres/autodiff_cost_function.h>
+
+#include <Eigen/Core>
 
 #include "core/geometry.h"
 #include "factors/pose_block.h"
@@ -24,11 +25,13 @@ class PosePriorSE3Factor {
  public:
   // Throws std::invalid_argument if `covariance` is not finite, symmetric and positive definite.
   PosePriorSE3Factor(const SE3d& T_world_x_prior, const Matrix6d& covariance)
-      : T_world_x_prior_(T_world_x_prior), sqrt_information_(SqrtInformation<6>(covariance, "SE(3) pose prior")) {}
+      : T_world_x_prior_(T_world_x_prior),
+        sqrt_information_(SqrtInformation<6>(covariance, "SE(3) pose prior")) {}
 
   template <typename T>
   bool operator()(const T* const T_world_x, T* residuals) const {
-    const Eigen::Matrix<T, 6, 1> delta = BoxMinusT(SE3TFromSE3<T>(T_world_x_prior_), SE3TFromBlock(T_world_x));
+    const Eigen::Matrix<T, 6, 1> delta =
+        BoxMinusT(SE3TFromSE3<T>(T_world_x_prior_), SE3TFromBlock(T_world_x));
     Eigen::Map<Eigen::Matrix<T, 6, 1>> whitened(residuals);
     whitened = sqrt_information_.template cast<T>() * delta;
     return true;

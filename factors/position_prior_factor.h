@@ -11,10 +11,10 @@
 // Always returns true.
 #pragma once
 
-#include <stdexcept>
+#include <ceres/autodiff_cost_function.h>
 
 #include <Eigen/Core>
-#include <ceres/autodiff_cost_function.h>
+#include <stdexcept>
 
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
@@ -32,7 +32,8 @@ class PositionPriorFactor {
   // Throws std::invalid_argument if p_world is not finite or `covariance` is not finite,
   // symmetric and positive definite.
   PositionPriorFactor(const VectorD& p_world, const MatrixD& covariance)
-      : p_world_(CheckedPosition(p_world)), sqrt_information_(SqrtInformation<kDim>(covariance, "position prior")) {}
+      : p_world_(CheckedPosition(p_world)),
+        sqrt_information_(SqrtInformation<kDim>(covariance, "position prior")) {}
 
   template <typename T>
   bool operator()(const T* const T_world_x, T* residuals) const {

@@ -7,13 +7,12 @@
 // information, Info = L L^T, as L r; that equals r^T Info r only when Info is diagonal.)
 #pragma once
 
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
 
 namespace waymark {
 

@@ -12,11 +12,11 @@
 //   T_world_x [qx qy qz qw tx ty tz]
 #pragma once
 
+#include <ceres/autodiff_cost_function.h>
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <ceres/autodiff_cost_function.h>
 
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
@@ -47,7 +47,8 @@ class YawPriorFactor {
   }
 
   static ceres::CostFunction* Create(double yaw_rad, double sigma_rad) {
-    return new ceres::AutoDiffCostFunction<YawPriorFactor, 1, kSE3BlockSize>(new YawPriorFactor(yaw_rad, sigma_rad));
+    return new ceres::AutoDiffCostFunction<YawPriorFactor, 1, kSE3BlockSize>(
+        new YawPriorFactor(yaw_rad, sigma_rad));
   }
 
  private:

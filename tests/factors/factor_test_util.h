@@ -3,18 +3,18 @@
 // manifolds the solver uses.
 #pragma once
 
+#include <ceres/cost_function.h>
+#include <ceres/gradient_checker.h>
+#include <ceres/manifold.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <ceres/cost_function.h>
-#include <ceres/gradient_checker.h>
-#include <ceres/manifold.h>
-#include <gtest/gtest.h>
 
 #include "core/camera.h"
 #include "core/geometry.h"
@@ -89,14 +89,16 @@ inline bool ProjectCorners(const CameraInfo& camera, const SE3d& T_camera_marker
 // camera within ~0.6 rad.
 inline SE3d RandomVisibleMarker(std::mt19937& rng) {
   std::uniform_real_distribution<double> depth(0.5, 3.0);
-  const Eigen::Vector3d p_camera = Eigen::Vector3d(RandomVector(rng, 0.3).head<2>().homogeneous()) * depth(rng);
+  const Eigen::Vector3d p_camera =
+      Eigen::Vector3d(RandomVector(rng, 0.3).head<2>().homogeneous()) * depth(rng);
   // Facing the camera: marker z towards -camera z, then a random tilt.
   const Eigen::Quaterniond facing(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
   return SE3d(facing * ExpSO3(RandomVector(rng, 0.35)), p_camera);
 }
 
 // Runs ceres::GradientChecker with `manifolds` (nullptr = Euclidean) at `parameters`.
-inline void ExpectGradientsMatch(const ceres::CostFunction& cost, const std::vector<const ceres::Manifold*>& manifolds,
+inline void ExpectGradientsMatch(const ceres::CostFunction& cost,
+                                 const std::vector<const ceres::Manifold*>& manifolds,
                                  const std::vector<const double*>& parameters, double relative_precision,
                                  const std::string& what) {
   // Ridders' first step is 2^5 times the relative step (0.32 |x| by default): large enough to push

@@ -1,12 +1,12 @@
 // Tests of the SE(2) and SE(3) odometry between-factors and of the covariance helper:
 // hand-computed residuals, zero at the truth, angle wrapping, whitening with a non-diagonal
 // covariance, Jacobians against ceres::GradientChecker under the real manifolds, bad input.
+#include <gtest/gtest.h>
+
 #include <array>
 #include <memory>
 #include <random>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 #include "factors/odometry_covariance.h"
 #include "factors/odometry_se2_factor.h"
@@ -108,10 +108,12 @@ TEST(OdometryFactors, GradientCheckTenRandomStates) {
     // from its +-pi cut; block angles are unwrapped by multiples of 2 pi.
     const SE2d T_world_a(coordinate(rng), coordinate(rng), angle(rng));
     const SE2d measured_2d(coordinate(rng), coordinate(rng), angle(rng));
-    const SE2d T_world_b = T_world_a * measured_2d * SE2d(0.3 * angle(rng), 0.3 * angle(rng), 0.8 * angle(rng));
+    const SE2d T_world_b =
+        T_world_a * measured_2d * SE2d(0.3 * angle(rng), 0.3 * angle(rng), 0.8 * angle(rng));
     double a2[3] = {T_world_a.x(), T_world_a.y(), T_world_a.theta() + 2 * M_PI * (trial % 3)};
     double b2[3] = {T_world_b.x(), T_world_b.y(), T_world_b.theta() - 2 * M_PI * (trial % 2)};
-    const std::unique_ptr<ceres::CostFunction> se2_cost(OdometrySE2Factor::Create(measured_2d, covariance_2d));
+    const std::unique_ptr<ceres::CostFunction> se2_cost(
+        OdometrySE2Factor::Create(measured_2d, covariance_2d));
     testing::ExpectGradientsMatch(*se2_cost, {nullptr, nullptr}, {a2, b2}, 1e-6, "SE(2)");
 
     double a3[7], b3[7];

@@ -2,11 +2,11 @@
 // core/geometry.h), of the manifold-to-body tangent conversion, and of SqrtInformation.
 #include "factors/pose_block.h"
 
-#include <random>
-#include <stdexcept>
-
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
+
+#include <random>
+#include <stdexcept>
 
 #include "factors/sqrt_information.h"
 #include "tests/factors/factor_test_util.h"
@@ -87,7 +87,8 @@ TEST(PoseBlock, ManifoldToBodyTangentJacobianMatchesTheManifold) {
     const SE3d T = testing::RandomSE3(rng, 4.0);
     double block[7], stepped[7];
     SE3ToBlock(T, block);
-    const Vector6d m = (Vector6d() << testing::RandomVector(rng, 1.0), testing::RandomVector(rng, 1.0)).finished() * 1e-6;
+    const Vector6d m =
+        (Vector6d() << testing::RandomVector(rng, 1.0), testing::RandomVector(rng, 1.0)).finished() * 1e-6;
     ASSERT_TRUE(manifold.Plus(block, m.data(), stepped));
     const Vector6d delta_body = T.BoxMinus(SE3FromBlock(stepped));
     const Vector6d predicted = ManifoldToBodyTangentJacobian(T) * m;

@@ -1,12 +1,12 @@
 // Tests of the pose priors: SE(3) with a full covariance, SE(2), position-only (x, y and
 // x, y, z) and yaw. Hand-computed residuals, zero at the prior, Jacobians against
 // ceres::GradientChecker under the real manifolds at ten random states each, bad input.
+#include <gtest/gtest.h>
+
 #include <array>
 #include <memory>
 #include <random>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 #include "factors/pose_block.h"
 #include "factors/pose_prior_se2_factor.h"
@@ -48,7 +48,8 @@ TEST(PosePriorSE2Factor, NominalHandComputed) {
   // Prior (1, 1, 90 deg); block (1, 1.5, 90 deg - 0.2 + 2 pi): delta = (0.5, 0, -0.2);
   // sigmas 0.25 m and 0.1 rad give r = (2, 0, -2).
   const Eigen::Matrix3d covariance = Eigen::Vector3d(0.0625, 0.0625, 0.01).asDiagonal();
-  const std::unique_ptr<ceres::CostFunction> cost(PosePriorSE2Factor::Create(SE2d(1.0, 1.0, M_PI / 2), covariance));
+  const std::unique_ptr<ceres::CostFunction> cost(
+      PosePriorSE2Factor::Create(SE2d(1.0, 1.0, M_PI / 2), covariance));
   double block[3] = {1.0, 1.5, M_PI / 2 - 0.2 + 2 * M_PI};
   const double* parameters[] = {block};
   std::array<double, 3> residuals = {kNaN, kNaN, kNaN};
@@ -63,7 +64,8 @@ TEST(PositionPriorFactor, NominalHandComputed) {
   SE3ToBlock(SE3d(testing::ForwardCameraRotation(0.3), Eigen::Vector3d(4.0, -1.0, 2.5)), block);
   const double* parameters[] = {block};
   // x, y only: (4 - 3.8, -1 - (-1.1)) / 0.05 = (4, 2); z is free.
-  const std::unique_ptr<ceres::CostFunction> xy(PositionPriorXYFactor::Create(Eigen::Vector2d(3.8, -1.1), 0.05));
+  const std::unique_ptr<ceres::CostFunction> xy(
+      PositionPriorXYFactor::Create(Eigen::Vector2d(3.8, -1.1), 0.05));
   std::array<double, 2> residuals_xy = {kNaN, kNaN};
   ASSERT_TRUE(xy->Evaluate(parameters, residuals_xy.data(), nullptr));
   EXPECT_NEAR(residuals_xy[0], 4.0, 1e-12);
@@ -95,7 +97,8 @@ TEST(YawPriorFactor, NominalHandComputed) {
   ASSERT_TRUE(cost->Evaluate(parameters, &residual, nullptr));
   EXPECT_NEAR(residual, -2.0, 1e-12);
   // Undefined yaw: the x axis vertical.
-  SE3ToBlock(SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero()),
+  SE3ToBlock(SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
+                  Eigen::Vector3d::Zero()),
              block);
   EXPECT_FALSE(cost->Evaluate(parameters, &residual, nullptr));
 }
@@ -122,8 +125,9 @@ TEST(PriorFactors, GradientCheckTenRandomStates) {
     testing::ExpectGradientsMatch(*xyz, {&se3}, {block}, 1e-6, "xyz prior");
     // Yaw: the block's yaw within 2.5 rad of the prior (away from the +-pi cut).
     const double yaw_prior = angle(rng);
-    const Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(yaw_prior + 0.8 * angle(rng), Eigen::Vector3d::UnitZ())) *
-                                 ExpSO3(testing::RandomVector(rng, 0.6));
+    const Eigen::Quaterniond q =
+        Eigen::Quaterniond(Eigen::AngleAxisd(yaw_prior + 0.8 * angle(rng), Eigen::Vector3d::UnitZ())) *
+        ExpSO3(testing::RandomVector(rng, 0.6));
     SE3ToBlock(SE3d(q, testing::RandomVector(rng, 5.0)), block);
     const std::unique_ptr<ceres::CostFunction> yaw(YawPriorFactor::Create(yaw_prior, 0.1));
     testing::ExpectGradientsMatch(*yaw, {&se3}, {block}, 1e-6, "yaw prior");

@@ -1,13 +1,13 @@
 // Tests of the three marker-corner reprojection factors: hand-computed residuals, zero at the
 // truth for both camera models, behaviour behind the camera, bad input, and Jacobians against
 // ceres::GradientChecker under SE3Manifold at ten random states per factor and camera model.
+#include <gtest/gtest.h>
+
 #include <array>
 #include <memory>
 #include <random>
 #include <stdexcept>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "factors/extrinsic_marker_reprojection_factor.h"
 #include "factors/marker_reprojection_factor.h"
@@ -77,8 +77,9 @@ TEST(PlanarMarkerReprojectionFactor, NominalHandComputed) {
   CameraInfo camera = SimpleCamera();
   camera.T_robot_camera = SE3d(camera.T_robot_camera.rotation(), Eigen::Vector3d(0.0, 0.0, 0.3));
   const SE3d T_world_robot = SE2d(0.0, -2.0, M_PI / 2).ToSE3();
-  const SE3d T_world_marker =
-      T_world_robot * SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0.3)) * MarkerAheadOfIdentityRobot();
+  const SE3d T_world_marker = T_world_robot *
+                              SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0.3)) *
+                              MarkerAheadOfIdentityRobot();
   const std::unique_ptr<ceres::CostFunction> cost(
       PlanarMarkerReprojectionFactor::Create(camera, kSizeM, ObservedCorners(), kSigmaPx));
   double robot[3] = {0.0, -2.0, M_PI / 2 + 2 * M_PI};  // an unwrapped angle is the same pose
@@ -148,9 +149,9 @@ TEST_P(ReprojectionByModel, ZeroAtTheTruth) {
     const double* free_parameters[] = {robot, marker};
     const double* planar_parameters[] = {robot_2d, marker};
     const double* extrinsic_parameters[] = {robot, extrinsic, marker};
-    for (auto [cost, parameters] : {std::pair{free_cost.get(), free_parameters},
-                                    std::pair{planar_cost.get(), planar_parameters},
-                                    std::pair{extrinsic_cost.get(), extrinsic_parameters}}) {
+    for (auto [cost, parameters] :
+         {std::pair{free_cost.get(), free_parameters}, std::pair{planar_cost.get(), planar_parameters},
+          std::pair{extrinsic_cost.get(), extrinsic_parameters}}) {
       Eigen::Matrix<double, 8, 1> residuals = Eigen::Matrix<double, 8, 1>::Constant(kNaN);
       ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
       EXPECT_LT(residuals.cwiseAbs().maxCoeff(), 1e-6) << "trial " << trial;
@@ -204,9 +205,10 @@ TEST_P(ReprojectionByModel, BehindTheCameraReturnsFalseAndLeavesResiduals) {
   EXPECT_FALSE(cost->Evaluate(parameters, residuals.data(), nullptr));
   for (double r : residuals) EXPECT_TRUE(std::isnan(r));
   // A marker straddling the camera plane (one corner behind) is rejected too.
-  SE3ToBlock(camera.T_robot_camera * SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
-                                          Eigen::Vector3d(0.0, 0.0, 0.05)),
-             marker);
+  SE3ToBlock(
+      camera.T_robot_camera * SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
+                                   Eigen::Vector3d(0.0, 0.0, 0.05)),
+      marker);
   EXPECT_FALSE(cost->Evaluate(parameters, residuals.data(), nullptr));
 }
 
@@ -228,7 +230,8 @@ TEST(MarkerReprojectionFactor, RejectsBadInput) {
   EXPECT_THROW(MarkerReprojectionFactor(camera, kSizeM, nan_corners, kSigmaPx), std::invalid_argument);
   CameraInfo short_distortion = camera;
   short_distortion.distortion.pop_back();
-  EXPECT_THROW(PlanarMarkerReprojectionFactor(short_distortion, kSizeM, corners, kSigmaPx), std::invalid_argument);
+  EXPECT_THROW(PlanarMarkerReprojectionFactor(short_distortion, kSizeM, corners, kSigmaPx),
+               std::invalid_argument);
   CameraInfo equidistant_with_radtan = camera;
   equidistant_with_radtan.model = CameraModel::kPinholeEquidistant;  // needs 4 coefficients, has 5
   EXPECT_THROW(ExtrinsicMarkerReprojectionFactor(equidistant_with_radtan, kSizeM, corners, kSigmaPx),

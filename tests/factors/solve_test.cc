@@ -5,14 +5,14 @@
 //  - Free: SE(3) robot, radtan camera, one anchor marker held constant (the gauge).
 //  - Planar: SE(2) robot, equidistant camera at 0.3 m tilted up, no anchor: payload-style
 //    x, y position priors on three markers and a yaw prior fix the gauge.
+#include <ceres/ceres.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <memory>
 #include <random>
 #include <type_traits>
 #include <vector>
-
-#include <ceres/ceres.h>
-#include <gtest/gtest.h>
 
 #include "factors/marker_reprojection_factor.h"
 #include "factors/odometry_covariance.h"
@@ -104,11 +104,13 @@ double NeesSE3(ceres::Covariance& covariance, const double* block, const SE3d& t
 double NeesSE2(ceres::Covariance& covariance, const double* block, const SE2d& truth) {
   Eigen::Matrix<double, 3, 3, Eigen::RowMajor> covariance_block;
   EXPECT_TRUE(covariance.GetCovarianceBlock(block, block, covariance_block.data()));
-  const Eigen::Vector3d error(truth.x() - block[0], truth.y() - block[1], WrapAngle(truth.theta() - block[2]));
+  const Eigen::Vector3d error(truth.x() - block[0], truth.y() - block[1],
+                              WrapAngle(truth.theta() - block[2]));
   return error.dot(covariance_block.ldlt().solve(error));
 }
 
-std::unique_ptr<ceres::Covariance> ComputeCovariance(ceres::Problem* problem, const std::vector<const double*>& blocks) {
+std::unique_ptr<ceres::Covariance> ComputeCovariance(ceres::Problem* problem,
+                                                     const std::vector<const double*>& blocks) {
   ceres::Covariance::Options options;
   options.algorithm_type = ceres::DENSE_SVD;
   auto covariance = std::make_unique<ceres::Covariance>(options);
@@ -201,35 +203,39 @@ void AddOdometrySE2(const std::vector<SE2d>& T_world_robots, std::vector<std::ar
   for (size_t k = 0; k + 1 < T_world_robots.size(); ++k) {
     const SE2d T_a_b = T_world_robots[k].inverse() * T_world_robots[k + 1];
     const Eigen::Matrix3d covariance = OdometryCovarianceSE2(OdometrySigma{0.02, 0.02}, T_a_b);
-    const SE2d noisy = T_a_b * SE2d(std::sqrt(covariance(0, 0)) * unit(rng), std::sqrt(covariance(1, 1)) * unit(rng),
-                                    std::sqrt(covariance(2, 2)) * unit(rng));
-    problem->AddResidualBlock(OdometrySE2Factor::Create(noisy, covariance), nullptr, (*robot_blocks)[k].data(),
-                              (*robot_blocks)[k + 1].data());
+    const SE2d noisy =
+        T_a_b * SE2d(std::sqrt(covariance(0, 0)) * unit(rng), std::sqrt(covariance(1, 1)) * unit(rng),
+                     std::sqrt(covariance(2, 2)) * unit(rng));
+    problem->AddResidualBlock(OdometrySE2Factor::Create(noisy, covariance), nullptr,
+                              (*robot_blocks)[k].data(), (*robot_blocks)[k + 1].data());
   }
 }
 
 // Payload coordinates (x, y of markers 0, 2, 4, printed to 1 cm, so 5 mm noise) and a printed
 // yaw on marker 2 (0.5 deg off, sigma 1 deg).
-void AddPayloadPriors(const std::vector<SE3d>& T_world_markers, std::vector<std::array<double, 7>>* marker_blocks,
-                      std::mt19937& rng, ceres::Problem* problem) {
+void AddPayloadPriors(const std::vector<SE3d>& T_world_markers,
+                      std::vector<std::array<double, 7>>* marker_blocks, std::mt19937& rng,
+                      ceres::Problem* problem) {
   std::normal_distribution<double> payload_noise(0.0, 0.005);
   for (int m : {0, 2, 4}) {
-    const Eigen::Vector2d p_world = T_world_markers[m].translation().head<2>() +
-                                    Eigen::Vector2d(payload_noise(rng), payload_noise(rng));
-    problem->AddResidualBlock(PositionPriorXYFactor::Create(p_world, 0.005), nullptr, (*marker_blocks)[m].data());
+    const Eigen::Vector2d p_world =
+        T_world_markers[m].translation().head<2>() + Eigen::Vector2d(payload_noise(rng), payload_noise(rng));
+    problem->AddResidualBlock(PositionPriorXYFactor::Create(p_world, 0.005), nullptr,
+                              (*marker_blocks)[m].data());
   }
-  problem->AddResidualBlock(YawPriorFactor::Create(T_world_markers[2].yaw() + 0.5 * kDeg, 1.0 * kDeg), nullptr,
-                            (*marker_blocks)[2].data());
+  problem->AddResidualBlock(YawPriorFactor::Create(T_world_markers[2].yaw() + 0.5 * kDeg, 1.0 * kDeg),
+                            nullptr, (*marker_blocks)[2].data());
 }
 
 // Prints the figures of a solve and its NEES for the record (the test log).
 void Report(const char* name, size_t num_observations, const ceres::Solver::Summary& summary,
             const MaxError& marker_error, const MaxError& robot_error, double mean_nees_per_dof) {
-  std::printf("%s: %zu observations, cost %.3g -> %.3g in %d iterations; max marker error %.3f deg %.4f m, "
-              "max robot error %.3f deg %.4f m; mean NEES per degree of freedom %.3f\n",
-              name, num_observations, summary.initial_cost, summary.final_cost,
-              static_cast<int>(summary.iterations.size()), marker_error.rotation_deg, marker_error.translation_m,
-              robot_error.rotation_deg, robot_error.translation_m, mean_nees_per_dof);
+  std::printf(
+      "%s: %zu observations, cost %.3g -> %.3g in %d iterations; max marker error %.3f deg %.4f m, "
+      "max robot error %.3f deg %.4f m; mean NEES per degree of freedom %.3f\n",
+      name, num_observations, summary.initial_cost, summary.final_cost,
+      static_cast<int>(summary.iterations.size()), marker_error.rotation_deg, marker_error.translation_m,
+      robot_error.rotation_deg, robot_error.translation_m, mean_nees_per_dof);
 }
 
 // Expected 1 for a consistent estimate; the blocks are correlated, so one run varies widely
@@ -252,14 +258,16 @@ TEST(Solve, FreeRobotWithOneAnchor) {
   const auto perturbation = [&rng] {
     return (Vector6d() << testing::RandomVector(rng, 0.1), testing::RandomVector(rng, 0.1)).finished();
   };
-  for (int k = 0; k < kNumPoses; ++k) SE3ToBlock(T_world_robots[k].BoxPlus(perturbation()), robot_blocks[k].data());
-  for (int m = 0; m < kNumMarkers; ++m) SE3ToBlock(T_world_markers[m].BoxPlus(perturbation()), marker_blocks[m].data());
+  for (int k = 0; k < kNumPoses; ++k)
+    SE3ToBlock(T_world_robots[k].BoxPlus(perturbation()), robot_blocks[k].data());
+  for (int m = 0; m < kNumMarkers; ++m)
+    SE3ToBlock(T_world_markers[m].BoxPlus(perturbation()), marker_blocks[m].data());
   SE3ToBlock(T_world_markers[0], marker_blocks[0].data());
 
   ceres::Problem problem;
   for (const Observation& o : observations) {
-    problem.AddResidualBlock(MarkerReprojectionFactor::Create(camera, kSizeM, o.corners_px, kSigmaPx), nullptr,
-                             robot_blocks[o.pose].data(), marker_blocks[o.marker].data());
+    problem.AddResidualBlock(MarkerReprojectionFactor::Create(camera, kSizeM, o.corners_px, kSigmaPx),
+                             nullptr, robot_blocks[o.pose].data(), marker_blocks[o.marker].data());
   }
   AddOdometrySE3(T_world_robots, &robot_blocks, rng, &problem);
   for (auto* blocks : {&robot_blocks, &marker_blocks}) {
@@ -272,8 +280,10 @@ TEST(Solve, FreeRobotWithOneAnchor) {
   const ceres::Solver::Summary summary = Solve(&problem);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.FullReport();
   MaxError marker_error, robot_error;
-  for (int m = 0; m < kNumMarkers; ++m) marker_error.Add(SE3FromBlock(marker_blocks[m].data()), T_world_markers[m]);
-  for (int k = 0; k < kNumPoses; ++k) robot_error.Add(SE3FromBlock(robot_blocks[k].data()), T_world_robots[k]);
+  for (int m = 0; m < kNumMarkers; ++m)
+    marker_error.Add(SE3FromBlock(marker_blocks[m].data()), T_world_markers[m]);
+  for (int k = 0; k < kNumPoses; ++k)
+    robot_error.Add(SE3FromBlock(robot_blocks[k].data()), T_world_robots[k]);
   // The bounds hold for 16 seeds tried while writing the test (worst: markers 1.9 deg, 5.4 cm;
   // robot 1.5 deg, 7.6 cm): one 20 cm anchor seen from 2-3 m leaves the scene's rotation about
   // it weakly determined, and the NEES below shows these errors are the ones the covariance
@@ -283,8 +293,8 @@ TEST(Solve, FreeRobotWithOneAnchor) {
   EXPECT_LT(robot_error.rotation_deg, 2.0);
   EXPECT_LT(robot_error.translation_m, 0.10);
 
-  const double mean_nees_per_dof =
-      MeanNeesPerDof(&problem, marker_blocks, T_world_markers, robot_blocks, T_world_robots, /*first_marker=*/1);
+  const double mean_nees_per_dof = MeanNeesPerDof(&problem, marker_blocks, T_world_markers, robot_blocks,
+                                                  T_world_robots, /*first_marker=*/1);
   Report("free", observations.size(), summary, marker_error, robot_error, mean_nees_per_dof);
   ExpectConsistentNees(mean_nees_per_dof);
 }
@@ -313,8 +323,8 @@ TEST(Solve, PlanarRobotWithPayloadPriors) {
 
   ceres::Problem problem;
   for (const Observation& o : observations) {
-    problem.AddResidualBlock(PlanarMarkerReprojectionFactor::Create(camera, kSizeM, o.corners_px, kSigmaPx), nullptr,
-                             robot_blocks[o.pose].data(), marker_blocks[o.marker].data());
+    problem.AddResidualBlock(PlanarMarkerReprojectionFactor::Create(camera, kSizeM, o.corners_px, kSigmaPx),
+                             nullptr, robot_blocks[o.pose].data(), marker_blocks[o.marker].data());
   }
   AddOdometrySE2(T_world_robots_2d, &robot_blocks, rng, &problem);
   for (auto& block : marker_blocks) problem.SetManifold(block.data(), new SE3Manifold);
@@ -325,16 +335,18 @@ TEST(Solve, PlanarRobotWithPayloadPriors) {
   const ceres::Solver::Summary summary = Solve(&problem);
   ASSERT_TRUE(summary.IsSolutionUsable()) << summary.FullReport();
   MaxError marker_error, robot_error;
-  for (int m = 0; m < kNumMarkers; ++m) marker_error.Add(SE3FromBlock(marker_blocks[m].data()), T_world_markers[m]);
-  for (int k = 0; k < kNumPoses; ++k) robot_error.Add(SE2FromBlock(robot_blocks[k].data()).ToSE3(), T_world_robots[k]);
+  for (int m = 0; m < kNumMarkers; ++m)
+    marker_error.Add(SE3FromBlock(marker_blocks[m].data()), T_world_markers[m]);
+  for (int k = 0; k < kNumPoses; ++k)
+    robot_error.Add(SE2FromBlock(robot_blocks[k].data()).ToSE3(), T_world_robots[k]);
   // 16 seeds tried while writing the test: worst markers 1.4 deg, 0.9 cm; robot 0.33 deg, 1.4 cm.
   EXPECT_LT(marker_error.rotation_deg, 2.0);
   EXPECT_LT(marker_error.translation_m, 0.015);
   EXPECT_LT(robot_error.rotation_deg, 0.5);
   EXPECT_LT(robot_error.translation_m, 0.02);
 
-  const double mean_nees_per_dof =
-      MeanNeesPerDof(&problem, marker_blocks, T_world_markers, robot_blocks, T_world_robots_2d, /*first_marker=*/0);
+  const double mean_nees_per_dof = MeanNeesPerDof(&problem, marker_blocks, T_world_markers, robot_blocks,
+                                                  T_world_robots_2d, /*first_marker=*/0);
   Report("planar", observations.size(), summary, marker_error, robot_error, mean_nees_per_dof);
   ExpectConsistentNees(mean_nees_per_dof);
 }
