@@ -1,0 +1,162 @@
+// End to end through the `waymark` binary: `waymark sim` writes a small survey, `waymark map
+// build` maps it, `waymark map info` and `waymark map merge` read the result; bad inputs give
+// one line on stderr, a non-zero exit and no output file.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/io_util.h"
+#include "core/map_io.h"
+#include "core/tum_io.h"
+#include "eval/map_metrics.h"
+
+namespace waymark {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+class MapCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("waymark_map_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  RunResult Run(const std::string& arguments) const {
+    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
+    const std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
+    RunResult result;
+    const int status = std::system(command.c_str());
+    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.out = ReadTextFile(out);
+    result.err = ReadTextFile(err);
+    return result;
+  }
+
+  // A small corridor loop (4 m x 3 m) with 50 cm code spacing.
+  fs::path SmallSurvey() const {
+    const fs::path survey = dir_ / "survey";
+    const RunResult sim = Run("sim corridor --out " + survey.string() +
+                              " --seed 5 --set place.loop_length_m=4 --set place.loop_width_m=3 "
+                              "--set place.spacing_m=0.5");
+    EXPECT_EQ(sim.exit_code, 0) << sim.err;
+    return survey;
+  }
+
+  // Replaces the first occurrence of `from` in a file.
+  static void Edit(const fs::path& file, const std::string& from, const std::string& to) {
+    std::string text = ReadTextFile(file);
+    const size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from << " not in " << file;
+    text.replace(at, from.size(), to);
+    AtomicWriteFile(file, text);
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(MapCliTest, BuildWritesMapAndTrajectoryAndSummary) {
+  const fs::path survey = SmallSurvey();
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
+                              " --trajectory " + (dir_ / "smoothed.tum").string());
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_NE(build.out.find("component 0:"), std::string::npos) << build.out;
+  EXPECT_NE(build.out.find("reprojection left: RMS"), std::string::npos) << build.out;
+  EXPECT_NE(build.out.find("outliers rejected:"), std::string::npos);
+  EXPECT_NE(build.out.find("solver:"), std::string::npos);
+  EXPECT_TRUE(build.err.empty()) << "progress must stay off stderr in a pipe: " << build.err;
+  const MarkerMap map = ReadMap(dir_ / "map.json");
+  const eval::MapEvalResult error = eval::EvaluateMap(map, ReadMap(survey / "groundtruth/markers.json"));
+  EXPECT_LE(error.position_rmse_m, 0.01);
+  EXPECT_GT(ReadTum(dir_ / "smoothed.tum").size(), 100u);
+  for (const MapMarker& m : map.markers) EXPECT_TRUE(m.fixed || m.covariance.has_value()) << m.key.ToString();
+
+  const RunResult info = Run("map info " + (dir_ / "map.json").string());
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("markers: " + std::to_string(map.markers.size())), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("components: 1"), std::string::npos) << info.out;
+}
+
+TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {
+  const fs::path survey = SmallSurvey();
+  ASSERT_EQ(Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string()).exit_code, 0);
+  // A map with one extra code the survey never sees: it must be carried over unchanged.
+  MarkerMap map = ReadMap(dir_ / "map.json");
+  MapMarker extra = map.markers.front();
+  extra.key.id = "not-in-survey";
+  extra.covariance.reset();
+  map.markers.push_back(extra);
+  WriteMap(dir_ / "map_plus.json", map);
+  const RunResult merge = Run("map merge " + (dir_ / "map_plus.json").string() + " " + survey.string() + " --out " +
+                              (dir_ / "merged.json").string());
+  ASSERT_EQ(merge.exit_code, 0) << merge.err;
+  EXPECT_NE(merge.out.find("carried over unchanged"), std::string::npos) << merge.out;
+  const MarkerMap merged = ReadMap(dir_ / "merged.json");
+  ASSERT_NE(merged.Find(extra.key), nullptr);
+  EXPECT_EQ(merged.Find(extra.key)->T_world_marker.translation(), extra.T_world_marker.translation());
+  const eval::MapEvalResult error = eval::EvaluateMap(merged, ReadMap(survey / "groundtruth/markers.json"));
+  EXPECT_LE(error.position_rmse_m, 0.01);
+}
+
+TEST_F(MapCliTest, UnknownCameraIsAnErrorAndWritesNothing) {
+  const fs::path survey = SmallSurvey();
+  Edit(survey / "detections.jsonl", "\"camera\":\"left\"", "\"camera\":\"cam9\"");
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string());
+  EXPECT_NE(build.exit_code, 0);
+  EXPECT_NE(build.err.find("cam9"), std::string::npos) << build.err;
+  EXPECT_FALSE(fs::exists(dir_ / "map.json"));
+}
+
+TEST_F(MapCliTest, MarkerWithoutSizeIsAnErrorAndWritesNothing) {
+  const fs::path survey = SmallSurvey();
+  Edit(survey / "dataset.yaml", "default_marker_size_m:", "# default_marker_size_m:");
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
+                              " --trajectory " + (dir_ / "t.tum").string());
+  EXPECT_NE(build.exit_code, 0);
+  EXPECT_NE(build.err.find("has no size"), std::string::npos) << build.err;
+  EXPECT_FALSE(fs::exists(dir_ / "map.json"));
+  EXPECT_FALSE(fs::exists(dir_ / "t.tum"));
+}
+
+TEST_F(MapCliTest, OdometryGapIsReported) {
+  const fs::path survey = SmallSurvey();
+  // Drop 3 s of odometry in the middle.
+  Trajectory odometry = ReadTum(survey / "odometry.tum");
+  const double t0 = odometry[odometry.size() / 2].stamp_s;
+  Trajectory gapped;
+  for (const StampedSE3& p : odometry) {
+    if (p.stamp_s < t0 || p.stamp_s > t0 + 3.0) gapped.push_back(p);
+  }
+  WriteTum(survey / "odometry.tum", gapped);
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string());
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_NE(build.out.find("odometry: gap of"), std::string::npos) << build.out;
+}
+
+TEST_F(MapCliTest, MissingOutputAndBadVerbAreErrors) {
+  EXPECT_NE(Run("map build " + dir_.string()).exit_code, 0);
+  const RunResult verb = Run("map frobnicate");
+  EXPECT_NE(verb.exit_code, 0);
+  EXPECT_NE(verb.err.find("unknown verb"), std::string::npos) << verb.err;
+  const RunResult missing = Run("map build " + (dir_ / "nope").string() + " --out " + (dir_ / "m.json").string());
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_FALSE(fs::exists(dir_ / "m.json"));
+}
+
+}  // namespace
+}  // namespace waymark
