@@ -364,7 +364,7 @@ Dataset LoadDataset(const fs::path& dir) {
     dataset.has_odometry_file = true;
   }
   if (const auto path = OptionalFile(dir, config.markers_file, "markers", named_files)) {
-    dataset.known_markers = ReadMap(*path, &dataset.warnings);
+    dataset.known_markers = ReadMap(*path, &dataset.warnings, MapPoses::kOptional);
   }
   if (const auto path = OptionalFile(dir, config.detections_file, "detections", named_files)) {
     dataset.detections = ReadDetections(*path, &dataset.warnings, &dataset.cameras);

@@ -30,7 +30,7 @@ Matrix6d ParseCovariance(const JsonSource& source, const nlohmann::json& value, 
 }
 
 MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
-                      ReadWarnings* warnings) {
+                      ReadWarnings* warnings, MapPoses poses) {
   MapMarker marker;
   marker.key.family =
       JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
@@ -47,8 +47,13 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
     ThrowJsonError(source, JsonField(field, "size_m"),
                    "expected a positive size, got " + FormatDouble(marker.size_m));
   }
-  marker.T_world_marker = JsonPose(source, *JsonMember(source, value, field, "T_world_marker", true),
-                                   JsonField(field, "T_world_marker"));
+  const nlohmann::json* pose =
+      JsonMember(source, value, field, "T_world_marker", poses == MapPoses::kRequired);
+  if (pose != nullptr) {
+    marker.T_world_marker = JsonPose(source, *pose, JsonField(field, "T_world_marker"));
+  } else {
+    marker.has_pose = false;
+  }
   if (const nlohmann::json* covariance = JsonMember(source, value, field, "covariance", false)) {
     marker.covariance = ParseCovariance(source, *covariance, JsonField(field, "covariance"));
   }
@@ -62,6 +67,10 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
                      "expected a non-negative integer, got " + component->dump());
     }
     marker.component = static_cast<int>(number);
+  }
+  if (!marker.has_pose && (marker.fixed || marker.covariance)) {
+    ThrowJsonError(source, JsonField(field, "T_world_marker"),
+                   "expected a pose for a fixed marker or one with a covariance");
   }
   JsonWarnUnknownKeys(source, value, field,
                       {"family", "id", "size_m", "T_world_marker", "covariance", "fixed", "component"},
@@ -83,7 +92,8 @@ void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
 
 }  // namespace
 
-MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, ReadWarnings* warnings) {
+MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, ReadWarnings* warnings,
+                   MapPoses poses) {
   std::map<std::string, long> lines;
   const nlohmann::json root = ParseJsonDocument(text, path, &lines);
   const JsonSource source = JsonSourceWithLines(path, std::move(lines));
@@ -96,7 +106,7 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
   std::set<MarkerKey> seen;
   for (size_t i = 0; i < markers.size(); ++i) {
     const std::string field = JsonField("markers", i);
-    MapMarker marker = ParseMarker(source, markers[i], field, warnings);
+    MapMarker marker = ParseMarker(source, markers[i], field, warnings, poses);
     if (!seen.insert(marker.key).second) {
       ThrowJsonError(source, field, "duplicate marker " + marker.key.ToString());
     }
@@ -105,8 +115,8 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
   return map;
 }
 
-MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings) {
-  return ParseMap(ReadTextFile(path), path, warnings);
+MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings, MapPoses poses) {
+  return ParseMap(ReadTextFile(path), path, warnings, poses);
 }
 
 namespace {
@@ -119,7 +129,9 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
   json["family"] = marker.key.family;
   json["id"] = marker.key.id;
   json["size_m"] = marker.size_m;
-  json["T_world_marker"] = {{"t", {t.x(), t.y(), t.z()}}, {"q_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+  if (marker.has_pose) {
+    json["T_world_marker"] = {{"t", {t.x(), t.y(), t.z()}}, {"q_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+  }
   if (marker.covariance) {
     nlohmann::ordered_json covariance = nlohmann::ordered_json::array();
     for (int r = 0; r < 6; ++r) {
@@ -139,6 +151,8 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
   if (!(marker.size_m > 0.0) || !std::isfinite(marker.size_m))
     throw std::invalid_argument(name + "size_m not positive");
   if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "T_world_marker not finite");
+  if (!marker.has_pose && (marker.fixed || marker.covariance))
+    throw std::invalid_argument(name + "fixed or with a covariance but without a pose");
   if (marker.covariance && !marker.covariance->allFinite())
     throw std::invalid_argument(name + "covariance not finite");
   if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");

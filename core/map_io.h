@@ -11,6 +11,11 @@
 // symmetric with a non-negative diagonal. fixed (default false) and component (a
 // non-negative integer) are optional.
 //
+// A dataset's known markers.json may also hold size-only entries (no T_world_marker): codes
+// whose size is known but not their pose (read with MapPoses::kOptional; such an entry has
+// has_pose = false and may not be fixed or carry a covariance). Everywhere else a pose is
+// required.
+//
 // Strict: every field is checked (type, count, finiteness, family known, size_m > 0, unit
 // quaternion, no duplicate (family, id)); an error is a FormatError "path:line: field: what
 // was expected". Unknown keys are counted warnings.
@@ -23,11 +28,14 @@
 
 namespace waymark {
 
+enum class MapPoses { kRequired, kOptional };
+
 // Parses map JSON; `path` names the file in messages. Unknown keys are added to `warnings`
 // when it is not null.
 MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path,
-                   ReadWarnings* warnings = nullptr);
-MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings = nullptr);
+                   ReadWarnings* warnings = nullptr, MapPoses poses = MapPoses::kRequired);
+MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings = nullptr,
+                  MapPoses poses = MapPoses::kRequired);
 
 // Map JSON with full double precision, one marker per line. Throws std::invalid_argument for a
 // map its reader would reject (non-finite numbers, unknown family, size_m <= 0, duplicates).

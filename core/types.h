@@ -73,10 +73,11 @@ using Trajectory = std::vector<StampedSE3>;  // sorted by stamp_s
 struct MapMarker {
   MarkerKey key;
   double size_m = 0.0;
-  SE3d T_world_marker;
+  SE3d T_world_marker;                 // meaningful only when has_pose
   std::optional<Matrix6d> covariance;  // right perturbation, tangent order [rx ry rz tx ty tz]
   bool fixed = false;                  // an anchor: held constant by mapping
   std::optional<int> component;        // disconnected maps are numbered 0, 1, ...
+  bool has_pose = true;                // false: a size-only entry of a known-markers file
 };
 
 struct MarkerMap {

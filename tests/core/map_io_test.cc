@@ -189,3 +189,46 @@ TEST(MapIoTest, ReadsTagslamMaps) {
 
 }  // namespace
 }  // namespace waymark
+
+namespace waymark {
+namespace {
+
+// A dataset's known markers may give a code's size without its pose (MapPoses::kOptional);
+// every other map needs the pose, and a fixed or covariance-carrying entry always does.
+TEST(MapIoTest, SizeOnlyEntriesOnlyWhereAllowed) {
+  const std::string text = R"({"format": "waymark-map", "version": 1, "markers": [
+  {"family": "qr", "id": "load-7", "size_m": 0.05},
+  {"family": "qr", "id": "0/1/2", "size_m": 0.15, "T_world_marker": {"t": [1, 2, 0], "q_xyzw": [0, 0, 0, 1]},
+   "fixed": true}]}
+)";
+  const MarkerMap known = ParseMap(text, "markers.json", nullptr, MapPoses::kOptional);
+  ASSERT_EQ(known.markers.size(), 2u);
+  EXPECT_FALSE(known.markers[0].has_pose);
+  EXPECT_DOUBLE_EQ(known.markers[0].size_m, 0.05);
+  EXPECT_TRUE(known.markers[1].has_pose);
+  // Round trip keeps the entry size-only.
+  const MarkerMap again = ParseMap(FormatMap(known), "again.json", nullptr, MapPoses::kOptional);
+  EXPECT_FALSE(again.markers[0].has_pose);
+  EXPECT_EQ(FormatMap(again), FormatMap(known));
+
+  try {
+    ParseMap(text, "map.json");
+    FAIL() << "a size-only entry must be refused where poses are required";
+  } catch (const FormatError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("map.json:2"));
+    EXPECT_THAT(e.what(), HasSubstr("T_world_marker"));
+  }
+  const std::string fixed_without_pose = R"({"format": "waymark-map", "version": 1, "markers": [
+  {"family": "qr", "id": "a", "size_m": 0.05, "fixed": true}]}
+)";
+  try {
+    ParseMap(fixed_without_pose, "markers.json", nullptr, MapPoses::kOptional);
+    FAIL() << "a fixed marker needs a pose";
+  } catch (const FormatError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("markers.json:2"));
+    EXPECT_THAT(e.what(), HasSubstr("expected a pose"));
+  }
+}
+
+}  // namespace
+}  // namespace waymark
