@@ -11,9 +11,11 @@
 // and perturbations are on the right, in the body frame:
 //   T = T_hat * Exp(delta),   delta = [dr, dt].
 // Exp here is the product map Exp([dr, dt]) = (exp(dr), dt): rotation and translation
-// are perturbed independently (the same convention as Ceres' ProductManifold of
-// EigenQuaternionManifold and EuclideanManifold<3>, applied in the body frame). This is
-// the meaning of the `covariance` field of map.json (DESIGN.md).
+// are perturbed independently, both in the body frame. This is the meaning of the
+// `covariance` field of map.json (DESIGN.md). It is NOT the tangent of Ceres'
+// EigenQuaternionManifold (which perturbs the rotation on the left, by half the rotation
+// vector) nor of a world-frame translation: a covariance from ceres::Covariance on a pose
+// block is converted with factors/pose_block.h's ManifoldToBodyTangentJacobian.
 #pragma once
 
 #include <cmath>
