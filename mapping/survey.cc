@@ -89,7 +89,9 @@ int AddMarker(const Dataset& dataset, const MarkerKey& key, const std::optional<
   }
   marker.size_m = *size_m;
   if (dataset.known_markers) {
-    if (const MapMarker* known = dataset.known_markers->Find(key)) marker.known = *known;
+    // Size-only entries gave the size above; only a known pose makes a known marker.
+    const MapMarker* known = dataset.known_markers->Find(key);
+    if (known != nullptr && known->has_pose) marker.known = *known;
   }
   if (parser && (key.family == kFamilyQr || key.family == kFamilyDataMatrix)) {
     std::optional<PayloadData> data = parser->Parse(key.id);

@@ -147,10 +147,11 @@ void FillPlace(const SimResult& result, const ParamSet& params, Dataset* dataset
     entry.size_m = m.size_m;
     entry.T_world_marker = m.T_world_marker;
     truth.markers.push_back(entry);
-    if (m.anchor) {
-      entry.fixed = true;
-      known.markers.push_back(entry);
-    }
+    // markers.json lists every code's size; only anchors also give their (fixed) pose.
+    entry.fixed = m.anchor;
+    entry.has_pose = m.anchor;
+    if (!m.anchor) entry.T_world_marker = SE3d();
+    known.markers.push_back(entry);
   }
   if (!known.markers.empty()) dataset->known_markers = known;
   dataset->groundtruth_markers = truth;

@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -125,6 +126,13 @@ TEST_F(MapCliTest, UnknownCameraIsAnErrorAndWritesNothing) {
 TEST_F(MapCliTest, MarkerWithoutSizeIsAnErrorAndWritesNothing) {
   const fs::path survey = SmallSurvey();
   Edit(survey / "dataset.yaml", "default_marker_size_m:", "# default_marker_size_m:");
+  // markers.json gives every simulated code's size: keep only its anchors (with their sizes),
+  // so the other codes have no size from anywhere.
+  MarkerMap known = ReadMap(survey / "markers.json", nullptr, MapPoses::kOptional);
+  known.markers.erase(std::remove_if(known.markers.begin(), known.markers.end(),
+                                     [](const MapMarker& m) { return !m.has_pose; }),
+                      known.markers.end());
+  WriteMap(survey / "markers.json", known);
   const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
                               " --trajectory " + (dir_ / "t.tum").string());
   EXPECT_NE(build.exit_code, 0);

@@ -209,6 +209,26 @@ TEST(SimulatorTest, CorridorSpacingSetsTheNumberOfCodes) {
   EXPECT_EQ(d4, 2 * (3 + 2 + 3 + 2));
 }
 
+// markers.json gives every code's size; only the anchors also give their (fixed, true) pose.
+TEST(SimulatorTest, KnownMarkersListEverySizeAndOnlyAnchorPoses) {
+  const SimResult r = RunSim("corridor", {"place.anchors=2"}, 1);
+  ASSERT_TRUE(r.dataset.known_markers.has_value());
+  ASSERT_TRUE(r.dataset.groundtruth_markers.has_value());
+  EXPECT_EQ(r.dataset.known_markers->markers.size(), r.dataset.groundtruth_markers->markers.size());
+  int anchors = 0;
+  for (const MapMarker& known : r.dataset.known_markers->markers) {
+    const MapMarker* truth = r.dataset.groundtruth_markers->Find(known.key);
+    ASSERT_NE(truth, nullptr) << known.key.ToString();
+    EXPECT_DOUBLE_EQ(known.size_m, truth->size_m);
+    EXPECT_EQ(known.fixed, known.has_pose);
+    if (known.has_pose) {
+      ++anchors;
+      EXPECT_LT((known.T_world_marker.translation() - truth->T_world_marker.translation()).norm(), 1e-12);
+    }
+  }
+  EXPECT_EQ(anchors, 2);
+}
+
 // Rooms: 3 rooms of 4 m in a row (x in [0, 12]), doors at y in [1.5, 2.5] on x = 4 and 8; the
 // unconnected room is x in [16, 20]. Wide limits so that only walls stop the view.
 TEST(SimulatorTest, RoomsHaveExactlyTheIntendedComponents) {
