@@ -228,17 +228,9 @@ std::string FormatDatasetYaml(const DatasetConfig& config) {
 std::vector<ImageEntry> ParseImagesCsv(const std::string& text, const fs::path& path,
                                        const std::vector<std::string>* cameras) {
   std::vector<ImageEntry> images;
-  long line_number = 0;
-  size_t begin = 0;
-  while (begin < text.size()) {
-    size_t end = text.find('\n', begin);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + begin, end - begin);
-    begin = end + 1;
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (line.find_first_not_of(" \t") == std::string_view::npos) continue;
-    if (line_number == 1 && line == kImagesHeader) continue;
+  ForEachLine(text, [&](long line_number, std::string_view line) {
+    if (line.find_first_not_of(" \t") == std::string_view::npos) return;
+    if (line_number == 1 && line == kImagesHeader) return;
     const size_t comma1 = line.find(',');
     const size_t comma2 = comma1 == std::string_view::npos ? comma1 : line.find(',', comma1 + 1);
     if (comma2 == std::string_view::npos) {
@@ -258,7 +250,7 @@ std::vector<ImageEntry> ParseImagesCsv(const std::string& text, const fs::path& 
       throw FormatError(path, line_number, "camera: '" + entry.camera + "' is not in dataset.yaml cameras");
     }
     images.push_back(std::move(entry));
-  }
+  });
   return images;
 }
 

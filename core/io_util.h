@@ -66,6 +66,22 @@ std::string FormatDouble(double value);
 
 // The whole token as a finite double ("+" allowed, no spaces, no nan/inf); nullopt otherwise.
 std::optional<double> ParseFiniteDouble(std::string_view token);
+
+// Calls line_fn(line_number, line) for every line of a text file's contents, numbering from 1;
+// a trailing '\r' (CRLF files) is removed. Blank and comment lines are the caller's to skip.
+template <typename LineFn>
+void ForEachLine(std::string_view text, LineFn line_fn) {
+  long line_number = 0;
+  size_t begin = 0;
+  while (begin < text.size()) {
+    size_t end = text.find('\n', begin);
+    if (end == std::string_view::npos) end = text.size();
+    std::string_view line = text.substr(begin, end - begin);
+    begin = end + 1;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    line_fn(++line_number, line);
+  }
+}
 // The whole token as a base-10 integer; nullopt otherwise.
 std::optional<long> ParseInteger(std::string_view token);
 

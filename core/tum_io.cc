@@ -57,17 +57,9 @@ StampedSE3 ParseTumLine(std::string_view line, const std::filesystem::path& path
 
 Trajectory ParseTum(const std::string& text, const std::filesystem::path& path) {
   Trajectory trajectory;
-  long line_number = 0;
-  size_t begin = 0;
-  while (begin < text.size()) {
-    size_t end = text.find('\n', begin);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + begin, end - begin);
-    begin = end + 1;
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  ForEachLine(text, [&](long line_number, std::string_view line) {
     const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string_view::npos || line[first] == '#') continue;
+    if (first == std::string_view::npos || line[first] == '#') return;
     StampedSE3 pose = ParseTumLine(line, path, line_number);
     if (!trajectory.empty() && !(pose.stamp_s > trajectory.back().stamp_s)) {
       throw FormatError(path, line_number,
@@ -75,7 +67,7 @@ Trajectory ParseTum(const std::string& text, const std::filesystem::path& path) 
                             " after " + FormatDouble(trajectory.back().stamp_s));
     }
     trajectory.push_back(pose);
-  }
+  });
   return trajectory;
 }
 
