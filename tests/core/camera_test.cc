@@ -3,6 +3,7 @@
 // /work/shared/data/tagslam: tagslam-test16 cam0 (radtan, strong barrel distortion) and
 // tagslam-test22 cam0 (RealSense T265 fisheye, equidistant).
 #include "core/camera.h"
+#include "tests/test_cameras.h"
 
 #include <cmath>
 #include <random>
@@ -15,30 +16,12 @@
 namespace waymark {
 namespace {
 
-CameraInfo RadtanInfo() {
-  CameraInfo info;
-  info.name = "test16-cam0";
-  info.model = CameraModel::kPinholeRadtan;
-  info.width = 1280;
-  info.height = 1024;
-  info.intrinsics = {1506.9, 1506.28, 641.176, 524.495};
-  info.distortion = {-0.233024, 0.217972, 0.000104351, -9.65731e-05, -0.0913426};
-  return info;
-}
+CameraInfo RadtanInfo() { return testing::TagslamRadtanInfo(); }
 
 // The dataset's yaml says width 800, height 848, but the principal point (421, 401) and the
 // T265 sensor (848 x 800) say the image is 848 wide; the grid below covers 848 x 848 so that
 // either reading is tested.
-CameraInfo FisheyeInfo() {
-  CameraInfo info;
-  info.name = "test22-cam0";
-  info.model = CameraModel::kPinholeEquidistant;
-  info.width = 848;
-  info.height = 800;
-  info.intrinsics = {283.943, 284.986, 421.079, 400.527};
-  info.distortion = {0.00132, 0.03049, -0.02875, 0.0034};
-  return info;
-}
+CameraInfo FisheyeInfo() { return testing::TagslamFisheyeInfo(); }
 
 cv::Matx33d CvK(const CameraInfo& info) {
   const auto& k = info.intrinsics;

@@ -2,6 +2,7 @@
 // Monte-Carlo agreement of the predicted covariance with the empirical one, the planar
 // ambiguity flag, and every rejection of bad input.
 #include "core/marker_pose.h"
+#include "tests/test_cameras.h"
 
 #include <cmath>
 #include <random>
@@ -17,27 +18,9 @@ namespace {
 using Corners = std::array<Eigen::Vector2d, 4>;
 
 // tagslam-test16 cam0 (radtan) and tagslam-test22 cam0 (fisheye), from /work/shared/data.
-Camera RadtanCamera() {
-  CameraInfo info;
-  info.name = "radtan";
-  info.model = CameraModel::kPinholeRadtan;
-  info.width = 1280;
-  info.height = 1024;
-  info.intrinsics = {1506.9, 1506.28, 641.176, 524.495};
-  info.distortion = {-0.233024, 0.217972, 0.000104351, -9.65731e-05, -0.0913426};
-  return Camera(info);
-}
+Camera RadtanCamera() { return Camera(testing::TagslamRadtanInfo()); }
 
-Camera FisheyeCamera() {
-  CameraInfo info;
-  info.name = "fisheye";
-  info.model = CameraModel::kPinholeEquidistant;
-  info.width = 848;
-  info.height = 800;
-  info.intrinsics = {283.943, 284.986, 421.079, 400.527};
-  info.distortion = {0.00132, 0.03049, -0.02875, 0.0034};
-  return Camera(info);
-}
+Camera FisheyeCamera() { return Camera(testing::TagslamFisheyeInfo()); }
 
 // A code at p_camera whose face looks back at the camera, then rotated about its own
 // x axis by tilt_x, its y axis by tilt_y and its z axis by spin (radians).

@@ -20,6 +20,7 @@
 #include "core/geometry.h"
 #include "core/types.h"
 #include "factors/pose_block.h"
+#include "tests/test_cameras.h"
 
 namespace waymark::testing {
 
@@ -48,23 +49,9 @@ inline Eigen::Quaterniond ForwardCameraRotation(double tilt_rad) {
 }
 
 // tagslam-test16 cam0 (radtan) and tagslam-test22 cam0 (equidistant), as typed into
-// tests/core/camera_test.cc; mounted looking forward at 0.3 m height, tilted up 10 degrees.
+// tests/test_cameras.h; mounted looking forward at 0.3 m height, tilted up 10 degrees.
 inline CameraInfo TestCamera(CameraModel model) {
-  CameraInfo info;
-  info.model = model;
-  if (model == CameraModel::kPinholeRadtan) {
-    info.name = "radtan";
-    info.width = 1280;
-    info.height = 1024;
-    info.intrinsics = {1506.9, 1506.28, 641.176, 524.495};
-    info.distortion = {-0.233024, 0.217972, 0.000104351, -9.65731e-05, -0.0913426};
-  } else {
-    info.name = "equidistant";
-    info.width = 848;
-    info.height = 800;
-    info.intrinsics = {283.943, 284.986, 421.079, 400.527};
-    info.distortion = {0.00132, 0.03049, -0.02875, 0.0034};
-  }
+  CameraInfo info = model == CameraModel::kPinholeRadtan ? TagslamRadtanInfo() : TagslamFisheyeInfo();
   info.T_robot_camera = SE3d(ForwardCameraRotation(10.0 * M_PI / 180.0), Eigen::Vector3d(0.1, 0.05, 0.3));
   return info;
 }
