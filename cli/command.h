@@ -10,7 +10,9 @@
 namespace waymark::cli {
 
 struct Command {
-  std::string name;     // e.g. "sim", "dataset", "eval"
+  // e.g. "sim", "dataset", "eval"; "<command> <verb>" (e.g. "map score") for a verb that lives in
+  // a file of its own: main.cc tries "<argv[1]> <argv[2]>" before "<argv[1]>".
+  std::string name;
   std::string summary;  // one line for `waymark help`
   std::string usage;    // full text for `waymark <name> --help`
   // Arguments after the command name. Returns the process exit code; throws

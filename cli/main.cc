@@ -53,7 +53,9 @@ int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
     if (args.size() >= 2) {
-      if (const auto* command = FindCommand(args[1])) {
+      std::string name = args[1];
+      for (size_t i = 2; i < args.size(); ++i) name += " " + args[i];
+      if (const auto* command = FindCommand(name)) {
         std::cout << command->usage;
         return 0;
       }
@@ -61,12 +63,20 @@ int main(int argc, char** argv) {
     waymark::cli::PrintHelp(args.empty() ? std::cerr : std::cout);
     return args.empty() ? 2 : 0;
   }
-  const waymark::cli::Command* command = FindCommand(args[0]);
+  // A verb may be a command of its own, registered as "<command> <verb>" (e.g. "map score").
+  size_t used = 1;
+  const waymark::cli::Command* command = nullptr;
+  if (args.size() >= 2) command = FindCommand(args[0] + " " + args[1]);
+  if (command != nullptr) {
+    used = 2;
+  } else {
+    command = FindCommand(args[0]);
+  }
   if (command == nullptr) {
     std::cerr << "Command `" << args[0] << "` not recognized. Run `waymark help`.\n";
     return 2;
   }
-  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  const std::vector<std::string> rest(args.begin() + used, args.end());
   if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {
     std::cout << command->usage;
     return 0;
