@@ -4,12 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <regex>
 #include <sstream>
 #include <stdexcept>
 #include <string_view>
 
 #include "core/camera_io.h"
+#include "core/payload.h"
 #include "core/detections_io.h"
 #include "core/io_util.h"
 #include "core/map_io.h"
@@ -116,23 +116,12 @@ void CheckHeader(const fs::path& path, const YAML::Node& root) {
 }  // namespace
 
 std::string CheckPayloadSpec(const PayloadSpec& spec) {
-  std::regex regex;
   try {
-    regex = std::regex(spec.pattern, std::regex::ECMAScript);
-  } catch (const std::regex_error& e) {
-    return "pattern does not compile as an ECMAScript regular expression (" + std::string(e.what()) + ")";
-  }
-  if (regex.mark_count() != spec.fields.size()) {
-    return "expected one field name per capture group: pattern has " + std::to_string(regex.mark_count()) +
-           " groups, fields has " + std::to_string(spec.fields.size()) + " names";
-  }
-  std::set<std::string> names;
-  for (const std::string& field : spec.fields) {
-    if (field.empty()) return "fields: empty name";
-    if (!names.insert(field).second) return "fields: '" + field + "' is repeated";
-  }
-  if ((names.count("z") || names.count("yaw_deg")) && !(names.count("x") && names.count("y"))) {
-    return "fields: z and yaw_deg need both x and y";
+    ValidatePayloadSpec(spec);  // the parser's own rules, so a spec that loads also parses
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    const std::string prefix = "payload: ";
+    return what.compare(0, prefix.size(), prefix) == 0 ? what.substr(prefix.size()) : what;
   }
   return "";
 }

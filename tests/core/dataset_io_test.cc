@@ -158,12 +158,14 @@ TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
   EXPECT_THAT(ParseError(GoodYamlWith(", rot_per_rad: 0.03", "")),
               HasSubstr("dataset.yaml:7: missing key 'rot_per_rad'"));
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x]")),
-              HasSubstr("dataset.yaml:8: payload: expected one field name per capture group: pattern has 3 "
-                        "groups, fields has 2"));
+              HasSubstr("dataset.yaml:8: payload: fields: expected 3 names (one per capture group"));
   EXPECT_THAT(ParseError(GoodYamlWith("(\\\\d+)/", "(\\\\d+/")),
-              HasSubstr("dataset.yaml:8: payload: pattern does not compile"));
+              HasSubstr("dataset.yaml:8: payload: pattern: invalid ECMAScript regular expression"));
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, x]")),
-              HasSubstr("payload: fields: 'x' is repeated"));
+              HasSubstr("payload: fields: `x` appears twice"));
+  // The payload parser's own rules: a coordinate needs its partner.
+  EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, other]")),
+              HasSubstr("dataset.yaml:8: payload: fields: `x` needs both `x` and `y`"));
   EXPECT_THAT(ParseError(GoodYamlWith("motion: planar\n", "")),
               HasSubstr("dataset.yaml:1: missing key 'motion'"));
   EXPECT_THAT(ParseError("format: [\n"), HasSubstr("dataset.yaml:2: invalid YAML"));
