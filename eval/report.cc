@@ -62,7 +62,10 @@ std::string TrajectoryMarkdown(const EvalReportInput& input) {
      << " (scale " << Fixed(e.alignment.scale, 6) << ")\n\n"
      << "| metric | rmse | mean | median | std | min | max | n |\n|---|---|---|---|---|---|---|---|\n"
      << MarkdownRow("ATE translation (m)", e.ate.translation_m, 4)
-     << MarkdownRow("ATE rotation (deg)", e.ate.rotation_deg, 3);
+     << MarkdownRow("ATE rotation (deg)", e.ate.rotation_deg, 3)
+     << MarkdownRow("abs. error x (m)", e.ate.axes.x_m, 4) << MarkdownRow("abs. error y (m)", e.ate.axes.y_m, 4)
+     << MarkdownRow("abs. error z (m)", e.ate.axes.z_m, 4)
+     << MarkdownRow("abs. error yaw (deg)", e.ate.axes.yaw_deg, 3);
   if (e.rpe) {
     const std::string delta = Fixed(e.rpe->options.delta, e.rpe->options.unit == RpeUnit::kFrames ? 0 : 3) +
                               " " + RpeUnitName(e.rpe->options.unit);
@@ -126,6 +129,10 @@ Json TrajectoryEvaluationToJson(const TrajectoryEvaluation& e) {
   ate["pairs"] = e.ate.translation_m.count;
   ate["unit"] = "m";
   ate["rotation_deg"] = StatsToJson(e.ate.rotation_deg);
+  ate["axes"] = {{"x_m", StatsToJson(e.ate.axes.x_m)},
+                 {"y_m", StatsToJson(e.ate.axes.y_m)},
+                 {"z_m", StatsToJson(e.ate.axes.z_m)},
+                 {"yaw_deg", StatsToJson(e.ate.axes.yaw_deg)}};
   out["ate"] = ate;
   json alignment = AlignmentToJson(e.alignment);
   alignment["mode"] = AlignmentModeName(e.options.align);
@@ -218,6 +225,8 @@ std::string EvalSummaryTable(const EvalReportInput& input) {
   out += header;
   if (const TrajectoryEvaluation* e = input.trajectory) {
     out += TableLine("ATE trans (m)", e->ate.translation_m, 4) + TableLine("ATE rot (deg)", e->ate.rotation_deg, 3);
+    out += TableLine("|x| (m)", e->ate.axes.x_m, 4) + TableLine("|y| (m)", e->ate.axes.y_m, 4) +
+           TableLine("|z| (m)", e->ate.axes.z_m, 4) + TableLine("|yaw| (deg)", e->ate.axes.yaw_deg, 3);
     if (e->rpe) {
       out += TableLine("RPE trans (m)", e->rpe->translation_m, 4) +
              TableLine("RPE rot (deg)", e->rpe->rotation_deg, 3);

@@ -4,7 +4,8 @@
 //
 // JSON layout (docs/evaluation.md has every field):
 //   {"ate": {"rmse", "mean", "median", "std", "min", "max", "sse", "pairs", "unit": "m",
-//            "rotation_deg": {same statistics}},
+//            "rotation_deg": {same statistics},
+//            "axes": {"x_m", "y_m", "z_m", "yaw_deg": {same statistics}}},  (per-axis |error|)
 //    "alignment": {"mode", "scale_corrected", "scale", "R_gt_est", "t_gt_est"},
 //    "association": {"max_dt_s", "gt_poses", "est_poses", "pairs"},
 //    "rpe": {"delta", "unit", "pairs", "translation_m": {...}, "rotation_deg": {...}},

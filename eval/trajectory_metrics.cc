@@ -34,7 +34,21 @@ AteResult ComputeAte(const Trajectory& gt, const Trajectory& est) {
   }
   result.translation_m = ComputeStats(result.translation_errors_m);
   result.rotation_deg = ComputeStats(result.rotation_errors_deg);
+  result.axes = ComputeAxisErrors(gt, est);
   return result;
+}
+
+AxisErrors ComputeAxisErrors(const Trajectory& gt, const Trajectory& est) {
+  CheckPaired(gt, est, "per-axis errors");
+  std::vector<double> x_m, y_m, z_m, yaw_deg;
+  for (size_t i = 0; i < gt.size(); ++i) {
+    const Eigen::Vector3d d = est[i].T.translation() - gt[i].T.translation();
+    x_m.push_back(std::abs(d.x()));
+    y_m.push_back(std::abs(d.y()));
+    z_m.push_back(std::abs(d.z()));
+    yaw_deg.push_back(kRadToDeg * std::abs(WrapAngle(est[i].T.yaw() - gt[i].T.yaw())));
+  }
+  return {ComputeStats(x_m), ComputeStats(y_m), ComputeStats(z_m), ComputeStats(yaw_deg)};
 }
 
 const char* RpeUnitName(RpeUnit unit) { return unit == RpeUnit::kFrames ? "frames" : "m"; }

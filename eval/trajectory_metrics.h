@@ -18,6 +18,10 @@
 //   PE_k = sqrt((x^-_k - x_k)^2 + (y^-_k - y_k)^2)  (m),   TE_k = |wrap(theta^-_k - theta_k)| (deg)
 //   theta = yaw of the robot x axis about world z. Reported: their mean over the instants
 //   (the paper's PE/TE for one run) with the other statistics; the 3-D position error too.
+// Per-axis errors (seed 004's table), on the same pairs as the ATE, in the ground truth's world
+//   frame: |x_est - x_gt|, |y_est - y_gt|, |z_est - z_gt| (m), |wrap(yaw_est - yaw_gt)| (deg),
+//   yaw = atan2(R10, R00) (the heading of the robot x axis, as for TE). Reported: the mean
+//   absolute error per axis with the other statistics.
 #pragma once
 
 #include <string>
@@ -28,9 +32,21 @@
 
 namespace waymark::eval {
 
+// Absolute error per world axis and in yaw (see the header comment).
+struct AxisErrors {
+  ErrorStats x_m;
+  ErrorStats y_m;
+  ErrorStats z_m;
+  ErrorStats yaw_deg;
+};
+
+// Per-axis errors of associated (and aligned) pairs. Throws like ComputeAte.
+AxisErrors ComputeAxisErrors(const Trajectory& gt, const Trajectory& est);
+
 struct AteResult {
   ErrorStats translation_m;
   ErrorStats rotation_deg;
+  AxisErrors axes;  // per-axis absolute errors of the same pairs
   std::vector<double> stamps_s;  // of the ground-truth pose of each pair
   std::vector<double> translation_errors_m;
   std::vector<double> rotation_errors_deg;
