@@ -55,6 +55,40 @@ SE3d InterpolatePose(const SE3d& T_a, const SE3d& T_b, double a) {
   return T_a * ExpSE3Screw(a * LogSE3Screw(T_a.inverse() * T_b));
 }
 
+FrameCounts CountOutcomes(const FrameResult& result) {
+  FrameCounts counts;
+  for (const CorrectionResult& correction : result.corrections) {
+    counts.accepted += correction.outcome == CorrectionOutcome::kAccepted;
+    counts.gated += correction.outcome == CorrectionOutcome::kGated;
+    counts.unknown += correction.outcome == CorrectionOutcome::kUnknownMarker;
+  }
+  return counts;
+}
+
+std::string FormatPoseLine(const PoseOutput& pose, const std::string& camera, const FrameCounts& counts,
+                           std::optional<double> latency_ms) {
+  const auto numbers = [](const auto& values) {
+    std::string text = "[";
+    for (Eigen::Index i = 0; i < values.size(); ++i) text += (i ? ", " : "") + FormatDouble(values(i));
+    return text + "]";
+  };
+  std::string line = "{\"t\": " + FormatDouble(pose.stamp_s) + ", \"camera\": " + QuoteString(camera) +
+                     ", \"status\": \"" + TrackingStatusName(pose.tracking) + "\"";
+  if (pose.T_world_robot) {
+    const SE3d& T = *pose.T_world_robot;
+    line += ", \"T_world_robot\": {\"t\": " + numbers(T.translation()) +
+            ", \"q_xyzw\": " + numbers(T.rotation().coeffs()) + "}";
+  }
+  if (pose.T_world_robot && pose.covariance) {
+    const Eigen::MatrixXd row_major = pose.covariance->transpose();  // column-major storage of P^T
+    line += ", \"covariance\": " + numbers(Eigen::Map<const Eigen::VectorXd>(row_major.data(), row_major.size()));
+  }
+  line += ", \"accepted\": " + std::to_string(counts.accepted) + ", \"gated\": " + std::to_string(counts.gated) +
+          ", \"unknown\": " + std::to_string(counts.unknown);
+  if (latency_ms) line += ", \"latency_ms\": " + FormatDouble(std::round(*latency_ms * 1e3) / 1e3);
+  return line + "}";
+}
+
 // ---- Warnings ----
 
 void RunWarnings::Add(const std::string& reason, const std::string& example) {
@@ -366,6 +400,7 @@ void CollectFrame(const LocalizeStream::FrameOutput& output, LocalizeRun* run) {
   run->outputs.push_back(output.pose);
   run->cameras.push_back(output.camera);
   run->latency_ms.push_back(output.latency_ms);
+  run->frame_counts.push_back(CountOutcomes(output.result));
   if (!output.pose.T_world_robot) return;
   const StampedSE3 pose{output.pose.stamp_s, *output.pose.T_world_robot};
   if (!run->trajectory.empty() && run->trajectory.back().stamp_s == pose.stamp_s) {

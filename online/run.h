@@ -55,11 +55,20 @@ struct LocalizeRunOptions {
   bool Check(std::string* why) const;
 };
 
+// What one frame's codes did (CorrectionOutcome counts).
+struct FrameCounts {
+  int accepted = 0;
+  int gated = 0;    // above the chi-square gate (or predicted out of view)
+  int unknown = 0;  // absent from the map
+};
+FrameCounts CountOutcomes(const FrameResult& result);
+
 struct LocalizeRun {
   Trajectory trajectory;             // poses while tracking, one per camera frame (one per stamp)
   Trajectory predicted;              // Localizer::predicted_before_correction() (one per stamp)
   std::vector<PoseOutput> outputs;   // every frame, with status + covariance
   std::vector<std::string> cameras;  // outputs[i]'s camera
+  std::vector<FrameCounts> frame_counts;  // outputs[i]'s corrections
   LocalizerCounters counters;
   std::vector<double> latency_ms;  // per frame: detection (if any) + odometry + update
   std::vector<std::string> warnings;  // "reason: count (first: example)"
@@ -84,6 +93,17 @@ SE3d InterpolatePose(const SE3d& T_a, const SE3d& T_b, double a);
 // (Not geometry.h's product-map Exp: this one moves along a screw.)
 SE3d ExpSE3Screw(const Vector6d& xi);
 Vector6d LogSE3Screw(const SE3d& T);
+
+// One line of poses.jsonl and of the live output (docs/formats.md, "Localization input/output"),
+// without the newline:
+//   {"t": 12.3, "camera": "cam0", "status": "tracking",
+//    "T_world_robot": {"t": [x, y, z], "q_xyzw": [qx, qy, qz, qw]},
+//    "covariance": [row-major, error state of online/ekf_state.h: x y yaw (planar, 9 numbers)
+//                   or x y z yaw (free, 16 numbers)],
+//    "accepted": 2, "gated": 0, "unknown": 0, "latency_ms": 0.41}
+// T_world_robot and covariance only while tracking; latency_ms only when given.
+std::string FormatPoseLine(const PoseOutput& pose, const std::string& camera, const FrameCounts& counts,
+                           std::optional<double> latency_ms);
 
 // The families to detect on images: `requested` when not empty, else the supported families
 // of the map's codes, else qr, datamatrix and apriltag-36h11.

@@ -1,0 +1,288 @@
+// `waymark localize`: the online localizer on a dataset (online/run.h's RunLocalizer) or, with
+// --live, on JSON lines read from stdin (online/run.h's LocalizeStream). This file parses
+// arguments and input lines, writes the outputs and prints the summary; no math.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cli/args.h"
+#include "cli/command.h"
+#include "core/dataset_io.h"
+#include "core/detections_io.h"
+#include "core/io_util.h"
+#include "core/map_io.h"
+#include "core/tum_io.h"
+#include "online/run.h"
+
+namespace waymark::cli {
+namespace {
+
+constexpr const char* kUsage = R"(Usage:
+  waymark localize DATASET --map MAP.json --out RUN.tum [options]
+  waymark localize DATASET --map MAP.json --live [options] < input.jsonl > poses.jsonl
+
+Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
+the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
+time order and the odometry is interpolated to each frame's instant. Codes absent from the
+map, frames outside the odometry's time span and inputs whose time goes backwards are
+counted warnings; a map with none of the detected codes (a map of another place) is an error.
+
+Dataset mode reads DATASET's odometry.tum and detections.jsonl (or, with --detect-images, its
+images.csv) and writes:
+  --out FILE          tracked poses T_world_robot, one per camera instant while tracking (TUM)
+  --predicted FILE    the pose predicted just before each correcting frame (TUM), for
+                      `waymark eval --predicted` (seed 000's PE and TE)
+  --poses FILE        one JSON line per camera frame: stamp, camera, status (tracking, lost,
+                      uninitialized), pose and covariance while tracking, the frame's accepted,
+                      gated and unknown codes and its latency (docs/formats.md)
+It prints frames, tracking %, correction counts, relocalizations and the per-frame latency
+(detection, if any, plus odometry and update): mean, median, p99 and max in ms.
+
+--live reads JSON lines on stdin, in time order (docs/formats.md, "Localization input/output"):
+  {"t": 1.25, "T_odom_robot": {"t": [x, y, z], "q_xyzw": [qx, qy, qz, qw]}}      odometry
+  {"t": 1.30, "camera": "cam0", "markers": [...]}            detections (detections.jsonl)
+  {"t": 1.30, "camera": "cam0", "image": "frames/0001.png"}   an image to detect on
+and writes one JSON line per camera frame on stdout (the --poses format), flushed at once.
+A frame is answered when the odometry has passed its stamp (interpolated), or 0.5 s of input
+later. DATASET gives only dataset.yaml and the cameras. A malformed line is reported on
+stderr with its line number, counted and skipped; the counts go to stderr at the end.
+
+Options:
+  --map FILE          the map (map.json format), required
+  --mode MODE         tight (the four corners, default) or loose (seed 000's single-code pose)
+  --detect-images     detect the codes on DATASET's images (images.csv) instead of reading
+                      detections.jsonl; the detection time counts in the latency
+  --families LIST     families to detect (default: those of the map's codes), e.g.
+                      qr,datamatrix,apriltag-36h11
+  --realtime          pace the input by its timestamps (replay at the recorded speed)
+  --live              read the input from stdin (above) instead of DATASET's files
+)";
+
+const std::set<std::string> kValues = {"map", "out", "mode", "predicted", "poses", "families"};
+const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
+
+std::string Fixed(double value, int digits) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(digits) << value;
+  return out.str();
+}
+
+LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
+  LocalizeRunOptions options;
+  options.localizer = DefaultLocalizerOptions(dataset);
+  const std::string mode = args.GetOr("mode", "tight");
+  if (mode == "tight") {
+    options.localizer.mode = CorrectionMode::kTightCorners;
+  } else if (mode == "loose") {
+    options.localizer.mode = CorrectionMode::kLoosePose;
+  } else {
+    throw std::invalid_argument("--mode: expected tight or loose, got '" + mode + "'");
+  }
+  options.detect_images = args.Flag("detect-images");
+  if (args.Has("families")) options.families = ParseFamilyList(*args.Get("families"));
+  options.realtime = args.Flag("realtime");
+  if (StderrIsTerminal()) {
+    options.progress = [](const std::string& line) { std::cerr << "\r\033[K" << line << std::flush; };
+  }
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument(why);
+  return options;
+}
+
+// Mean, median, p99 and max of the per-frame latencies.
+std::string LatencyLine(std::vector<double> latency_ms) {
+  if (latency_ms.empty()) return "latency per frame: no frame";
+  std::sort(latency_ms.begin(), latency_ms.end());
+  double sum = 0.0;
+  for (double ms : latency_ms) sum += ms;
+  const auto quantile = [&](double q) {
+    return latency_ms[std::min(latency_ms.size() - 1, static_cast<size_t>(q * latency_ms.size()))];
+  };
+  return "latency per frame (ms): mean " + Fixed(sum / latency_ms.size(), 3) + ", median " +
+         Fixed(quantile(0.5), 3) + ", p99 " + Fixed(quantile(0.99), 3) + ", max " + Fixed(latency_ms.back(), 3);
+}
+
+void PrintSummary(const LocalizeRun& run, std::ostream& out) {
+  long tracking = 0;
+  for (const PoseOutput& pose : run.outputs) tracking += pose.T_world_robot.has_value();
+  const LocalizerCounters& c = run.counters;
+  const double percent = run.outputs.empty() ? 0.0 : 100.0 * tracking / run.outputs.size();
+  out << "frames: " << run.outputs.size() << " (" << run.frames_with_codes << " with codes, "
+      << run.frames_with_map_codes << " with codes of the map), tracking " << Fixed(percent, 1) << " % ("
+      << run.trajectory.size() << " poses)\n"
+      << "corrections: accepted " << c.accepted << ", gated " << c.gated << ", unknown codes " << c.unknown_markers
+      << ", not usable " << c.not_usable << "\n"
+      << "initializations: " << c.initializations << " (relocalizations " << std::max(0L, c.initializations - 1)
+      << "), times lost " << c.times_lost << ", rejected inputs " << c.rejected_inputs << "\n"
+      << LatencyLine(run.latency_ms) << "\n";
+  for (const std::string& warning : run.warnings) out << "warning: " << warning << "\n";
+}
+
+// Formats every output first, then writes them: a failure leaves no partial output.
+void WriteOutputs(const Args& args, const LocalizeRun& run) {
+  const std::string tum = FormatTum(run.trajectory, "waymark localize: tracked T_world_robot");
+  std::string predicted, poses;
+  if (args.Has("predicted")) {
+    predicted = FormatTum(run.predicted, "waymark localize: T_world_robot predicted before each correction");
+  }
+  if (args.Has("poses")) {
+    for (size_t i = 0; i < run.outputs.size(); ++i)
+      poses += FormatPoseLine(run.outputs[i], run.cameras[i], run.frame_counts[i], run.latency_ms[i]) + "\n";
+  }
+  AtomicWriteFile(args.Require("out"), tum);
+  if (args.Has("predicted")) AtomicWriteFile(*args.Get("predicted"), predicted);
+  if (args.Has("poses")) AtomicWriteFile(*args.Get("poses"), poses);
+}
+
+int RunDataset(const Args& args) {
+  args.Require("out");
+  const MarkerMap map = ReadMap(args.Require("map"));
+  const Dataset dataset = LoadDataset(args.positionals()[0]);
+  const LocalizeRunOptions options = ParseOptions(args, dataset);
+  const LocalizeRun run = RunLocalizer(dataset, map, options);
+  if (StderrIsTerminal()) std::cerr << "\r\033[K";
+  WriteOutputs(args, run);
+  PrintSummary(run, std::cout);
+  return 0;
+}
+
+// ---- Live mode ----
+
+// Feeds stdin's lines to a LocalizeStream; a malformed line is reported and skipped.
+class LiveInput {
+ public:
+  LiveInput(const Dataset& dataset, const MarkerMap& map, const LocalizeRunOptions& options)
+      : dataset_(dataset), map_(map), options_(options),
+        stream_(dataset, map, options, [this](const LocalizeStream::FrameOutput& output) { Write(output); }) {}
+
+  void Run(std::istream& in) {
+    RealtimePacer pacer;
+    std::string line;
+    while (std::getline(in, line)) {
+      ++line_number_;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      if (line.find_first_not_of(" \t") == std::string::npos) continue;
+      try {
+        HandleLine(line, options_.realtime ? &pacer : nullptr);
+      } catch (const FormatError& e) {
+        Reject(e.message());
+      } catch (const std::invalid_argument& e) {
+        Reject(e.what());
+      }
+    }
+    stream_.Flush();
+    stream_.CheckMapMatches(true);
+  }
+
+  void PrintSummary(std::ostream& out) const {
+    out << "waymark localize --live: " << line_number_ << " lines, " << frames_ << " frames (" << tracking_
+        << " tracking), " << malformed_ << " malformed lines skipped\n";
+    for (const std::string& warning : stream_.warnings().Lines()) out << "warning: " << warning << "\n";
+    for (const auto& [reason, count] : read_warnings_.counts) out << "warning: " << reason << ": " << count << "\n";
+  }
+
+ private:
+  void Reject(const std::string& message) {
+    ++malformed_;
+    std::cerr << "waymark localize: stdin:" << line_number_ << ": " << message << "\n";
+  }
+
+  void Write(const LocalizeStream::FrameOutput& output) {
+    ++frames_;
+    tracking_ += output.pose.T_world_robot.has_value();
+    std::cout << FormatPoseLine(output.pose, output.camera, CountOutcomes(output.result), output.latency_ms) << "\n"
+              << std::flush;
+  }
+
+  void HandleLine(const std::string& line, RealtimePacer* pacer);
+  void HandleImage(const nlohmann::json& object, const JsonSource& source, double stamp_s);
+
+  const Dataset& dataset_;
+  const MarkerMap& map_;
+  LocalizeRunOptions options_;
+  LocalizeStream stream_;
+  std::unique_ptr<MarkerDetector> detector_;  // created at the first image line
+  ReadWarnings read_warnings_;
+  long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;
+};
+
+void LiveInput::HandleLine(const std::string& line, RealtimePacer* pacer) {
+  nlohmann::json object;
+  try {
+    object = nlohmann::json::parse(line);
+  } catch (const nlohmann::json::parse_error& e) {
+    const std::string what = e.what();  // "[json.exception.parse_error.101] parse error at ..."
+    throw std::invalid_argument("not valid JSON: " + what.substr(what.find("] ") == std::string::npos ? 0 : what.find("] ") + 2));
+  }
+  if (!object.is_object()) throw std::invalid_argument("expected a JSON object");
+  const JsonSource source{"stdin", [this](const std::string&) { return std::optional<long>(line_number_); }};
+  const double stamp_s = JsonNumber(source, *JsonMember(source, object, "", "t", true), "t");
+  if (pacer) pacer->WaitFor(stamp_s);
+  if (object.contains("T_odom_robot")) {
+    JsonWarnUnknownKeys(source, object, "", {"t", "T_odom_robot"}, &read_warnings_);
+    return stream_.AddOdometry(stamp_s, JsonPose(source, object["T_odom_robot"], "T_odom_robot"));
+  }
+  if (object.contains("markers")) {
+    ReadWarnings warnings;
+    std::vector<DetectionFrame> frames = ParseDetections(line, "stdin", &warnings, &dataset_.cameras);
+    for (const auto& [reason, count] : warnings.counts) read_warnings_.counts[reason] += count;
+    return stream_.AddFrame(frames.at(0));
+  }
+  if (object.contains("image")) return HandleImage(object, source, stamp_s);
+  throw std::invalid_argument(
+      "expected an odometry line (T_odom_robot), a detection line (markers) or an image line (image)");
+}
+
+void LiveInput::HandleImage(const nlohmann::json& object, const JsonSource& source, double stamp_s) {
+  JsonWarnUnknownKeys(source, object, "", {"t", "camera", "image"}, &read_warnings_);
+  const std::string camera = JsonString(source, *JsonMember(source, object, "", "camera", true), "camera");
+  if (!dataset_.cameras.count(camera)) throw std::invalid_argument("camera: '" + camera + "' is not in the dataset");
+  const std::string path = JsonString(source, object["image"], "image");
+  if (!detector_) detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), options_.detector);
+  const auto start = std::chrono::steady_clock::now();
+  std::string why;
+  const std::optional<DetectionFrame> frame = DetectImageFile(*detector_, path, stamp_s, camera, &why);
+  if (!frame) throw std::invalid_argument(why);
+  stream_.AddFrame(*frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+}
+
+int RunLive(const Args& args) {
+  if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
+    throw std::invalid_argument("--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");
+  }
+  const MarkerMap map = ReadMap(args.Require("map"));
+  const Dataset dataset = LoadDataset(args.positionals()[0]);
+  LocalizeRunOptions options = ParseOptions(args, dataset);
+  options.progress = nullptr;
+  LiveInput live(dataset, map, options);
+  live.Run(std::cin);
+  live.PrintSummary(std::cerr);
+  return 0;
+}
+
+int RunLocalize(const std::vector<std::string>& argv) {
+  const Args args(argv, kValues, kFlags);
+  if (args.Help()) {
+    std::cout << kUsage;
+    return 0;
+  }
+  args.ExpectPositionals(1, 1, "dataset directory DATASET");
+  args.Require("map");
+  return args.Flag("live") ? RunLive(args) : RunDataset(args);
+}
+
+const CommandRegistrar kRegistrar(Command{
+    "localize", "localize a robot against a map: a dataset's odometry and codes, or live JSON lines on stdin",
+    kUsage, RunLocalize});
+
+}  // namespace
+}  // namespace waymark::cli
