@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <set>
+#include <sstream>
 
 #include <ceres/ceres.h>
 
@@ -36,113 +38,28 @@ double QuadArea(const std::array<Eigen::Vector2d, 4>& c) {
   return 0.5 * std::abs(twice);
 }
 
-// The state of one component's placement.
-class Placer {
- public:
-  Placer(const Survey& survey, const std::map<std::string, Camera>& cameras, const InitializerOptions& options,
-         Initialization* init)
-      : survey_(survey), cameras_(cameras), options_(options), init_(init) {
-    prev_link_.assign(survey.frames.size(), -1);
-    next_link_.assign(survey.frames.size(), -1);
-    for (size_t i = 0; i < survey.odometry_links.size(); ++i) {
-      next_link_[survey.odometry_links[i].frame_a] = static_cast<int>(i);
-      prev_link_[survey.odometry_links[i].frame_b] = static_cast<int>(i);
-    }
-  }
-
-  void PlaceComponent(int component);
-
- private:
-  bool PlaceFrame(int frame);
-  void PlaceMarkersSeenBy(int frame, bool ambiguous_too);
-  void PlaceDeferredMarkers(const std::vector<int>& frames);
-  double RobustCost(int frame, const SE3d& T_world_robot) const;
-  SE3d RefineFrame(int frame, const SE3d& T_world_robot) const;
-  SE3d Planarize(const SE3d& T) const {
-    return survey_.motion == MotionModel::kPlanar ? SE2d::FromSE3(T).ToSE3() : T;
-  }
-
-  const Survey& survey_;
-  const std::map<std::string, Camera>& cameras_;
-  const InitializerOptions& options_;
-  Initialization* init_;
-  std::vector<int> prev_link_, next_link_;
-};
-
-bool Placer::PlaceFrame(int frame) {
-  std::vector<SE3d> candidates;
-  for (int o : survey_.frames[frame].observations) {
-    const SingleView& view = init_->views[o];
-    const auto& T_world_marker = init_->T_world_marker[survey_.observations[o].marker];
-    if (!view.usable || !T_world_marker) continue;
-    for (const SE3d& T_robot_marker : view.T_robot_marker) {
-      candidates.push_back(Planarize(*T_world_marker * T_robot_marker.inverse()));
-    }
-  }
-  const bool from_codes = !candidates.empty();
-  if (const int l = prev_link_[frame]; l >= 0 && init_->T_world_robot[survey_.odometry_links[l].frame_a]) {
-    const OdometryLink& link = survey_.odometry_links[l];
-    candidates.push_back(Planarize(*init_->T_world_robot[link.frame_a] * link.T_a_b));
-  }
-  if (const int l = next_link_[frame]; l >= 0 && init_->T_world_robot[survey_.odometry_links[l].frame_b]) {
-    const OdometryLink& link = survey_.odometry_links[l];
-    candidates.push_back(Planarize(*init_->T_world_robot[link.frame_b] * link.T_a_b.inverse()));
-  }
-  if (candidates.empty()) return false;
-  if (!from_codes) {
-    init_->T_world_robot[frame] = candidates.front();
-    return true;
-  }
-  double best_cost = std::numeric_limits<double>::infinity();
-  SE3d best = candidates.front();
-  for (const SE3d& candidate : candidates) {
-    const double cost = RobustCost(frame, candidate);
-    if (cost < best_cost) {
-      best_cost = cost;
-      best = candidate;
-    }
-  }
-  if (!std::isfinite(best_cost)) return false;
-  init_->T_world_robot[frame] = RefineFrame(frame, best);
-  return true;
+SE3d Planarize(MotionModel motion, const SE3d& T) {
+  return motion == MotionModel::kPlanar ? SE2d::FromSE3(T).ToSE3() : T;
 }
 
-// Sum over the frame's placed codes of the Cauchy cost of their whitened residuals.
-double Placer::RobustCost(int frame, const SE3d& T_world_robot) const {
-  const double c2 = options_.cauchy_scale * options_.cauchy_scale;
-  double cost = 0.0;
-  for (int o : survey_.frames[frame].observations) {
-    const SurveyObservation& obs = survey_.observations[o];
-    const auto& T_world_marker = init_->T_world_marker[obs.marker];
-    if (!init_->views[o].usable || !T_world_marker) continue;
-    const Camera& camera = cameras_.at(obs.camera);
-    const SE3d T_camera_marker =
-        (T_world_robot * camera.info().T_robot_camera).inverse() * *T_world_marker;
-    const double rms = MarkerReprojectionRms(obs.corners_px, survey_.markers[obs.marker].size_m, camera,
-                                             T_camera_marker);
-    const double s = std::isfinite(rms) ? 4.0 * rms * rms / std::pow(CornerSigmaPx(camera.info()), 2) : 1e12;
-    cost += c2 * std::log1p(s / c2);
-  }
-  return cost;
-}
-
-// PnP of the frame against its placed codes (codes held constant), Cauchy loss.
-SE3d Placer::RefineFrame(int frame, const SE3d& T_world_robot) const {
-  ceres::Problem::Options problem_options;
-  ceres::Problem problem(problem_options);
+// PnP of a frame against its placed codes (codes held constant), Cauchy loss; the start
+// when nothing can be refined.
+SE3d RefineFrame(const Survey& survey, const std::map<std::string, Camera>& cameras, const Initialization& init,
+                 int frame, const SE3d& T_world_robot, const InitializerOptions& options) {
+  ceres::Problem problem;
   PoseBlock robot;
-  RobotToBlock(survey_.motion, T_world_robot, &robot);
-  AddRobotBlock(&problem, survey_.motion, &robot);
+  RobotToBlock(survey.motion, T_world_robot, &robot);
+  AddRobotBlock(&problem, survey.motion, &robot);
   std::vector<PoseBlock> markers;
-  markers.reserve(survey_.frames[frame].observations.size());
-  for (int o : survey_.frames[frame].observations) {
-    const SurveyObservation& obs = survey_.observations[o];
-    const auto& T_world_marker = init_->T_world_marker[obs.marker];
-    if (!init_->views[o].usable || !T_world_marker) continue;
-    const Camera& camera = cameras_.at(obs.camera);
+  markers.reserve(survey.frames[frame].observations.size());
+  for (int o : survey.frames[frame].observations) {
+    const SurveyObservation& obs = survey.observations[o];
+    const auto& T_world_marker = init.T_world_marker[obs.marker];
+    if (!init.views[o].usable || !T_world_marker) continue;
+    const Camera& camera = cameras.at(obs.camera);
     const SE3d T_camera_marker = (T_world_robot * camera.info().T_robot_camera).inverse() * *T_world_marker;
     // A code behind the camera at the start would make the solve fail at its first evaluation.
-    if (!std::isfinite(MarkerReprojectionRms(obs.corners_px, survey_.markers[obs.marker].size_m, camera,
+    if (!std::isfinite(MarkerReprojectionRms(obs.corners_px, survey.markers[obs.marker].size_m, camera,
                                              T_camera_marker))) {
       continue;
     }
@@ -150,79 +67,106 @@ SE3d Placer::RefineFrame(int frame, const SE3d& T_world_robot) const {
     SE3ToBlock(*T_world_marker, markers.back().data());
     AddMarkerBlock(&problem, &markers.back());
     problem.SetParameterBlockConstant(markers.back().data());
-    AddCornerResidual(&problem, survey_.motion, cameras_.at(obs.camera).info(), survey_.markers[obs.marker].size_m,
-                      obs.corners_px, &robot, &markers.back(), new ceres::CauchyLoss(options_.cauchy_scale));
+    AddCornerResidual(&problem, survey.motion, camera.info(), survey.markers[obs.marker].size_m, obs.corners_px,
+                      &robot, &markers.back(), new ceres::CauchyLoss(options.cauchy_scale));
   }
+  if (markers.empty()) return T_world_robot;
   ceres::Solver::Options solver_options;
-  solver_options.max_num_iterations = options_.pnp_iterations;
+  solver_options.max_num_iterations = options.pnp_iterations;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solver_options.num_threads = 1;
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
-  const SE3d refined = RobotFromBlock(survey_.motion, robot);
+  const SE3d refined = RobotFromBlock(survey.motion, robot);
   return refined.IsFinite() ? refined : T_world_robot;
 }
 
-void Placer::PlaceMarkersSeenBy(int frame, bool ambiguous_too) {
-  const SE3d& T_world_robot = *init_->T_world_robot[frame];
-  for (int o : survey_.frames[frame].observations) {
-    const SingleView& view = init_->views[o];
-    const int m = survey_.observations[o].marker;
-    if (!view.usable || init_->T_world_marker[m]) continue;
-    if (!ambiguous_too && view.error_ratio < options_.ambiguity_ratio) continue;
-    init_->T_world_marker[m] = T_world_robot * view.T_robot_marker.front();
+// Adds `T` to `seeds` unless one is within 3 degrees of it.
+void AddSeed(const SE3d& T, std::vector<SE3d>* seeds) {
+  constexpr double kSameSeedRad = 3.0 * M_PI / 180.0;
+  for (const SE3d& seed : *seeds) {
+    if (RotationAngleBetween(seed, T) < kSameSeedRad) return;
   }
+  seeds->push_back(T);
 }
 
-// Codes seen only ambiguously: placed from their view with the largest error ratio.
-void Placer::PlaceDeferredMarkers(const std::vector<int>& frames) {
-  std::map<int, int> best_view;  // marker -> observation
-  for (int f : frames) {
-    if (!init_->T_world_robot[f]) continue;
-    for (int o : survey_.frames[f].observations) {
-      const int m = survey_.observations[o].marker;
-      if (!init_->views[o].usable || init_->T_world_marker[m]) continue;
-      const auto it = best_view.find(m);
-      if (it == best_view.end() || init_->views[o].error_ratio > init_->views[it->second].error_ratio) {
-        best_view[m] = o;
+// A code fused over all its usable views in placed frames, seeded by `current` (if any) and
+// both solutions of its `max_candidates` least ambiguous views.
+std::optional<FusedPose> FuseInWorld(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                                     const std::vector<SingleView>& views,
+                                     const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
+                                     const std::optional<SE3d>& current, size_t max_candidates,
+                                     const LocalMapOptions& options) {
+  std::vector<int> seen;
+  std::vector<FusionView> fusion;
+  for (int o : survey.markers[marker].observations) {
+    const SurveyObservation& obs = survey.observations[o];
+    if (!views[o].usable || !T_world_robot[obs.frame]) continue;
+    const Camera& camera = cameras.at(obs.camera);
+    seen.push_back(o);
+    fusion.push_back({&camera, *T_world_robot[obs.frame] * camera.info().T_robot_camera, &obs.corners_px,
+                      CornerSigmaPx(camera.info())});
+  }
+  if (seen.empty()) return std::nullopt;
+  std::vector<SE3d> seeds;
+  if (current) seeds.push_back(*current);
+  std::vector<int> proposers = seen;
+  const size_t n = std::min(max_candidates, proposers.size());
+  std::partial_sort(proposers.begin(), proposers.begin() + n, proposers.end(),
+                    [&](int a, int b) { return views[a].error_ratio > views[b].error_ratio; });
+  for (size_t i = 0; i < n; ++i) {
+    for (const SE3d& T_robot_marker : views[proposers[i]].T_robot_marker) {
+      AddSeed(*T_world_robot[survey.observations[proposers[i]].frame] * T_robot_marker, &seeds);
+    }
+  }
+  return FuseMarkerViews(fusion, survey.markers[marker].size_m, seeds, false, options);
+}
+
+LocalMapOptions EffectiveLocalMapOptions(const InitializerOptions& options) {
+  LocalMapOptions local = options.local_maps;
+  local.ambiguity_ratio = options.ambiguity_ratio;
+  local.cauchy_scale = options.cauchy_scale;
+  return local;
+}
+
+// Frames and codes from the placed local maps; each code from its most certain local map.
+void PlaceFromLocalMaps(const Survey& survey, const std::vector<SE3d>& T_world_ref, Initialization* init) {
+  std::vector<double> best_sigma(survey.markers.size(), std::numeric_limits<double>::infinity());
+  for (size_t i = 0; i < init->local_maps.size(); ++i) {
+    const LocalMap& map = init->local_maps[i];
+    for (size_t k = 0; k < map.frames.size(); ++k) {
+      init->T_world_robot[map.frames[k]] = Planarize(survey.motion, T_world_ref[i] * map.T_ref_robot[k]);
+    }
+    for (const auto& [m, fused] : map.codes) {
+      const double sigma = RankingSigma(fused);
+      if (sigma < best_sigma[m] || !init->T_world_marker[m]) {
+        best_sigma[m] = sigma;
+        init->T_world_marker[m] = T_world_ref[i] * fused.T_frame_marker;
       }
     }
   }
-  for (const auto& [m, o] : best_view) {
-    const int f = survey_.observations[o].frame;
-    init_->T_world_marker[m] = *init_->T_world_robot[f] * init_->views[o].T_robot_marker.front();
+  init->marker_link_quality.assign(survey.markers.size(), 0.0);
+  for (const LocalMapLink& link : init->links) {
+    if (link.marker >= 0) init->marker_link_quality[link.marker] = std::max(init->marker_link_quality[link.marker], link.quality);
   }
 }
 
-void Placer::PlaceComponent(int component) {
-  std::vector<int> frames;
-  for (size_t f = 0; f < survey_.frames.size(); ++f) {
-    if (init_->frame_component[f] == component) frames.push_back(static_cast<int>(f));
+// Every placed code re-fused over all its views at the current frame poses.
+void RefineMarkers(const Survey& survey, const std::map<std::string, Camera>& cameras, const LocalMapOptions& options,
+                   Initialization* init) {
+  for (size_t m = 0; m < survey.markers.size(); ++m) {
+    if (!init->T_world_marker[m]) continue;
+    const std::optional<FusedPose> fused = FuseInWorld(survey, cameras, init->views, init->T_world_robot,
+                                                       static_cast<int>(m), init->T_world_marker[m], 2, options);
+    if (fused) init->T_world_marker[m] = fused->T_frame_marker;
   }
-  for (int f : frames) {
-    const auto& obs = survey_.frames[f].observations;
-    if (std::any_of(obs.begin(), obs.end(), [&](int o) { return init_->views[o].usable; })) {
-      init_->T_world_robot[f] = SE3d::Identity();
-      PlaceMarkersSeenBy(f, true);
-      break;
-    }
-  }
-  for (bool changed = true; changed;) {
-    changed = false;
-    for (int pass = 0; pass < 2; ++pass) {
-      for (size_t i = 0; i < frames.size(); ++i) {
-        const int f = pass == 0 ? frames[i] : frames[frames.size() - 1 - i];
-        if (init_->T_world_robot[f] || !PlaceFrame(f)) continue;
-        changed = true;
-        PlaceMarkersSeenBy(f, false);
-      }
-    }
-    const size_t placed_before = std::count_if(init_->T_world_marker.begin(), init_->T_world_marker.end(),
-                                               [](const auto& T) { return T.has_value(); });
-    PlaceDeferredMarkers(frames);
-    const size_t placed_after = std::count_if(init_->T_world_marker.begin(), init_->T_world_marker.end(),
-                                              [](const auto& T) { return T.has_value(); });
-    changed = changed || placed_after > placed_before;
+}
+
+void RefineFrames(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                  const InitializerOptions& options, Initialization* init) {
+  for (size_t f = 0; f < survey.frames.size(); ++f) {
+    if (!init->T_world_robot[f]) continue;
+    init->T_world_robot[f] = RefineFrame(survey, cameras, *init, static_cast<int>(f), *init->T_world_robot[f], options);
   }
 }
 
@@ -304,50 +248,18 @@ void AlignComponent(const Survey& survey, int component, Initialization* init) {
   }
 }
 
-// Cauchy cost of one observation for given poses (whitened units).
-double ObservationCost(const Survey& survey, const std::map<std::string, Camera>& cameras, int o,
-                       const SE3d& T_world_robot, const SE3d& T_world_marker, double cauchy_scale) {
-  const SurveyObservation& obs = survey.observations[o];
-  const Camera& camera = cameras.at(obs.camera);
-  const SE3d T_camera_marker = (T_world_robot * camera.info().T_robot_camera).inverse() * T_world_marker;
-  const double rms = MarkerReprojectionRms(obs.corners_px, survey.markers[obs.marker].size_m, camera, T_camera_marker);
-  const double c2 = cauchy_scale * cauchy_scale;
-  const double s = std::isfinite(rms) ? 4.0 * rms * rms / std::pow(CornerSigmaPx(camera.info()), 2) : 1e12;
-  return c2 * std::log1p(s / c2);
-}
-
 }  // namespace
 
 std::optional<SE3d> MarkerByConsensus(const Survey& survey, const std::map<std::string, Camera>& cameras,
                                       const std::vector<SingleView>& views,
                                       const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
                                       double cauchy_scale, size_t max_candidates) {
-  std::vector<int> seen;  // usable views from placed frames
-  for (int o : survey.markers[marker].observations) {
-    if (views[o].usable && T_world_robot[survey.observations[o].frame]) seen.push_back(o);
-  }
-  if (seen.empty()) return std::nullopt;
-  std::vector<int> proposers = seen;
-  std::sort(proposers.begin(), proposers.end(), [&](int a, int b) { return views[a].error_ratio > views[b].error_ratio; });
-  if (proposers.size() > max_candidates) proposers.resize(max_candidates);
-  std::optional<SE3d> best;
-  double best_cost = std::numeric_limits<double>::infinity();
-  for (int p : proposers) {
-    for (const SE3d& T_robot_marker : views[p].T_robot_marker) {
-      const SE3d candidate = *T_world_robot[survey.observations[p].frame] * T_robot_marker;
-      double cost = 0.0;
-      for (int o : seen) {
-        cost += ObservationCost(survey, cameras, o, *T_world_robot[survey.observations[o].frame], candidate,
-                                cauchy_scale);
-        if (cost >= best_cost) break;
-      }
-      if (cost < best_cost) {
-        best_cost = cost;
-        best = candidate;
-      }
-    }
-  }
-  return best;
+  LocalMapOptions options;
+  options.cauchy_scale = cauchy_scale;
+  const std::optional<FusedPose> fused =
+      FuseInWorld(survey, cameras, views, T_world_robot, marker, std::nullopt, max_candidates, options);
+  if (!fused) return std::nullopt;
+  return fused->T_frame_marker;
 }
 
 std::map<std::string, Camera> MakeCameras(const Survey& survey) {
@@ -418,22 +330,62 @@ void FindComponents(const Survey& survey, Initialization* init) {
 
 Initialization Initialize(const Survey& survey, const InitializerOptions& options) {
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
+  const LocalMapOptions local = EffectiveLocalMapOptions(options);
   Initialization init;
   init.views = ComputeSingleViews(survey, cameras, options.ambiguity_ratio);
   FindComponents(survey, &init);
   init.T_world_robot.assign(survey.frames.size(), std::nullopt);
   init.T_world_marker.assign(survey.markers.size(), std::nullopt);
-  Placer placer(survey, cameras, options, &init);
-  for (int c = 0; c < init.components; ++c) {
-    placer.PlaceComponent(c);
-    for (size_t m = 0; m < survey.markers.size(); ++m) {
-      if (init.marker_component[m] != c || !init.T_world_marker[m]) continue;
-      init.T_world_marker[m] = MarkerByConsensus(survey, cameras, init.views, init.T_world_robot, static_cast<int>(m),
-                                                 options.cauchy_scale);
-    }
-    AlignComponent(survey, c, &init);
+  init.local_maps = BuildLocalMaps(survey, cameras, init.views, init.frame_component, local);
+  init.links = FindLocalMapLinks(survey, init.local_maps, local);
+  const int num_maps = static_cast<int>(init.local_maps.size());
+  init.tree = SpanningForest(num_maps, init.links);
+  PlaceFromLocalMaps(survey, PlaceLocalMaps(num_maps, init.links, init.tree, survey.motion == MotionModel::kPlanar),
+                     &init);
+  for (int round = 0; round < 2; ++round) {
+    RefineFrames(survey, cameras, options, &init);
+    RefineMarkers(survey, cameras, local, &init);
   }
+  for (int c = 0; c < init.components; ++c) AlignComponent(survey, c, &init);
+  init.notes = DescribeInitialization(survey, init);
   return init;
+}
+
+std::vector<std::string> DescribeInitialization(const Survey& survey, const Initialization& init) {
+  size_t code_links = 0, odometry_links = 0;
+  double weakest = std::numeric_limits<double>::infinity();
+  for (int l : init.tree) {
+    (init.links[l].marker >= 0 ? code_links : odometry_links) += 1;
+    weakest = std::min(weakest, init.links[l].quality);
+  }
+  std::set<int> unstable, unresolved;
+  for (const LocalMap& map : init.local_maps) {
+    for (const auto& [m, fused] : map.codes) {
+      if (!fused.stable) unstable.insert(m);
+      else if (!fused.resolved) unresolved.insert(m);
+    }
+  }
+  std::ostringstream line;
+  line << "initialization: " << init.local_maps.size() << " local maps joined by " << code_links << " code and "
+       << odometry_links << " odometry links";
+  if (!init.tree.empty()) line << " (weakest link sigma " << 1000.0 / weakest << " mm)";
+  std::vector<std::string> notes{line.str()};
+  const auto list = [&](const std::set<int>& markers, const std::string& what) {
+    if (markers.empty()) return;
+    std::string text = std::to_string(markers.size()) + " code(s) " + what + ":";
+    size_t shown = 0;
+    for (int m : markers) {
+      if (shown++ == 8) {
+        text += " ...";
+        break;
+      }
+      text += " " + survey.markers[m].key.ToString();
+    }
+    notes.push_back(text);
+  };
+  list(unstable, "unstable in some local map (views disagree or too uncertain)");
+  list(unresolved, "with an unresolved planar flip in some local map");
+  return notes;
 }
 
 }  // namespace waymark

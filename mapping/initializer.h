@@ -10,21 +10,20 @@
 // 0, 1, ... in the order of their first frame. Each has its own world frame. Frames without any
 // marker in their group get component -1 (no pose).
 //
-// Initialization, per component (an incremental, spanning-tree placement):
-//   - the root frame (the component's first frame with a usable view) is the identity;
-//   - sweeping the frames forward and backward in time, a frame is placed from the placed
-//     codes it sees (candidates T_world_robot = T_world_marker * T_robot_marker^-1 from both IPPE
-//     solutions, and the odometry prediction T_world_robot_a * M_a_b from a placed neighbour,
-//     the one with the least robust reprojection cost wins, then refined by PnP over every
-//     placed code of the frame, Cauchy loss), else from odometry alone;
-//   - a code is placed from a placed frame by its strongest view: at once when the view is
-//     unambiguous (error ratio >= ambiguity_ratio, TagSLAM's gate), otherwise at the end of the
-//     sweep from the view with the largest error ratio among placed frames;
-//   - sweeps repeat until nothing changes;
-//   - then every code is re-placed by consensus over its views (the fused local map of the
-//     code): each view's solutions (both, when ambiguous) are candidates, and the candidate with
-//     the least summed Cauchy cost over all of the code's views wins. This undoes a code placed
-//     from a flipped or misdecoded first view.
+// Initialization, per component, by local maps stitched along a spanning tree
+// (mapping/local_maps.h has the equations):
+//   - the frames are cut into local maps (short odometry runs; without odometry one frame
+//     each); inside a map, frames are placed by odometry and every code seen gets one pose
+//     fused over its views, both branches of the planar ambiguity tried, unstable ones marked;
+//   - local maps are linked by shared codes (quality 1 / predicted error of the link) and by
+//     odometry; the maximum-quality spanning forest places them, one tree per component, the
+//     component's first local map at the identity;
+//   - every frame gets T_world_ref * T_ref_robot; every code the pose of its most certain
+//     local map;
+//   - then every code is re-fused over all its views at the placed frames (seeds: its pose
+//     and both solutions of its least ambiguous views; the lowest robust cost wins, which
+//     undoes a flipped or misdecoded first view), frames seeing codes are refined by PnP
+//     against them (Cauchy loss), and codes are fused once more.
 // Planar surveys keep every robot pose in SE(2) (z = 0, yaw only).
 // Then the component is moved onto its priors: anchors (markers.json entries, fixed or with a
 // covariance) give the transform directly (SE(2) for planar surveys); otherwise two or more
@@ -38,14 +37,17 @@
 
 #include "core/camera.h"
 #include "core/marker_pose.h"
+#include "mapping/local_maps.h"
 #include "mapping/survey.h"
 
 namespace waymark {
 
 struct InitializerOptions {
   double ambiguity_ratio = 3.0;     // TagSLAM's gate on the two IPPE solutions' errors
-  double cauchy_scale = 3.0;        // robust scale, whitened units, for the frame PnP
+  double cauchy_scale = 3.0;        // robust scale, whitened units, for the frame PnP and fusion
   int pnp_iterations = 20;
+  // Local maps; its ambiguity_ratio and cauchy_scale are taken from the two fields above.
+  LocalMapOptions local_maps;
 };
 
 // The single view of one observation.
@@ -66,7 +68,17 @@ struct Initialization {
   std::vector<std::optional<SE3d>> T_world_robot;   // per frame
   std::vector<std::optional<SE3d>> T_world_marker;  // per marker
   std::vector<std::string> gauge;                   // per component: how its frame was fixed
+  // Local maps and their stitching (mapping/local_maps.h).
+  std::vector<LocalMap> local_maps;
+  std::vector<LocalMapLink> links;                  // every candidate link
+  std::vector<int> tree;                            // indices into `links`: the spanning forest
+  std::vector<double> marker_link_quality;          // per marker: best quality of a link through it, 0 if none
+  std::vector<std::string> notes;                   // facts for the build summary
 };
+
+// Lines for the build summary: local maps, links in the tree (code / odometry), the weakest
+// tree link, codes unstable in some local map or with an unresolved flip.
+std::vector<std::string> DescribeInitialization(const Survey& survey, const Initialization& init);
 
 // Throws std::runtime_error when a camera's calibration is unusable.
 std::map<std::string, Camera> MakeCameras(const Survey& survey);
@@ -78,9 +90,10 @@ std::vector<SingleView> ComputeSingleViews(const Survey& survey, const std::map<
 // components of `init` from `init->views`.
 void FindComponents(const Survey& survey, Initialization* init);
 
-// The consensus placement of the header comment for one marker, given frame poses; nullopt
-// when no view of the marker is in a placed frame. At most `max_candidates` views (largest
-// error ratio first) propose candidates.
+// The consensus placement of the header comment for one marker, given frame poses: the code
+// fused over all its views in placed frames (mapping/local_maps.h), seeded by both solutions
+// of at most `max_candidates` views (largest error ratio first; seeds closer than 3 degrees
+// to one already tried are skipped); nullopt when no view of the marker is in a placed frame.
 std::optional<SE3d> MarkerByConsensus(const Survey& survey, const std::map<std::string, Camera>& cameras,
                                       const std::vector<SingleView>& views,
                                       const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
