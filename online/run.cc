@@ -123,7 +123,7 @@ bool LocalizeRunOptions::Check(std::string* why) const {
     return false;
   };
   if (!localizer.Check(why)) return false;
-  if (map_check_frames < 1) return fail("map_check_frames must be >= 1");
+  if (map_check_frames < 1 || map_check_codes < 1) return fail("map_check_frames and map_check_codes must be >= 1");
   if (!(odometry_wait_s >= 0.0) || !std::isfinite(odometry_wait_s)) {
     return fail("odometry_wait_s must be finite and >= 0");
   }
@@ -305,7 +305,9 @@ void LocalizeStream::ProcessFrame(const Pending& pending) {
 
 void LocalizeStream::CheckMapMatches(bool at_end) const {
   if (frames_with_map_codes_ > 0 || frames_with_codes_ == 0) return;
-  if (!at_end && frames_with_codes_ < options_.map_check_frames) return;
+  if (!at_end && (frames_with_codes_ < options_.map_check_frames ||
+                  static_cast<long>(unknown_keys_.size()) < options_.map_check_codes))
+    return;
   std::ostringstream message;
   message << "none of the " << unknown_keys_.size() << " codes detected in " << frames_with_codes_
           << " frames is in the map (first: " << (unknown_keys_.empty() ? "?" : unknown_keys_.begin()->ToString())

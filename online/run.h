@@ -15,9 +15,10 @@
 // corrected without a prediction to its instant (counted warning).
 //
 // Bad data never stops a run: codes absent from the map, frames or odometry whose time goes
-// backwards, unreadable images are counted warnings. A map of another place (no code detected
-// in the first `map_check_frames` frames with codes, or in the whole run, is in the map)
-// throws std::runtime_error, since every pose would be missing.
+// backwards, unreadable images are counted warnings. A map of another place (none of the codes
+// detected in the first `map_check_frames` frames with codes, showing `map_check_codes`
+// distinct codes, or in the whole run, is in the map) throws std::runtime_error, since every
+// pose would be missing.
 #pragma once
 
 #include <chrono>
@@ -45,9 +46,11 @@ struct LocalizeRunOptions {
   DetectorOptions detector;           // for images
   bool realtime = false;              // pace the input by its timestamps (sleeps)
   std::function<void(const std::string&)> progress;  // "frame 120/1335, tracking 97.5 %"
-  // Frames with at least one code after which, if none of their codes is in the map, the run
-  // stops with an error (a map of another place).
+  // A map of another place: once `map_check_frames` frames with codes showing at least
+  // `map_check_codes` distinct codes were seen and none of them is in the map, the run stops
+  // with an error (a robot starting in an unmapped corner sees few distinct codes).
   int map_check_frames = 30;
+  int map_check_codes = 8;
   // Live streams: how long (in stamp time) a frame may wait for odometry beyond its stamp
   // before it is corrected without the interpolated prediction.
   double odometry_wait_s = 0.5;
@@ -161,8 +164,8 @@ class LocalizeStream {
   const RunWarnings& warnings() const { return warnings_; }
   long frames_with_codes() const { return frames_with_codes_; }
   long frames_with_map_codes() const { return frames_with_map_codes_; }
-  // Throws std::runtime_error when enough frames with codes were seen and none had a code of
-  // the map (`at_end`: however few there were).
+  // Throws std::runtime_error when enough frames with codes (and distinct codes) were seen and
+  // none had a code of the map (`at_end`: however few there were).
   void CheckMapMatches(bool at_end) const;
 
  private:

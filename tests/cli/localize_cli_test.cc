@@ -1,0 +1,239 @@
+// End to end through the `waymark` binary: `waymark sim corridor` -> `waymark map build` ->
+// `waymark localize` -> `waymark eval`; the live mode on the same data gives the same poses
+// line for line; bad inputs give one line on stderr and no output, or counted warnings.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/io_util.h"
+#include "core/map_io.h"
+#include "core/tum_io.h"
+
+namespace waymark {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) lines.push_back(line);
+  }
+  return lines;
+}
+
+// The number after `label` on the line of `text` that starts with it (eval's table).
+double Figure(const std::string& text, const std::string& label) {
+  const size_t at = text.find(label);
+  if (at == std::string::npos) return -1.0;
+  return std::atof(text.c_str() + at + label.size());
+}
+
+class LocalizeCliTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(fs::temp_directory_path() / ("waymark_localize_cli_" + std::to_string(::getpid())));
+    fs::remove_all(*dir_);
+    fs::create_directories(*dir_);
+    // A small corridor loop (4 m x 3 m, codes every 50 cm) and its map.
+    const RunResult sim = Run("sim corridor --out " + Path("run") +
+                              " --seed 5 --set place.loop_length_m=4 --set place.loop_width_m=3 "
+                              "--set place.spacing_m=0.5");
+    ASSERT_EQ(sim.exit_code, 0) << sim.err;
+    const RunResult build = Run("map build " + Path("run") + " --out " + Path("map.json"));
+    ASSERT_EQ(build.exit_code, 0) << build.err;
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+
+  static std::string Path(const std::string& name) { return (*dir_ / name).string(); }
+
+  static RunResult Run(const std::string& arguments, const std::string& stdin_file = "") {
+    const fs::path out = *dir_ / "stdout.txt", err = *dir_ / "stderr.txt";
+    std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
+    if (!stdin_file.empty()) command += " <" + stdin_file;
+    RunResult result;
+    const int status = std::system(command.c_str());
+    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.out = ReadTextFile(out);
+    result.err = ReadTextFile(err);
+    return result;
+  }
+
+  // The dataset's odometry and detections as live input lines, merged by stamp (odometry
+  // first on equal stamps, as the dataset runner does).
+  static std::vector<std::string> LiveLines() {
+    std::vector<std::pair<std::pair<double, int>, std::string>> events;
+    for (const StampedSE3& pose : ReadTum(Path("run") + "/odometry.tum")) {
+      const nlohmann::json line = {{"t", pose.stamp_s},
+                                   {"T_odom_robot",
+                                    {{"t", {pose.T.translation().x(), pose.T.translation().y(), pose.T.translation().z()}},
+                                     {"q_xyzw",
+                                      {pose.T.rotation().x(), pose.T.rotation().y(), pose.T.rotation().z(),
+                                       pose.T.rotation().w()}}}}};
+      events.push_back({{pose.stamp_s, 0}, line.dump()});
+    }
+    int order = 1;
+    for (const std::string& line : Lines(ReadTextFile(Path("run") + "/detections.jsonl"))) {
+      events.push_back({{nlohmann::json::parse(line)["t"].get<double>(), order++}, line});
+    }
+    std::stable_sort(events.begin(), events.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<std::string> lines;
+    for (const auto& event : events) lines.push_back(event.second);
+    return lines;
+  }
+
+  static fs::path* dir_;
+};
+
+fs::path* LocalizeCliTest::dir_ = nullptr;
+
+TEST_F(LocalizeCliTest, SimMapLocalizeEval) {
+  const RunResult run = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("run.tum") +
+                            " --predicted " + Path("predicted.tum") + " --poses " + Path("poses.jsonl"));
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("tracking "), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("corrections: accepted "), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("latency per frame (ms): mean "), std::string::npos) << run.out;
+  const size_t frames = Lines(ReadTextFile(Path("run") + "/detections.jsonl")).size();
+  const std::vector<std::string> poses = Lines(ReadTextFile(Path("poses.jsonl")));
+  ASSERT_EQ(poses.size(), frames);
+  const nlohmann::json last = nlohmann::json::parse(poses.back());
+  EXPECT_EQ(last["status"], "tracking");
+  EXPECT_EQ(last["covariance"].size(), 9u);  // planar: x y yaw
+  EXPECT_EQ(last["T_world_robot"]["q_xyzw"].size(), 4u);
+  const Trajectory tracked = ReadTum(Path("run.tum"));
+  EXPECT_GT(tracked.size(), 0.9 * frames / 2);  // two cameras per instant
+  EXPECT_FALSE(ReadTum(Path("predicted.tum")).empty());
+
+  const RunResult eval = Run("eval --est " + Path("run.tum") + " --gt " + Path("run") +
+                             "/groundtruth/trajectory.tum --align se2 --predicted " + Path("predicted.tum"));
+  ASSERT_EQ(eval.exit_code, 0) << eval.err;
+  const double ate_m = Figure(eval.out, "ATE trans (m)");
+  std::cout << "corridor 4x3 seed 5, tight: ATE " << ate_m << " m, PE " << Figure(eval.out, "PE (m)") << " m\n";
+  EXPECT_GT(ate_m, 0.0);
+  EXPECT_LT(ate_m, 0.03);
+
+  const RunResult loose = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
+                              Path("loose.tum") + " --mode loose");
+  ASSERT_EQ(loose.exit_code, 0) << loose.err;
+}
+
+TEST_F(LocalizeCliTest, LiveGivesTheDatasetModesPosesAndSkipsMalformedLines) {
+  const RunResult batch = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
+                              Path("batch.tum") + " --poses " + Path("batch.jsonl"));
+  ASSERT_EQ(batch.exit_code, 0) << batch.err;
+  std::vector<std::string> input = LiveLines();
+  input.insert(input.begin() + 10, "{\"t\": oops");
+  input.insert(input.begin() + 20, "{\"t\": 1.0, \"camera\": \"left\", \"markers\": [{\"family\": \"qr\"}]}");
+  std::string text;
+  for (const std::string& line : input) text += line + "\n";
+  AtomicWriteFile(Path("live.jsonl"), text);
+  const RunResult live = Run("localize " + Path("run") + " --map " + Path("map.json") + " --live", Path("live.jsonl"));
+  ASSERT_EQ(live.exit_code, 0) << live.err;
+  const std::vector<std::string> errors = Lines(live.err);
+  ASSERT_GE(errors.size(), 3u) << live.err;
+  EXPECT_EQ(errors[0].rfind("waymark localize: stdin:11: not valid JSON", 0), 0u) << errors[0];
+  EXPECT_EQ(errors[1].rfind("waymark localize: stdin:21: markers[0]", 0), 0u) << errors[1];
+  EXPECT_NE(live.err.find("2 malformed lines skipped"), std::string::npos) << live.err;
+
+  const std::vector<std::string> batch_lines = Lines(ReadTextFile(Path("batch.jsonl")));
+  const std::vector<std::string> live_lines = Lines(live.out);
+  ASSERT_EQ(live_lines.size(), batch_lines.size());
+  for (size_t i = 0; i < live_lines.size(); ++i) {
+    nlohmann::json a = nlohmann::json::parse(batch_lines[i]), b = nlohmann::json::parse(live_lines[i]);
+    a.erase("latency_ms");
+    b.erase("latency_ms");
+    ASSERT_EQ(a, b) << "line " << i + 1;
+  }
+}
+
+TEST_F(LocalizeCliTest, LiveTimeGoingBackwardsIsCountedNotAPose) {
+  std::vector<std::string> input = LiveLines();
+  // A detection frame 1 s in the past, half-way through.
+  size_t at = input.size() / 2;
+  while (input[at].find("\"markers\"") == std::string::npos) ++at;
+  nlohmann::json old = nlohmann::json::parse(input[at]);
+  old["t"] = old["t"].get<double>() - 1.0;
+  input.insert(input.begin() + at + 5, old.dump());
+  std::string text;
+  for (const std::string& line : input) text += line + "\n";
+  AtomicWriteFile(Path("backwards.jsonl"), text);
+  const RunResult live =
+      Run("localize " + Path("run") + " --map " + Path("map.json") + " --live", Path("backwards.jsonl"));
+  ASSERT_EQ(live.exit_code, 0) << live.err;
+  EXPECT_NE(live.err.find("input older than the last one processed (ignored): 1"), std::string::npos) << live.err;
+  bool found = false;
+  for (const std::string& line : Lines(live.out)) {
+    const nlohmann::json pose = nlohmann::json::parse(line);
+    if (pose["t"].get<double>() == old["t"].get<double>() && pose["camera"] == old["camera"]) {
+      found = true;
+      EXPECT_FALSE(pose.contains("T_world_robot")) << line;
+    }
+  }
+  EXPECT_TRUE(found);
+}
+
+TEST_F(LocalizeCliTest, MissingMapIsOneLineAndNoOutput) {
+  const RunResult run =
+      Run("localize " + Path("run") + " --map " + Path("absent.json") + " --out " + Path("never.tum"));
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_EQ(Lines(run.err).size(), 1u) << run.err;
+  EXPECT_NE(run.err.find("absent.json"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(Path("never.tum")));
+  const RunResult no_out = Run("localize " + Path("run") + " --map " + Path("map.json"));
+  EXPECT_EQ(no_out.exit_code, 1);
+  EXPECT_NE(no_out.err.find("--out"), std::string::npos) << no_out.err;
+  const RunResult bad_mode =
+      Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("never.tum") + " --mode x");
+  EXPECT_EQ(bad_mode.exit_code, 1);
+  EXPECT_EQ(Lines(bad_mode.err).size(), 1u) << bad_mode.err;
+  EXPECT_FALSE(fs::exists(Path("never.tum")));
+}
+
+TEST_F(LocalizeCliTest, MapOfAnotherDatasetIsAClearError) {
+  const RunResult sim = Run("sim ceiling-grid --out " + Path("elsewhere") + " --seed 2");
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  const RunResult run = Run("localize " + Path("run") + " --map " + Path("elsewhere") +
+                            "/groundtruth/markers.json --out " + Path("never.tum"));
+  EXPECT_EQ(run.exit_code, 1);
+  ASSERT_EQ(Lines(run.err).size(), 1u) << run.err;
+  EXPECT_NE(run.err.find("is the map of another place?"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(Path("never.tum")));
+}
+
+TEST_F(LocalizeCliTest, CodesAbsentFromTheMapAreCountedWarnings) {
+  MarkerMap map = ReadMap(Path("map.json"));
+  MarkerMap partial;
+  for (size_t i = 0; i < map.markers.size(); ++i) {
+    if (i % 3 != 0) partial.markers.push_back(map.markers[i]);
+  }
+  map = partial;
+  WriteMap(Path("partial.json"), map);
+  const RunResult run =
+      Run("localize " + Path("run") + " --map " + Path("partial.json") + " --out " + Path("partial.tum"));
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("warning: detection of a code absent from the map: "), std::string::npos) << run.out;
+  EXPECT_FALSE(ReadTum(Path("partial.tum")).empty());
+}
+
+}  // namespace
+}  // namespace waymark
