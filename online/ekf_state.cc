@@ -57,57 +57,101 @@ Eigen::VectorXd EkfState::BoxPlus(const Eigen::VectorXd& mean, const Eigen::Vect
   return out;
 }
 
-StepStatus EkfState::WriteCovariance(const Eigen::MatrixXd& covariance) {
+StepStatus EkfState::WriteCovariance(const Eigen::MatrixXd& covariance, std::vector<CrossEntry> cross) {
   if (covariance.rows() != dim() || covariance.cols() != dim()) return StepStatus::kInvalidInput;
   if (!covariance.allFinite()) return StepStatus::kNonFiniteCovariance;
+  for (const CrossEntry& entry : cross) {
+    if (entry.cross.rows() != dim()) return StepStatus::kInvalidInput;
+    if (!entry.cross.allFinite()) return StepStatus::kNonFiniteCovariance;
+  }
   covariance_ = 0.5 * (covariance + covariance.transpose());
+  cross_ = std::move(cross);
   return StepStatus::kOk;
 }
 
 StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance) {
   if (mean.size() != dim() || !mean.allFinite()) return StepStatus::kInvalidInput;
-  const StepStatus status = WriteCovariance(covariance);
+  const StepStatus status = WriteCovariance(covariance, {});
   if (status != StepStatus::kOk) return status;
   mean_ = BoxPlus(mean, Eigen::VectorXd::Zero(dim()), yaw_index());
   return StepStatus::kOk;
 }
 
+StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
+                           const CrossCovariance& cross) {
+  if (mean.size() != dim() || !mean.allFinite()) return StepStatus::kInvalidInput;
+  const StepStatus status = WriteCovariance(covariance, {CrossEntry{key, cross, ++updates_}});
+  if (status != StepStatus::kOk) return status;
+  mean_ = BoxPlus(mean, Eigen::VectorXd::Zero(dim()), yaw_index());
+  return StepStatus::kOk;
+}
+
+CrossCovariance EkfState::Cross(const MarkerKey& key) const {
+  for (const CrossEntry& entry : cross_) {
+    if (entry.key == key) return entry.cross;
+  }
+  return CrossCovariance::Zero(dim(), 6);
+}
+
 StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::MatrixXd& F,
                                const Eigen::MatrixXd& G, const Eigen::MatrixXd& Qu) {
   if (mean_new.size() != dim() || !mean_new.allFinite()) return StepStatus::kInvalidInput;
-  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose());
+  std::vector<CrossEntry> cross = cross_;
+  for (CrossEntry& entry : cross) entry.cross = F * entry.cross;
+  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose(), std::move(cross));
   if (status != StepStatus::kOk) return status;
   mean_ = BoxPlus(mean_new, Eigen::VectorXd::Zero(dim()), yaw_index());
   return StepStatus::kOk;
 }
 
+struct EkfState::Gain {
+  Eigen::MatrixXd PHt;  // P H^T (+ C_m H_m^T)
+  Eigen::MatrixXd S;    // symmetrized
+  Eigen::LLT<Eigen::MatrixXd> llt;
+};
+
+std::optional<EkfState::Gain> EkfState::ComputeGain(const Linearization& lin) const {
+  Gain gain;
+  gain.PHt = covariance_ * lin.H.transpose();
+  gain.S = lin.H * gain.PHt + lin.R;
+  if (lin.consider) {
+    const Eigen::MatrixXd& H_m = lin.consider->H_marker;
+    const Eigen::MatrixXd C_Hmt = Cross(lin.consider->key) * H_m.transpose();
+    const Eigen::MatrixXd H_C_Hmt = lin.H * C_Hmt;
+    gain.PHt += C_Hmt;
+    gain.S += H_C_Hmt + H_C_Hmt.transpose() + H_m * lin.consider->covariance * H_m.transpose();
+  }
+  gain.S = 0.5 * (gain.S + gain.S.transpose());
+  gain.llt.compute(gain.S);
+  if (gain.llt.info() != Eigen::Success) return std::nullopt;
+  return gain;
+}
+
+std::vector<EkfState::CrossEntry> EkfState::UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin) const {
+  std::vector<CrossEntry> cross = cross_;
+  for (CrossEntry& entry : cross) entry.cross -= K * (lin.H * entry.cross);
+  if (!lin.consider) return cross;
+  const Eigen::MatrixXd K_Hm_Sigma = K * lin.consider->H_marker * lin.consider->covariance;
+  auto it = std::find_if(cross.begin(), cross.end(),
+                         [&](const CrossEntry& entry) { return entry.key == lin.consider->key; });
+  if (it == cross.end()) {
+    cross.push_back({lin.consider->key, CrossCovariance::Zero(dim(), 6), 0});
+    it = cross.end() - 1;
+  }
+  it->cross -= K_Hm_Sigma;
+  it->last_used = updates_ + 1;
+  if (cross.size() > max_considered_) {  // forget the marker seen longest ago
+    cross.erase(std::min_element(cross.begin(), cross.end(), [](const CrossEntry& a, const CrossEntry& b) {
+      return a.last_used < b.last_used;
+    }));
+  }
+  return cross;
+}
+
 UpdateResult EkfState::Update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H,
                               const Eigen::MatrixXd& R, std::optional<double> nis_gate) {
-  UpdateResult result;
-  result.innovation = innovation;
-  if (!innovation.allFinite() || !H.allFinite() || !R.allFinite()) {
-    result.status = StepStatus::kInvalidInput;
-    return result;
-  }
-  const Eigen::MatrixXd PHt = covariance_ * H.transpose();
-  const Eigen::MatrixXd S = H * PHt + R;
-  const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (S + S.transpose()));
-  if (llt.info() != Eigen::Success) {
-    result.status = StepStatus::kNotPositiveDefinite;
-    return result;
-  }
-  result.nis = innovation.dot(llt.solve(innovation));
-  if (nis_gate && result.nis > *nis_gate) {
-    result.gated = true;
-    return result;
-  }
-  const Eigen::MatrixXd K = llt.solve(PHt.transpose()).transpose();  // P H^T S^-1
-  const Eigen::MatrixXd I_KH = Eigen::MatrixXd::Identity(dim(), dim()) - K * H;
-  result.status = WriteCovariance(I_KH * covariance_ * I_KH.transpose() + K * R * K.transpose());
-  if (result.status != StepStatus::kOk) return result;
-  mean_ = BoxPlus(mean_, K * innovation, yaw_index());
-  result.accepted = true;
-  return result;
+  const Linearization lin{innovation, H, R, std::nullopt};
+  return UpdateIterated([&lin](const EkfState&) { return lin; }, nis_gate, 1);
 }
 
 UpdateResult EkfState::UpdateIterated(const MeasurementFunction& linearize, std::optional<double> nis_gate,
@@ -121,27 +165,27 @@ UpdateResult EkfState::UpdateIterated(const MeasurementFunction& linearize, std:
     return result;
   }
   result.innovation = lin->innovation;
+  std::optional<Gain> gain;
   Eigen::MatrixXd K;
   for (int i = 0; i < std::max(max_iterations, 1); ++i) {
-    if (!lin->innovation.allFinite() || !lin->H.allFinite() || !lin->R.allFinite()) {
+    if (!lin->innovation.allFinite() || !lin->H.allFinite() || !lin->R.allFinite() ||
+        (lin->consider && (!lin->consider->H_marker.allFinite() || !lin->consider->covariance.allFinite()))) {
       result.status = StepStatus::kInvalidInput;
       return result;
     }
-    const Eigen::MatrixXd PHt = covariance_ * lin->H.transpose();
-    const Eigen::MatrixXd S = lin->H * PHt + lin->R;
-    const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (S + S.transpose()));
-    if (llt.info() != Eigen::Success) {
+    gain = ComputeGain(*lin);
+    if (!gain) {
       result.status = StepStatus::kNotPositiveDefinite;
       return result;
     }
     if (i == 0) {
-      result.nis = lin->innovation.dot(llt.solve(lin->innovation));
+      result.nis = lin->innovation.dot(gain->llt.solve(lin->innovation));
       if (nis_gate && result.nis > *nis_gate) {
         result.gated = true;
         return result;
       }
     }
-    K = llt.solve(PHt.transpose()).transpose();
+    K = gain->llt.solve(gain->PHt.transpose()).transpose();  // (P H^T + C_m H_m^T) S^-1
     const Eigen::VectorXd dx = BoxMinus(x0, iterate.mean_, yaw_index());
     const Eigen::VectorXd x_next = BoxPlus(x0, K * (lin->innovation + lin->H * dx), yaw_index());
     const double step = BoxMinus(iterate.mean_, x_next, yaw_index()).norm();
@@ -150,10 +194,26 @@ UpdateResult EkfState::UpdateIterated(const MeasurementFunction& linearize, std:
     std::optional<Linearization> next = linearize(iterate);
     if (!next) break;  // h undefined at the new iterate: keep the last complete step
     lin = std::move(next);
+    gain.reset();
   }
-  const Eigen::MatrixXd I_KH = Eigen::MatrixXd::Identity(dim(), dim()) - K * lin->H;
-  result.status = WriteCovariance(I_KH * covariance_ * I_KH.transpose() + K * lin->R * K.transpose());
+  if (!gain) {  // the last linearization was not factored yet
+    gain = ComputeGain(*lin);
+    if (!gain) {
+      result.status = StepStatus::kNotPositiveDefinite;
+      return result;
+    }
+    K = gain->llt.solve(gain->PHt.transpose()).transpose();
+  }
+  Eigen::MatrixXd P_new;
+  if (lin->consider) {
+    P_new = covariance_ - K * gain->S * K.transpose();
+  } else {  // Joseph form
+    const Eigen::MatrixXd I_KH = Eigen::MatrixXd::Identity(dim(), dim()) - K * lin->H;
+    P_new = I_KH * covariance_ * I_KH.transpose() + K * lin->R * K.transpose();
+  }
+  result.status = WriteCovariance(P_new, UpdatedCross(K, *lin));
   if (result.status != StepStatus::kOk) return result;
+  ++updates_;
   mean_ = iterate.mean_;
   result.accepted = true;
   return result;

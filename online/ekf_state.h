@@ -22,11 +22,25 @@
 //              NIS = y^T S^-1 y, gated when NIS > gate,
 //              x = x [+] K y,   P = (I - K H) P (I - K H)^T + K R K^T   (Joseph form)
 //   UpdateIterated: the iterated EKF form of Update (see below)
+//
+// Schmidt ("consider") treatment of the map's uncertainty. A map marker m has an error
+// eps_m ~ N(0, Sigma_m) (its 6x6 map covariance, right perturbation) that is the same at every
+// sighting. It is not estimated (the marker's mean stays the map's) but its correlation with
+// the state is kept: C_m = E[delta eps_m^T] (dim x 6), markers independent of each other, for
+// the `max_considered` markers seen last (older ones are dropped: C_m -> 0).
+//   Propagate: C_m = F C_m
+//   Update with a considered marker m (measurement Jacobians H on delta, H_m on eps_m):
+//     S = H P H^T + H C_m H_m^T + H_m C_m^T H^T + H_m Sigma_m H_m^T + R
+//     K = (P H^T + C_m H_m^T) S^-1                      (gain of the state only)
+//     P = P - K S K^T,   C_j = C_j - K (H C_j + [j = m] H_m Sigma_m)   for every kept j
+// Without the C_m the filter would take the same marker error as new information at every
+// sighting and grow overconfident (NEES ~2x with a learned map: docs/online.md).
 #pragma once
 
 #include <Eigen/Core>
 #include <functional>
 #include <optional>
+#include <vector>
 
 #include "core/geometry.h"
 #include "core/types.h"
@@ -56,11 +70,23 @@ struct UpdateResult {
   Eigen::VectorXd innovation;  // y
 };
 
-// A measurement linearized at some mean: y = z [-] h(mean), H = dh/dx there, R its noise.
+// C_m of the header comment: dim x 6, at most 4 rows (no heap allocation).
+using CrossCovariance = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, 4, 6>;
+
+// A map marker whose error is considered (Schmidt) in an update.
+struct ConsideredMarker {
+  MarkerKey key;
+  Eigen::MatrixXd H_marker;  // d h / d eps_m (rows of the measurement x 6)
+  Matrix6d covariance;       // Sigma_m
+};
+
+// A measurement linearized at some mean: y = z [-] h(mean), H = dh/dx there, R its noise
+// (without the considered marker's part, which `consider` adds).
 struct Linearization {
   Eigen::VectorXd innovation;
   Eigen::MatrixXd H;
   Eigen::MatrixXd R;
+  std::optional<ConsideredMarker> consider;
 };
 
 class EkfState;
@@ -88,8 +114,17 @@ class EkfState {
   // mean [+] delta.
   static Eigen::VectorXd BoxPlus(const Eigen::VectorXd& mean, const Eigen::VectorXd& delta, int yaw_index);
 
-  // Sets mean and covariance (initialization, relocalization).
+  // Sets mean and covariance (initialization, relocalization); forgets every C_m.
   StepStatus Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance);
+  // The same, with the cross-covariance of the state with one marker's map error (the
+  // marker that initialized the state).
+  StepStatus Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
+                   const CrossCovariance& cross);
+  // C_m, zero when the marker is not kept.
+  CrossCovariance Cross(const MarkerKey& key) const;
+  size_t considered_markers() const { return cross_.size(); }
+  // How many markers keep their C_m (the most recently used; default 16, >= 1).
+  void set_max_considered(size_t count) { max_considered_ = std::max<size_t>(count, 1); }
   // Prediction step; mean_new = f(mean, u) computed by the caller (online/motion_model.h).
   StepStatus Propagate(const Eigen::VectorXd& mean_new, const Eigen::MatrixXd& F, const Eigen::MatrixXd& G,
                        const Eigen::MatrixXd& Qu);
@@ -106,13 +141,25 @@ class EkfState {
                               int max_iterations);
 
  private:
-  // The one writer of covariance_: symmetrizes, and keeps the old P (returning an error)
-  // when the new one is not finite.
-  StepStatus WriteCovariance(const Eigen::MatrixXd& covariance);
+  struct CrossEntry {
+    MarkerKey key;
+    CrossCovariance cross;
+    long last_used = 0;
+  };
+  // The one writer of covariance_ and cross_: symmetrizes P, and keeps the old P and C_m
+  // (returning an error) when the new ones are not finite.
+  StepStatus WriteCovariance(const Eigen::MatrixXd& covariance, std::vector<CrossEntry> cross);
+  // One iteration's S, P H^T + C_m H_m^T and the kept C_m of the considered marker.
+  struct Gain;
+  std::optional<Gain> ComputeGain(const Linearization& lin) const;
+  std::vector<CrossEntry> UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin) const;
 
   MotionModel motion_;
   Eigen::VectorXd mean_;
   Eigen::MatrixXd covariance_;
+  std::vector<CrossEntry> cross_;
+  size_t max_considered_ = 16;
+  long updates_ = 0;
   Eigen::Matrix3d R_level_ = Eigen::Matrix3d::Identity();
 };
 

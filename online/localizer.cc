@@ -33,6 +33,7 @@ bool LocalizerOptions::Check(std::string* why) const {
     return fail("agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
   }
   if (tight_iterations < 1) return fail("tight_iterations must be >= 1");
+  if (max_considered_markers < 1) return fail("max_considered_markers must be >= 1");
   std::string marker_pose_why;
   if (!marker_pose.Check(&marker_pose_why)) return fail(marker_pose_why);
   return true;
@@ -42,6 +43,7 @@ Localizer::Localizer(LocalizerOptions options, MarkerMap map, const std::vector<
     : options_(std::move(options)), map_(std::move(map)), state_(options_.motion) {
   std::string why;
   if (!options_.Check(&why)) throw std::invalid_argument(why);
+  state_.set_max_considered(static_cast<size_t>(options_.max_considered_markers));
   for (const CameraInfo& info : cameras) {
     if (!cameras_.emplace(info.name, Camera(info)).second) {
       throw std::invalid_argument("localizer: camera `" + info.name + "` given twice");
@@ -268,10 +270,17 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
   }
   const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
   const Vector8d z = StackCorners(sighting.observation.corners_px);
+  const MapUncertainty map_uncertainty = marker.covariance ? options_.map_uncertainty : MapUncertainty::kIgnore;
   const MeasurementFunction linearize = [&](const EkfState& at) -> std::optional<Linearization> {
     const std::optional<CornerPrediction> p = PredictCorners(at, camera, marker);
     if (!p || !NearImage(camera.info(), p->px)) return std::nullopt;
-    return Linearization{z - p->px, p->H, CornerNoise(sigma_px, *p, marker.covariance)};
+    Linearization lin{z - p->px, p->H,
+                      CornerNoise(sigma_px, *p,
+                                  map_uncertainty == MapUncertainty::kInNoise ? marker.covariance : std::nullopt),
+                      std::nullopt};
+    if (map_uncertainty == MapUncertainty::kConsider)
+      lin.consider = ConsideredMarker{marker.key, p->J_marker, *marker.covariance};
+    return lin;
   };
   FinishCorrection(state_.UpdateIterated(linearize, gate_tight_, options_.tight_iterations), &result);
   if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker &&
@@ -315,10 +324,11 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
       Eigen::LLT<Eigen::MatrixXd>(code.covariance).info() != Eigen::Success) {
     return false;
   }
-  if (state_.Reset(PoseToStateVector(code.T_world_robot, options_.motion), code.covariance) !=
-      StepStatus::kOk) {
-    return false;
-  }
+  const Eigen::VectorXd mean = PoseToStateVector(code.T_world_robot, options_.motion);
+  const bool consider = options_.map_uncertainty == MapUncertainty::kConsider && marker.covariance;
+  const StepStatus status = consider ? state_.Reset(mean, code.covariance, marker.key, code.cross_marker)
+                                     : state_.Reset(mean, code.covariance);
+  if (status != StepStatus::kOk) return false;
   state_.SetLevel(code.T_world_robot.rotation_matrix());
   tracking_ = TrackingStatus::kTracking;
   ++counters_.initializations;

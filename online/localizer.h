@@ -7,7 +7,8 @@
 //   kLoosePose     seed 000's baseline: the code's single-image pose composed with the map is
 //                  the measurement, H = I, fixed noise `loose_noise` (dof 3 planar, 4 free).
 //   kTightCorners  ours: the four corners' pixels, H through the camera Jacobian, noise
-//                  sigma_px^2 I8 plus the map covariance in pixel space (dof 8), applied as an
+//                  sigma_px^2 I8, the marker's map error considered (Schmidt, ekf_state.h;
+//                  MapUncertainty below) (dof 8), applied as an
 //                  iterated EKF (EkfState::UpdateIterated): after metres without a code the
 //                  prior is off by tens of pixels and one linearization leaves the mean biased
 //                  while P shrinks (NEES spikes of 10^3-10^4 in the Monte-Carlo test).
@@ -45,6 +46,13 @@ namespace waymark {
 enum class CorrectionMode { kLoosePose, kTightCorners };
 // Where the free model takes roll and pitch from (ekf_state.h).
 enum class AttitudeSource { kOdometry, kMarker };
+// How the tight update treats a marker's map covariance Sigma_m:
+//   kConsider  Schmidt: the marker error is one draw shared by all its sightings; the state
+//              keeps its correlation with it (ekf_state.h). Consistent with a learned map.
+//   kInNoise   folded into R = sigma_px^2 I8 + J_m Sigma_m J_m^T at every sighting, as if each
+//              sighting saw a new draw (overconfident after repeated sightings).
+//   kIgnore    the map taken as exact.
+enum class MapUncertainty { kConsider, kInNoise, kIgnore };
 
 struct LocalizerOptions {
   MotionModel motion = MotionModel::kPlanar;
@@ -62,6 +70,8 @@ struct LocalizerOptions {
   double agree_rot_rad = 0.2;
   double max_position_sigma_m = 2.0;
   MarkerPoseOptions marker_pose;  // single-image poses computed by AddDetections
+  MapUncertainty map_uncertainty = MapUncertainty::kConsider;
+  int max_considered_markers = 16;  // kConsider: markers whose correlation is kept (most recent)
 
   bool Check(std::string* why) const;
 };

@@ -32,11 +32,13 @@ CodeRobotPose RobotPoseFromCode(const MapMarker& marker, const SE3d& T_camera_ma
   d_phi << -R_wm, Eigen::Matrix3d::Zero();
   const Eigen::MatrixXd J_code = ToStateRows(d_position, d_phi, R_wr, motion);
   out.covariance = J_code * covariance_camera_marker * J_code.transpose();
+  out.cross_marker = CrossCovariance::Zero(StateDim(motion), 6);
   if (marker.covariance) {
     d_position << -R_wm_hat_t, R_wm;
     d_phi << R_wm, Eigen::Matrix3d::Zero();
     const Eigen::MatrixXd J_map = ToStateRows(d_position, d_phi, R_wr, motion);
     out.covariance += J_map * (*marker.covariance) * J_map.transpose();
+    out.cross_marker = J_map * (*marker.covariance);
   }
   return out;
 }

@@ -43,6 +43,8 @@ using Matrix8d = Eigen::Matrix<double, 8, 8>;
 struct CodeRobotPose {
   SE3d T_world_robot;
   Eigen::MatrixXd covariance;  // dim x dim, error state of online/ekf_state.h
+  CrossCovariance cross_marker;  // J_map Sigma_map (dim x 6): C_m of ekf_state.h; zero without
+                                 // a map covariance
 };
 
 // T_world_robot = T_world_marker * T_camera_marker^-1 * T_robot_camera^-1 and its covariance
@@ -51,7 +53,8 @@ struct CodeRobotPose {
 // Sigma_map the marker's map covariance (zero when absent). With T_marker_robot = T_mc T_cr:
 //   d t_wr / d dr = R_wm Hat(t_mr),   d t_wr / d dt = -R_wm,   d phi_wr / d dr = -R_wm
 //   d t_wr / d er = -R_wm Hat(t_mr),  d t_wr / d et = R_wm,    d phi_wr / d er = R_wm
-// (phi a world-frame rotation error; yaw rows through YawJacobianWorld).
+// (phi a world-frame rotation error; yaw rows through YawJacobianWorld). The state error then
+// correlates with the marker's map error eps as C_m = E[delta eps^T] = J_map Sigma_map.
 CodeRobotPose RobotPoseFromCode(const MapMarker& marker, const SE3d& T_camera_marker,
                                 const Matrix6d& covariance_camera_marker, const SE3d& T_robot_camera,
                                 MotionModel motion);

@@ -6,6 +6,13 @@
 #include "online/ekf_state.h"
 
 namespace waymark {
+namespace {
+
+double HeadingWalkVariance(const OdometryNoise& noise, double distance_m) {
+  return noise.heading_per_sqrt_m * noise.heading_per_sqrt_m * distance_m;
+}
+
+}  // namespace
 
 bool OdometryNoise::Check(std::string* why) const {
   const auto fail = [why](const std::string& message) {
@@ -17,6 +24,9 @@ bool OdometryNoise::Check(std::string* why) const {
   }
   if (!(sigma.rot_per_rad >= 0.0) || !std::isfinite(sigma.rot_per_rad)) {
     return fail("odometry noise: rot_per_rad must be a finite number >= 0");
+  }
+  if (!(heading_per_sqrt_m >= 0.0) || !std::isfinite(heading_per_sqrt_m)) {
+    return fail("odometry noise: heading_per_sqrt_m must be a finite number >= 0");
   }
   if (!(floor_trans_m > 0.0) || !(floor_rot_rad > 0.0) || !std::isfinite(floor_trans_m) ||
       !std::isfinite(floor_rot_rad)) {
@@ -37,8 +47,8 @@ MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& in
   p.G = (Eigen::Matrix3d() << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0).finished();
   const double sigma_trans = noise.sigma.trans_per_m * std::hypot(dx, dy) + noise.floor_trans_m;
   const double sigma_rot = noise.sigma.rot_per_rad * std::abs(dtheta) + noise.floor_rot_rad;
-  p.Qu = Eigen::Vector3d(sigma_trans * sigma_trans, sigma_trans * sigma_trans, sigma_rot * sigma_rot)
-             .asDiagonal();
+  const double variance_rot = sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::hypot(dx, dy));
+  p.Qu = Eigen::Vector3d(sigma_trans * sigma_trans, sigma_trans * sigma_trans, variance_rot).asDiagonal();
   p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return p;
 }
@@ -56,7 +66,8 @@ MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double 
   p.G = (Eigen::Matrix<double, 3, 2>() << c, -0.5 * d * s, s, 0.5 * d * c, 0.0, 1.0).finished();
   const double sigma_trans = noise.sigma.trans_per_m * std::abs(d) + noise.floor_trans_m;
   const double sigma_rot = noise.sigma.rot_per_rad * std::abs(a) + noise.floor_rot_rad;
-  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans, sigma_rot * sigma_rot).asDiagonal();
+  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans, sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::abs(d)))
+             .asDiagonal();
   p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return p;
 }

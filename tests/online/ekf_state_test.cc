@@ -108,7 +108,7 @@ TEST(EkfStateTest, IteratedUpdateMatchesPlainUpdateForLinearMeasurements) {
   const Eigen::Vector2d z(1.3, 0.9);
   const Eigen::Matrix2d R = Eigen::Matrix2d::Identity() * 0.01;
   const auto linearize = [&](const EkfState& at) -> std::optional<Linearization> {
-    return Linearization{z - H * at.mean(), H, R};
+    return Linearization{z - H * at.mean(), H, R, std::nullopt};
   };
   const UpdateResult a = plain.Update(z - H * plain.mean(), H, R, std::nullopt);
   const UpdateResult b = iterated.UpdateIterated(linearize, std::nullopt, 5);
@@ -126,13 +126,85 @@ TEST(EkfStateTest, IteratedUpdateMatchesPlainUpdateForLinearMeasurements) {
     Eigen::Matrix<double, 1, 3> J;
     J << 2.0 * p.x(), 2.0 * p.y(), 0.0;
     return Linearization{Eigen::VectorXd::Constant(1, 1.0 - p.squaredNorm()), J,
-                         Eigen::MatrixXd::Constant(1, 1, 1e-6)};
+                         Eigen::MatrixXd::Constant(1, 1, 1e-6), std::nullopt};
   };
   EkfState once = prior, many = prior;
   ASSERT_TRUE(once.UpdateIterated(range, std::nullopt, 1).accepted);
   ASSERT_TRUE(many.UpdateIterated(range, std::nullopt, 20).accepted);
   EXPECT_GT(std::abs(once.mean().head<2>().norm() - 1.0), 0.05);
   EXPECT_LT(std::abs(many.mean().head<2>().norm() - 1.0), 1e-4);
+}
+
+// Schmidt (consider) updates on a linear model: the filter's P and C_m must equal the exact
+// covariance of [its own error; the marker error], propagated alongside as
+//   update:    [e; eps] <- [[I - K H, -K H_m], [0, I]] [e; eps] - K v
+//   propagate: [e; eps] <- [[F, 0], [0, I]] [e; eps] + G u
+// with K read from the filter's state before each update.
+TEST(EkfStateTest, ConsiderUpdateCovarianceIsTheTrueErrorCovariance) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const auto random = [&](int rows, int cols) {
+    Eigen::MatrixXd M(rows, cols);
+    for (int i = 0; i < M.size(); ++i) M(i) = normal(rng);
+    return M;
+  };
+  Matrix6d Sigma = Matrix6d::Identity() * 1e-4;
+  Sigma.topLeftCorner<3, 3>() *= 0.3;
+  const MarkerKey key{kFamilyQr, "m"};
+  EkfState state(MotionModel::kPlanar);
+  const Eigen::Matrix3d P0 = SomeCovariance();
+  CrossCovariance C0 = 0.1 * random(3, 6) * Sigma;  // some prior correlation
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), P0, key, C0), StepStatus::kOk);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(9, 9);  // covariance of [e; eps]
+  J << P0, C0, C0.transpose(), Sigma;
+  const Eigen::MatrixXd R = Eigen::MatrixXd::Identity(8, 8) * 0.25;
+  for (int k = 0; k < 6; ++k) {
+    const Eigen::MatrixXd H = random(8, 3), H_m = 10.0 * random(8, 6);
+    const Linearization lin{Eigen::VectorXd::Zero(8), H, R, ConsideredMarker{key, H_m, Sigma}};
+    const Eigen::MatrixXd S = H * state.covariance() * H.transpose() + H * state.Cross(key) * H_m.transpose() +
+                              H_m * state.Cross(key).transpose() * H.transpose() + H_m * Sigma * H_m.transpose() + R;
+    const Eigen::MatrixXd K =
+        (state.covariance() * H.transpose() + state.Cross(key) * H_m.transpose()) * S.llt().solve(Eigen::MatrixXd::Identity(8, 8));
+    ASSERT_TRUE(state.UpdateIterated([&lin](const EkfState&) { return lin; }, std::nullopt, 3).accepted);
+    Eigen::MatrixXd A = Eigen::MatrixXd::Identity(9, 9);
+    A.topLeftCorner(3, 3) -= K * H;
+    A.topRightCorner(3, 6) = -K * H_m;
+    J = A * J * A.transpose();
+    J.topLeftCorner(3, 3) += K * R * K.transpose();
+    EXPECT_LT((state.covariance() - J.topLeftCorner(3, 3)).norm(), 1e-10 * J.norm()) << "update " << k;
+    EXPECT_LT((Eigen::MatrixXd(state.Cross(key)) - J.topRightCorner(3, 6)).norm(), 1e-10 * J.norm());
+    const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + 0.1 * random(3, 3);
+    const Eigen::Matrix3d Q = Eigen::Matrix3d::Identity() * 1e-4;
+    ASSERT_EQ(state.Propagate(state.mean(), F, Eigen::Matrix3d::Identity(), Q), StepStatus::kOk);
+    Eigen::MatrixXd A_f = Eigen::MatrixXd::Identity(9, 9);
+    A_f.topLeftCorner(3, 3) = F;
+    J = A_f * J * A_f.transpose();
+    J.topLeftCorner(3, 3) += Q;
+    EXPECT_LT((state.covariance() - J.topLeftCorner(3, 3)).norm(), 1e-10 * J.norm());
+  }
+  EXPECT_EQ(state.considered_markers(), 1u);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), P0), StepStatus::kOk);  // forgets C_m
+  EXPECT_EQ(state.considered_markers(), 0u);
+  EXPECT_EQ(Eigen::MatrixXd(state.Cross(key)), Eigen::MatrixXd::Zero(3, 6));
+}
+
+// Only the `max_considered` most recently used markers keep their C_m.
+TEST(EkfStateTest, ConsideredMarkersAreCapped) {
+  EkfState state(MotionModel::kPlanar);
+  state.set_max_considered(2);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), SomeCovariance()), StepStatus::kOk);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, 3);
+  H(0, 0) = H(1, 1) = 1.0;
+  Eigen::MatrixXd H_m = Eigen::MatrixXd::Zero(2, 6);
+  H_m(0, 3) = H_m(1, 4) = 1.0;
+  for (const char* id : {"a", "b", "c"}) {
+    const Linearization lin{Eigen::Vector2d::Zero(), H, Eigen::Matrix2d::Identity() * 1e-4,
+                            ConsideredMarker{{kFamilyQr, id}, H_m, Matrix6d::Identity() * 1e-4}};
+    ASSERT_TRUE(state.UpdateIterated([&lin](const EkfState&) { return lin; }, std::nullopt, 1).accepted);
+  }
+  EXPECT_EQ(state.considered_markers(), 2u);
+  EXPECT_EQ(Eigen::MatrixXd(state.Cross({kFamilyQr, "a"})), Eigen::MatrixXd::Zero(3, 6));
+  EXPECT_GT(state.Cross({kFamilyQr, "c"}).norm(), 0.0);
 }
 
 TEST(EkfStateTest, FreeStateKeepsLevelRotation) {

@@ -164,55 +164,58 @@ TEST(LocalizerTest, TightCornersMoreAccurateThanLoosePose) {
 }
 
 // An uncertain map must not be over-trusted: markers displaced by draws from their stated
-// covariance. With the covariance propagated into pixel space (R = sigma^2 I + J Sigma J^T) the
-// filter stays near consistency and more accurate; pretending the map is exact makes it
-// grossly overconfident.
+// covariance (one draw per marker, shared by all its sightings). The Schmidt treatment
+// (MapUncertainty::kConsider) keeps the filter consistent; folding the covariance into R at
+// every sighting (kInNoise) takes the same marker error as new information each time and is
+// overconfident; pretending the map is exact (no covariance) is grossly so.
 TEST(LocalizerTest, MapCovarianceKeepsTheFilterHonest) {
   constexpr int kRuns = 10;
   const CorridorConfig config;
   Matrix6d Sigma = Matrix6d::Zero();
   Sigma.diagonal() << 3e-5, 3e-5, 3e-5, 1e-4, 1e-4, 1e-4;  // 0.3 deg, 1 cm per axis
   const Matrix6d L = Sigma.llt().matrixL();
-  double nees_with = 0.0, nees_without = 0.0, rmse_with = 0.0, rmse_without = 0.0;
+  const std::vector<std::pair<const char*, MapUncertainty>> variants = {
+      {"consider", MapUncertainty::kConsider}, {"in R", MapUncertainty::kInNoise}, {"exact claim", MapUncertainty::kIgnore}};
+  std::vector<double> nees(variants.size(), 0.0), rmse(variants.size(), 0.0);
+  const auto mean_nees = [](const std::vector<double>& values) {
+    double sum = 0.0;
+    int n = 0;
+    for (double value : values) {
+      if (value >= 0.0) sum += value, ++n;
+    }
+    return sum / n;
+  };
   for (int run = 0; run < kRuns; ++run) {
     CorridorSimulator sim(config, 4000 + run);
     const std::vector<CorridorStep> steps = sim.Run();
     std::mt19937 rng(5000 + run);
     std::normal_distribution<double> normal(0.0, 1.0);
-    MarkerMap surveyed = sim.map(), exact_claim;
+    MarkerMap surveyed = sim.map();
     for (MapMarker& marker : surveyed.markers) {
       Vector6d draw;
       for (int i = 0; i < 6; ++i) draw(i) = normal(rng);
       marker.T_world_marker = marker.T_world_marker.BoxPlus(L * draw);
       marker.covariance = Sigma;
     }
-    exact_claim = surveyed;
-    for (MapMarker& marker : exact_claim.markers) marker.covariance.reset();
-    const LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
-    const RunFigures with = RunLocalizer(steps, sim, options, &surveyed);
-    const RunFigures without = RunLocalizer(steps, sim, options, &exact_claim);
-    const auto mean_nees = [](const std::vector<double>& nees) {
-      double sum = 0.0;
-      int n = 0;
-      for (double value : nees) {
-        if (value >= 0.0) sum += value, ++n;
-      }
-      return sum / n;
-    };
-    nees_with += mean_nees(with.nees) / kRuns;
-    nees_without += mean_nees(without.nees) / kRuns;
-    rmse_with += with.rmse_m / kRuns;
-    rmse_without += without.rmse_m / kRuns;
+    for (size_t v = 0; v < variants.size(); ++v) {
+      LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
+      options.map_uncertainty = variants[v].second;
+      const RunFigures figures = RunLocalizer(steps, sim, options, &surveyed);
+      nees[v] += mean_nees(figures.nees) / kRuns;
+      rmse[v] += figures.rmse_m / kRuns;
+    }
   }
-  std::printf(
-      "noisy map (1 cm, 0.3 deg): mean NEES %.2f with map covariance, %.2f without; RMSE %.4f m vs %.4f m\n",
-      nees_with, nees_without, rmse_with, rmse_without);
-  // A marker's error is the same at every sighting while R treats sightings as independent, so
-  // some overconfidence remains (a Schmidt filter over marker poses would remove it): the bound
-  // is a factor 3 of the state dimension, not the 95 % band.
-  EXPECT_LT(nees_with, 3.0 * 3);
-  EXPECT_GT(nees_without, 5.0 * nees_with);
-  EXPECT_LT(rmse_with, rmse_without);
+  for (size_t v = 0; v < variants.size(); ++v) {
+    std::printf("noisy map (1 cm, 0.3 deg), map covariance %s: mean NEES %.2f, RMSE %.4f m\n", variants[v].first,
+                nees[v], rmse[v]);
+  }
+  const double upper = ChiSquareQuantile(0.975, 3 * kRuns) / kRuns;
+  EXPECT_LT(nees[0], upper);
+  EXPECT_GT(nees[0], ChiSquareQuantile(0.025, 3 * kRuns) / kRuns);
+  EXPECT_GT(nees[1], upper);
+  EXPECT_GT(nees[2], 5.0 * nees[0]);
+  EXPECT_LE(rmse[0], 1.05 * rmse[1]);  // consistency does not cost accuracy
+  EXPECT_LT(rmse[0], rmse[2]);
 }
 
 // Seed 003's situation: the robot is carried away mid-run (4 m down the corridor, unseen by

@@ -89,6 +89,7 @@ TEST(MotionModelTest, NoiseScalesWithTravelAndHasAFloor) {
   noise.sigma = {0.05, 0.1};
   noise.floor_trans_m = 1e-3;
   noise.floor_rot_rad = 2e-3;
+  noise.heading_per_sqrt_m = 0.0;
   const MotionPrediction still = PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(0, 0, 0), noise);
   EXPECT_NEAR(still.Qu(0, 0), 1e-6, 1e-18);
   EXPECT_NEAR(still.Qu(2, 2), 4e-6, 1e-18);
@@ -99,6 +100,33 @@ TEST(MotionModelTest, NoiseScalesWithTravelAndHasAFloor) {
   noise.floor_rot_rad = 0.0;
   EXPECT_FALSE(noise.Check(&why));
   EXPECT_NE(why.find("floor"), std::string::npos);
+}
+
+// The heading random walk adds heading_per_sqrt_m^2 * distance to the heading variance of
+// every increment (and of the unicycle), so the heading variance after D metres is the same
+// at any odometry rate.
+TEST(MotionModelTest, HeadingWalkGrowsWithDistanceNotRate) {
+  OdometryNoise noise;
+  noise.sigma = {0.0, 0.0};
+  noise.heading_per_sqrt_m = 0.01;
+  const double floor_variance = noise.floor_rot_rad * noise.floor_rot_rad;
+  const MotionPrediction step = PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(0.3, 0.4, 0.0), noise);
+  EXPECT_NEAR(step.Qu(2, 2), 1e-4 * 0.5 + floor_variance, 1e-15);
+  const MotionPrediction unicycle = PredictUnicycle(Eigen::Vector3d::Zero(), 0.5, 0.0, 2.0, noise);
+  EXPECT_NEAR(unicycle.Qu(1, 1), 1e-4 * 1.0 + floor_variance, 1e-15);
+  for (int steps : {10, 100}) {
+    noise.floor_rot_rad = 1e-12;
+    Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+    for (int k = 0; k < steps; ++k) {
+      const MotionPrediction p = PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(4.0 / steps, 0.0, 0.0), noise);
+      P = p.F * P * p.F.transpose() + p.G * p.Qu * p.G.transpose();
+    }
+    EXPECT_NEAR(P(2, 2), 1e-4 * 4.0, 1e-12) << steps << " steps";
+  }
+  std::string why;
+  noise.heading_per_sqrt_m = -1.0;
+  EXPECT_FALSE(noise.Check(&why));
+  EXPECT_NE(why.find("heading_per_sqrt_m"), std::string::npos);
 }
 
 }  // namespace

@@ -32,7 +32,8 @@ struct CorridorConfig {
   double odometry_period_s = 0.05;  // seed 000: T = 50 ms
   int frame_every = 2;              // a camera frame every 2nd odometry step (10 Hz)
   double pixel_sigma_px = 1.0;
-  OdometryNoise odometry{{0.1, 0.1}, 1e-4, 2e-3};
+  // White noise only (no systematic wheel error), so no heading random walk either.
+  OdometryNoise odometry{{0.1, 0.1}, 1e-4, 2e-3, 0.0};
 };
 
 inline CameraInfo SideCamera(const std::string& name, bool left, double height_m) {
