@@ -2,9 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
 #include <sstream>
 #include <stdexcept>
 
+#include "core/camera.h"
+#include "core/marker_pose.h"
 #include "factors/odometry_covariance.h"
 
 namespace waymark {
@@ -103,7 +107,8 @@ int AddMarker(const Dataset& dataset, const MarkerKey& key, const std::optional<
   return id;
 }
 
-// Covariance of the odometry between two stamps: the sum over the samples in between.
+// Covariance of the odometry between two (odometry-clock) stamps: the sum over the samples in
+// between.
 void SumOdometryCovariance(const Trajectory& odometry, double t_a, double t_b, const SE3d& T_a,
                            const SE3d& T_b, const OdometrySigma& sigma, double model_rot_per_m,
                            OdometryLink* link) {
@@ -131,19 +136,163 @@ void SumOdometryCovariance(const Trajectory& odometry, double t_a, double t_b, c
   link->covariance_se2.diagonal() += Eigen::Vector3d(m2, m2, r2);
 }
 
+// The odometry read on the image clock: T_odom_robot(t) is the odometry at t + offset_s.
+struct OdometryClock {
+  const Trajectory& odometry;
+  const std::vector<int>& sample_segment;  // per odometry sample
+  double offset_s = 0.0;
+  double max_gap_s = 1.0;
+
+  std::optional<SE3d> PoseAt(double t) const { return InterpolatePose(odometry, t + offset_s, max_gap_s); }
+  int SegmentAt(double t) const {
+    return sample_segment[std::max(0L, SampleAtOrBefore(odometry, t + offset_s))];
+  }
+};
+
+// The stamp term of the header comment: sigma_stamp^2 (j_a j_a^T + j_b j_b^T), added to the link.
+void AddStampUncertainty(const OdometryClock& clock, double t_a, double t_b, double sigma_s, OdometryLink* link) {
+  if (!(sigma_s > 0.0)) return;
+  constexpr double kStepS = 0.01;
+  const SE3d M = link->T_a_b;
+  const SE2d M_se2 = SE2d::FromSE3(M);
+  for (const bool at_a : {true, false}) {
+    const double t = at_a ? t_a : t_b;
+    const std::optional<SE3d> plus = clock.PoseAt(t + kStepS), minus = clock.PoseAt(t - kStepS);
+    if (!plus || !minus) continue;  // at the odometry's ends: the plain model
+    const SE3d T_other = at_a ? *clock.PoseAt(t_b) : *clock.PoseAt(t_a);
+    const SE3d M_plus = at_a ? plus->inverse() * T_other : T_other.inverse() * *plus;
+    const SE3d M_minus = at_a ? minus->inverse() * T_other : T_other.inverse() * *minus;
+    const Vector6d j = (M.BoxMinus(M_plus) - M.BoxMinus(M_minus)) / (2.0 * kStepS);
+    const Eigen::Vector3d j_se2 =
+        (M_se2.BoxMinus(SE2d::FromSE3(M_plus)) - M_se2.BoxMinus(SE2d::FromSE3(M_minus))) / (2.0 * kStepS);
+    link->covariance_se3 += sigma_s * sigma_s * j * j.transpose();
+    link->covariance_se2 += sigma_s * sigma_s * j_se2 * j_se2.transpose();
+  }
+}
+
+// ---- Time offset estimate (header comment) ----
+
+constexpr double kViewSigmaM = 0.02;          // single-view position precision: constant part
+constexpr double kViewSigmaPerRange = 0.05;   // ... and the part proportional to the range
+constexpr double kViewSigmaRad = 0.05;        // single-view rotation precision
+constexpr size_t kMaxPairsPerView = 10;       // a view is paired with its next views of the code
+constexpr size_t kMinOffsetPairs = 10;
+
+// Where a single view puts the robot in the code's frame.
+struct ViewGeometry {
+  int frame = 0;
+  Eigen::Vector3d p_marker_robot;
+  Eigen::Quaterniond q_marker_robot;
+  bool ambiguous = true;
+  double range_m = 0.0;
+};
+
+// One entry per code: its usable views in time order.
+std::vector<std::vector<ViewGeometry>> ComputeViewGeometry(const Survey& survey) {
+  std::map<std::string, Camera> cameras;
+  for (const auto& [name, info] : survey.cameras) cameras.emplace(name, Camera(info));
+  std::vector<std::vector<ViewGeometry>> per_marker(survey.markers.size());
+  for (const SurveyObservation& obs : survey.observations) {
+    MarkerPoseEstimate estimate;
+    try {
+      estimate = EstimateMarkerPose(obs.corners_px, survey.markers[obs.marker].size_m, cameras.at(obs.camera));
+    } catch (const std::exception&) {
+      continue;  // a degenerate or unprojectable view says nothing about the offset
+    }
+    const SE3d T_marker_robot =
+        (survey.cameras.at(obs.camera).T_robot_camera * estimate.best().T_camera_marker).inverse();
+    per_marker[obs.marker].push_back({obs.frame, T_marker_robot.translation(), T_marker_robot.rotation(),
+                                      estimate.ambiguous, T_marker_robot.translation().norm()});
+  }
+  for (auto& views : per_marker) {
+    std::stable_sort(views.begin(), views.end(),
+                     [](const ViewGeometry& a, const ViewGeometry& b) { return a.frame < b.frame; });
+  }
+  return per_marker;
+}
+
+// Robust cost of one view pair against the odometry increment M_a_b.
+double PairCost(const ViewGeometry& a, const ViewGeometry& b, const SE3d& M_a_b) {
+  const double s_t = kViewSigmaM + kViewSigmaPerRange * 0.5 * (a.range_m + b.range_m);
+  const double e_t = ((b.p_marker_robot - a.p_marker_robot).norm() - M_a_b.translation().norm()) / s_t;
+  double cost = std::log1p(e_t * e_t);
+  if (!a.ambiguous && !b.ambiguous) {
+    const double e_r =
+        (LogSO3(a.q_marker_robot.conjugate() * b.q_marker_robot).norm() - LogSO3(M_a_b.rotation()).norm()) /
+        kViewSigmaRad;
+    cost += std::log1p(e_r * e_r);
+  }
+  return cost;
+}
+
+// Mean pair cost C(delta) over the pairs with odometry at both ends in one segment.
+double MeanOffsetCost(const Survey& survey, const OdometryClock& clock,
+                      const std::vector<std::vector<ViewGeometry>>& per_marker, double window_s, size_t* pairs) {
+  std::map<int, std::optional<SE3d>> pose_cache;
+  const auto pose = [&](int frame) -> const std::optional<SE3d>& {
+    auto it = pose_cache.find(frame);
+    if (it == pose_cache.end()) it = pose_cache.emplace(frame, clock.PoseAt(survey.frames[frame].stamp_s)).first;
+    return it->second;
+  };
+  double sum = 0.0;
+  *pairs = 0;
+  for (const std::vector<ViewGeometry>& views : per_marker) {
+    for (size_t i = 0; i < views.size(); ++i) {
+      const double t_a = survey.frames[views[i].frame].stamp_s;
+      for (size_t j = i + 1; j < views.size() && j <= i + kMaxPairsPerView; ++j) {
+        const double t_b = survey.frames[views[j].frame].stamp_s;
+        if (t_b - t_a > window_s || views[j].frame == views[i].frame) continue;
+        const std::optional<SE3d>& T_a = pose(views[i].frame);
+        const std::optional<SE3d>& T_b = pose(views[j].frame);
+        if (!T_a || !T_b || clock.SegmentAt(t_a) != clock.SegmentAt(t_b)) continue;
+        sum += PairCost(views[i], views[j], T_a->inverse() * *T_b);
+        ++*pairs;
+      }
+    }
+  }
+  return *pairs > 0 ? sum / static_cast<double>(*pairs) : 0.0;
+}
+
+std::string OffsetNote(const TimeOffsetEstimate& e) {
+  return "odometry: time offset estimated at " + Num(std::round(e.offset_s * 1e3) / 1e3) +
+         " s (odometry clock minus image clock; mean pair cost " + Num(std::round(e.cost_at_zero * 1e3) / 1e3) +
+         " at 0 s, " + Num(std::round(e.cost * 1e3) / 1e3) + " there, " + std::to_string(e.pairs) + " view pairs): " +
+         (e.applied ? "applied" : "not applied (gain below the threshold)");
+}
+
+// The offset delta to use: given, estimated (and noted), or 0.
+double ChooseTimeOffset(const Survey& survey, const Trajectory& odometry, const IngestOptions& options,
+                        std::vector<std::string>* notes) {
+  if (options.odometry_time_offset_s) {
+    if (*options.odometry_time_offset_s != 0.0) {
+      notes->push_back("odometry: time offset " + Num(*options.odometry_time_offset_s) + " s (given)");
+    }
+    return *options.odometry_time_offset_s;
+  }
+  if (!options.estimate_time_offset) return 0.0;
+  const std::optional<TimeOffsetEstimate> estimate = EstimateOdometryTimeOffset(survey, odometry, options);
+  if (!estimate) return 0.0;
+  if (estimate->applied || std::abs(estimate->offset_s) >= 0.05) notes->push_back(OffsetNote(*estimate));
+  return estimate->applied ? estimate->offset_s : 0.0;
+}
+
 void AttachOdometry(const Dataset& dataset, const IngestOptions& options, Survey* survey) {
   const Trajectory& odometry = dataset.odometry;
   if (odometry.empty()) return;
   const std::vector<int> segment = OdometrySegments(odometry, options.max_odometry_gap_s, &survey->notes);
   survey->odometry_segments = segment.back() + 1;
+  survey->odometry_time_offset_s = ChooseTimeOffset(*survey, odometry, options, &survey->notes);
+  survey->odometry_stamp_sigma_s =
+      survey->odometry_time_offset_s != 0.0 ? options.unsynced_stamp_sigma_s : options.stamp_sigma_s;
+  const OdometryClock clock{odometry, segment, survey->odometry_time_offset_s, options.max_odometry_gap_s};
   long outside = 0;
   for (SurveyFrame& frame : survey->frames) {
-    frame.T_odom_robot = InterpolatePose(odometry, frame.stamp_s, options.max_odometry_gap_s);
+    frame.T_odom_robot = clock.PoseAt(frame.stamp_s);
     if (!frame.T_odom_robot) {
       ++outside;
       continue;
     }
-    frame.segment = segment[std::max(0L, SampleAtOrBefore(odometry, frame.stamp_s))];
+    frame.segment = clock.SegmentAt(frame.stamp_s);
   }
   if (outside > 0) {
     survey->notes.push_back(std::to_string(outside) + " frame(s) outside the odometry's span or in a gap: " +
@@ -158,7 +307,9 @@ void AttachOdometry(const Dataset& dataset, const IngestOptions& options, Survey
     link.frame_a = static_cast<int>(b) - 1;
     link.frame_b = static_cast<int>(b);
     link.T_a_b = fa.T_odom_robot->inverse() * *fb.T_odom_robot;
-    SumOdometryCovariance(odometry, fa.stamp_s, fb.stamp_s, *fa.T_odom_robot, *fb.T_odom_robot, sigma, options.model_rot_per_m, &link);
+    SumOdometryCovariance(odometry, fa.stamp_s + clock.offset_s, fb.stamp_s + clock.offset_s, *fa.T_odom_robot,
+                          *fb.T_odom_robot, sigma, options.model_rot_per_m, &link);
+    AddStampUncertainty(clock, fa.stamp_s, fb.stamp_s, survey->odometry_stamp_sigma_s, &link);
     survey->odometry_links.push_back(link);
   }
 }
@@ -166,21 +317,25 @@ void AttachOdometry(const Dataset& dataset, const IngestOptions& options, Survey
 }  // namespace
 
 bool IngestOptions::Check(std::string* why) const {
-  if (!(stamp_merge_s >= 0.0) || !std::isfinite(stamp_merge_s)) {
-    *why = "stamp_merge_s must be finite and >= 0";
-    return false;
-  }
-  if (!(max_odometry_gap_s > 0.0)) {
-    *why = "max_odometry_gap_s must be > 0";
-    return false;
-  }
-  if (!(model_rot_per_m >= 0.0) || !std::isfinite(model_rot_per_m)) {
-    *why = "model_rot_per_m must be finite and >= 0";
-    return false;
-  }
-  if (!(default_odometry_sigma.trans_per_m >= 0.0) || !(default_odometry_sigma.rot_per_rad >= 0.0)) {
-    *why = "default odometry sigma must be >= 0";
-    return false;
+  const auto finite_at_least = [](double v, double low) { return std::isfinite(v) && v >= low; };
+  const std::pair<bool, const char*> checks[] = {
+      {finite_at_least(stamp_merge_s, 0.0), "stamp_merge_s must be finite and >= 0"},
+      {max_odometry_gap_s > 0.0, "max_odometry_gap_s must be > 0"},
+      {finite_at_least(model_rot_per_m, 0.0), "model_rot_per_m must be finite and >= 0"},
+      {default_odometry_sigma.trans_per_m >= 0.0 && default_odometry_sigma.rot_per_rad >= 0.0,
+       "default odometry sigma must be >= 0"},
+      {finite_at_least(stamp_sigma_s, 0.0) && finite_at_least(unsynced_stamp_sigma_s, 0.0),
+       "stamp_sigma_s and unsynced_stamp_sigma_s must be finite and >= 0"},
+      {!odometry_time_offset_s || std::isfinite(*odometry_time_offset_s), "odometry_time_offset_s must be finite"},
+      {finite_at_least(max_time_offset_s, 0.0), "max_time_offset_s must be finite and >= 0"},
+      {std::isfinite(offset_window_s) && offset_window_s > 0.0, "offset_window_s must be finite and > 0"},
+      {time_offset_min_gain >= 0.0 && time_offset_min_gain < 1.0, "time_offset_min_gain must be in [0, 1)"},
+  };
+  for (const auto& [ok, message] : checks) {
+    if (!ok) {
+      *why = message;
+      return false;
+    }
   }
   return true;
 }
@@ -203,6 +358,40 @@ std::optional<SE3d> InterpolatePose(const Trajectory& trajectory, double stamp_s
   const double s = (stamp_s - a.stamp_s) / (b.stamp_s - a.stamp_s);
   const Eigen::Quaterniond q = a.T.rotation().slerp(s, b.T.rotation());
   return SE3d(q, (1.0 - s) * a.T.translation() + s * b.T.translation());
+}
+
+std::optional<TimeOffsetEstimate> EstimateOdometryTimeOffset(const Survey& survey, const Trajectory& odometry,
+                                                             const IngestOptions& options) {
+  if (odometry.empty()) return std::nullopt;
+  std::vector<std::string> ignored;
+  const std::vector<int> segment = OdometrySegments(odometry, options.max_odometry_gap_s, &ignored);
+  const std::vector<std::vector<ViewGeometry>> per_marker = ComputeViewGeometry(survey);
+  size_t pairs = 0;
+  const auto cost_at = [&](double offset_s) {
+    const OdometryClock clock{odometry, segment, offset_s, options.max_odometry_gap_s};
+    return MeanOffsetCost(survey, clock, per_marker, options.offset_window_s, &pairs);
+  };
+  TimeOffsetEstimate estimate;
+  estimate.cost_at_zero = cost_at(0.0);
+  estimate.pairs = pairs;
+  if (pairs < kMinOffsetPairs) return std::nullopt;
+  estimate.cost = estimate.cost_at_zero;
+  // A coarse grid over the range, then a fine one around its best point.
+  for (const auto& [half_range, step] : {std::pair{options.max_time_offset_s, 0.05}, std::pair{0.05, 0.005}}) {
+    const double centre = estimate.offset_s;
+    const int n = static_cast<int>(std::round(half_range / step));
+    for (int i = -n; i <= n; ++i) {
+      const double offset_s = centre + i * step;
+      if (std::abs(offset_s) > options.max_time_offset_s + 1e-9) continue;
+      const double cost = cost_at(offset_s);
+      if (pairs >= kMinOffsetPairs && cost < estimate.cost) {
+        estimate.cost = cost;
+        estimate.offset_s = offset_s;
+      }
+    }
+  }
+  estimate.applied = estimate.cost <= (1.0 - options.time_offset_min_gain) * estimate.cost_at_zero;
+  return estimate;
 }
 
 Survey IngestDataset(const Dataset& dataset, const IngestOptions& options) {

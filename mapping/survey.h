@@ -5,16 +5,39 @@
 // makes a frame, with or without markers, so the smoothed trajectory covers the survey.
 //
 // Odometry. The odometry file holds T_odom_robot, which drifts; only increments are used.
-// Each frame stamp is interpolated inside the odometry (linear in translation, slerp in
-// rotation). A time gap between two odometry samples longer than max_odometry_gap_s (the
-// robot carried, a restart) splits the odometry into segments; frames in different segments,
-// in a gap or outside the odometry's time span get no odometry link between them (reported
-// in Survey::notes). Between consecutive frames a and b of one segment:
-//   M_a_b = T_odom_robot(t_a)^-1 * T_odom_robot(t_b)
-//   Sigma_a_b = sum over the odometry samples k in [t_a, t_b] of Sigma(M_k,k+1)
-//   (rotation sigma of each increment: hypot(rot_per_rad * angle, model_rot_per_m * distance))
-// with Sigma from factors/odometry_covariance.h and odometry_sigma (the dataset's noise model
-// is per increment of its own odometry stream, so the increments' covariances add).
+// Each frame stamp t is looked up at t + delta in the odometry, delta being the odometry's time
+// offset (below), and interpolated there (linear in translation, slerp in rotation). A time gap
+// between two odometry samples longer than max_odometry_gap_s (the robot carried, a restart)
+// splits the odometry into segments; frames in different segments, in a gap or outside the
+// odometry's time span get no odometry link between them (reported in Survey::notes): the
+// survey never bridges a gap with an increment it did not measure. Between consecutive frames
+// a and b of one segment:
+//   M_a_b = T_odom_robot(t_a + delta)^-1 * T_odom_robot(t_b + delta)
+//   Sigma_a_b = sum over the odometry samples k in [t_a + delta, t_b + delta] of Sigma(M_k,k+1)
+//               + sigma_stamp^2 (j_a j_a^T + j_b j_b^T)
+// (sigma_stamp: IngestOptions::stamp_sigma_s, or unsynced_stamp_sigma_s when delta != 0)
+// Sigma(M) from factors/odometry_covariance.h and odometry_sigma (the dataset's noise model is
+// per increment of its own odometry stream, so the increments' covariances add; the rotation
+// sigma of each increment is hypot(rot_per_rad * angle, model_rot_per_m * distance)). The last
+// term is the stamp uncertainty: j_a = d BoxMinus(M_a_b, M_a_b(t_a + eps)) / d eps, the motion of
+// the odometry per second of clock error at frame a (central differences), likewise j_b; it
+// grows with the speed, so a fast, jerky motion between sparse odometry samples is trusted less
+// than a slow one, while a standstill keeps the plain model.
+//
+// Time offset delta (odometry clock minus image clock). Given (IngestOptions::
+// odometry_time_offset_s), or estimated from the survey itself (estimate_time_offset): every
+// code seen in two frames a, b at most offset_window_s apart gives, from its single views
+// (core/marker_pose.h), the robot's displacement |p_b - p_a| in the code's frame and, when both
+// views are unambiguous, the rotation angle between the two robot poses; the odometry gives the
+// same two figures for M_a_b(delta). With the robust cost
+//   C(delta) = sum_pairs log(1 + (e_t / s_t)^2) + log(1 + (e_r / s_r)^2),
+//   e_t = |p_b - p_a| - |t(M_a_b)|,  s_t = 0.02 m + 0.05 * mean range to the code,
+//   e_r = angle(R_a^T R_b) - angle(M_a_b),  s_r = 0.05 rad (single-view precision scales),
+// delta is the minimum of C over [-max_time_offset_s, max_time_offset_s] (a 0.05 s grid, then
+// 0.005 s around the best). It is applied only when C(delta) <= (1 - time_offset_min_gain) C(0):
+// an offset that barely explains the disagreement is noise, and delta stays 0. A constant offset
+// is what a mis-stamped odometry topic gives (tagslam-test22: the T265 odometry is stamped about
+// half a second off its images).
 //
 // Errors (std::runtime_error, one line naming the file): a detection for a camera that the
 // dataset does not list, a marker without a size (no markers.json entry and no
@@ -43,6 +66,19 @@ struct IngestOptions {
   // radius or track width error turns straight runs into arcs): a heading noise per metre
   // travelled, added in quadrature to every odometry increment's rotation sigma.
   double model_rot_per_m = 0.0;
+  // Uncertainty of the odometry's time alignment to the images (s): the sigma_stamp term of the
+  // header comment. stamp_sigma_s applies to odometry on the images' clock (delta = 0); an
+  // odometry with a time offset (given or applied) is not hardware-synchronized, and its stamps
+  // also jitter (approximate sync), hence unsynced_stamp_sigma_s. 0 turns the term off.
+  double stamp_sigma_s = 0.0;
+  double unsynced_stamp_sigma_s = 0.02;
+  // Time offset of the odometry (odometry clock minus image clock, s). When set, it is used as
+  // given; otherwise it is estimated when estimate_time_offset is true (header comment).
+  std::optional<double> odometry_time_offset_s;
+  bool estimate_time_offset = true;
+  double max_time_offset_s = 1.0;      // search range of the estimate
+  double offset_window_s = 5.0;        // views of a code at most this far apart are paired
+  double time_offset_min_gain = 0.1;   // relative drop of C(delta) below C(0) needed to apply
   bool Check(std::string* why) const;
 };
 
@@ -87,6 +123,8 @@ struct Survey {
   std::vector<SurveyObservation> observations;
   std::vector<OdometryLink> odometry_links;
   int odometry_segments = 0;
+  double odometry_time_offset_s = 0.0;  // delta applied (header comment)
+  double odometry_stamp_sigma_s = 0.0;  // sigma_stamp used (header comment)
   std::vector<std::string> notes;  // odometry gaps and other facts worth a line in the summary
 
   int FindMarker(const MarkerKey& key) const;  // -1 when absent
@@ -98,5 +136,19 @@ Survey IngestDataset(const Dataset& dataset, const IngestOptions& options = {});
 // T_odom_robot at `stamp_s`, interpolated between the samples around it; nullopt outside the
 // trajectory's span or when the samples around it are more than max_gap_s apart.
 std::optional<SE3d> InterpolatePose(const Trajectory& trajectory, double stamp_s, double max_gap_s);
+
+// The time offset estimate of the header comment.
+struct TimeOffsetEstimate {
+  double offset_s = 0.0;      // argmin of C
+  double cost = 0.0;          // C(offset_s)
+  double cost_at_zero = 0.0;  // C(0)
+  size_t pairs = 0;           // view pairs in C(0)
+  bool applied = false;       // the gain test passed
+};
+
+// Estimates delta for a survey whose frames and observations are filled (odometry not yet
+// attached); nullopt when fewer than 10 view pairs have odometry at both ends.
+std::optional<TimeOffsetEstimate> EstimateOdometryTimeOffset(const Survey& survey, const Trajectory& odometry,
+                                                             const IngestOptions& options);
 
 }  // namespace waymark
