@@ -60,7 +60,7 @@ nlohmann::json StatsJson(const ReprojectionStats& s) {
           {"median_px", s.median_px}, {"max_px", s.max_px}};
 }
 
-std::string ScoreJson(const MapScore& score, const std::optional<LineFit>& line) {
+std::string ScoreJson(const MapScore& score, const std::optional<LineFit>& line, size_t line_markers) {
   nlohmann::json j = {{"observations", score.observations},
                       {"scored", score.all.observations},
                       {"without_pose", score.without_pose},
@@ -75,17 +75,17 @@ std::string ScoreJson(const MapScore& score, const std::optional<LineFit>& line)
   j["solved_markers"] = nlohmann::json::array();
   for (const MarkerKey& key : score.solved_markers) j["solved_markers"].push_back(key.ToString());
   if (line) {
-    j["line"] = {{"markers", score.map.markers.size()}, {"rms_m", line->rms_m}, {"max_m", line->max_m}};
+    j["line"] = {{"markers", line_markers}, {"rms_m", line->rms_m}, {"max_m", line->max_m}};
   }
   return j.dump(1) + "\n";
 }
 
-std::optional<LineFit> MarkerLine(const MarkerMap& map) {
+std::vector<Eigen::Vector3d> MarkerCentres(const MarkerMap& map) {
   std::vector<Eigen::Vector3d> centres_world;
   for (const MapMarker& m : map.markers) {
     if (m.has_pose) centres_world.push_back(m.T_world_marker.translation());
   }
-  return FitLine(centres_world);
+  return centres_world;
 }
 
 int RunScore(const std::vector<std::string>& argv) {
@@ -105,16 +105,18 @@ int RunScore(const std::vector<std::string>& argv) {
   if (args.Has("trajectory")) trajectory = ReadTum(*args.Get("trajectory"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   const MapScore score = ScoreMap(dataset, map, trajectory, options);
+  const std::vector<Eigen::Vector3d> centres_world = MarkerCentres(score.map);
   std::optional<LineFit> line;
-  if (args.Flag("line")) line = MarkerLine(score.map);
+  if (args.Flag("line") && centres_world.size() >= 2) line = FitLine(centres_world);
   // Everything is formatted before anything is written.
-  const std::string json_text = args.Has("json") ? ScoreJson(score, line) : "";
+  const std::string json_text = args.Has("json") ? ScoreJson(score, line, centres_world.size()) : "";
   const std::string map_text = args.Has("out-map") ? FormatMap(score.map) : "";
   if (args.Has("json")) AtomicWriteFile(*args.Get("json"), json_text);
   if (args.Has("out-map")) AtomicWriteFile(*args.Get("out-map"), map_text);
   std::cout << FormatMapScore(score);
+  if (args.Flag("line") && !line) std::cout << "line fit: needs 2 or more marker centres\n";
   if (line) {
-    std::cout << "line fit of " << score.map.markers.size() << " marker centres: RMS " << Mm(line->rms_m)
+    std::cout << "line fit of " << centres_world.size() << " marker centres: RMS " << Mm(line->rms_m)
               << " mm, max " << Mm(line->max_m) << " mm (perpendicular distances)\n";
   }
   return 0;
