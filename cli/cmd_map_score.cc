@@ -61,7 +61,7 @@ nlohmann::json StatsJson(const ReprojectionStats& s) {
 }
 
 std::string ScoreJson(const MapScore& score, const std::optional<LineFit>& line, size_t line_markers) {
-  nlohmann::json j = {{"observations", score.observations},
+  nlohmann::json j = {{"observations_total", score.observations},
                       {"scored", score.all.observations},
                       {"without_pose", score.without_pose},
                       {"without_marker", score.without_marker},

@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Mapping on the real TagSLAM sets (../shared/data/tagslam) for docs/accuracy.md: for each set,
+# `waymark map build`, then `waymark map score` of our map and smoothed trajectory and of TagSLAM's
+# reference (its trajectory held fixed, the tags its markers.json lacks solved on the same corners),
+# printing a Markdown table: reprojection RMS (px, over corners) of both on every observation of
+# the set, observations used / rejected by our build, the odometry time offset our build found, and
+# test16's line fit of the tag centres (mm).
+# Usage: scripts/accuracy-tagslam.sh [BUILD_DIR]     (default: build)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+waymark=${1:-build}/waymark
+data=../shared/data/tagslam
+if [ ! -d "$data" ]; then
+  echo "accuracy-tagslam: $data is absent (the shared data folder); nothing to measure" >&2
+  exit 1
+fi
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# First number after a key in waymark map score's JSON ("rms_px" first appears under "all").
+json_number() { grep -o "\"$2\": *[-0-9.eE+]*" "$1" | head -n 1 | sed 's/.*: *//'; }
+
+echo "| set | observations | ours: used / rejected | ours: RMS (median) px | reference: RMS (median) px | reference: scored | odometry offset (s) | line fit of the tag centres, ours / reference |"
+echo "|---|---|---|---|---|---|---|---|"
+for name in tagslam-test16 tagslam-test17 tagslam-test22; do
+  set_dir=$data/$name
+  "$waymark" map build "$set_dir" --out "$work/$name.map.json" --trajectory "$work/$name.tum" \
+    --no-covariance > "$work/$name.build.txt"
+  line_args=()
+  [ "$name" = tagslam-test16 ] && line_args=(--line)
+  "$waymark" map score "$set_dir" --map "$work/$name.map.json" --trajectory "$work/$name.tum" \
+    "${line_args[@]}" --json "$work/$name.ours.json" > /dev/null
+  "$waymark" map score "$set_dir" --map "$set_dir/reference/markers.json" \
+    --trajectory "$set_dir/reference/trajectory.tum" --solve-missing-markers "${line_args[@]}" \
+    --json "$work/$name.ref.json" > /dev/null
+  used=$(sed -n 's/^map:.*frames, \([0-9]*\) observations used.*/\1/p' "$work/$name.build.txt")
+  rejected=$(sed -n 's/^outliers rejected: \([0-9]*\).*/\1/p' "$work/$name.build.txt")
+  offset=$(sed -n 's/.*time offset estimated at \([-0-9.]*\) s.*: applied$/\1/p' "$work/$name.build.txt")
+  if [ ! -f "$set_dir/odometry.tum" ]; then offset="— (no odometry)"; fi
+  line="—"
+  if [ "$name" = tagslam-test16 ]; then
+    line=$(printf '%.1f / %.1f mm RMS (max %.1f / %.1f)' \
+      "$(json_number "$work/$name.ours.json" rms_m | awk '{print $1 * 1000}')" \
+      "$(json_number "$work/$name.ref.json" rms_m | awk '{print $1 * 1000}')" \
+      "$(json_number "$work/$name.ours.json" max_m | awk '{print $1 * 1000}')" \
+      "$(json_number "$work/$name.ref.json" max_m | awk '{print $1 * 1000}')")
+  fi
+  printf '| %s | %s | %s / %s | %.3f (%.3f) | %.3f (%.3f) | %s | %s | %s |\n' "$name" \
+    "$(json_number "$work/$name.ours.json" observations_total)" "$used" "$rejected" \
+    "$(json_number "$work/$name.ours.json" rms_px)" "$(json_number "$work/$name.ours.json" median_px)" \
+    "$(json_number "$work/$name.ref.json" rms_px)" "$(json_number "$work/$name.ref.json" median_px)" \
+    "$(json_number "$work/$name.ref.json" scored)" "${offset:-0}" "$line"
+done
