@@ -14,6 +14,8 @@ namespace {
 constexpr double kStepPx = 0.25;      // profile sampling step along the normal
 constexpr double kInlierBandPx = 0.6;  // RANSAC inlier distance
 constexpr int kRansacIterations = 64;
+constexpr double kCentroidLevel = 0.5;  // centroid of the derivative above this fraction of its peak
+constexpr double kHalfBaselinePx = 0.5;  // the derivative is a central difference over 1 px
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
@@ -33,8 +35,9 @@ double Bilinear(const cv::Mat& gray, double x, double y) {
 
 // Offset s along the outward normal `n` of the outermost strong light-outside edge near
 // `p`, or NaN. The derivative is a central difference over 1 px.
+// *strength receives the step's peak derivative (gray levels per px).
 double EdgeOffset(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n, double half_window,
-                  double min_step) {
+                  double min_step, double* strength) {
   const int count = static_cast<int>(std::round(2.0 * (half_window + 0.5) / kStepPx)) + 1;
   std::vector<double> profile(count);
   for (int k = 0; k < count; ++k) {
@@ -42,7 +45,7 @@ double EdgeOffset(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Ve
     profile[k] = Bilinear(gray, q.x(), q.y());
     if (std::isnan(profile[k])) return std::numeric_limits<double>::quiet_NaN();
   }
-  const int h = static_cast<int>(std::round(0.5 / kStepPx));  // half of the 1 px baseline
+  const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
   std::vector<double> step(count, 0.0);
   double strongest = 0.0;
   for (int k = h; k + h < count; ++k) {
@@ -54,15 +57,35 @@ double EdgeOffset(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Ve
     if (step[k] < 0.5 * strongest || step[k] < step[k - 1] || step[k] < step[k + 1]) continue;
     // Centroid of the derivative above half its peak around k: unbiased for a symmetric
     // blur, and well defined on the plateau a sharp step makes under bilinear sampling.
-    const double half = 0.5 * step[k];
+    const double half = kCentroidLevel * step[k];
     double weight_sum = 0.0;
     double moment = 0.0;
     for (int j = k; j >= h && step[j] > half; --j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
     for (int j = k + 1; j + h < count && step[j] > half; ++j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
     if (weight_sum <= 0.0) continue;
+    *strength = step[k];
     return -half_window - 0.5 + (moment / weight_sum) * kStepPx;
   }
   return std::numeric_limits<double>::quiet_NaN();
+}
+
+// The edge points whose step is at least kFullContrast times the typical step of the
+// side's line (80th percentile over its inliers). On a dashed side (DataMatrix timing pattern, QR data modules) the
+// profiles near the end of a dark module see a weaker step, displaced along the normal when
+// the module's end is slanted (perspective); mid-module profiles see the whole step.
+constexpr double kFullContrast = 0.75;
+std::vector<Eigen::Vector2d> KeepFullContrast(const std::vector<Eigen::Vector2d>& points,
+                                              const std::vector<double>& strengths) {
+  if (points.empty()) return points;
+  std::vector<double> sorted = strengths;
+  const size_t rank = static_cast<size_t>(0.8 * (sorted.size() - 1));
+  std::nth_element(sorted.begin(), sorted.begin() + rank, sorted.end());
+  const double typical = sorted[rank];
+  std::vector<Eigen::Vector2d> kept;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (strengths[i] >= kFullContrast * typical) kept.push_back(points[i]);
+  }
+  return kept;
 }
 
 struct Line2d {
@@ -87,9 +110,11 @@ Line2d FitTls(const std::vector<Eigen::Vector2d>& points) {
   return {mean, solver.eigenvectors().col(1).normalized(), 0.0};
 }
 
-// RANSAC (deterministic sample pairs) then TLS on the inliers. `samples` is the number of
-// profiles taken, including those without an edge.
-std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, int samples) {
+// RANSAC (deterministic sample pairs), then TLS on the inliers with a full-contrast step
+// (KeepFullContrast). `samples` is the number of profiles taken, including those without
+// an edge; the inlier fraction counts every RANSAC inlier.
+std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, const std::vector<double>& strengths,
+                                  int samples) {
   if (points.size() < 4) return std::nullopt;
   uint32_t state = 12345u;  // fixed seed: the result does not depend on anything else
   auto next = [&state](size_t n) {
@@ -109,10 +134,12 @@ std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, in
   }
   if (best_count < 4) return std::nullopt;
   std::vector<Eigen::Vector2d> inliers;
-  for (const auto& q : points) {
-    if (Distance(best, q) < kInlierBandPx) inliers.push_back(q);
+  std::vector<double> inlier_strengths;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (Distance(best, points[i]) < kInlierBandPx) inliers.push_back(points[i]), inlier_strengths.push_back(strengths[i]);
   }
-  Line2d fitted = FitTls(inliers);
+  const std::vector<Eigen::Vector2d> full = KeepFullContrast(inliers, inlier_strengths);
+  Line2d fitted = FitTls(full.size() >= 4 ? full : inliers);
   fitted.inlier_fraction = static_cast<double>(inliers.size()) / samples;
   return fitted;
 }
@@ -138,12 +165,14 @@ std::optional<RefinedQuad> RefineOnce(const cv::Mat& gray, const Quad2d& corners
     const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
     const int samples = std::clamp(static_cast<int>(length / 1.5), 8, 96);
     std::vector<Eigen::Vector2d> points;
+    std::vector<double> strengths;
     for (int k = 0; k < samples; ++k) {
       const Eigen::Vector2d p = a + (0.1 + 0.8 * k / (samples - 1.0)) * (b - a);
-      const double s = EdgeOffset(gray, p, outward, half_window, options.min_step);
-      if (!std::isnan(s)) points.push_back(p + s * outward);
+      double strength = 0.0;
+      const double s = EdgeOffset(gray, p, outward, half_window, options.min_step, &strength);
+      if (!std::isnan(s)) points.push_back(p + s * outward), strengths.push_back(strength);
     }
-    const std::optional<Line2d> line = FitEdgeLine(points, samples);
+    const std::optional<Line2d> line = FitEdgeLine(points, strengths, samples);
     if (!line || line->inlier_fraction < options.min_inlier_fraction) return std::nullopt;
     lines[i] = *line;
     worst = std::min(worst, line->inlier_fraction);
