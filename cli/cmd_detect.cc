@@ -118,17 +118,24 @@ void ShowProgress(size_t done, long total) {
 }
 
 // Annotated copies are written to a staging directory and moved into place only when the
-// whole run succeeds, so an error leaves nothing half-written there either.
+// whole run succeeds, so an error leaves nothing half-written there either; directories the
+// run created (DIR itself, missing parents) are removed again on error when left empty.
 class Annotator {
  public:
   explicit Annotator(std::optional<fs::path> dir) : dir_(std::move(dir)) {
     if (!dir_) return;
+    for (fs::path p = fs::absolute(*dir_); !p.empty() && !fs::exists(p); p = p.parent_path()) {
+      created_.push_back(p);  // deepest first
+      if (p == p.parent_path()) break;
+    }
     staging_ = *dir_ / (".partial-" + std::to_string(::getpid()));
     fs::create_directories(staging_);
   }
   ~Annotator() {
     std::error_code ignored;
     if (!staging_.empty()) fs::remove_all(staging_, ignored);
+    if (committed_) return;
+    for (const fs::path& p : created_) fs::remove(p, ignored);  // only if empty
   }
   Annotator(const Annotator&) = delete;
   Annotator& operator=(const Annotator&) = delete;
@@ -152,6 +159,7 @@ class Annotator {
   void Commit() {
     if (!dir_) return;
     for (const std::string& name : names_) fs::rename(staging_ / name, *dir_ / name);
+    committed_ = true;
   }
 
  private:
@@ -166,6 +174,8 @@ class Annotator {
 
   std::optional<fs::path> dir_;
   fs::path staging_;
+  std::vector<fs::path> created_;  // directories this run created, deepest first
+  bool committed_ = false;
   std::vector<std::string> names_;
 };
 

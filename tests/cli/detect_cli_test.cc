@@ -156,11 +156,21 @@ TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
       {(dir_ / "missing.png").string(), "no such file"},
       {(dir_ / "mixed").string() + " --families qr,ean13", "unknown marker family"},
   };
+  const fs::path annotate = dir_ / "new" / "annotated";  // neither exists yet
   for (const auto& [input, message] : cases) {
     EXPECT_EQ(Run(input + " --out " + out.string()), 1) << input;
     EXPECT_NE(Stderr().find(message), std::string::npos) << input << ": " << Stderr();
     EXPECT_FALSE(fs::exists(out)) << input;
+    // With --annotate: the same error, and no directory left behind (not even empty).
+    EXPECT_EQ(Run(input + " --out " + out.string() + " --annotate " + annotate.string()), 1) << input;
+    EXPECT_NE(Stderr().find(message), std::string::npos) << input << ": " << Stderr();
+    EXPECT_FALSE(fs::exists(dir_ / "new")) << input;
   }
+  // An annotate directory that existed is kept, and holds nothing after a failed run.
+  fs::create_directories(dir_ / "kept");
+  EXPECT_EQ(Run((dir_ / "mixed").string() + " --out " + out.string() + " --annotate " + (dir_ / "kept").string()), 1);
+  EXPECT_TRUE(fs::exists(dir_ / "kept"));
+  EXPECT_TRUE(fs::is_empty(dir_ / "kept"));
   EXPECT_EQ(Run((dir_ / "mixed" / "a.png").string()), 1);  // --out missing
   EXPECT_NE(Stderr().find("--out"), std::string::npos);
 }
