@@ -17,7 +17,9 @@
 //             seconds from the jump to the first pose again, poses output while wrong (> 0.3 m).
 //   ceiling-grid and warehouse-drone: ours, mean position error and per-axis mean |error|.
 //
-// Usage: bench_online_accuracy_bench [--quick] [--seeds N] [--table-runs N] [--only STUDY] [--set KEY=VALUE]... [--out FILE]
+// Usage: bench_online_accuracy_bench [--quick] [--seeds N] [--table-runs N] [--only STUDY] [--out FILE]
+//   ablations: [--set KEY=VALUE]... (sim keys) [--heading-walk K] [--map-uncertainty consider|noise|ignore]
+//              [--attitude odometry|marker] [--spacing D] (Table 1 at one spacing)
 //   default (full): 20 NEES seeds, 5 runs per Table-1 cell (seed 000's N = 5), 5 runs of each of
 //   the other scenarios; --quick: 4, 2 and 1. Prints the tables and writes
 //   bench/results/online_accuracy.json (or --out).
@@ -67,6 +69,19 @@ std::vector<std::string>& ExtraSets() {
 // (LocalizerOptions' default, kOdometry).
 bool& AttitudeFromOdometry() {
   static bool value = true;
+  return value;
+}
+
+// --map-uncertainty noise|ignore: LocalizerOptions::map_uncertainty of every localizer run
+// (default consider) except the NEES study's own variants.
+MapUncertainty& MapUncertaintyOption() {
+  static MapUncertainty value = MapUncertainty::kConsider;
+  return value;
+}
+
+// --spacing D: Table 1 at this code spacing only.
+double& OnlySpacing() {
+  static double value = 0.0;
   return value;
 }
 
@@ -148,6 +163,7 @@ LocalizerOptions OptionsFor(const Dataset& dataset, CorrectionMode mode) {
   options.mode = mode;
   if (dataset.config.odometry_sigma) options.odometry.sigma = *dataset.config.odometry_sigma;
   if (HeadingWalk() >= 0.0) options.odometry.heading_per_sqrt_m = HeadingWalk();
+  options.map_uncertainty = MapUncertaintyOption();
   if (options.motion == MotionModel::kFree) {
     options.loose_noise = Eigen::Vector4d::Constant(0.001);
     options.attitude_source = AttitudeFromOdometry() ? AttitudeSource::kOdometry : AttitudeSource::kMarker;
@@ -310,6 +326,7 @@ Json Table1(const BenchOptions& options) {
               options.table_runs);
   std::printf("| d (m) | method | PE (m) | TE (deg) | ATE RMSE (m) | ATE mean (m) |\n|---|---|---|---|---|---|\n");
   for (double spacing_m : {1.0, 2.0, 4.0}) {
+    if (OnlySpacing() > 0.0 && spacing_m != OnlySpacing()) continue;
     std::vector<MethodFigures> sums(kMethodCount);
     for (int r = 0; r < options.table_runs; ++r) {
       const std::vector<MethodFigures> figures = Table1Run(spacing_m, 1 + r, nullptr);
@@ -534,6 +551,13 @@ BenchOptions ParseOptions(int argc, char** argv) {
       ExtraSets().push_back(next());
     } else if (arg == "--attitude") {
       AttitudeFromOdometry() = next() == "odometry";
+    } else if (arg == "--map-uncertainty") {
+      const std::string value = next();
+      MapUncertaintyOption() = value == "noise"    ? MapUncertainty::kInNoise
+                               : value == "ignore" ? MapUncertainty::kIgnore
+                                                   : MapUncertainty::kConsider;
+    } else if (arg == "--spacing") {
+      OnlySpacing() = std::stod(next());
     } else if (arg == "--heading-walk") {
       HeadingWalk() = std::stod(next());
     } else if (arg == "--only") {
@@ -541,7 +565,7 @@ BenchOptions ParseOptions(int argc, char** argv) {
     } else if (arg == "--out") {
       options.out = next();
     } else {
-      throw std::invalid_argument("unknown argument `" + arg + "` (known: --quick --seeds N --table-runs N --only STUDY --set KEY=VALUE --out FILE)");
+      throw std::invalid_argument("unknown argument `" + arg + "` (known: --quick --seeds N --table-runs N --only STUDY --out FILE --set KEY=VALUE --heading-walk K --map-uncertainty M --attitude A --spacing D)");
     }
   }
   if (options.table_runs < 1 || options.nees_seeds < 1) throw std::invalid_argument("--seeds and --table-runs >= 1");
