@@ -135,6 +135,13 @@ ParamSet CorridorParams() {
   p.AddDouble("place.marker_size_m", 0.10, 0.01, 2.0, "code edge length");
   p.AddDouble("place.camera_height_m", 0.30, 0.05, 3.0, "camera and code-centre height");
   p.AddInt("place.anchors", 2, 0, 1000, "codes whose pose is given in markers.json (the first ones)");
+  p.AddDouble("camera.image_scale", 1.0, 0.25, 4.0,
+              "image size and focal length of both cameras times this (same field of view)");
+  p.AddBool("path.clockwise", false, "drive the loop clockwise (default: counter-clockwise)");
+  p.AddInt("path.start_corner", 0, 0, 3,
+           "loop corner the robot starts and ends at: 0 = (0, 0), then counter-clockwise");
+  p.AddDouble("path.inset_m", 0.0, -1.0, 1.0,
+              "drive a loop this far inside the centre line (towards the inner block; < 0: outwards)");
   AddCommonParams(&p, OdometryKind::kWheel, {0.2, 0.8, 60.0, 0.02, 0.02, 0.3, 45.0});
   return p;
 }
@@ -169,6 +176,35 @@ void AddCorridorCodes(const ParamSet& p, const std::vector<WallFace>& faces, Wor
   }
 }
 
+// The side cameras sit this far left and right of the robot's centre.
+constexpr double kCorridorCameraOffsetM = 0.12;
+
+// The loop: the rectangle [i, L - i] x [i, W - i] (i = path.inset_m; i = 0 is the centre line),
+// corners numbered counter-clockwise from (i, i). The robot starts at corner path.start_corner
+// facing the next corner in its direction of travel, drives once round, and turns back to its
+// start heading. Defaults: from (0, 0) facing +x, counter-clockwise.
+SimTrajectory CorridorPath(const ParamSet& p, double half_w) {
+  const double inset_m = p.Double("path.inset_m");
+  if (std::abs(inset_m) > half_w - kCorridorCameraOffsetM - 0.05) {
+    throw std::invalid_argument(
+        "path.inset_m: the cameras would leave the corridor (|inset| must stay below " +
+        FormatNumber(half_w - kCorridorCameraOffsetM - 0.05) + " m)");
+  }
+  const double x0 = inset_m, y0 = inset_m;
+  const double x1 = p.Double("place.loop_length_m") - inset_m, y1 = p.Double("place.loop_width_m") - inset_m;
+  const std::vector<Eigen::Vector2d> corners = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  const int start = static_cast<int>(p.Int("path.start_corner"));
+  const int step = p.Bool("path.clockwise") ? 3 : 1;  // +3 = -1 modulo 4
+  const Eigen::Vector2d heading = corners[(start + step) % 4] - corners[start];
+  const double start_yaw_rad = std::atan2(heading.y(), heading.x());
+  PlanarPathBuilder path(SE2d(corners[start].x(), corners[start].y(), start_yaw_rad),
+                         p.Double("rate.odometry_hz"), p.Double("robot.speed_mps"),
+                         p.Double("robot.turn_rate_dps") * kDegToRad);
+  for (int k = 1; k <= 4; ++k) path.DriveTo(corners[(start + k * step) % 4]);
+  path.TurnTo(start_yaw_rad);
+  return path.Build();
+}
+
 Scene BuildCorridor(const ParamSet& p) {
   Scene scene;
   World& world = scene.world;
@@ -185,18 +221,14 @@ Scene BuildCorridor(const ParamSet& p) {
                     &world.occluders);  // outer
   AddCorridorCodes(p, CorridorFaces(length_m, width_m, half_w), &world);
   const std::vector<double> mild = {-0.05, 0.01, 0.0005, -0.0003, 0.0};
-  world.cameras.push_back(
-      MakeCamera("left", 640, 480, 450.0, mild, Mount({0, 0.12, cam_h}, {0, 1, 0}, {0, 0, -1})));
-  world.cameras.push_back(
-      MakeCamera("right", 640, 480, 450.0, mild, Mount({0, -0.12, cam_h}, {0, -1, 0}, {0, 0, -1})));
-  PlanarPathBuilder path(SE2d(0, 0, 0), p.Double("rate.odometry_hz"), p.Double("robot.speed_mps"),
-                         p.Double("robot.turn_rate_dps") * kDegToRad);
-  for (const Eigen::Vector2d& corner : {Eigen::Vector2d(length_m, 0), Eigen::Vector2d(length_m, width_m),
-                                        Eigen::Vector2d(0, width_m), Eigen::Vector2d(0, 0)}) {
-    path.DriveTo(corner);
-  }
-  path.TurnTo(0.0);
-  scene.truth = path.Build();
+  const double scale = p.Double("camera.image_scale");
+  const int width_px = static_cast<int>(std::lround(640 * scale)),
+            height_px = static_cast<int>(std::lround(480 * scale));
+  world.cameras.push_back(MakeCamera("left", width_px, height_px, 450.0 * scale, mild,
+                                     Mount({0, kCorridorCameraOffsetM, cam_h}, {0, 1, 0}, {0, 0, -1})));
+  world.cameras.push_back(MakeCamera("right", width_px, height_px, 450.0 * scale, mild,
+                                     Mount({0, -kCorridorCameraOffsetM, cam_h}, {0, -1, 0}, {0, 0, -1})));
+  scene.truth = CorridorPath(p, half_w);
   return scene;
 }
 

@@ -5,7 +5,9 @@
 //
 //   corridor         seed 000: 10 cm QR codes in a row on both walls of a rectangular corridor
 //                    loop, at camera height, every place.spacing_m; differential drive on the
-//                    centre line; two side cameras; detectable between 0.2 and 0.8 m.
+//                    centre line; two side cameras; detectable between 0.2 and 0.8 m. The path.*
+//                    keys change only the path (direction, start corner, a loop inset from the
+//                    centre line): a second, different run through the same place.
 //   ceiling-grid     seed 001: 12 cm QR codes on a 2.45 m ceiling every 1.4 m, payload
 //                    "i/x/y"; an upward camera 0.6 m above the floor; a lawn-mower path.
 //   rooms            seed 003: 8 cm DataMatrix codes on the walls of rooms joined by doors;
