@@ -28,7 +28,7 @@ constexpr double kCodeWinsRelative = 1e-5;  // coplanar code vs wall: the printe
 constexpr int kOutlineSamplesPerEdge = 16;
 constexpr double kBoxPaddingPx = 2.0;
 // Sub-samples per pixel axis of the optical blur around codes (see BlurAlbedo).
-constexpr int kBlurSupersample = 8;
+constexpr int kBlurSupersample = 4;
 
 enum class SurfaceKind { kWall, kFloor, kCeiling, kCode };
 

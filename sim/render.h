@@ -35,10 +35,10 @@
 //            per image (c: image centre)
 //   blur     Gaussian, blur_sigma_px (0: none), an optical blur: it acts before the pixel
 //            integration. Around every code (its pixel box plus 4 sigma) the albedo is sampled
-//            at n x n stratified (jittered, fixed) points per pixel, n = max(supersample, 8),
+//            at n x n stratified (jittered, fixed) points per pixel, n = max(supersample, 4),
 //            blurred at that resolution and averaged per pixel; elsewhere the pixel image is
 //            blurred. (On a regular n x n grid a nearly axis-aligned edge moves in steps of
-//            1/n px: up to 0.12 px off at n = 4.) (Blurring pixel
+//            1/n px: up to 0.12 px off at n = 4; jittered, the error averages out along it.) (Blurring pixel
 //            values with a sampled Gaussian of sigma < 1 px, the cheap way, moves a blurred
 //            edge's centre by up to 0.06 px depending on where it falls between pixels.)
 //   noise    + N(0, noise_sigma^2) gray levels per pixel, then rounded and clamped to [0, 255]
