@@ -9,7 +9,12 @@
 #include <map>
 #include <random>
 
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <unistd.h>
+
 #include "core/camera.h"
+#include "core/detect_synthetic.h"
 #include "sim/simulator.h"
 
 namespace waymark {
@@ -95,8 +100,9 @@ struct ArcCase {
     R_world_marker << 0, 0, -1, -1, 0, 0, 0, 1, 0;
     MapMarker marker;
     marker.key = {kFamilyQr, "ahead"};
-    marker.size_m = 0.2;
-    // Turned 40 deg about z and seen from 1.2 m: a single-image pose without ambiguity.
+    marker.size_m = 0.35;
+    // Turned 40 deg about z and seen from 1.2 m: a single-image pose without ambiguity, and
+    // large enough in the image (~120 px) for the QR detector in the image test.
     marker.T_world_marker =
         SE3d(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R_world_marker,
              Eigen::Vector3d(1.2, 0.1, 0.35));
@@ -130,6 +136,40 @@ TEST(RunLocalizerTest, OdometryInterpolatedExactlyToTheFrameInstant) {
   }
   EXPECT_EQ(run.warnings.size(), 0u) << run.warnings.front();
   EXPECT_EQ(run.latency_ms.size(), 4u);
+}
+
+// The same run from images: the code drawn at its exact corners in the first image, the others
+// blank, and one image file missing (a counted warning, the frame skipped).
+TEST(RunLocalizerTest, DetectsOnTheDatasetsImages) {
+  ArcCase arc;
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("waymark_run_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  arc.dataset.dir = dir;
+  for (size_t i = 0; i < arc.dataset.detections.size(); ++i) {
+    const DetectionFrame& frame = arc.dataset.detections[i];
+    cv::Mat image(480, 640, CV_8U, cv::Scalar(128));
+    if (!frame.markers.empty()) DrawSymbol(QrSymbol("ahead"), frame.markers[0].corners_px, &image);
+    const std::string name = "image" + std::to_string(i) + ".png";
+    ASSERT_TRUE(cv::imwrite((dir / name).string(), image));
+    arc.dataset.images.push_back({frame.stamp_s, "front", name});
+  }
+  arc.dataset.images.push_back({0.9, "front", "absent.png"});
+  LocalizeRunOptions options;
+  options.localizer = DefaultLocalizerOptions(arc.dataset);
+  options.detect_images = true;
+  const LocalizeRun from_images = RunLocalizer(arc.dataset, arc.map, options);
+  options.detect_images = false;
+  const LocalizeRun from_detections = RunLocalizer(arc.dataset, arc.map, options);
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(from_images.outputs.size(), 4u);
+  ASSERT_EQ(from_images.trajectory.size(), 4u);
+  EXPECT_LT((from_images.trajectory[0].T.translation() - from_detections.trajectory[0].T.translation()).norm(), 0.01);
+  EXPECT_GT(from_images.latency_ms[0], from_detections.latency_ms[0]);  // detection time counted
+  ASSERT_EQ(from_images.warnings.size(), 1u);
+  EXPECT_NE(from_images.warnings[0].find(kWarnImage), std::string::npos) << from_images.warnings[0];
+  EXPECT_NE(from_images.warnings[0].find("absent.png"), std::string::npos) << from_images.warnings[0];
+  EXPECT_EQ(DetectionFamilies(arc.map, {}), std::vector<std::string>{"qr"});
 }
 
 TEST(RunLocalizerTest, FramesOutsideTheOdometryAreCountedWarnings) {
