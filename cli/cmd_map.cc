@@ -3,6 +3,7 @@
 // shows progress on a terminal and prints the summary.
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <iomanip>
 #include <iostream>
@@ -12,6 +13,8 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "cli/args.h"
 #include "cli/command.h"
@@ -46,12 +49,18 @@ atomically, and only when the whole build succeeded.
 
 Options (build, merge):
   --out FILE          the map (map.json format)
-  --trajectory FILE   the smoothed trajectory T_world_robot of component 0 (TUM)
+  --trajectory FILE   the smoothed trajectories T_world_robot (TUM), one file per component:
+                      FILE holds component 0, <stem>.component<c><ext> component c >= 1
+                      (e.g. smoothed.tum, smoothed.component1.tum), each in its component's frame
+  --report FILE       the summary as JSON: components, reprojection per camera, every
+                      rejected observation (code, stamp, camera, reason), unmapped codes, timings
   --threads N         solver threads (default 1)
   --no-covariance     skip the marker covariances
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
   --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
   --no-calibration    do not estimate the odometry's systematic errors
+  --no-id-check       keep views whose id disagrees with the code's other views along the
+                      odometry (by default they are set aside and reported as misdecoded)
   --max-gap S         odometry gaps longer than S seconds split it (default 1)
 )";
 
@@ -69,32 +78,80 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   if (const auto x = args.GetDouble("max-gap")) options.ingest.max_odometry_gap_s = *x;
   options.compute_covariance = !args.Flag("no-covariance");
   options.calibrate_odometry = !args.Flag("no-calibration");
+  options.check_ids = !args.Flag("no-id-check");
   options.progress = TerminalProgress();
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("options: " + why);
   return options;
 }
 
-const std::set<std::string> kBuildValues = {"out", "trajectory", "threads", "min-frames", "outlier-chi2", "max-gap"};
-const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration"};
+const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report", "threads",
+                                            "min-frames", "outlier-chi2", "max-gap"};
+const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check"};
+
+// Path of component c's trajectory: `path` itself for component 0, else
+// <stem>.component<c><ext> beside it.
+std::string ComponentTrajectoryPath(const std::string& path, int component) {
+  if (component == 0) return path;
+  const std::filesystem::path p(path);
+  return (p.parent_path() / (p.stem().string() + ".component" + std::to_string(component) + p.extension().string()))
+      .string();
+}
+
+nlohmann::json ReportJson(const MapBuildResult& result) {
+  nlohmann::json report = {{"markers", result.map.markers.size()},
+                           {"frames", result.frames},
+                           {"observations_used", result.observations},
+                           {"init_time_s", result.init_time_s},
+                           {"solver_time_s", result.solver_time_s},
+                           {"covariance_time_s", result.covariance_time_s},
+                           {"iterations", result.iterations},
+                           {"termination", result.termination},
+                           {"covariance_computed", result.covariance_computed},
+                           {"notes", result.notes}};
+  for (const ComponentSummary& c : result.components) {
+    report["components"].push_back({{"component", c.component}, {"markers", c.markers}, {"frames", c.frames},
+                                    {"trajectory_poses", c.trajectory_poses}, {"gauge", c.gauge}});
+  }
+  for (const CameraReprojection& r : result.reprojection) {
+    report["reprojection"].push_back({{"camera", r.camera}, {"observations", r.observations}, {"rms_px", r.rms_px}});
+  }
+  report["outliers"] = nlohmann::json::array();
+  for (const RejectedObservation& o : result.outliers) {
+    report["outliers"].push_back({{"family", o.key.family}, {"id", o.key.id}, {"t", o.stamp_s},
+                                  {"camera", o.camera}, {"rms_px", o.rms_px}, {"reason", o.reason}});
+  }
+  report["unmapped"] = nlohmann::json::array();
+  for (const UnmappedMarker& u : result.unmapped) {
+    report["unmapped"].push_back({{"family", u.key.family}, {"id", u.key.id}, {"reason", u.reason}});
+  }
+  return report;
+}
 
 // Formats every output first, then writes them: a failure leaves no partial output.
 void WriteOutputs(const Args& args, const MapBuildResult& result) {
-  const std::string map_text = FormatMap(result.map);
-  std::string trajectory_text;
-  if (args.Has("trajectory")) {
-    trajectory_text = FormatTum(result.trajectory, "waymark map: smoothed T_world_robot of component 0");
+  std::vector<std::pair<std::string, std::string>> files;  // path, text
+  files.emplace_back(args.Require("out"), FormatMap(result.map));
+  if (const auto path = args.Get("trajectory")) {
+    for (size_t c = 0; c < result.trajectories.size(); ++c) {
+      files.emplace_back(ComponentTrajectoryPath(*path, static_cast<int>(c)),
+                         FormatTum(result.trajectories[c], "waymark map: smoothed T_world_robot of component " +
+                                                               std::to_string(c) + ", in its own frame"));
+    }
   }
-  AtomicWriteFile(args.Require("out"), map_text);
-  if (args.Has("trajectory")) AtomicWriteFile(*args.Get("trajectory"), trajectory_text);
+  if (const auto path = args.Get("report")) files.emplace_back(*path, ReportJson(result).dump(1) + "\n");
+  for (const auto& [path, text] : files) AtomicWriteFile(path, text);
 }
 
 int Finish(const Args& args, const MapBuildResult& result) {
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
   WriteOutputs(args, result);
   std::cout << FormatBuildSummary(result);
-  if (result.components.size() > 1 && args.Has("trajectory")) {
-    std::cout << "note: the trajectory holds the frames of component 0 only\n";
+  if (const auto path = args.Get("trajectory")) {
+    for (size_t c = 0; c < result.trajectories.size(); ++c) {
+      std::cout << "trajectory of component " << c << ": " << ComponentTrajectoryPath(*path, static_cast<int>(c))
+                << " (" << result.trajectories[c].size() << " poses)\n";
+    }
   }
   return 0;
 }

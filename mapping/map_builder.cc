@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <limits>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <memory>
+#include <ostream>
 #include <set>
 #include <sstream>
 
@@ -306,6 +308,50 @@ std::vector<int> UsableObservations(const Survey& survey, const Initialization& 
   return active;
 }
 
+// Cosine of the largest angle between the faces of two codes taken for one (60 degrees).
+constexpr double kMinDuplicateFacingCos = 0.5;
+
+// Two distinct codes of one component mapped at one place (centres closer than half the
+// larger code's size, faces within 60 degrees) cannot both be right: one is another code read under a wrong id (the
+// same code misdecoded alike in several frames, which the id check cannot see). The code with
+// fewer observations loses them, reported. Returns the observations kept.
+std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization& init, const GlobalProblem& problem,
+                                      const std::vector<int>& active, MapBuildResult* result) {
+  std::map<int, std::vector<int>> observations_of;  // marker -> active observations
+  for (int o : active) observations_of[survey.observations[o].marker].push_back(o);
+  std::vector<int> markers;
+  for (const auto& [m, obs] : observations_of) markers.push_back(m);
+  std::set<int> dropped;
+  for (size_t i = 0; i < markers.size(); ++i) {
+    for (size_t j = i + 1; j < markers.size(); ++j) {
+      const int a = markers[i], b = markers[j];
+      if (init.marker_component[a] != init.marker_component[b] || dropped.count(a) || dropped.count(b)) continue;
+      const double gate_m = 0.5 * std::max(survey.markers[a].size_m, survey.markers[b].size_m);
+      const SE3d T_world_a = problem.Marker(a), T_world_b = problem.Marker(b);
+      if ((T_world_a.translation() - T_world_b.translation()).norm() > gate_m) continue;
+      // Codes printed back to back on a thin wall share a place but face away from each other.
+      const Eigen::Vector3d z_a = T_world_a.rotation() * Eigen::Vector3d::UnitZ();
+      if (z_a.dot(T_world_b.rotation() * Eigen::Vector3d::UnitZ()) < kMinDuplicateFacingCos) continue;
+      const bool a_loses = observations_of[a].size() < observations_of[b].size() ||
+                           (observations_of[a].size() == observations_of[b].size() && survey.markers[b].known);
+      const int loser = a_loses ? a : b, winner = a_loses ? b : a;
+      if (survey.markers[loser].known && survey.markers[loser].known->fixed) continue;
+      dropped.insert(loser);
+      for (int o : observations_of[loser]) {
+        result->outliers.push_back({survey.markers[loser].key, survey.frames[survey.observations[o].frame].stamp_s,
+                                    survey.observations[o].camera, 0.0,
+                                    "id conflicts with " + survey.markers[winner].key.ToString() +
+                                        ", mapped at the same place (misdecoded?)"});
+      }
+    }
+  }
+  std::vector<int> kept;
+  for (int o : active) {
+    if (!dropped.count(survey.observations[o].marker)) kept.push_back(o);
+  }
+  return kept;
+}
+
 // Stage 3: drops outliers, then codes seen in fewer than min_frames frames.
 std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& problem, const std::vector<int>& active,
                                 const MapBuildOptions& options, MapBuildResult* result) {
@@ -378,17 +424,23 @@ void FillOutputs(const Survey& survey, const Initialization& init, const GlobalP
     summary.gauge = gauges[c];
     result->components.push_back(summary);
   }
+  result->trajectories.assign(init.components, Trajectory());
   for (size_t f = 0; f < survey.frames.size(); ++f) {
-    if (init.frame_component[f] == 0 && problem.FramePlaced(static_cast<int>(f))) {
-      result->trajectory.push_back({survey.frames[f].stamp_s, problem.Robot(static_cast<int>(f))});
+    const int c = init.frame_component[f];
+    if (c >= 0 && problem.FramePlaced(static_cast<int>(f))) {
+      result->trajectories[c].push_back({survey.frames[f].stamp_s, problem.Robot(static_cast<int>(f))});
     }
   }
+  for (ComponentSummary& summary : result->components) {
+    summary.trajectory_poses = result->trajectories[summary.component].size();
+  }
+  if (!result->trajectories.empty()) result->trajectory = result->trajectories[0];
 }
 
 }  // namespace
 
 bool MapBuildOptions::Check(std::string* why) const {
-  if (!ingest.Check(why)) return false;
+  if (!ingest.Check(why) || !id_check.Check(why)) return false;
   const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(calibration_sigma)) {
     *why = "calibration_sigma must be finite and > 0";
@@ -431,7 +483,18 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
   progress("initializing " + std::to_string(survey.frames.size()) + " frames, " +
            std::to_string(survey.markers.size()) + " codes, " + std::to_string(survey.observations.size()) +
            " observations");
-  return OptimizeSurvey(survey, Initialize(survey, options.initializer), options, std::move(result));
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<int> inconsistent;
+  if (options.check_ids) inconsistent = FindInconsistentIds(survey, MakeCameras(survey), options.id_check);
+  for (int o : inconsistent) {
+    const SurveyObservation& obs = survey.observations[o];
+    result.outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0,
+                               "id inconsistent with the code's other views along the odometry (misdecoded?)"});
+  }
+  const Survey checked = WithoutObservations(survey, inconsistent);
+  const Initialization init = Initialize(checked, options.initializer);
+  result.init_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return OptimizeSurvey(checked, init, options, std::move(result));
 }
 
 MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
@@ -465,7 +528,8 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     robust.initial_cost = first_cost;
     iterations += static_cast<int>(robust.iterations.size());
   }
-  const std::vector<int> kept = RejectOutliers(survey, problem, active, options, &result);
+  const std::vector<int> kept =
+      RejectOutliers(survey, problem, RemoveDuplicateCodes(survey, init, problem, active, &result), options, &result);
   const ceres::Solver::Summary final_summary = problem.Solve(kept, false, &gauges);
   result.solver_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.iterations = iterations + static_cast<int>(final_summary.iterations.size());
@@ -478,6 +542,7 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   FillOutputs(survey, init, problem, kept, gauges, &result);
   if (options.compute_covariance) {
     progress("marker covariances");
+    const auto covariance_start = std::chrono::steady_clock::now();
     std::vector<std::optional<Matrix6d>> covariance;
     result.covariance_computed = problem.Covariances(&covariance);
     if (result.covariance_computed) {
@@ -485,6 +550,8 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     } else {
       result.notes.push_back("marker covariances could not be computed (rank-deficient problem)");
     }
+    result.covariance_time_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
   }
   return result;
 }
@@ -493,19 +560,45 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
 
 namespace waymark {
 
+namespace {
+
+// Outliers counted by reason, then by code (the codes with most rejected views first).
+void AppendOutlierTallies(const std::vector<RejectedObservation>& outliers, std::ostream& out) {
+  if (outliers.empty()) return;
+  std::map<std::string, size_t> by_reason;
+  std::map<std::string, size_t> by_code;
+  for (const RejectedObservation& o : outliers) {
+    const std::string reason = o.reason.substr(0, o.reason.find(':'));
+    ++by_reason[reason.rfind("id conflicts with ", 0) == 0 ? "id conflicts with a code mapped at the same place"
+                                                            : reason];
+    ++by_code[o.key.ToString()];
+  }
+  for (const auto& [reason, n] : by_reason) out << "  " << n << " x " << reason << "\n";
+  std::vector<std::pair<std::string, size_t>> codes(by_code.begin(), by_code.end());
+  std::stable_sort(codes.begin(), codes.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+  out << "  by code:";
+  const size_t shown = std::min<size_t>(codes.size(), 12);
+  for (size_t i = 0; i < shown; ++i) out << " " << codes[i].first << " (" << codes[i].second << ")";
+  if (shown < codes.size()) out << " ... " << codes.size() - shown << " more codes";
+  out << "\n";
+}
+
+}  // namespace
+
 std::string FormatBuildSummary(const MapBuildResult& result) {
   std::ostringstream out;
   out << "map: " << result.map.markers.size() << " markers in " << result.components.size() << " component(s), "
       << result.frames << " frames, " << result.observations << " observations used\n";
   for (const ComponentSummary& c : result.components) {
-    out << "  component " << c.component << ": " << c.markers << " markers, " << c.frames << " frames, gauge: "
-        << c.gauge << "\n";
+    out << "  component " << c.component << ": " << c.markers << " markers, " << c.frames << " frames ("
+        << c.trajectory_poses << " poses in its trajectory), gauge: " << c.gauge << "\n";
   }
   for (const CameraReprojection& r : result.reprojection) {
     out << "  reprojection " << r.camera << ": RMS " << Num(r.rms_px) << " px over " << r.observations
         << " observations\n";
   }
   out << "outliers rejected: " << result.outliers.size() << "\n";
+  AppendOutlierTallies(result.outliers, out);
   const size_t shown = std::min<size_t>(result.outliers.size(), 10);
   for (size_t i = 0; i < shown; ++i) {
     const RejectedObservation& o = result.outliers[i];
@@ -516,6 +609,8 @@ std::string FormatBuildSummary(const MapBuildResult& result) {
   if (shown < result.outliers.size()) out << "  ... and " << result.outliers.size() - shown << " more\n";
   out << "unmapped codes: " << result.unmapped.size() << "\n";
   for (const UnmappedMarker& u : result.unmapped) out << "  " << u.key.ToString() << ": " << u.reason << "\n";
+  out << "time: init " << Num(result.init_time_s, 3) << " s, solve " << Num(result.solver_time_s, 3)
+      << " s, covariance " << Num(result.covariance_time_s, 3) << " s\n";
   out << "solver: " << Num(result.solver_time_s) << " s, " << result.iterations << " iterations, cost "
       << Num(result.initial_cost, 8) << " -> " << Num(result.final_cost, 8) << ", "
       << result.termination << "\n";

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "core/types.h"
+#include "mapping/id_consistency.h"
 #include "mapping/initializer.h"
 #include "mapping/survey.h"
 
@@ -35,6 +36,10 @@ namespace waymark {
 struct MapBuildOptions {
   IngestOptions ingest;
   InitializerOptions initializer;
+  // Views whose id disagrees with the code's other views along the odometry are set aside
+  // before initialization and reported (mapping/id_consistency.h).
+  bool check_ids = true;
+  IdCheckOptions id_check;
   double cauchy_scale = 3.0;     // whitened units (sigmas)
   double outlier_chi2 = 40.0;    // on the 8 whitened residuals of one observation
   // After the robust solve, codes with outlying views are re-placed by consensus at the solved
@@ -76,13 +81,15 @@ struct CameraReprojection {
 struct ComponentSummary {
   int component = 0;
   size_t markers = 0;
-  size_t frames = 0;
+  size_t frames = 0;            // seeing a mapped code
+  size_t trajectory_poses = 0;  // in the smoothed trajectory (odometry-only frames too)
   std::string gauge;
 };
 
 struct MapBuildResult {
   MarkerMap map;
   Trajectory trajectory;                 // smoothed T_world_robot of the frames of component 0
+  std::vector<Trajectory> trajectories;  // per component c, in its own world frame (c = index)
   std::vector<ComponentSummary> components;
   std::vector<CameraReprojection> reprojection;
   std::vector<RejectedObservation> outliers;
@@ -91,7 +98,9 @@ struct MapBuildResult {
   size_t observations = 0;               // used in the final solve
   double initial_cost = 0.0;             // of the robust solve
   double final_cost = 0.0;               // of the final solve (half the sum of squares)
-  double solver_time_s = 0.0;
+  double init_time_s = 0.0;              // id check and initialization
+  double solver_time_s = 0.0;            // robust and final solves, outlier stages
+  double covariance_time_s = 0.0;
   int iterations = 0;
   std::string termination;               // Ceres' final termination type and message
   bool covariance_computed = false;
