@@ -170,6 +170,35 @@ void AddStampUncertainty(const OdometryClock& clock, double t_a, double t_b, dou
   }
 }
 
+// Velocity (world-frame translation per second, body rotation vector per second) of the odometry
+// interval [k, k+1].
+std::pair<Eigen::Vector3d, Eigen::Vector3d> IntervalVelocity(const Trajectory& odometry, long k) {
+  const double dt = odometry[k + 1].stamp_s - odometry[k].stamp_s;
+  return {(odometry[k + 1].T.translation() - odometry[k].T.translation()) / dt,
+          LogSO3(odometry[k].T.rotation().conjugate() * odometry[k + 1].T.rotation()) / dt};
+}
+
+// The interpolation term of the header comment at odometry-clock time t: variances (rotation,
+// translation) of 0.5 a s (1 - s) Delta^2 per axis, with a the change of velocity from the
+// interval around t to its neighbours.
+std::pair<double, double> InterpolationVariance(const Trajectory& odometry, double t) {
+  const long k = SampleAtOrBefore(odometry, t);
+  if (k < 0 || k + 1 >= static_cast<long>(odometry.size()) || odometry[k].stamp_s == t) return {0.0, 0.0};
+  const double delta_s = odometry[k + 1].stamp_s - odometry[k].stamp_s;
+  const double s = (t - odometry[k].stamp_s) / delta_s;
+  const auto [v, w] = IntervalVelocity(odometry, k);
+  double a = 0.0, alpha = 0.0;
+  for (const long j : {k - 1, k + 1}) {
+    if (j < 0 || j + 1 >= static_cast<long>(odometry.size())) continue;
+    const auto [v_j, w_j] = IntervalVelocity(odometry, j);
+    const double mean_dt = 0.5 * (delta_s + odometry[j + 1].stamp_s - odometry[j].stamp_s);
+    a = std::max(a, (v_j - v).norm() / mean_dt);
+    alpha = std::max(alpha, (w_j - w).norm() / mean_dt);
+  }
+  const double lever = 0.5 * s * (1.0 - s) * delta_s * delta_s;
+  return {std::pow(alpha * lever, 2), std::pow(a * lever, 2)};
+}
+
 // ---- Time offset estimate (header comment) ----
 
 constexpr double kViewSigmaM = 0.02;          // single-view position precision: constant part
@@ -310,6 +339,14 @@ void AttachOdometry(const Dataset& dataset, const IngestOptions& options, Survey
     SumOdometryCovariance(odometry, fa.stamp_s + clock.offset_s, fb.stamp_s + clock.offset_s, *fa.T_odom_robot,
                           *fb.T_odom_robot, sigma, options.model_rot_per_m, &link);
     AddStampUncertainty(clock, fa.stamp_s, fb.stamp_s, survey->odometry_stamp_sigma_s, &link);
+    if (options.interpolation_noise) {
+      for (const double t : {fa.stamp_s, fb.stamp_s}) {
+        const auto [var_rad2, var_m2] = InterpolationVariance(odometry, t + clock.offset_s);
+        link.covariance_se3.diagonal() += (Vector6d() << Eigen::Vector3d::Constant(var_rad2),
+                                           Eigen::Vector3d::Constant(var_m2)).finished();
+        link.covariance_se2.diagonal() += Eigen::Vector3d(var_m2, var_m2, var_rad2);
+      }
+    }
     survey->odometry_links.push_back(link);
   }
 }

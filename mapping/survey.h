@@ -15,6 +15,7 @@
 //   M_a_b = T_odom_robot(t_a + delta)^-1 * T_odom_robot(t_b + delta)
 //   Sigma_a_b = sum over the odometry samples k in [t_a + delta, t_b + delta] of Sigma(M_k,k+1)
 //               + sigma_stamp^2 (j_a j_a^T + j_b j_b^T)
+//               + diag(e_r^2 I3, e_t^2 I3) at a and at b         (interpolation)
 // (sigma_stamp: IngestOptions::stamp_sigma_s, or unsynced_stamp_sigma_s when delta != 0)
 // Sigma(M) from factors/odometry_covariance.h and odometry_sigma (the dataset's noise model is
 // per increment of its own odometry stream, so the increments' covariances add; the rotation
@@ -22,7 +23,12 @@
 // term is the stamp uncertainty: j_a = d BoxMinus(M_a_b, M_a_b(t_a + eps)) / d eps, the motion of
 // the odometry per second of clock error at frame a (central differences), likewise j_b; it
 // grows with the speed, so a fast, jerky motion between sparse odometry samples is trusted less
-// than a slow one, while a standstill keeps the plain model.
+// than a slow one, while a standstill keeps the plain model. The interpolation term bounds the
+// error of interpolating a frame at fraction s of a sample interval of length D: with a (alpha)
+// the largest change of linear (angular) velocity per second between that interval and its
+// neighbours, e_t = 0.5 a s (1 - s) D^2 and e_r = 0.5 alpha s (1 - s) D^2 per axis: zero at a
+// sample, at constant velocity and for dense odometry, large for a frame in the middle of a
+// second-long gap of hand-held motion (tagslam-test22's 4 Hz odometry).
 //
 // Time offset delta (odometry clock minus image clock). Given (IngestOptions::
 // odometry_time_offset_s), or estimated from the survey itself (estimate_time_offset): every
@@ -76,6 +82,7 @@ struct IngestOptions {
   // given; otherwise it is estimated when estimate_time_offset is true (header comment).
   std::optional<double> odometry_time_offset_s;
   bool estimate_time_offset = true;
+  bool interpolation_noise = true;     // the interpolation term of the header comment
   double max_time_offset_s = 1.0;      // search range of the estimate
   double offset_window_s = 5.0;        // views of a code at most this far apart are paired
   double time_offset_min_gain = 0.1;   // relative drop of C(delta) below C(0) needed to apply

@@ -137,6 +137,31 @@ TEST(SurveyTest, StampTermAddsTwoSigmaSquaredVelocitySquaredAlongTheMotion) {
   EXPECT_EQ(b.odometry_stamp_sigma_s, 0.03);
 }
 
+// Samples at 0, 1, 2, 3 s at x = 0, 0, 1, 1: the interval velocities are 0, 1, 0 m/s, so a = 1 m/s^2
+// around both frames (0.5 s and 1.5 s, mid-interval: s = 0.5, D = 1 s) and each adds
+// (0.5 * 1 * 0.25 * 1)^2 = 0.015625 m^2 per translation axis; no rotation, no rotation term.
+TEST(SurveyTest, InterpolationTermFollowsTheOdometrysAcceleration) {
+  Dataset dataset = SyntheticSurvey(0.0);
+  dataset.detections = {DetectionFrame{}, DetectionFrame{}};
+  dataset.detections[0].stamp_s = 0.5;
+  dataset.detections[1].stamp_s = 1.5;
+  for (DetectionFrame& frame : dataset.detections) frame.camera = "cam0";
+  dataset.odometry.clear();
+  const double x_m[] = {0.0, 0.0, 1.0, 1.0};
+  for (int i = 0; i < 4; ++i) dataset.odometry.push_back({1.0 * i, SE3d::FromXYZYaw(x_m[i], 0.0, 0.0, 0.0)});
+  IngestOptions without;
+  without.max_odometry_gap_s = 2.0;
+  without.interpolation_noise = false;
+  IngestOptions with = without;
+  with.interpolation_noise = true;
+  const Survey a = IngestDataset(dataset, without), b = IngestDataset(dataset, with);
+  ASSERT_EQ(b.odometry_links.size(), 1u);
+  Matrix6d expected = Matrix6d::Zero();
+  expected.diagonal().tail<3>().setConstant(2.0 * 0.015625);
+  EXPECT_LT((b.odometry_links[0].covariance_se3 - a.odometry_links[0].covariance_se3 - expected).norm(), 1e-12);
+  EXPECT_NEAR(b.odometry_links[0].covariance_se2(0, 0) - a.odometry_links[0].covariance_se2(0, 0), 0.03125, 1e-12);
+}
+
 TEST(SurveyTest, EstimatesTheOdometryTimeOffsetAndAppliesIt) {
   for (const double truth_s : {-0.5, 0.3}) {
     const Survey survey = IngestDataset(SyntheticSurvey(truth_s));

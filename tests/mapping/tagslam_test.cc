@@ -79,15 +79,20 @@ TEST(TagslamTest, Test22OdometryClockOffsetIsFoundAndTheObservationsKept) {
   EXPECT_GT(survey.odometry_time_offset_s, -0.6);
   EXPECT_LT(survey.odometry_time_offset_s, -0.35);
   const MapBuildResult result = Build(dataset);
-  // 105 observations: 87 were rejected on the image clock; 13 now (at least 85 must stay).
-  EXPECT_GE(result.observations, 85u);
+  // 105 observations: 87 were rejected on the image clock with the plain noise model; none now.
+  EXPECT_GE(result.observations, 100u);
   const MapScore ours = ScoreMap(dataset, result.map, result.trajectory);
-  EXPECT_LT(ours.all.median_px, 1.0);
-  // The ablation: on the images' clock most observations disagree with the odometry.
-  MapBuildOptions no_offset;
-  no_offset.compute_covariance = false;
-  no_offset.ingest.estimate_time_offset = false;
-  EXPECT_LT(BuildMap(dataset, no_offset).observations, 40u);
+  EXPECT_EQ(ours.all.observations, 105u);
+  EXPECT_LT(ours.all.rms_px, 0.5);  // measured 0.30 px; TagSLAM's reference 0.38 px on its 99
+  // Ablations: on the images' clock about half the observations disagree with the odometry
+  // (measured 54 used); without the interpolation term the far, jerky frames do (92 used).
+  MapBuildOptions options;
+  options.compute_covariance = false;
+  options.ingest.estimate_time_offset = false;
+  EXPECT_LT(BuildMap(dataset, options).observations, 70u);
+  options.ingest.estimate_time_offset = true;
+  options.ingest.interpolation_noise = false;
+  EXPECT_LT(BuildMap(dataset, options).observations, 100u);
   std::cerr << "test22: offset " << survey.odometry_time_offset_s << " s, " << result.observations
             << " observations used, " << result.outliers.size() << " rejected; ours RMS " << ours.all.rms_px
             << " px (median " << ours.all.median_px << "), reference " << ScoreReference(dataset).all.rms_px
