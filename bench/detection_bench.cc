@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/detect_common.h"
@@ -220,6 +221,7 @@ void BM_Detect(benchmark::State& state, const std::string& family, int codes) {
 }  // namespace waymark
 
 int main(int argc, char** argv) {
+  cv::setNumThreads(1);  // one core: OpenCV's own worker threads off (wall and CPU time comparable)
   bool report_only = false;
   std::vector<char*> rest;
   for (int i = 0; i < argc; ++i) {
