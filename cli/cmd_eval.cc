@@ -1,6 +1,7 @@
 // `waymark eval`: trajectory and map accuracy against ground truth. Parses arguments, reads
 // the files (core/tum_io.h, core/map_io.h), calls eval/ and writes the reports atomically.
 // The math and its definitions are in eval/ and docs/evaluation.md.
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -45,6 +46,9 @@ Trajectory options:
 Map options:
   --map FILE         estimated map; each component is aligned to the truth separately
   --gt-map FILE      true marker poses (also drawn in a trajectory plot)
+  --group REGEX      also print the marker RMS of the codes whose id matches REGEX and of the
+                     others, each code aligned with its whole component (e.g. --group '^1/':
+                     warehouse-drone's load codes apart from its floor codes)
 Outputs (written atomically; a short table always goes to stdout):
   --json FILE        all figures (docs/evaluation.md lists the fields)
   --report FILE      Markdown summary
@@ -94,6 +98,7 @@ void CheckModes(const Args& args) {
     throw std::invalid_argument(std::string("missing required option --") + (args.Has("est") ? "gt" : "est"));
   }
   if (map && !args.Has("gt-map")) throw std::invalid_argument("missing required option --gt-map (with --map)");
+  if (args.Has("group") && !map) throw std::invalid_argument("option --group needs --map and --gt-map");
   if (args.Has("gt-map") && !map && !args.Has("markers")) {
     throw std::invalid_argument("option --gt-map needs --map or --markers");
   }
@@ -160,10 +165,17 @@ void WriteOutputs(const Args& args, const eval::EvalReportInput& input, const st
   if (svg) AtomicWriteFile(*args.Get("plot"), *svg);
 }
 
+void PrintGroup(const eval::GroupResult& group) {
+  std::printf("group /%s/: %zu markers, position RMS %.4f m, orientation RMS %.3f deg\n", group.pattern.c_str(),
+              group.markers, group.position_rmse_m, group.orientation_rmse_deg);
+  std::printf("others: %zu markers, position RMS %.4f m, orientation RMS %.3f deg\n", group.markers_other,
+              group.other_position_rmse_m, group.other_orientation_rmse_deg);
+}
+
 int RunEval(const std::vector<std::string>& argv) {
   const Args args(argv,
                   {"est", "gt", "align", "max-dt", "rpe-delta", "rpe-unit", "predicted", "json", "report", "plot",
-                   "markers", "map", "gt-map"},
+                   "markers", "map", "gt-map", "group"},
                   {"scale", "align-predicted"});
   if (args.Help()) {
     std::cout << kUsage;
@@ -189,8 +201,11 @@ int RunEval(const std::vector<std::string>& argv) {
   input.trajectory = trajectory ? &*trajectory : nullptr;
   input.map = map_result ? &*map_result : nullptr;
 
+  std::optional<eval::GroupResult> group;
+  if (const auto pattern = args.Get("group")) group = eval::EvaluateGroup(*map_result, *pattern);
   WriteOutputs(args, input, est_map, gt_map);
   std::cout << eval::EvalSummaryTable(input);
+  if (group) PrintGroup(*group);
   return 0;
 }
 

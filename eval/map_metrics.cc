@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <map>
+#include <regex>
 #include <set>
 #include <stdexcept>
 
@@ -162,6 +163,30 @@ MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt) {
   result.missing_in_estimate = KeysMissingFrom(gt, est);
   result.missing_in_groundtruth = KeysMissingFrom(est, gt);
   return result;
+}
+
+GroupResult EvaluateGroup(const MapEvalResult& result, const std::string& id_pattern) {
+  std::regex pattern;
+  try {
+    pattern = std::regex(id_pattern, std::regex::ECMAScript);
+  } catch (const std::regex_error& e) {
+    throw std::invalid_argument("group pattern '" + id_pattern + "': " + e.what());
+  }
+  GroupResult group;
+  group.pattern = id_pattern;
+  std::vector<double> in_m, in_deg, out_m, out_deg;
+  for (const MarkerError& e : result.per_marker) {
+    const bool match = std::regex_search(e.key.id, pattern);
+    (match ? in_m : out_m).push_back(e.position_error_m);
+    (match ? in_deg : out_deg).push_back(e.orientation_error_deg);
+  }
+  group.markers = in_m.size();
+  group.markers_other = out_m.size();
+  group.position_rmse_m = Rms(in_m);
+  group.orientation_rmse_deg = Rms(in_deg);
+  group.other_position_rmse_m = Rms(out_m);
+  group.other_orientation_rmse_deg = Rms(out_deg);
+  return group;
 }
 
 }  // namespace waymark::eval

@@ -19,6 +19,7 @@
 // Markers in only one of the two maps are listed, not counted.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "core/types.h"
@@ -59,6 +60,20 @@ struct MapEvalResult {
   std::vector<MarkerKey> missing_in_estimate;      // in the ground truth only
   std::vector<MarkerKey> missing_in_groundtruth;   // in the estimate only
 };
+
+// RMS errors of the matched markers whose id matches a pattern, and of the others, from one
+// evaluation (each marker keeps its component's alignment, fitted on all of its markers).
+// E.g. warehouse-drone's load codes "^1/" against its floor codes.
+struct GroupResult {
+  std::string pattern;
+  size_t markers = 0, markers_other = 0;
+  double position_rmse_m = 0.0, orientation_rmse_deg = 0.0;              // ids matching
+  double other_position_rmse_m = 0.0, other_orientation_rmse_deg = 0.0;  // the others
+};
+
+// `id_pattern`: ECMAScript regular expression searched in the id (std::regex_search);
+// throws std::invalid_argument when it does not compile.
+GroupResult EvaluateGroup(const MapEvalResult& result, const std::string& id_pattern);
 
 // Throws std::invalid_argument if a map holds the same key twice, and std::runtime_error if
 // no marker is in both maps.
