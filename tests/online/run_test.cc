@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <random>
@@ -287,6 +288,17 @@ TEST(LocalizeStreamTest, AFrameWaitsForTheOdometryPastItsStamp) {
   stream.Flush();
   EXPECT_EQ(outputs.size(), 4u);
   EXPECT_EQ(stream.warnings().Count(kWarnOutsideOdometry), 2);
+}
+
+TEST(RealtimePacerTest, ReleasesInputsAtThePaceOfTheirStamps) {
+  RealtimePacer pacer;
+  const auto start = std::chrono::steady_clock::now();
+  pacer.WaitFor(100.0);   // the first stamp is "now"
+  pacer.WaitFor(100.08);  // 80 ms later
+  pacer.WaitFor(99.0);    // older: no wait
+  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(elapsed_s, 0.08);
+  EXPECT_LT(elapsed_s, 2.0);  // a loaded machine may oversleep, never by seconds
 }
 
 }  // namespace
