@@ -89,7 +89,8 @@ TEST(RenderTest, DetectedCornersMatchTruthWithoutNoise) {
       {"datamatrix", "1011", 1.0, 0.0, {-0.2, 0.1}}, {"datamatrix", "A01", 1.5, -35.0, {0.1, 0.1}},
       {"apriltag-36h11", "5", 1.2, 0.0, {0.3, 0.2}}, {"apriltag-36h11", "17", 1.8, 40.0, {-0.2, -0.1}},
   };
-  // Acceptance: the corner RMS over all codes (pooled) <= 0.15 px; single codes within 0.3 px.
+  // Measured 2026-11-23: pooled 0.066 px, worst code 0.151 px (the oblique 45 px QR: its
+  // 1-module finder ring is 2.2 px wide). Guards: pooled <= 0.1 px, every code <= 0.2 px.
   double sum_sq_px = 0.0;
   for (const Case& c : cases) {
     double width_px = 0.0;
@@ -99,12 +100,12 @@ TEST(RenderTest, DetectedCornersMatchTruthWithoutNoise) {
                 c.id.c_str(), c.range_m, c.yaw_deg, width_px, rms_px);
     ASSERT_GE(width_px, 40.0) << c.family << " " << c.id;
     ASSERT_GE(rms_px, 0.0) << c.family << " " << c.id << " not detected";
-    EXPECT_LE(rms_px, 0.3) << c.family << " " << c.id;
+    EXPECT_LE(rms_px, 0.2) << c.family << " " << c.id;
     sum_sq_px += rms_px * rms_px;
   }
   const double pooled_rms_px = std::sqrt(sum_sq_px / cases.size());
   std::printf("pooled corner RMS over %zu codes: %.3f px\n", cases.size(), pooled_rms_px);
-  EXPECT_LE(pooled_rms_px, 0.15);
+  EXPECT_LE(pooled_rms_px, 0.1);
 }
 
 TEST(RenderTest, GroundTruthIsTheProjectionOfTheCorners) {
