@@ -3,13 +3,12 @@
 // observations. The math is in mapping/map_score.h; this file parses arguments and reports.
 #include <iomanip>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "cli/args.h"
 #include "cli/command.h"
@@ -56,8 +55,11 @@ std::string Mm(double metres) {
 }
 
 nlohmann::json StatsJson(const ReprojectionStats& s) {
-  return {{"name", s.name},           {"observations", s.observations}, {"rms_px", s.rms_px},
-          {"median_px", s.median_px}, {"max_px", s.max_px}};
+  return {{"name", s.name},
+          {"observations", s.observations},
+          {"rms_px", s.rms_px},
+          {"median_px", s.median_px},
+          {"max_px", s.max_px}};
 }
 
 std::string ScoreJson(const MapScore& score, const std::optional<LineFit>& line, size_t line_markers) {
@@ -122,9 +124,9 @@ int RunScore(const std::vector<std::string>& argv) {
   return 0;
 }
 
-const CommandRegistrar kRegistrar(Command{"map score",
-                                          "reprojection error of a map (and trajectory) on a dataset's observations",
-                                          kUsage, RunScore});
+const CommandRegistrar kRegistrar(Command{
+    "map score", "reprojection error of a map (and trajectory) on a dataset's observations", kUsage,
+    RunScore});
 
 }  // namespace
 }  // namespace waymark::cli

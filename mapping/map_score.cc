@@ -1,5 +1,9 @@
 #include "mapping/map_score.h"
 
+#include <ceres/problem.h>
+#include <ceres/solver.h>
+
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -7,10 +11,6 @@
 #include <map>
 #include <sstream>
 #include <stdexcept>
-
-#include <ceres/problem.h>
-#include <ceres/solver.h>
-#include <Eigen/Eigenvalues>
 
 #include "core/camera.h"
 #include "factors/marker_reprojection_factor.h"
@@ -42,7 +42,8 @@ std::optional<double> ObservationRms(const Survey& survey, const std::map<std::s
   if (!T_world_robot || !T_world_marker) return std::nullopt;
   const SurveyObservation& obs = survey.observations[o];
   const Camera& camera = cameras.at(obs.camera);
-  const SE3d T_camera_marker = camera.info().T_robot_camera.inverse() * T_world_robot->inverse() * *T_world_marker;
+  const SE3d T_camera_marker =
+      camera.info().T_robot_camera.inverse() * T_world_robot->inverse() * *T_world_marker;
   const auto corners_marker = MarkerCorners(poses.size_m[obs.marker]);
   double sum_sq = 0.0;
   for (size_t k = 0; k < 4; ++k) {
@@ -96,8 +97,8 @@ Poses MarkersFromMap(const Survey& survey, const MarkerMap& map) {
 
 // Least squares over one pose (frame `index` when robot_varies, else marker `index`) with every
 // other pose held fixed, on the observations given. Keeps `initial` when the solve fails.
-SE3d RefinePose(const Survey& survey, const Poses& poses, const std::vector<int>& observations, bool robot_varies,
-                int index, const SE3d& initial, int max_iterations) {
+SE3d RefinePose(const Survey& survey, const Poses& poses, const std::vector<int>& observations,
+                bool robot_varies, int index, const SE3d& initial, int max_iterations) {
   ceres::Problem problem;
   std::map<int, PoseBlock> robot_blocks, marker_blocks;
   for (int o : observations) {
@@ -105,7 +106,8 @@ SE3d RefinePose(const Survey& survey, const Poses& poses, const std::vector<int>
     const std::optional<SE3d> T_world_robot = robot_varies ? initial : poses.T_world_robot[obs.frame];
     const std::optional<SE3d> T_world_marker = robot_varies ? poses.T_world_marker[obs.marker] : initial;
     if (!T_world_robot || !T_world_marker) continue;
-    const bool new_robot = robot_blocks.count(obs.frame) == 0, new_marker = marker_blocks.count(obs.marker) == 0;
+    const bool new_robot = robot_blocks.count(obs.frame) == 0,
+               new_marker = marker_blocks.count(obs.marker) == 0;
     PoseBlock* robot = &robot_blocks[obs.frame];
     PoseBlock* marker = &marker_blocks[obs.marker];
     if (new_robot) {
@@ -119,8 +121,8 @@ SE3d RefinePose(const Survey& survey, const Poses& poses, const std::vector<int>
       if (robot_varies) problem.SetParameterBlockConstant(marker->data());
     }
     const CameraInfo& camera = survey.cameras.at(obs.camera);
-    problem.AddResidualBlock(MarkerReprojectionFactor::Create(camera, poses.size_m[obs.marker], obs.corners_px,
-                                                              CornerSigmaPx(camera)),
+    problem.AddResidualBlock(MarkerReprojectionFactor::Create(camera, poses.size_m[obs.marker],
+                                                              obs.corners_px, CornerSigmaPx(camera)),
                              nullptr, robot->data(), marker->data());
   }
   if (problem.NumResidualBlocks() == 0) return initial;
@@ -172,9 +174,8 @@ std::vector<MarkerKey> SolveMissingMarkers(const Survey& survey, const std::map<
     const std::optional<SE3d> initial =
         MarkerByConsensus(survey, cameras, views, poses->T_world_robot, marker, kCandidateScalePx);
     if (!initial) continue;
-    poses->T_world_marker[m] =
-        RefinePose(survey, *poses, survey.markers[m].observations, /*robot_varies=*/false, marker, *initial,
-                   max_iterations);
+    poses->T_world_marker[m] = RefinePose(survey, *poses, survey.markers[m].observations,
+                                          /*robot_varies=*/false, marker, *initial, max_iterations);
     solved.push_back(survey.markers[m].key);
   }
   return solved;
@@ -217,8 +218,9 @@ void ScoreObservations(const Survey& survey, const std::map<std::string, Camera>
       ++score->without_marker;
       continue;
     }
-    const std::optional<double> rms = ObservationRms(survey, cameras, poses, static_cast<int>(o),
-                                                     poses.T_world_robot[obs.frame], poses.T_world_marker[obs.marker]);
+    const std::optional<double> rms =
+        ObservationRms(survey, cameras, poses, static_cast<int>(o), poses.T_world_robot[obs.frame],
+                       poses.T_world_marker[obs.marker]);
     if (!rms) {
       ++score->not_projected;
       continue;
@@ -272,8 +274,8 @@ bool MapScoreOptions::Check(std::string* why) const {
   return true;
 }
 
-MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map, const std::optional<Trajectory>& T_world_robot,
-                  const MapScoreOptions& options) {
+MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map,
+                  const std::optional<Trajectory>& T_world_robot, const MapScoreOptions& options) {
   std::string why;
   if (!options.Check(&why)) throw std::runtime_error("map score options: " + why);
   IngestOptions ingest;
@@ -291,7 +293,8 @@ MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map, const std::optio
   } else {
     poses.T_world_robot.resize(survey.frames.size());
     for (size_t f = 0; f < survey.frames.size(); ++f) {
-      poses.T_world_robot[f] = SolveFrame(survey, cameras, views, poses, static_cast<int>(f), options.max_iterations);
+      poses.T_world_robot[f] =
+          SolveFrame(survey, cameras, views, poses, static_cast<int>(f), options.max_iterations);
       if (poses.T_world_robot[f]) ++score.frames_solved;
     }
   }
@@ -304,8 +307,8 @@ MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map, const std::optio
 }
 
 LineFit FitLine(const std::vector<Eigen::Vector3d>& points) {
-  if (points.size() < 2) throw std::invalid_argument("line fit: needs at least 2 points, got " +
-                                                     std::to_string(points.size()));
+  if (points.size() < 2)
+    throw std::invalid_argument("line fit: needs at least 2 points, got " + std::to_string(points.size()));
   LineFit fit;
   for (const Eigen::Vector3d& p : points) fit.point += p;
   fit.point /= static_cast<double>(points.size());
@@ -328,8 +331,8 @@ LineFit FitLine(const std::vector<Eigen::Vector3d>& points) {
 std::string FormatMapScore(const MapScore& score) {
   std::ostringstream out;
   out << "observations: " << score.all.observations << " of " << score.observations << " scored ("
-      << score.without_pose << " without a frame pose, " << score.without_marker << " of markers not in the map, "
-      << score.not_projected << " not projected)\n";
+      << score.without_pose << " without a frame pose, " << score.without_marker
+      << " of markers not in the map, " << score.not_projected << " not projected)\n";
   if (score.frames_solved > 0) out << "frames solved from the map: " << score.frames_solved << "\n";
   if (!score.solved_markers.empty()) {
     out << "markers solved with the frames held fixed:";

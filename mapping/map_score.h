@@ -25,11 +25,10 @@
 // direction of their scatter); residuals are perpendicular distances to it.
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/types.h"
 
@@ -38,42 +37,42 @@ namespace waymark {
 struct MapScoreOptions {
   double stamp_tolerance_s = 1e-3;  // a trajectory pose serves a frame within this of its stamp
   bool solve_missing_markers = false;
-  int max_iterations = 100;         // per least-squares solve
+  int max_iterations = 100;  // per least-squares solve
   bool Check(std::string* why) const;
 };
 
 struct ReprojectionStats {
-  std::string name;           // camera name, marker key, or "all"
-  size_t observations = 0;    // scored (projected) observations
-  double rms_px = 0.0;        // over corners
-  double median_px = 0.0;     // of the per-observation rms
-  double max_px = 0.0;        // of the per-observation rms
+  std::string name;         // camera name, marker key, or "all"
+  size_t observations = 0;  // scored (projected) observations
+  double rms_px = 0.0;      // over corners
+  double median_px = 0.0;   // of the per-observation rms
+  double max_px = 0.0;      // of the per-observation rms
 };
 
 struct MapScore {
   ReprojectionStats all;
   std::vector<ReprojectionStats> per_camera;
   std::vector<ReprojectionStats> per_marker;
-  size_t observations = 0;      // in the dataset
-  size_t without_pose = 0;      // the frame has no pose
-  size_t without_marker = 0;    // the marker is not in the map (and was not solved)
-  size_t not_projected = 0;     // a corner behind the camera or beyond the field of view
-  size_t frames_solved = 0;     // frame poses solved from the map (no trajectory given)
+  size_t observations = 0;                // in the dataset
+  size_t without_pose = 0;                // the frame has no pose
+  size_t without_marker = 0;              // the marker is not in the map (and was not solved)
+  size_t not_projected = 0;               // a corner behind the camera or beyond the field of view
+  size_t frames_solved = 0;               // frame poses solved from the map (no trajectory given)
   std::vector<MarkerKey> solved_markers;  // solved with the frames held fixed
-  MarkerMap map;                // the scored map, with the solved markers added
+  MarkerMap map;                          // the scored map, with the solved markers added
 };
 
 struct LineFit {
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();      // centroid
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();       // centroid
   Eigen::Vector3d direction = Eigen::Vector3d::UnitX();  // unit
-  double rms_m = 0.0;           // of the perpendicular distances
+  double rms_m = 0.0;                                    // of the perpendicular distances
   double max_m = 0.0;
 };
 
 // Throws std::runtime_error on bad options, on the dataset errors of mapping/survey.h, and when
 // a map marker has a non-positive size.
-MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map, const std::optional<Trajectory>& T_world_robot,
-                  const MapScoreOptions& options = {});
+MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map,
+                  const std::optional<Trajectory>& T_world_robot, const MapScoreOptions& options = {});
 
 // Throws std::invalid_argument with fewer than two points or when all points coincide.
 LineFit FitLine(const std::vector<Eigen::Vector3d>& points);

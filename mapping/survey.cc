@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <utility>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "core/camera.h"
 #include "core/marker_pose.h"
@@ -29,7 +29,8 @@ long SampleAtOrBefore(const Trajectory& trajectory, double t) {
 }
 
 // Segment number of every odometry sample: a new segment starts after each long gap.
-std::vector<int> OdometrySegments(const Trajectory& odometry, double max_gap_s, std::vector<std::string>* notes) {
+std::vector<int> OdometrySegments(const Trajectory& odometry, double max_gap_s,
+                                  std::vector<std::string>* notes) {
   std::vector<int> segment(odometry.size(), 0);
   for (size_t i = 1; i < odometry.size(); ++i) {
     const double gap_s = odometry[i].stamp_s - odometry[i - 1].stamp_s;
@@ -150,7 +151,8 @@ struct OdometryClock {
 };
 
 // The stamp term of the header comment: sigma_stamp^2 (j_a j_a^T + j_b j_b^T), added to the link.
-void AddStampUncertainty(const OdometryClock& clock, double t_a, double t_b, double sigma_s, OdometryLink* link) {
+void AddStampUncertainty(const OdometryClock& clock, double t_a, double t_b, double sigma_s,
+                         OdometryLink* link) {
   if (!(sigma_s > 0.0)) return;
   constexpr double kStepS = 0.01;
   const SE3d M = link->T_a_b;
@@ -201,10 +203,10 @@ std::pair<double, double> InterpolationVariance(const Trajectory& odometry, doub
 
 // ---- Time offset estimate (header comment) ----
 
-constexpr double kViewSigmaM = 0.02;          // single-view position precision: constant part
-constexpr double kViewSigmaPerRange = 0.05;   // ... and the part proportional to the range
-constexpr double kViewSigmaRad = 0.05;        // single-view rotation precision
-constexpr size_t kMaxPairsPerView = 10;       // a view is paired with its next views of the code
+constexpr double kViewSigmaM = 0.02;         // single-view position precision: constant part
+constexpr double kViewSigmaPerRange = 0.05;  // ... and the part proportional to the range
+constexpr double kViewSigmaRad = 0.05;       // single-view rotation precision
+constexpr size_t kMaxPairsPerView = 10;      // a view is paired with its next views of the code
 constexpr size_t kMinOffsetPairs = 10;
 
 // Where a single view puts the robot in the code's frame.
@@ -224,7 +226,8 @@ std::vector<std::vector<ViewGeometry>> ComputeViewGeometry(const Survey& survey)
   for (const SurveyObservation& obs : survey.observations) {
     MarkerPoseEstimate estimate;
     try {
-      estimate = EstimateMarkerPose(obs.corners_px, survey.markers[obs.marker].size_m, cameras.at(obs.camera));
+      estimate =
+          EstimateMarkerPose(obs.corners_px, survey.markers[obs.marker].size_m, cameras.at(obs.camera));
     } catch (const std::exception&) {
       continue;  // a degenerate or unprojectable view says nothing about the offset
     }
@@ -256,11 +259,13 @@ double PairCost(const ViewGeometry& a, const ViewGeometry& b, const SE3d& M_a_b)
 
 // Mean pair cost C(delta) over the pairs with odometry at both ends in one segment.
 double MeanOffsetCost(const Survey& survey, const OdometryClock& clock,
-                      const std::vector<std::vector<ViewGeometry>>& per_marker, double window_s, size_t* pairs) {
+                      const std::vector<std::vector<ViewGeometry>>& per_marker, double window_s,
+                      size_t* pairs) {
   std::map<int, std::optional<SE3d>> pose_cache;
   const auto pose = [&](int frame) -> const std::optional<SE3d>& {
     auto it = pose_cache.find(frame);
-    if (it == pose_cache.end()) it = pose_cache.emplace(frame, clock.PoseAt(survey.frames[frame].stamp_s)).first;
+    if (it == pose_cache.end())
+      it = pose_cache.emplace(frame, clock.PoseAt(survey.frames[frame].stamp_s)).first;
     return it->second;
   };
   double sum = 0.0;
@@ -284,9 +289,10 @@ double MeanOffsetCost(const Survey& survey, const OdometryClock& clock,
 
 std::string OffsetNote(const TimeOffsetEstimate& e) {
   return "odometry: time offset estimated at " + Num(std::round(e.offset_s * 1e3) / 1e3) +
-         " s (odometry clock minus image clock; mean pair cost " + Num(std::round(e.cost_at_zero * 1e3) / 1e3) +
-         " at 0 s, " + Num(std::round(e.cost * 1e3) / 1e3) + " there, " + std::to_string(e.pairs) + " view pairs): " +
-         (e.applied ? "applied" : "not applied (gain below the threshold)");
+         " s (odometry clock minus image clock; mean pair cost " +
+         Num(std::round(e.cost_at_zero * 1e3) / 1e3) + " at 0 s, " + Num(std::round(e.cost * 1e3) / 1e3) +
+         " there, " + std::to_string(e.pairs) +
+         " view pairs): " + (e.applied ? "applied" : "not applied (gain below the threshold)");
 }
 
 // The offset delta to use: given, estimated (and noted), or 0.
@@ -336,14 +342,14 @@ void AttachOdometry(const Dataset& dataset, const IngestOptions& options, Survey
     link.frame_a = static_cast<int>(b) - 1;
     link.frame_b = static_cast<int>(b);
     link.T_a_b = fa.T_odom_robot->inverse() * *fb.T_odom_robot;
-    SumOdometryCovariance(odometry, fa.stamp_s + clock.offset_s, fb.stamp_s + clock.offset_s, *fa.T_odom_robot,
-                          *fb.T_odom_robot, sigma, options.model_rot_per_m, &link);
+    SumOdometryCovariance(odometry, fa.stamp_s + clock.offset_s, fb.stamp_s + clock.offset_s,
+                          *fa.T_odom_robot, *fb.T_odom_robot, sigma, options.model_rot_per_m, &link);
     AddStampUncertainty(clock, fa.stamp_s, fb.stamp_s, survey->odometry_stamp_sigma_s, &link);
     if (options.interpolation_noise) {
       for (const double t : {fa.stamp_s, fb.stamp_s}) {
         const auto [var_rad2, var_m2] = InterpolationVariance(odometry, t + clock.offset_s);
-        link.covariance_se3.diagonal() += (Vector6d() << Eigen::Vector3d::Constant(var_rad2),
-                                           Eigen::Vector3d::Constant(var_m2)).finished();
+        link.covariance_se3.diagonal() +=
+            (Vector6d() << Eigen::Vector3d::Constant(var_rad2), Eigen::Vector3d::Constant(var_m2)).finished();
         link.covariance_se2.diagonal() += Eigen::Vector3d(var_m2, var_m2, var_rad2);
       }
     }
@@ -363,7 +369,8 @@ bool IngestOptions::Check(std::string* why) const {
        "default odometry sigma must be >= 0"},
       {finite_at_least(stamp_sigma_s, 0.0) && finite_at_least(unsynced_stamp_sigma_s, 0.0),
        "stamp_sigma_s and unsynced_stamp_sigma_s must be finite and >= 0"},
-      {!odometry_time_offset_s || std::isfinite(*odometry_time_offset_s), "odometry_time_offset_s must be finite"},
+      {!odometry_time_offset_s || std::isfinite(*odometry_time_offset_s),
+       "odometry_time_offset_s must be finite"},
       {finite_at_least(max_time_offset_s, 0.0), "max_time_offset_s must be finite and >= 0"},
       {std::isfinite(offset_window_s) && offset_window_s > 0.0, "offset_window_s must be finite and > 0"},
       {time_offset_min_gain >= 0.0 && time_offset_min_gain < 1.0, "time_offset_min_gain must be in [0, 1)"},
@@ -414,7 +421,8 @@ std::optional<TimeOffsetEstimate> EstimateOdometryTimeOffset(const Survey& surve
   if (pairs < kMinOffsetPairs) return std::nullopt;
   estimate.cost = estimate.cost_at_zero;
   // A coarse grid over the range, then a fine one around its best point.
-  for (const auto& [half_range, step] : {std::pair{options.max_time_offset_s, 0.05}, std::pair{0.05, 0.005}}) {
+  for (const auto& [half_range, step] :
+       {std::pair{options.max_time_offset_s, 0.05}, std::pair{0.05, 0.005}}) {
     const double centre = estimate.offset_s;
     const int n = static_cast<int>(std::round(half_range / step));
     for (int i = -n; i <= n; ++i) {

@@ -36,7 +36,7 @@
 // (core/marker_pose.h), the robot's displacement |p_b - p_a| in the code's frame and, when both
 // views are unambiguous, the rotation angle between the two robot poses; the odometry gives the
 // same two figures for M_a_b(delta). With the robust cost
-//   C(delta) = sum_pairs log(1 + (e_t / s_t)^2) + log(1 + (e_r / s_r)^2),
+//   C(delta) = mean over the pairs of log(1 + (e_t / s_t)^2) + log(1 + (e_r / s_r)^2),
 //   e_t = |p_b - p_a| - |t(M_a_b)|,  s_t = 0.02 m + 0.05 * mean range to the code,
 //   e_r = angle(R_a^T R_b) - angle(M_a_b),  s_r = 0.05 rad (single-view precision scales),
 // delta is the minimum of C over [-max_time_offset_s, max_time_offset_s] (a 0.05 s grid, then
@@ -50,13 +50,12 @@
 // default_marker_size_m), a non-finite stamp.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/payload.h"
 #include "core/types.h"
@@ -64,8 +63,8 @@
 namespace waymark {
 
 struct IngestOptions {
-  double stamp_merge_s = 1e-6;         // detection stamps closer than this share a robot pose
-  double max_odometry_gap_s = 1.0;     // longer gaps between odometry samples split the odometry
+  double stamp_merge_s = 1e-6;      // detection stamps closer than this share a robot pose
+  double max_odometry_gap_s = 1.0;  // longer gaps between odometry samples split the odometry
   // Used when dataset.yaml has no odometry_sigma.
   OdometrySigma default_odometry_sigma{0.02, 0.02};
   // Allowance for systematic odometry errors that the per-increment model leaves out (a wheel
@@ -82,17 +81,17 @@ struct IngestOptions {
   // given; otherwise it is estimated when estimate_time_offset is true (header comment).
   std::optional<double> odometry_time_offset_s;
   bool estimate_time_offset = true;
-  bool interpolation_noise = true;     // the interpolation term of the header comment
-  double max_time_offset_s = 1.0;      // search range of the estimate
-  double offset_window_s = 5.0;        // views of a code at most this far apart are paired
-  double time_offset_min_gain = 0.1;   // relative drop of C(delta) below C(0) needed to apply
+  bool interpolation_noise = true;    // the interpolation term of the header comment
+  double max_time_offset_s = 1.0;     // search range of the estimate
+  double offset_window_s = 5.0;       // views of a code at most this far apart are paired
+  double time_offset_min_gain = 0.1;  // relative drop of C(delta) below C(0) needed to apply
   bool Check(std::string* why) const;
 };
 
 // One code seen in one image.
 struct SurveyObservation {
-  int frame = 0;      // index into Survey::frames
-  int marker = 0;     // index into Survey::markers
+  int frame = 0;   // index into Survey::frames
+  int marker = 0;  // index into Survey::markers
   std::string camera;
   std::array<Eigen::Vector2d, 4> corners_px;
   size_t detection_line = 0;  // index of the DetectionFrame in Dataset::detections
@@ -108,8 +107,8 @@ struct SurveyFrame {
 struct SurveyMarker {
   MarkerKey key;
   double size_m = 0.0;
-  std::optional<MapMarker> known;     // entry of markers.json, if any
-  std::optional<PayloadData> payload; // coordinates printed in the payload, if any
+  std::optional<MapMarker> known;      // entry of markers.json, if any
+  std::optional<PayloadData> payload;  // coordinates printed in the payload, if any
   std::vector<int> observations;
 };
 
@@ -117,8 +116,8 @@ struct SurveyMarker {
 struct OdometryLink {
   int frame_a = 0;
   int frame_b = 0;
-  SE3d T_a_b;                    // M_a_b of the header comment
-  Matrix6d covariance_se3;       // [rx ry rz tx ty tz]
+  SE3d T_a_b;                      // M_a_b of the header comment
+  Matrix6d covariance_se3;         // [rx ry rz tx ty tz]
   Eigen::Matrix3d covariance_se2;  // [x y theta]
 };
 
@@ -132,7 +131,7 @@ struct Survey {
   int odometry_segments = 0;
   double odometry_time_offset_s = 0.0;  // delta applied (header comment)
   double odometry_stamp_sigma_s = 0.0;  // sigma_stamp used (header comment)
-  std::vector<std::string> notes;  // odometry gaps and other facts worth a line in the summary
+  std::vector<std::string> notes;       // odometry gaps and other facts worth a line in the summary
 
   int FindMarker(const MarkerKey& key) const;  // -1 when absent
 };

@@ -2,10 +2,10 @@
 // survey whose true map and trajectory are known, and the 3-D line fit.
 #include "mapping/map_score.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 #include "tests/mapping/synthetic_wall.h"
 
@@ -31,7 +31,8 @@ MarkerMap TrueMap() {
 
 Trajectory TrueTrajectory(const Dataset& dataset) {
   Trajectory trajectory;
-  for (const DetectionFrame& frame : dataset.detections) trajectory.push_back({frame.stamp_s, TrueRobotPose(frame.stamp_s)});
+  for (const DetectionFrame& frame : dataset.detections)
+    trajectory.push_back({frame.stamp_s, TrueRobotPose(frame.stamp_s)});
   return trajectory;
 }
 
@@ -52,7 +53,8 @@ TEST(MapScoreTest, TruthScoresTheCornerNoise) {
 TEST(MapScoreTest, WrongMarkerShowsAndMissingPosesAreCounted) {
   const Dataset dataset = SyntheticSurvey(0.0);
   MarkerMap map = TrueMap();
-  map.markers[1].T_world_marker = map.markers[1].T_world_marker * SE3d::Exp((Vector6d() << 0, 0, 0, 0.05, 0, 0).finished());
+  map.markers[1].T_world_marker =
+      map.markers[1].T_world_marker * SE3d::Exp((Vector6d() << 0, 0, 0, 0.05, 0, 0).finished());
   Trajectory trajectory = TrueTrajectory(dataset);
   trajectory.erase(trajectory.begin() + 10);
   const MapScore score = ScoreMap(dataset, map, trajectory);

@@ -2,12 +2,12 @@
 // the stamp-uncertainty term and the odometry time-offset estimate on a synthetic survey.
 #include "mapping/survey.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "factors/odometry_covariance.h"
 #include "tests/mapping/synthetic_wall.h"
@@ -158,8 +158,10 @@ TEST(SurveyTest, InterpolationTermFollowsTheOdometrysAcceleration) {
   ASSERT_EQ(b.odometry_links.size(), 1u);
   Matrix6d expected = Matrix6d::Zero();
   expected.diagonal().tail<3>().setConstant(2.0 * 0.015625);
-  EXPECT_LT((b.odometry_links[0].covariance_se3 - a.odometry_links[0].covariance_se3 - expected).norm(), 1e-12);
-  EXPECT_NEAR(b.odometry_links[0].covariance_se2(0, 0) - a.odometry_links[0].covariance_se2(0, 0), 0.03125, 1e-12);
+  EXPECT_LT((b.odometry_links[0].covariance_se3 - a.odometry_links[0].covariance_se3 - expected).norm(),
+            1e-12);
+  EXPECT_NEAR(b.odometry_links[0].covariance_se2(0, 0) - a.odometry_links[0].covariance_se2(0, 0), 0.03125,
+              1e-12);
 }
 
 TEST(SurveyTest, EstimatesTheOdometryTimeOffsetAndAppliesIt) {

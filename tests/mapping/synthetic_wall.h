@@ -50,8 +50,8 @@ inline SE3d TrueRobotPose(double t) {
   const double z = 1.0 + 0.05 * std::sin(2.0 * M_PI * t / 3.0);
   const double yaw = 0.15 * std::sin(2.0 * M_PI * t / 4.0);
   const double pitch = 0.05 * std::sin(2.0 * M_PI * t / 6.0);
-  const Eigen::Quaterniond q = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                               Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY());
+  const Eigen::Quaterniond q =
+      Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY());
   return SE3d(q, Eigen::Vector3d(x, y, z));
 }
 

@@ -2,10 +2,10 @@
 // on one line, our reprojection error side by side with TagSLAM's reference solution scored on the
 // same observations, and test22's T265 odometry, whose clock is off its images'. Skips with a
 // message when the shared data folder is absent (a fresh clone).
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "core/dataset_io.h"
 #include "core/map_io.h"
@@ -20,8 +20,8 @@ std::filesystem::path SetPath(const std::string& name) {
   return std::filesystem::path(WAYMARK_SHARED_DATA) / "tagslam" / name;
 }
 
-#define SKIP_WITHOUT(dir)                                                                 \
-  if (!std::filesystem::exists(dir)) {                                                    \
+#define SKIP_WITHOUT(dir)                                                               \
+  if (!std::filesystem::exists(dir)) {                                                  \
     GTEST_SKIP() << "shared data absent: " << (dir) << " (tests on real data skipped)"; \
   }
 
