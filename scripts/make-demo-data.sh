@@ -5,14 +5,15 @@
 #            both cameras (each code in about three frames)
 #   run/     a separate run through the same place (seed 2): at 0.5 m/s, clockwise, from the
 #            opposite corner, on a loop 0.05 m inside the centre line; images at 1 Hz
-# Both hold images (PNG, 8-bit gray), images.csv, odometry.tum, cameras/, markers.json (two anchors
+# Both hold images (PNG, 8-bit gray), images.csv, odometry.tum, cameras/, markers.json (four anchors
 # and every code's size), dataset.yaml and groundtruth/ (trajectory, markers, exact image corners).
 # The simulator's own noisy detections (detections.jsonl) are removed: the demo detects the images.
 #
 # Small for git (under 6 MB): 320x240 cameras (camera.image_scale 0.5) with 12 cm codes (about
 # 56 px wide at the 0.48 m wall distance), no pixel noise and a fainter wall texture (PNG
 # compresses both badly), a 5 x 2.5 m loop, odometry at 10 Hz. The place is fixed by the keys;
-# the seeds draw only the noise.
+# the seeds draw only the noise. Four anchors (C000-C003, 3 m along the first wall) give the map
+# its world frame: with two (1 m apart) the map's heading error doubled the run's world-frame ATE.
 #
 # Usage: scripts/make-demo-data.sh [WAYMARK_BINARY]   (default: build/waymark; run from anywhere)
 # Takes several minutes (every image is ray-traced).
@@ -23,6 +24,7 @@ out=data/demo
 
 place=(
   --set place.loop_length_m=5 --set place.loop_width_m=2.5 --set place.marker_size_m=0.12
+  --set place.anchors=4
   --set camera.image_scale=0.5 --set rate.odometry_hz=10
   --set render.noise_sigma=0 --set render.texture_contrast=0.08
 )
@@ -42,8 +44,9 @@ cat > "$staging/README.md" <<'README'
 Made by `scripts/make-demo-data.sh` (read it for every key); do not edit by hand.
 
 - `survey/`: a rendered survey of a small corridor loop (5 x 2.5 m centre line, 1.2 m wide, 12 cm
-  QR codes every metre on both walls, two side cameras of 320x240, wheel odometry at 10 Hz, images
-  at 2 Hz, 0.35 m/s). `waymark demo` detects the codes in its images and learns the map from them.
+  QR codes every metre on both walls, the first four of them anchors; two side cameras of
+  320x240, wheel odometry at 10 Hz, images at 2 Hz, 0.35 m/s). `waymark demo` detects the codes
+  in its images and learns the map from them.
 - `run/`: a second run through the same place at 0.5 m/s, clockwise from the opposite corner on a
   loop 0.05 m inside the centre line, images at 1 Hz. `waymark demo` localizes it against the map.
 

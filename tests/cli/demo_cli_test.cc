@@ -104,7 +104,7 @@ TEST_F(DemoCliTest, ShippedDataGivesTheTableWithOursBest) {
   EXPECT_GE(map.at("markers").get<int>(), 28);
   EXPECT_EQ(map.at("components").get<int>(), 1);
   EXPECT_LT(map.at("evaluation").at("position_rmse").get<double>(), 0.012);
-  EXPECT_LT(map.at("evaluation").at("orientation_rmse_deg").get<double>(), 1.0);
+  EXPECT_LT(map.at("evaluation").at("orientation_rmse_deg").get<double>(), 1.5);
   for (const char* part : {"survey", "run"}) {
     const nlohmann::json& check = report.at(part).at("detection_check");
     EXPECT_GE(check.at("read").get<double>(), 0.9 * check.at("codes_in_view").get<double>()) << part;
