@@ -7,8 +7,6 @@
 #include <set>
 #include <sstream>
 
-#include <ceres/ceres.h>
-
 #include "mapping/residuals.h"
 
 namespace waymark {
@@ -42,43 +40,22 @@ SE3d Planarize(MotionModel motion, const SE3d& T) {
   return motion == MotionModel::kPlanar ? SE2d::FromSE3(T).ToSE3() : T;
 }
 
-// PnP of a frame against its placed codes (codes held constant), Cauchy loss; the start
-// when nothing can be refined.
+// PnP of a frame against its placed codes (held constant), Cauchy loss; the start when the
+// frame sees no placed code.
 SE3d RefineFrame(const Survey& survey, const std::map<std::string, Camera>& cameras, const Initialization& init,
                  int frame, const SE3d& T_world_robot, const InitializerOptions& options) {
-  ceres::Problem problem;
-  PoseBlock robot;
-  RobotToBlock(survey.motion, T_world_robot, &robot);
-  AddRobotBlock(&problem, survey.motion, &robot);
-  std::vector<PoseBlock> markers;
-  markers.reserve(survey.frames[frame].observations.size());
+  std::vector<PnpView> pnp;
   for (int o : survey.frames[frame].observations) {
     const SurveyObservation& obs = survey.observations[o];
     const auto& T_world_marker = init.T_world_marker[obs.marker];
     if (!init.views[o].usable || !T_world_marker) continue;
     const Camera& camera = cameras.at(obs.camera);
-    const SE3d T_camera_marker = (T_world_robot * camera.info().T_robot_camera).inverse() * *T_world_marker;
-    // A code behind the camera at the start would make the solve fail at its first evaluation.
-    if (!std::isfinite(MarkerReprojectionRms(obs.corners_px, survey.markers[obs.marker].size_m, camera,
-                                             T_camera_marker))) {
-      continue;
-    }
-    markers.emplace_back();
-    SE3ToBlock(*T_world_marker, markers.back().data());
-    AddMarkerBlock(&problem, &markers.back());
-    problem.SetParameterBlockConstant(markers.back().data());
-    AddCornerResidual(&problem, survey.motion, camera.info(), survey.markers[obs.marker].size_m, obs.corners_px,
-                      &robot, &markers.back(), new ceres::CauchyLoss(options.cauchy_scale));
+    pnp.push_back({&camera, &obs.corners_px, CornerSigmaPx(camera.info()), survey.markers[obs.marker].size_m,
+                   *T_world_marker});
   }
-  if (markers.empty()) return T_world_robot;
-  ceres::Solver::Options solver_options;
-  solver_options.max_num_iterations = options.pnp_iterations;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  const SE3d refined = RobotFromBlock(survey.motion, robot);
-  return refined.IsFinite() ? refined : T_world_robot;
+  if (pnp.empty()) return T_world_robot;
+  return RefineRobotPose(pnp, T_world_robot, survey.motion == MotionModel::kPlanar, options.cauchy_scale,
+                         options.pnp_iterations);
 }
 
 // Adds `T` to `seeds` unless one is within 3 degrees of it.
@@ -104,8 +81,7 @@ std::optional<FusedPose> FuseInWorld(const Survey& survey, const std::map<std::s
     if (!views[o].usable || !T_world_robot[obs.frame]) continue;
     const Camera& camera = cameras.at(obs.camera);
     seen.push_back(o);
-    fusion.push_back({&camera, *T_world_robot[obs.frame] * camera.info().T_robot_camera, &obs.corners_px,
-                      CornerSigmaPx(camera.info())});
+    fusion.push_back(MakeFusionView(camera, *T_world_robot[obs.frame], obs));
   }
   if (seen.empty()) return std::nullopt;
   std::vector<SE3d> seeds;
@@ -342,7 +318,8 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   init.tree = SpanningForest(num_maps, init.links);
   PlaceFromLocalMaps(survey, PlaceLocalMaps(num_maps, init.links, init.tree, survey.motion == MotionModel::kPlanar),
                      &init);
-  for (int round = 0; round < 2; ++round) {
+  RefineMarkers(survey, cameras, local, &init);
+  for (int round = 0; round < options.refine_rounds; ++round) {
     RefineFrames(survey, cameras, options, &init);
     RefineMarkers(survey, cameras, local, &init);
   }

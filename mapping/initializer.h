@@ -46,6 +46,7 @@ struct InitializerOptions {
   double ambiguity_ratio = 3.0;     // TagSLAM's gate on the two IPPE solutions' errors
   double cauchy_scale = 3.0;        // robust scale, whitened units, for the frame PnP and fusion
   int pnp_iterations = 20;
+  int refine_rounds = 2;            // frames by PnP, then codes fused again (header comment)
   // Local maps; its ambiguity_ratio and cauchy_scale are taken from the two fields above.
   LocalMapOptions local_maps;
 };

@@ -45,7 +45,6 @@ struct Normal {
   Vector6d g = Vector6d::Zero();
   double robust_cost = 0.0;  // sum rho(s_v), kNoProjectionChi2 for views that do not project
   double chi2 = 0.0;         // sum s_v over views that project
-  double weighted_chi2 = 0.0;
   int views = 0;             // views that project
 };
 
@@ -66,7 +65,6 @@ Normal Linearize(const std::vector<FusionView>& views, const std::array<Eigen::V
     n.g += w * J.transpose() * r;
     n.robust_cost += c2 * std::log1p(s / c2);
     n.chi2 += s;
-    n.weighted_chi2 += w * s;
     ++n.views;
   }
   return n;
@@ -101,7 +99,93 @@ Fit FitFromSeed(const std::vector<FusionView>& views, const std::array<Eigen::Ve
   return fit;
 }
 
+// Whitened residuals of one PnP view for T_world_robot and dr/d[dr, dt] (right perturbation
+// of T_world_robot); false if a corner does not project.
+bool PnpResiduals(const PnpView& view, const SE3d& T_world_robot, Residuals8* r, Jacobian86* J) {
+  const SE3d& T_robot_camera = view.camera->info().T_robot_camera;
+  const SE3d T_robot_marker = T_world_robot.inverse() * view.T_world_marker;
+  const SE3d T_camera_robot = T_robot_camera.inverse();
+  const Eigen::Matrix3d R_camera_robot = T_camera_robot.rotation_matrix();
+  const std::array<Eigen::Vector3d, 4> corners_marker = MarkerCorners(view.size_m);
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector3d p_robot = T_robot_marker * corners_marker[k];
+    Eigen::Matrix<double, 2, 3> J_px_p;
+    const std::optional<Eigen::Vector2d> px = view.camera->Project(T_camera_robot * p_robot, &J_px_p);
+    if (!px) return false;
+    r->segment<2>(2 * k) = (*px - (*view.corners_px)[k]) / view.sigma_px;
+    J->block<2, 3>(2 * k, 0) = J_px_p * R_camera_robot * Hat(p_robot) / view.sigma_px;
+    J->block<2, 3>(2 * k, 3) = -J_px_p * R_camera_robot / view.sigma_px;
+  }
+  return true;
+}
+
+struct PnpNormal {
+  Matrix6d H = Matrix6d::Zero();
+  Vector6d g = Vector6d::Zero();
+  double robust_cost = 0.0;
+  bool ok = true;  // every view projects
+};
+
+PnpNormal LinearizePnp(const std::vector<const PnpView*>& views, const SE3d& T, double cauchy_scale) {
+  const double c2 = cauchy_scale * cauchy_scale;
+  PnpNormal n;
+  Residuals8 r;
+  Jacobian86 J;
+  for (const PnpView* view : views) {
+    if (!PnpResiduals(*view, T, &r, &J)) {
+      n.ok = false;
+      return n;
+    }
+    const double s = r.squaredNorm();
+    const double w = 1.0 / (1.0 + s / c2);
+    n.H += w * J.transpose() * J;
+    n.g += w * J.transpose() * r;
+    n.robust_cost += c2 * std::log1p(s / c2);
+  }
+  return n;
+}
+
 }  // namespace
+
+SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool planar, double cauchy_scale,
+                     int max_iterations) {
+  const auto flatten = [planar](const SE3d& T) { return planar ? SE2d::FromSE3(T).ToSE3() : T; };
+  SE3d T = flatten(start);
+  std::vector<const PnpView*> active;
+  Residuals8 r;
+  Jacobian86 J;
+  for (const PnpView& view : views) {
+    if (PnpResiduals(view, T, &r, &J)) active.push_back(&view);
+  }
+  if (active.empty()) return T;
+  // Planar robots move in [dr_z, dt_x, dt_y] only.
+  Eigen::Matrix<double, 6, Eigen::Dynamic> S = Matrix6d::Identity();
+  if (planar) {
+    S = Eigen::Matrix<double, 6, 3>::Zero();
+    S(2, 0) = S(3, 1) = S(4, 2) = 1.0;
+  }
+  PnpNormal n = LinearizePnp(active, T, cauchy_scale);
+  double lambda = 1e-4;
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    const Eigen::MatrixXd H = S.transpose() * n.H * S;
+    Eigen::MatrixXd A = H;
+    A.diagonal() += lambda * H.diagonal() + Eigen::VectorXd::Constant(H.rows(), 1e-12);
+    const Vector6d delta = S * A.ldlt().solve(-S.transpose() * n.g);
+    const SE3d T_new = flatten(T.BoxPlus(delta));
+    const PnpNormal n_new = LinearizePnp(active, T_new, cauchy_scale);
+    if (delta.allFinite() && n_new.ok && n_new.robust_cost < n.robust_cost) {
+      const double decrease = n.robust_cost - n_new.robust_cost;
+      T = T_new;
+      n = n_new;
+      lambda = std::max(lambda * 0.1, 1e-10);
+      if (decrease < 1e-10 * (1.0 + n.robust_cost) || delta.norm() < 1e-12) break;
+    } else {
+      lambda *= 10.0;
+      if (lambda > 1e8) break;
+    }
+  }
+  return T.IsFinite() ? T : flatten(start);
+}
 
 bool LocalMapOptions::Check(std::string* why) const {
   const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
@@ -156,11 +240,11 @@ std::optional<FusedPose> FuseMarkerViews(const std::vector<FusionView>& views, d
     }
   }
   const int dof = std::max(1, 8 * fused.views - 6);
-  const double inflation = std::max(1.0, best.normal.weighted_chi2 / dof);
+  const double inflation = std::max(1.0, best.normal.chi2 / dof);
   Matrix6d H = best.normal.H;
   H.diagonal() += Vector6d::Constant(1e-12);
   fused.covariance = H.ldlt().solve(Matrix6d::Identity()) * inflation;
-  fused.rms_sigma = std::sqrt(best.normal.weighted_chi2 / (4.0 * fused.views));
+  fused.rms_sigma = std::sqrt(best.normal.chi2 / (8.0 * fused.views));
   fused.position_sigma_m = std::sqrt(std::max(0.0, fused.covariance.block<3, 3>(3, 3).trace()));
   fused.resolved = single_view_unambiguous || fused.alt_chi2 - fused.chi2 >= options.flip_chi2;
   fused.stable = true;
@@ -224,9 +308,23 @@ std::vector<LocalMap> SplitFrames(const Survey& survey, const std::vector<int>& 
   return maps;
 }
 
-// Fuses every code seen in one local map.
+}  // namespace
+
+FusionView MakeFusionView(const Camera& camera, const SE3d& T_frame_robot, const SurveyObservation& obs) {
+  FusionView fusion;
+  fusion.camera = &camera;
+  fusion.T_frame_camera = T_frame_robot * camera.info().T_robot_camera;
+  fusion.corners_px = &obs.corners_px;
+  fusion.sigma_px = CornerSigmaPx(camera.info());
+  return fusion;
+}
+
+namespace {
+
+// Fuses every code seen in one local map at the map's current frame poses.
 void FuseCodes(const Survey& survey, const std::map<std::string, Camera>& cameras, const std::vector<SingleView>& views,
                const LocalMapOptions& options, LocalMap* map) {
+  map->codes.clear();
   std::map<int, std::vector<std::pair<int, int>>> seen;  // marker -> (entry in map, observation)
   for (size_t i = 0; i < map->frames.size(); ++i) {
     for (int o : survey.frames[map->frames[i]].observations) {
@@ -239,8 +337,7 @@ void FuseCodes(const Survey& survey, const std::map<std::string, Camera>& camera
     for (const auto& [i, o] : entries) {
       const SurveyObservation& obs = survey.observations[o];
       const Camera& camera = cameras.at(obs.camera);
-      fusion.push_back({&camera, map->T_ref_robot[i] * camera.info().T_robot_camera, &obs.corners_px,
-                        CornerSigmaPx(camera.info())});
+      fusion.push_back(MakeFusionView(camera, map->T_ref_robot[i], obs));
       if (seed_view < 0 || views[o].error_ratio > views[entries[seed_view].second].error_ratio) {
         seed_view = static_cast<int>(fusion.size()) - 1;
       }

@@ -14,13 +14,17 @@
 //   minimize sum_v rho(|r_v|^2),  rho(s) = c^2 log(1 + s / c^2)    (Cauchy, c = cauchy_scale)
 // by Levenberg-Marquardt over the right perturbation T_ref_marker * Exp([dr, dt]), from each
 // seed: the two IPPE solutions of the code's least ambiguous view (the planar-square
-// ambiguity). The seed with the lower cost wins; chi2 = sum_v |r_v|^2 at the winner and
-// alt_chi2 at the other branch (if it converged to a different rotation). The flip is
-// resolved when alt_chi2 - chi2 >= flip_chi2 (the fused form of TagSLAM's error-ratio gate), or
-// when a single view is already unambiguous (error ratio >= ambiguity_ratio).
+// ambiguity). The seed with the lower robust cost wins; chi2 = sum_v |r_v|^2 at the winner and
+// alt_chi2 at the other branch (if it converged to a rotation more than 2 degrees away). The
+// flip is resolved when alt_chi2 - chi2 >= flip_chi2 (the fused form of TagSLAM's error-ratio
+// gate), or when a single view is already unambiguous (error ratio >= ambiguity_ratio).
+// (Tried and dropped: deciding by the sum over views of each view's own IPPE error evidence,
+// which ignores the frame poses; on sim rooms seeds 1..5 it left more codes flipped.)
 //   covariance = (sum_v w_v J_v^T J_v)^-1 * max(1, chi2 / (8 n - 6)), tangent [rx ry rz tx ty tz]
+// (w_v the Cauchy weights at the solution).
 // Variance-based rejection (seed 003 ignores codes whose corners vary too much): a code is
-// unstable in a map when its per-corner RMS exceeds max_rms_sigma sigmas (views that disagree:
+// unstable in a map when its residual RMS per coordinate, sqrt(chi2 / (8 n)),
+// exceeds max_rms_sigma sigmas (views that disagree:
 // a moving or misread code) or when the predicted position sigma of the fused pose exceeds
 // max_position_sigma_m (far, small codes). Unstable codes are reported and only link maps
 // that nothing else links.
@@ -68,7 +72,7 @@ struct LocalMapOptions {
   double ambiguity_ratio = 3.0;    // single-view gate (core/marker_pose.h)
   double flip_chi2 = 9.0;          // fused gate: alt_chi2 - chi2 for a resolved flip
   double cauchy_scale = 3.0;       // whitened units
-  double max_rms_sigma = 3.0;      // per-corner RMS in sigmas above which a code is unstable
+  double max_rms_sigma = 3.0;      // residual RMS per coordinate, in sigmas, above which a code is unstable
   double max_position_sigma_m = 0.05;
   double odometry_systematic = 0.03;  // allowance per metre travelled and per radian turned
   int max_iterations = 15;
@@ -90,18 +94,38 @@ struct FusedPose {
   double alt_chi2 = std::numeric_limits<double>::infinity();  // other branch, +inf if none
   double robust_cost = 0.0;
   int views = 0;            // views that project at the winner
-  double rms_sigma = 0.0;   // per-corner RMS, in sigmas
+  double rms_sigma = 0.0;   // residual RMS per coordinate, in sigmas (about 1 for pure noise)
   double position_sigma_m = 0.0;
   bool resolved = false;    // flip branch decided (header comment)
   bool stable = false;
   std::string why;          // when not stable
 };
 
+// The fusion view of one observation whose robot is at T_frame_robot.
+FusionView MakeFusionView(const Camera& camera, const SE3d& T_frame_robot, const SurveyObservation& obs);
+
 // Fuses the views from the given seeds (header comment); nullopt when no seed has a view that
 // projects. `single_view_unambiguous`: some view's error ratio passed the single-view gate.
 std::optional<FusedPose> FuseMarkerViews(const std::vector<FusionView>& views, double size_m,
                                          const std::vector<SE3d>& seeds, bool single_view_unambiguous,
                                          const LocalMapOptions& options);
+
+// One code seen by a robot, for the robot's PnP: the code's pose is held fixed.
+struct PnpView {
+  const Camera* camera = nullptr;
+  const std::array<Eigen::Vector2d, 4>* corners_px = nullptr;
+  double sigma_px = 1.0;
+  double size_m = 0.0;
+  SE3d T_world_marker;
+};
+
+// Robust PnP of T_world_robot over the codes it sees (cameras at T_world_robot *
+// T_robot_camera), Levenberg-Marquardt with Cauchy weights over the right perturbation
+// T_world_robot * Exp([dr, dt]) (planar: only dr_z, dt_x, dt_y, result planarized):
+//   d(p_camera)/d[dr, dt] = R_camera_robot [Hat(p_robot), -I]
+// Views that do not project at the start are left out; returns `start` when none is left.
+SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool planar, double cauchy_scale,
+                     int max_iterations);
 
 struct LocalMap {
   int component = -1;
