@@ -138,10 +138,15 @@ void RefineMarkers(const Survey& survey, const std::map<std::string, Camera>& ca
   }
 }
 
+// PnP of every placed frame but each component's first (it stays the identity: the gauge).
 void RefineFrames(const Survey& survey, const std::map<std::string, Camera>& cameras,
                   const InitializerOptions& options, Initialization* init) {
+  std::set<int> roots, components;
+  for (const LocalMap& map : init->local_maps) {
+    if (components.insert(map.component).second) roots.insert(map.frames.front());
+  }
   for (size_t f = 0; f < survey.frames.size(); ++f) {
-    if (!init->T_world_robot[f]) continue;
+    if (!init->T_world_robot[f] || roots.count(static_cast<int>(f)) > 0) continue;
     init->T_world_robot[f] = RefineFrame(survey, cameras, *init, static_cast<int>(f), *init->T_world_robot[f], options);
   }
 }
