@@ -493,6 +493,7 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
   }
   const Survey checked = WithoutObservations(survey, inconsistent);
   const Initialization init = Initialize(checked, options.initializer);
+  result.notes.insert(result.notes.end(), init.notes.begin(), init.notes.end());  // local maps, links
   result.init_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return OptimizeSurvey(checked, init, options, std::move(result));
 }
