@@ -32,6 +32,7 @@ constexpr const char* kUsage = R"(Usage:
   waymark map build DATASET --out MAP.json [--trajectory SMOOTHED.tum] [options]
   waymark map merge MAP.json DATASET --out MERGED.json [--trajectory SMOOTHED.tum] [options]
   waymark map info MAP.json
+  waymark map score DATASET --map MAP.json [options]   (see `waymark map score --help`)
 
 build   learns the poses of the codes seen in the dataset directory DATASET (its detections,
         odometry, cameras, known markers and payload coordinates; docs/mapping.md): codes and
