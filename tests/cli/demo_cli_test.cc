@@ -4,6 +4,8 @@
 // EKF and than odometry alone, a map error bound, detection working on the shipped images).
 // Bad input gives one line on stderr, exit 1, and no output directory.
 #include <gtest/gtest.h>
+
+#include "tests/cli/cli_test_util.h"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -22,32 +24,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-class DemoCliTest : public ::testing::Test {
+class DemoCliTest : public CliTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("waymark_demo_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  RunResult Run(const std::string& arguments) const {
-    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
-    const std::string command =
-        std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
-    RunResult result;
-    const int status = std::system(command.c_str());
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.out = ReadTextFile(out);
-    result.err = ReadTextFile(err);
-    return result;
-  }
+  DemoCliTest() : CliTest("demo_cli") {}
 
   // A one-line error on stderr that contains `text`, exit 1, nothing on stdout, no --out.
   void ExpectCleanFailure(const RunResult& result, const std::string& text) const {
@@ -61,8 +40,6 @@ class DemoCliTest : public ::testing::Test {
   }
 
   static fs::path DemoData() { return fs::path(WAYMARK_SOURCE_DIR) / "data" / "demo"; }
-
-  fs::path dir_;
 };
 
 // The rows of report.json's table by method.

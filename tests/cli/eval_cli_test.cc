@@ -13,6 +13,8 @@
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "tests/cli/cli_test_util.h"
 #include <nlohmann/json.hpp>
 
 #include "core/io_util.h"
@@ -25,36 +27,14 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kDeg = M_PI / 180.0;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-class EvalCliTest : public ::testing::Test {
+class EvalCliTest : public CliTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("waymark_eval_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  EvalCliTest() : CliTest("eval_cli") {}
 
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
 
-  RunResult Run(const std::string& arguments) const {
-    const std::string out = Path("stdout.txt"), err = Path("stderr.txt");
-    const std::string command = std::string(WAYMARK_BINARY) + " eval " + arguments + " >" + out + " 2>" + err;
-    const int status = std::system(command.c_str());
-    RunResult result;
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.out = ReadTextFile(out);
-    result.err = ReadTextFile(err);
-    return result;
-  }
-
-  fs::path dir_;
+  // `waymark eval ARGUMENTS`.
+  RunResult Run(const std::string& arguments) const { return RunWaymark("eval " + arguments, dir_); }
 };
 
 // The hand-computed case of tests/eval/trajectory_metrics_test.cc: after the SE(3) alignment

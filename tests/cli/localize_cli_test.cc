@@ -15,6 +15,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/cli/cli_test_util.h"
+
 #include "core/io_util.h"
 #include "core/map_io.h"
 #include "core/tum_io.h"
@@ -23,11 +25,6 @@ namespace waymark {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct RunResult {
-  int exit_code = -1;
-  std::string out, err;
-};
 
 std::vector<std::string> Lines(const std::string& text) {
   std::vector<std::string> lines;
@@ -48,9 +45,7 @@ double Figure(const std::string& text, const std::string& label) {
 class LocalizeCliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(fs::temp_directory_path() / ("waymark_localize_cli_" + std::to_string(::getpid())));
-    fs::remove_all(*dir_);
-    fs::create_directories(*dir_);
+    dir_ = new fs::path(FreshTestDir("localize_cli"));
     // A small corridor loop (4 m x 3 m, codes every 50 cm) and its map.
     const RunResult sim = Run("sim corridor --out " + Path("run") +
                               " --seed 5 --set place.loop_length_m=4 --set place.loop_width_m=3 "
@@ -67,15 +62,7 @@ class LocalizeCliTest : public ::testing::Test {
   static std::string Path(const std::string& name) { return (*dir_ / name).string(); }
 
   static RunResult Run(const std::string& arguments, const std::string& stdin_file = "") {
-    const fs::path out = *dir_ / "stdout.txt", err = *dir_ / "stderr.txt";
-    std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
-    if (!stdin_file.empty()) command += " <" + stdin_file;
-    RunResult result;
-    const int status = std::system(command.c_str());
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.out = ReadTextFile(out);
-    result.err = ReadTextFile(err);
-    return result;
+    return RunWaymark(arguments, *dir_, stdin_file);
   }
 
   // The dataset's odometry and detections as live input lines, merged by stamp (odometry

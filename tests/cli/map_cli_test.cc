@@ -13,6 +13,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/cli/cli_test_util.h"
+
 #include "core/io_util.h"
 #include "core/map_io.h"
 #include "core/tum_io.h"
@@ -23,31 +25,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-class MapCliTest : public ::testing::Test {
+class MapCliTest : public CliTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("waymark_map_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  RunResult Run(const std::string& arguments) const {
-    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
-    const std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
-    RunResult result;
-    const int status = std::system(command.c_str());
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.out = ReadTextFile(out);
-    result.err = ReadTextFile(err);
-    return result;
-  }
+  MapCliTest() : CliTest("map_cli") {}
 
   // A small corridor loop (4 m x 3 m) with 50 cm code spacing.
   fs::path SmallSurvey() const {
@@ -67,8 +47,6 @@ class MapCliTest : public ::testing::Test {
     text.replace(at, from.size(), to);
     AtomicWriteFile(file, text);
   }
-
-  fs::path dir_;
 };
 
 TEST_F(MapCliTest, BuildWritesMapAndTrajectoryAndSummary) {

@@ -1,0 +1,63 @@
+// Running the `waymark` binary from a test: its exit code, stdout and stderr, and a scratch
+// directory per test.
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/io_util.h"
+
+namespace waymark {
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+// Runs `waymark ARGUMENTS [<STDIN_FILE]`, capturing stdout and stderr through files in
+// `scratch_dir` (which must exist).
+inline RunResult RunWaymark(const std::string& arguments, const std::filesystem::path& scratch_dir,
+                            const std::string& stdin_file = "") {
+  const std::filesystem::path out = scratch_dir / "stdout.txt", err = scratch_dir / "stderr.txt";
+  std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
+  if (!stdin_file.empty()) command += " <" + stdin_file;
+  RunResult result;
+  const int status = std::system(command.c_str());
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  result.out = ReadTextFile(out);
+  result.err = ReadTextFile(err);
+  return result;
+}
+
+// A fresh, empty temporary directory "waymark_<prefix>_<pid>[_<suffix>]".
+inline std::filesystem::path FreshTestDir(const std::string& prefix, const std::string& suffix = "") {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("waymark_" + prefix + "_" + std::to_string(::getpid()) +
+                                     (suffix.empty() ? "" : "_" + suffix));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+// A test with its own scratch directory dir_, removed afterwards.
+class CliTest : public ::testing::Test {
+ protected:
+  explicit CliTest(std::string prefix) : prefix_(std::move(prefix)) {}
+  void SetUp() override {
+    dir_ = FreshTestDir(prefix_, ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  RunResult Run(const std::string& arguments) const { return RunWaymark(arguments, dir_); }
+
+  std::string prefix_;
+  std::filesystem::path dir_;
+};
+
+}  // namespace waymark
