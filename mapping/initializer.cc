@@ -321,7 +321,10 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   init.links = FindLocalMapLinks(survey, init.local_maps, local);
   const int num_maps = static_cast<int>(init.local_maps.size());
   init.tree = SpanningForest(num_maps, init.links);
-  PlaceFromLocalMaps(survey, PlaceLocalMaps(num_maps, init.links, init.tree, survey.motion == MotionModel::kPlanar),
+  const bool planar = survey.motion == MotionModel::kPlanar;
+  PlaceFromLocalMaps(survey,
+                     RelaxLocalMaps(num_maps, init.links, init.tree,
+                                    PlaceLocalMaps(num_maps, init.links, init.tree, planar), planar),
                      &init);
   RefineMarkers(survey, cameras, local, &init);
   for (int round = 0; round < options.refine_rounds; ++round) {

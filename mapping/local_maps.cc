@@ -1,10 +1,15 @@
 #include "mapping/local_maps.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <queue>
 
+#include <ceres/ceres.h>
+
+#include "factors/odometry_se3_factor.h"
+#include "factors/pose_block.h"
 #include "mapping/initializer.h"
 #include "mapping/residuals.h"
 
@@ -491,6 +496,63 @@ std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& 
   std::vector<SE3d> placed;
   for (const auto& T : T_world_ref) placed.push_back(*T);
   return placed;
+}
+
+// The lowest map index of each tree of the forest (union-find).
+static std::vector<int> TreeRoots(int num_maps, const std::vector<LocalMapLink>& links, const std::vector<int>& forest) {
+  std::vector<int> parent(num_maps);
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&parent](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (int l : forest) {
+    const int a = find(links[l].map_a), b = find(links[l].map_b);
+    parent[std::max(a, b)] = std::min(a, b);
+  }
+  std::vector<int> root(num_maps);
+  for (int i = 0; i < num_maps; ++i) root[i] = find(i);
+  return root;
+}
+
+std::vector<SE3d> RelaxLocalMaps(int num_maps, const std::vector<LocalMapLink>& links, const std::vector<int>& forest,
+                                 std::vector<SE3d> T_world_ref, bool planar, int max_iterations) {
+  if (links.size() <= forest.size()) return T_world_ref;  // no loop: the forest is already exact
+  std::vector<std::array<double, kSE3BlockSize>> blocks(num_maps);
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  SE3Manifold manifold;
+  for (int i = 0; i < num_maps; ++i) {
+    SE3ToBlock(T_world_ref[i], blocks[i].data());
+    problem.AddParameterBlock(blocks[i].data(), kSE3BlockSize, &manifold);
+  }
+  for (const LocalMapLink& link : links) {
+    if (!(link.quality > 0.0) || !std::isfinite(link.quality)) continue;
+    const double sigma_m = 1.0 / link.quality;
+    Matrix6d covariance = Matrix6d::Zero();
+    covariance.topLeftCorner<3, 3>().setIdentity();
+    covariance.topLeftCorner<3, 3>() *= (sigma_m / kLinkLeverM) * (sigma_m / kLinkLeverM);
+    covariance.bottomRightCorner<3, 3>() = sigma_m * sigma_m * Eigen::Matrix3d::Identity();
+    problem.AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, covariance), new ceres::CauchyLoss(3.0),
+                             blocks[link.map_a].data(), blocks[link.map_b].data());
+  }
+  const std::vector<int> root = TreeRoots(num_maps, links, forest);
+  for (int i = 0; i < num_maps; ++i) {
+    if (root[i] == i) problem.SetParameterBlockConstant(blocks[i].data());
+  }
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = max_iterations;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  if (!summary.IsSolutionUsable()) return T_world_ref;
+  for (int i = 0; i < num_maps; ++i) {
+    const SE3d T = SE3FromBlock(blocks[i].data());
+    T_world_ref[i] = planar ? SE2d::FromSE3(T).ToSE3() : T;
+  }
+  return T_world_ref;
 }
 
 }  // namespace waymark

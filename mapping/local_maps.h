@@ -162,6 +162,16 @@ std::vector<int> SpanningForest(int num_maps, const std::vector<LocalMapLink>& l
 std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& links,
                                                 const std::vector<int>& forest, bool planar);
 
+// Pose-graph relaxation of the placed local maps over every link, not only the forest's: the
+// forest leaves one link of every loop out, so the loop's whole drift sits there (a long
+// corridor closes through one code seen at its start and its end). Each link is a between-factor
+//   r = S BoxMinus(T_a_b, T_world_refA^-1 T_world_refB),  Sigma = diag((sigma/L)^2 I3, sigma^2 I3)
+// (sigma = 1 / quality, L = kLinkLeverM; factors/odometry_se3_factor.h) with a Cauchy loss of
+// scale 3 against a wrong link (a misread or flipped code); the first map of each tree is held
+// constant. Planarized when `planar`. Returns the relaxed T_world_ref.
+std::vector<SE3d> RelaxLocalMaps(int num_maps, const std::vector<LocalMapLink>& links, const std::vector<int>& forest,
+                                 std::vector<SE3d> T_world_ref, bool planar, int max_iterations = 50);
+
 // sqrt(tr Sigma_tt + kLinkLeverM^2 tr Sigma_rr) of a fused pose, times kUnstablePenalty when
 // unstable or kAmbiguousPenalty when its flip is not resolved: ranks a code's local maps.
 double RankingSigma(const FusedPose& fused);
