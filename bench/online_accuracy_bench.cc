@@ -30,6 +30,7 @@
 #include <cstring>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -562,6 +563,11 @@ BenchOptions ParseOptions(int argc, char** argv) {
       HeadingWalk() = std::stod(next());
     } else if (arg == "--only") {
       options.only = next();
+      const std::set<std::string> studies{"table1", "nees", "kidnap", "ceiling-grid", "warehouse-drone"};
+      if (studies.count(options.only) == 0) {
+        throw std::invalid_argument("--only: unknown study `" + options.only +
+                                    "` (known: table1 nees kidnap ceiling-grid warehouse-drone)");
+      }
     } else if (arg == "--out") {
       options.out = next();
     } else {
