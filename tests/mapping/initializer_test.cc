@@ -7,32 +7,15 @@
 #include <gtest/gtest.h>
 
 #include "core/marker_pose.h"
+#include "tests/mapping/synthetic_wall.h"
 
 namespace waymark {
 namespace {
 
+using testing::ForwardCamera;
+using testing::WallCode;
+
 constexpr double kDeg = M_PI / 180.0;
-
-CameraInfo ForwardCamera() {
-  CameraInfo info;
-  info.name = "cam0";
-  info.width = 1280;
-  info.height = 960;
-  info.intrinsics = {1100.0, 1100.0, 640.0, 480.0};
-  info.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
-  Eigen::Matrix3d R_robot_camera;
-  R_robot_camera << 0, 0, 1, -1, 0, 0, 0, -1, 0;  // camera z = robot x, camera x = robot -y
-  info.T_robot_camera = SE3d(R_robot_camera, Eigen::Vector3d(0.05, 0.0, 0.3));
-  info.pixel_sigma = 0.5;
-  return info;
-}
-
-// A code on a wall facing -x, yawed by yaw_rad about the vertical.
-SE3d WallCode(const Eigen::Vector3d& position, double yaw_rad) {
-  Eigen::Matrix3d R_world_marker;
-  R_world_marker << 0, 0, -1, -1, 0, 0, 0, 1, 0;
-  return SE3d(Eigen::Matrix3d(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) * R_world_marker), position);
-}
 
 // Builds a planar survey: robots at the given poses (consecutive ones joined by exact odometry
 // unless a break is listed), each seeing the listed codes with Gaussian corner noise.

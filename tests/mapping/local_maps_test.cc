@@ -9,32 +9,15 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/mapping/synthetic_wall.h"
+
 namespace waymark {
 namespace {
 
+using testing::ForwardCamera;
+using testing::WallCode;
+
 constexpr double kDeg = M_PI / 180.0;
-
-// A forward-looking pinhole camera (x right, y down, z along the robot's x), 0.5 px noise.
-CameraInfo ForwardCamera() {
-  CameraInfo info;
-  info.name = "cam0";
-  info.width = 1280;
-  info.height = 960;
-  info.intrinsics = {1100.0, 1100.0, 640.0, 480.0};
-  info.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
-  Eigen::Matrix3d R_robot_camera;
-  R_robot_camera << 0, 0, 1, -1, 0, 0, 0, -1, 0;
-  info.T_robot_camera = SE3d(R_robot_camera, Eigen::Vector3d(0.05, 0.0, 0.3));
-  info.pixel_sigma = 0.5;
-  return info;
-}
-
-// A code on a wall facing -x (its z axis), at `position`, yawed by `yaw_rad` about the vertical.
-SE3d WallCode(const Eigen::Vector3d& position, double yaw_rad) {
-  Eigen::Matrix3d R_world_marker;  // marker x = world -y, y = world z, z = world -x
-  R_world_marker << 0, 0, -1, -1, 0, 0, 0, 1, 0;
-  return SE3d(Eigen::Matrix3d(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) * R_world_marker), position);
-}
 
 struct Views {
   std::vector<std::array<Eigen::Vector2d, 4>> corners;  // owned here; FusionView points into it
