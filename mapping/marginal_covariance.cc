@@ -1,0 +1,151 @@
+#include "mapping/marginal_covariance.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <ceres/crs_matrix.h>
+
+namespace waymark {
+namespace {
+
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+// Columns of the tangent of every variable block, in `variables` order.
+struct ColumnLayout {
+  std::vector<double*> variables;
+  std::map<const double*, int> first_column;  // of each block
+  int columns = 0;
+};
+
+ColumnLayout LayoutOf(ceres::Problem* problem) {
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  ColumnLayout layout;
+  for (double* block : all) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    layout.variables.push_back(block);
+    layout.first_column[block] = layout.columns;
+    layout.columns += problem->ParameterBlockTangentSize(block);
+  }
+  return layout;
+}
+
+// H = J^T J over the variable blocks, with every pair of entries inside a requested block
+// stored (so the block is in the pattern of L even where J^T J has exact zeros).
+SparseMatrix Information(ceres::Problem* problem, const ColumnLayout& layout,
+                         const std::vector<std::pair<int, int>>& requested, int num_threads) {
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks = layout.variables;
+  evaluate.num_threads = num_threads;
+  ceres::CRSMatrix crs;
+  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) {
+    throw std::runtime_error("marginal covariance: the Jacobian could not be evaluated at the current values");
+  }
+  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> J(
+      crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()), crs.rows.data(), crs.cols.data(),
+      crs.values.data());
+  const SparseMatrix J_col(J);
+  SparseMatrix H = SparseMatrix(J_col.transpose()) * J_col;
+  std::vector<Eigen::Triplet<double>> pattern;
+  for (const auto& [first, size] : requested) {
+    for (int a = 0; a < size; ++a) {
+      for (int b = 0; b < size; ++b) pattern.emplace_back(first + a, first + b, 0.0);
+    }
+  }
+  SparseMatrix block_pattern(H.rows(), H.cols());
+  block_pattern.setFromTriplets(pattern.begin(), pattern.end());
+  SparseMatrix sum = H + block_pattern;
+  sum.makeCompressed();
+  return sum;
+}
+
+// Z = (L D L^T)^{-1} on the pattern of the strictly lower, column-sorted unit factor L.
+class SelectedInverse {
+ public:
+  SelectedInverse(const SparseMatrix& L, const Eigen::VectorXd& d) : L_(L), z_diag_(d.size()), z_(L.nonZeros()) {
+    const int* outer = L_.outerIndexPtr();
+    const int* rows = L_.innerIndexPtr();
+    const double* values = L_.valuePtr();
+    for (int j = static_cast<int>(d.size()) - 1; j >= 0; --j) {
+      double diag = 1.0 / d[j];
+      for (int p = outer[j]; p < outer[j + 1]; ++p) {
+        double sum = 0.0;
+        for (int q = outer[j]; q < outer[j + 1]; ++q) sum += values[q] * At(rows[q], rows[p]);
+        z_[p] = -sum;
+      }
+      for (int p = outer[j]; p < outer[j + 1]; ++p) diag -= values[p] * z_[p];
+      z_diag_[j] = diag;
+    }
+  }
+
+  // Z_ij for an entry of the pattern (i, j permuted indices, either order).
+  double At(int i, int j) const {
+    if (i == j) return z_diag_[i];
+    const int row = std::max(i, j), column = std::min(i, j);
+    const int* begin = L_.innerIndexPtr() + L_.outerIndexPtr()[column];
+    const int* end = L_.innerIndexPtr() + L_.outerIndexPtr()[column + 1];
+    const int* found = std::lower_bound(begin, end, row);
+    if (found == end || *found != row) {
+      throw std::logic_error("marginal covariance: entry (" + std::to_string(row) + ", " + std::to_string(column) +
+                             ") outside the pattern of L");
+    }
+    return z_[found - L_.innerIndexPtr()];
+  }
+
+ private:
+  const SparseMatrix& L_;
+  Eigen::VectorXd z_diag_;
+  std::vector<double> z_;
+};
+
+// False when a pivot is not positive or is round-off of the diagonal it came from.
+bool PivotsPositive(const Eigen::VectorXd& d, const SparseMatrix& H, const Eigen::VectorXi& permuted_of,
+                    double min_relative_pivot) {
+  for (int a = 0; a < H.rows(); ++a) {
+    const double pivot = d[permuted_of[a]];
+    if (!std::isfinite(pivot) || pivot <= min_relative_pivot * std::abs(H.coeff(a, a))) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool MarginalCovariances(ceres::Problem* problem, const std::vector<const double*>& blocks,
+                         std::vector<Eigen::MatrixXd>* covariance, const MarginalCovarianceOptions& options) {
+  covariance->clear();
+  const ColumnLayout layout = LayoutOf(problem);
+  std::vector<std::pair<int, int>> requested;  // first column, tangent size
+  for (const double* block : blocks) {
+    const auto it = layout.first_column.find(block);
+    if (it == layout.first_column.end()) {
+      throw std::runtime_error("marginal covariance: a requested block is not a variable of the problem");
+    }
+    requested.emplace_back(it->second, problem->ParameterBlockTangentSize(block));
+  }
+  if (layout.columns == 0) return blocks.empty();
+  const SparseMatrix H = Information(problem, layout, requested, options.num_threads);
+  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(H);
+  if (ldlt.info() != Eigen::Success) return false;
+  const Eigen::VectorXi permuted_of = ldlt.permutationP().indices();
+  const Eigen::VectorXd d = ldlt.vectorD();
+  if (!PivotsPositive(d, H, permuted_of, options.min_relative_pivot)) return false;
+  SparseMatrix L = ldlt.matrixL().nestedExpression();
+  L.makeCompressed();
+  const SelectedInverse Z(L, d);
+  for (const auto& [first, size] : requested) {
+    Eigen::MatrixXd block(size, size);
+    for (int a = 0; a < size; ++a) {
+      for (int b = 0; b < size; ++b) block(a, b) = Z.At(permuted_of[first + a], permuted_of[first + b]);
+    }
+    covariance->push_back(block);
+  }
+  return true;
+}
+
+}  // namespace waymark

@@ -1,0 +1,42 @@
+// Marginal covariances of chosen parameter blocks of a solved least-squares problem, in
+// linear time for the chain-and-loop graphs of a survey.
+//
+//   H = J^T J                  (J: the whitened Jacobian of every residual at the current
+//                               values, loss applied, columns in each block's tangent space,
+//                               constant blocks excluded; the Gauss-Newton information)
+//   P H P^T = L D L^T          (sparse LDL^T, P a fill-reducing AMD ordering)
+//   Sigma_b = (H^{-1})_bb      (the 6x6 / kxk diagonal block of block b)
+//
+// ceres::Covariance (SPARSE_QR) solves one right-hand side per requested column, which costs
+// O(columns x nnz(R)) and grows quadratically with the survey. Here the entries of
+// Z = (P H P^T)^{-1} are computed only on the pattern of L, by the Takahashi recursion
+//
+//   Z_ij = delta_ij / d_j - sum_{k > j, L_kj != 0} L_kj Z_ki      (i >= j, from j = n-1 down)
+//
+// which never leaves that pattern (the rows of a column of L form a clique of the filled
+// graph), in O(sum_j |L_:j|^2) time. Every requested block is dense in H, hence in the pattern.
+// The result equals ceres::Covariance's GetCovarianceBlockInTangentSpace (to round-off).
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+#include <ceres/problem.h>
+
+namespace waymark {
+
+struct MarginalCovarianceOptions {
+  int num_threads = 1;  // for the Jacobian evaluation
+  // H counts as rank-deficient (false is returned) when a pivot d_j falls below this
+  // fraction of the diagonal entry it was eliminated from.
+  double min_relative_pivot = 1e-12;
+};
+
+// Fills (*covariance)[i] with the tangent-space covariance of blocks[i] (a non-constant
+// parameter block of `problem`). Returns false when H is singular or not positive definite
+// (a free gauge), leaving *covariance empty. Throws std::runtime_error on a block that is not
+// in the problem or is constant.
+bool MarginalCovariances(ceres::Problem* problem, const std::vector<const double*>& blocks,
+                         std::vector<Eigen::MatrixXd>* covariance, const MarginalCovarianceOptions& options = {});
+
+}  // namespace waymark
