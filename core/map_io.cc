@@ -1,5 +1,6 @@
 #include "core/map_io.h"
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -27,6 +28,28 @@ Matrix6d ParseCovariance(const JsonSource& source, const nlohmann::json& value, 
     ThrowJsonError(source, field, "expected a non-negative diagonal (variances)");
   }
   return covariance;
+}
+
+// covariance_factor: 6 k numbers, row-major 6 x k, with covariance - F F^T PSD (within 1e-6 of
+// the largest variance).
+CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                                       const std::optional<Matrix6d>& covariance) {
+  if (!value.is_array() || value.empty() || value.size() % 6 != 0) {
+    ThrowJsonError(source, field, "expected a non-empty array of 6 k numbers (row-major 6 x k)");
+  }
+  const std::vector<double> numbers = JsonNumbers(source, value, field, value.size());
+  const int k = static_cast<int>(numbers.size() / 6);
+  CovarianceFactor factor(6, k);
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < k; ++c) factor(r, c) = numbers[k * r + c];
+  }
+  if (!covariance) ThrowJsonError(source, field, "expected a covariance with the covariance_factor");
+  const Matrix6d residual = *covariance - factor * factor.transpose();
+  const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Matrix6d>(residual).eigenvalues().minCoeff();
+  if (min_eigenvalue < -1e-6 * covariance->diagonal().maxCoeff()) {
+    ThrowJsonError(source, field, "expected covariance - F F^T positive semi-definite (F F^T exceeds the covariance)");
+  }
+  return factor;
 }
 
 MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
@@ -57,6 +80,10 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
   if (const nlohmann::json* covariance = JsonMember(source, value, field, "covariance", false)) {
     marker.covariance = ParseCovariance(source, *covariance, JsonField(field, "covariance"));
   }
+  if (const nlohmann::json* factor = JsonMember(source, value, field, "covariance_factor", false)) {
+    marker.covariance_factor =
+        ParseCovarianceFactor(source, *factor, JsonField(field, "covariance_factor"), marker.covariance);
+  }
   if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
     marker.fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
   }
@@ -73,7 +100,8 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
                    "expected a pose for a fixed marker or one with a covariance");
   }
   JsonWarnUnknownKeys(source, value, field,
-                      {"family", "id", "size_m", "T_world_marker", "covariance", "fixed", "component"},
+                      {"family", "id", "size_m", "T_world_marker", "covariance", "covariance_factor", "fixed",
+                       "component"},
                       warnings);
   return marker;
 }
@@ -104,11 +132,21 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
 
   MarkerMap map;
   std::set<MarkerKey> seen;
+  std::optional<long> factor_columns;  // k, the same for every marker
   for (size_t i = 0; i < markers.size(); ++i) {
     const std::string field = JsonField("markers", i);
     MapMarker marker = ParseMarker(source, markers[i], field, warnings, poses);
     if (!seen.insert(marker.key).second) {
       ThrowJsonError(source, field, "duplicate marker " + marker.key.ToString());
+    }
+    if (marker.covariance_factor) {
+      const long k = marker.covariance_factor->cols();
+      if (factor_columns && *factor_columns != k) {
+        ThrowJsonError(source, JsonField(field, "covariance_factor"),
+                       "expected 6 x " + std::to_string(*factor_columns) + " like the markers before, got 6 x " +
+                           std::to_string(k));
+      }
+      factor_columns = k;
     }
     map.markers.push_back(std::move(marker));
   }
@@ -139,6 +177,13 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
     }
     json["covariance"] = covariance;
   }
+  if (marker.covariance_factor) {
+    nlohmann::ordered_json factor = nlohmann::ordered_json::array();
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < marker.covariance_factor->cols(); ++c) factor.push_back((*marker.covariance_factor)(r, c));
+    }
+    json["covariance_factor"] = factor;
+  }
   json["fixed"] = marker.fixed;
   if (marker.component) json["component"] = *marker.component;
   return json;
@@ -155,6 +200,9 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
     throw std::invalid_argument(name + "fixed or with a covariance but without a pose");
   if (marker.covariance && !marker.covariance->allFinite())
     throw std::invalid_argument(name + "covariance not finite");
+  if (marker.covariance_factor &&
+      (!marker.covariance || marker.covariance_factor->cols() == 0 || !marker.covariance_factor->allFinite()))
+    throw std::invalid_argument(name + "covariance_factor empty, not finite or without a covariance");
   if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");
   if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
 }

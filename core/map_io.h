@@ -11,6 +11,12 @@
 // symmetric with a non-negative diagonal. fixed (default false) and component (a
 // non-negative integer) are optional.
 //
+// covariance_factor (optional, needs covariance): 6 k numbers, row-major 6 x k, the marker's
+// rows F_i of the map's low-rank joint covariance Sigma ~ F F^T + blockdiag(D_i),
+// D_i = covariance - F_i F_i^T (mapping/map_covariance.h): markers' errors are correlated
+// through the k shared columns. covariance - F_i F_i^T must be PSD (within 1e-6 of the largest
+// variance) and k the same for every marker that has one. Writers omit it when unset.
+//
 // A dataset's known markers.json may also hold size-only entries (no T_world_marker): codes
 // whose size is known but not their pose (read with MapPoses::kOptional; such an entry has
 // has_pose = false and may not be fixed or carry a covariance). Everywhere else a pose is

@@ -69,6 +69,9 @@ struct StampedSE3 {
 };
 using Trajectory = std::vector<StampedSE3>;  // sorted by stamp_s
 
+// Rows F_i of a map's low-rank joint marker covariance (6 x k; mapping/map_covariance.h).
+using CovarianceFactor = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+
 // A marker in a map (map.json; also ground-truth and known markers).
 struct MapMarker {
   MarkerKey key;
@@ -78,6 +81,9 @@ struct MapMarker {
   bool fixed = false;                  // an anchor: held constant by mapping
   std::optional<int> component;        // disconnected maps are numbered 0, 1, ...
   bool has_pose = true;                // false: a size-only entry of a known-markers file
+  // Optional rows F_i (6 x k) of the map's low-rank joint covariance, Sigma ~ F F^T + blockdiag(D_i)
+  // with D_i = covariance - F_i F_i^T (mapping/map_covariance.h); k is the same for every marker.
+  std::optional<CovarianceFactor> covariance_factor;
 };
 
 struct MarkerMap {

@@ -173,6 +173,51 @@ TEST(MapIoTest, RoundTripIsExact) {
   EXPECT_THROW(FormatMap(map), std::invalid_argument);  // duplicate key
 }
 
+// covariance_factor: 6 x k row-major, the same k for every marker, within the covariance.
+TEST(MapIoTest, CovarianceFactorRoundTripAndErrors) {
+  MarkerMap map;
+  for (int i = 0; i < 3; ++i) {
+    MapMarker marker;
+    marker.key = {"qr", "F" + std::to_string(i)};
+    marker.size_m = 0.1;
+    CovarianceFactor F = CovarianceFactor::Random(6, 2) * 1e-2;
+    const Matrix6d B = Matrix6d::Random() * 1e-2;
+    marker.covariance = F * F.transpose() + B * B.transpose();
+    if (i != 1) marker.covariance_factor = F;  // markers without one are allowed
+    map.markers.push_back(marker);
+  }
+  const MarkerMap read = ParseMap(FormatMap(map), "map.json");
+  ASSERT_EQ(read.markers.size(), 3u);
+  ASSERT_TRUE(read.markers[0].covariance_factor.has_value());
+  EXPECT_EQ(*read.markers[0].covariance_factor, *map.markers[0].covariance_factor);
+  EXPECT_EQ(read.markers[0].covariance_factor->cols(), 2);
+  EXPECT_FALSE(read.markers[1].covariance_factor.has_value());
+  EXPECT_EQ(FormatMap(read), FormatMap(map));
+
+  const std::string covariance =
+      "\"covariance\": [1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, "
+      "0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4], ";
+  const std::string factor_k1 = "\"covariance_factor\": [0.005, 0, 0, 0, 0, 0.001], ";
+  EXPECT_NO_THROW(ParseMap(GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,"), "m"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", covariance + "\"covariance_factor\": [1, 2, 3], \"fixed\": false,")),
+              HasSubstr("markers[0].covariance_factor: expected a non-empty array of 6 k numbers"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", factor_k1 + "\"fixed\": false,")),
+              HasSubstr("markers[0].covariance_factor: expected a covariance with the covariance_factor"));
+  EXPECT_THAT(
+      ParseError(GoodMapWith("\"fixed\": true,", covariance + "\"covariance_factor\": [0.02, 0, 0, 0, 0, 0], \"fixed\": false,")),
+      HasSubstr("markers[0].covariance_factor: expected covariance - F F^T positive semi-definite"));
+  std::string two = GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,");
+  two.replace(two.find("\"size_m\": 0.16"), 14,
+              "\"size_m\": 0.16, " + covariance + "\"covariance_factor\": [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]");
+  EXPECT_THAT(ParseError(two), HasSubstr("markers[1].covariance_factor: expected 6 x 1 like the markers before, got 6 x 2"));
+
+  map.markers[1].covariance_factor = CovarianceFactor(6, 0);
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+  map.markers[1].covariance_factor.reset();
+  map.markers[0].covariance.reset();
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+}
+
 TEST(MapIoTest, ReadsTagslamMaps) {
   const fs::path root = fs::path(WAYMARK_SHARED_DATA) / "tagslam";
   if (!fs::exists(root)) GTEST_SKIP() << "shared data absent: " << root << " (tagslam maps not checked)";
