@@ -31,7 +31,8 @@ Eigen::RowVector3d YawJacobianWorld(const Eigen::Matrix3d& R) {
 EkfState::EkfState(MotionModel motion)
     : motion_(motion),
       mean_(Eigen::VectorXd::Zero(StateDim(motion))),
-      covariance_(Eigen::MatrixXd::Identity(StateDim(motion), StateDim(motion))) {}
+      covariance_(Eigen::MatrixXd::Identity(StateDim(motion), StateDim(motion))),
+      cross_factor_(StateDim(motion), 0) {}
 
 void EkfState::SetLevel(const Eigen::Matrix3d& R_level) {
   if (motion_ == MotionModel::kFree && R_level.allFinite()) R_level_ = LevelRotation(R_level);
@@ -57,21 +58,24 @@ Eigen::VectorXd EkfState::BoxPlus(const Eigen::VectorXd& mean, const Eigen::Vect
   return out;
 }
 
-StepStatus EkfState::WriteCovariance(const Eigen::MatrixXd& covariance, std::vector<CrossEntry> cross) {
+StepStatus EkfState::WriteCovariance(const Eigen::MatrixXd& covariance, std::vector<CrossEntry> cross,
+                                     Eigen::MatrixXd cross_factor) {
   if (covariance.rows() != dim() || covariance.cols() != dim()) return StepStatus::kInvalidInput;
-  if (!covariance.allFinite()) return StepStatus::kNonFiniteCovariance;
+  if (cross_factor.rows() != dim()) return StepStatus::kInvalidInput;
+  if (!covariance.allFinite() || !cross_factor.allFinite()) return StepStatus::kNonFiniteCovariance;
   for (const CrossEntry& entry : cross) {
     if (entry.cross.rows() != dim()) return StepStatus::kInvalidInput;
     if (!entry.cross.allFinite()) return StepStatus::kNonFiniteCovariance;
   }
   covariance_ = 0.5 * (covariance + covariance.transpose());
   cross_ = std::move(cross);
+  cross_factor_ = std::move(cross_factor);
   return StepStatus::kOk;
 }
 
 StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance) {
   if (mean.size() != dim() || !mean.allFinite()) return StepStatus::kInvalidInput;
-  const StepStatus status = WriteCovariance(covariance, {});
+  const StepStatus status = WriteCovariance(covariance, {}, Eigen::MatrixXd(dim(), 0));
   if (status != StepStatus::kOk) return status;
   mean_ = BoxPlus(mean, Eigen::VectorXd::Zero(dim()), yaw_index());
   return StepStatus::kOk;
@@ -80,7 +84,24 @@ StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& c
 StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
                            const CrossCovariance& cross) {
   if (mean.size() != dim() || !mean.allFinite()) return StepStatus::kInvalidInput;
-  const StepStatus status = WriteCovariance(covariance, {CrossEntry{key, cross, ++updates_}});
+  const StepStatus status =
+      WriteCovariance(covariance, {CrossEntry{key, cross, ++updates_}}, Eigen::MatrixXd(dim(), 0));
+  if (status != StepStatus::kOk) return status;
+  mean_ = BoxPlus(mean, Eigen::VectorXd::Zero(dim()), yaw_index());
+  return StepStatus::kOk;
+}
+
+StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
+                           const CrossCovariance& cross, const Matrix6d& marker_covariance,
+                           const CovarianceFactor& factor) {
+  if (factor.cols() == 0) return Reset(mean, covariance, key, cross);
+  if (mean.size() != dim() || !mean.allFinite() || cross.rows() != dim()) return StepStatus::kInvalidInput;
+  const Eigen::LLT<Matrix6d> llt(marker_covariance);
+  if (llt.info() != Eigen::Success || !factor.allFinite()) return StepStatus::kInvalidInput;
+  const Eigen::MatrixXd A = llt.solve(Eigen::MatrixXd(cross.transpose())).transpose();  // cross Sigma_m^-1
+  const Matrix6d D = marker_covariance - factor * factor.transpose();
+  const StepStatus status =
+      WriteCovariance(covariance, {CrossEntry{key, CrossCovariance(A * D), ++updates_}}, A * factor);
   if (status != StepStatus::kOk) return status;
   mean_ = BoxPlus(mean, Eigen::VectorXd::Zero(dim()), yaw_index());
   return StepStatus::kOk;
@@ -98,16 +119,19 @@ StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::Mat
   if (mean_new.size() != dim() || !mean_new.allFinite()) return StepStatus::kInvalidInput;
   std::vector<CrossEntry> cross = cross_;
   for (CrossEntry& entry : cross) entry.cross = F * entry.cross;
-  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose(), std::move(cross));
+  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose(), std::move(cross),
+                                            F * cross_factor_);
   if (status != StepStatus::kOk) return status;
   mean_ = BoxPlus(mean_new, Eigen::VectorXd::Zero(dim()), yaw_index());
   return StepStatus::kOk;
 }
 
 struct EkfState::Gain {
-  Eigen::MatrixXd PHt;  // P H^T (+ C_m H_m^T)
+  Eigen::MatrixXd PHt;  // P H^T (+ C_m H_m^T + C_xi A_m^T)
   Eigen::MatrixXd S;    // symmetrized
   Eigen::LLT<Eigen::MatrixXd> llt;
+  Matrix6d D_m;         // Sigma_m - F_m F_m^T
+  Eigen::MatrixXd A_m;  // H_m F_m (no columns without a factor)
 };
 
 std::optional<EkfState::Gain> EkfState::ComputeGain(const Linearization& lin) const {
@@ -115,11 +139,15 @@ std::optional<EkfState::Gain> EkfState::ComputeGain(const Linearization& lin) co
   gain.PHt = covariance_ * lin.H.transpose();
   gain.S = lin.H * gain.PHt + lin.R;
   if (lin.consider) {
-    const Eigen::MatrixXd& H_m = lin.consider->H_marker;
-    const Eigen::MatrixXd C_Hmt = Cross(lin.consider->key) * H_m.transpose();
+    const ConsideredMarker& marker = *lin.consider;
+    const Eigen::MatrixXd& H_m = marker.H_marker;
+    gain.D_m = marker.covariance - marker.factor * marker.factor.transpose();
+    gain.A_m = H_m * marker.factor;
+    Eigen::MatrixXd C_Hmt = Cross(marker.key) * H_m.transpose();
+    if (gain.A_m.cols() > 0 && cross_factor_.cols() == gain.A_m.cols()) C_Hmt += cross_factor_ * gain.A_m.transpose();
     const Eigen::MatrixXd H_C_Hmt = lin.H * C_Hmt;
     gain.PHt += C_Hmt;
-    gain.S += H_C_Hmt + H_C_Hmt.transpose() + H_m * lin.consider->covariance * H_m.transpose();
+    gain.S += H_C_Hmt + H_C_Hmt.transpose() + H_m * gain.D_m * H_m.transpose() + gain.A_m * gain.A_m.transpose();
   }
   gain.S = 0.5 * (gain.S + gain.S.transpose());
   gain.llt.compute(gain.S);
@@ -127,11 +155,21 @@ std::optional<EkfState::Gain> EkfState::ComputeGain(const Linearization& lin) co
   return gain;
 }
 
-std::vector<EkfState::CrossEntry> EkfState::UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin) const {
+std::vector<EkfState::CrossEntry> EkfState::UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin,
+                                                         const Gain& gain, Eigen::MatrixXd* cross_factor) const {
   std::vector<CrossEntry> cross = cross_;
   for (CrossEntry& entry : cross) entry.cross -= K * (lin.H * entry.cross);
+  *cross_factor = cross_factor_;
+  if (lin.consider && gain.A_m.cols() > 0 && cross_factor->cols() == 0) {
+    *cross_factor = Eigen::MatrixXd::Zero(dim(), gain.A_m.cols());
+  }
+  if (cross_factor->cols() > 0) {
+    Eigen::MatrixXd innovation_cross = lin.H * *cross_factor;  // d y / d xi, state part
+    if (lin.consider && gain.A_m.cols() > 0) innovation_cross += gain.A_m;
+    *cross_factor -= K * innovation_cross;
+  }
   if (!lin.consider) return cross;
-  const Eigen::MatrixXd K_Hm_Sigma = K * lin.consider->H_marker * lin.consider->covariance;
+  const Eigen::MatrixXd K_Hm_Sigma = K * lin.consider->H_marker * gain.D_m;
   auto it = std::find_if(cross.begin(), cross.end(),
                          [&](const CrossEntry& entry) { return entry.key == lin.consider->key; });
   if (it == cross.end()) {
@@ -169,7 +207,10 @@ UpdateResult EkfState::UpdateIterated(const MeasurementFunction& linearize, std:
   Eigen::MatrixXd K;
   for (int i = 0; i < std::max(max_iterations, 1); ++i) {
     if (!lin->innovation.allFinite() || !lin->H.allFinite() || !lin->R.allFinite() ||
-        (lin->consider && (!lin->consider->H_marker.allFinite() || !lin->consider->covariance.allFinite()))) {
+        (lin->consider && (!lin->consider->H_marker.allFinite() || !lin->consider->covariance.allFinite() ||
+                           !lin->consider->factor.allFinite() ||
+                           (lin->consider->factor.cols() > 0 && cross_factor_.cols() > 0 &&
+                            lin->consider->factor.cols() != cross_factor_.cols())))) {
       result.status = StepStatus::kInvalidInput;
       return result;
     }
@@ -211,7 +252,9 @@ UpdateResult EkfState::UpdateIterated(const MeasurementFunction& linearize, std:
     const Eigen::MatrixXd I_KH = Eigen::MatrixXd::Identity(dim(), dim()) - K * lin->H;
     P_new = I_KH * covariance_ * I_KH.transpose() + K * lin->R * K.transpose();
   }
-  result.status = WriteCovariance(P_new, UpdatedCross(K, *lin));
+  Eigen::MatrixXd cross_factor;
+  std::vector<CrossEntry> cross = UpdatedCross(K, *lin, *gain, &cross_factor);
+  result.status = WriteCovariance(P_new, std::move(cross), std::move(cross_factor));
   if (result.status != StepStatus::kOk) return result;
   ++updates_;
   mean_ = iterate.mean_;

@@ -35,6 +35,16 @@
 //     P = P - K S K^T,   C_j = C_j - K (H C_j + [j = m] H_m Sigma_m)   for every kept j
 // Without the C_m the filter would take the same marker error as new information at every
 // sighting and grow overconfident (NEES ~2x with a learned map: docs/online.md).
+//
+// Correlated markers (map.json `covariance_factor`, mapping/map_covariance.h). Markers of a
+// learned map share the survey's drift: eps_m = F_m xi + eta_m with xi ~ N(0, I_k) common to all
+// markers and eta_m ~ N(0, D_m), D_m = Sigma_m - F_m F_m^T, independent. xi is k more consider
+// parameters, kept for good (never dropped): C_xi = E[delta xi^T] (dim x k). With A_m = H_m F_m:
+//   Propagate: C_xi = F C_xi
+//   Update:  S = H P H^T + R + [H C_m H_m^T + H_m D_m H_m^T + H C_xi A_m^T + (both transposed)] + A_m A_m^T
+//            K = (P H^T + C_m H_m^T + C_xi A_m^T) S^-1,   P = P - K S K^T
+//            C_xi = C_xi - K (H C_xi + A_m),   C_j = C_j - K (H C_j + [j = m] H_m D_m)
+// (C_m and Sigma_m of the per-marker part above become D_m's). Without a factor, k = 0 and D_m = Sigma_m.
 #pragma once
 
 #include <Eigen/Core>
@@ -77,7 +87,8 @@ using CrossCovariance = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, 4, 6>;
 struct ConsideredMarker {
   MarkerKey key;
   Eigen::MatrixXd H_marker;  // d h / d eps_m (rows of the measurement x 6)
-  Matrix6d covariance;       // Sigma_m
+  Matrix6d covariance;       // Sigma_m (the full marginal)
+  CovarianceFactor factor;   // F_m; no columns when the map has none
 };
 
 // A measurement linearized at some mean: y = z [-] h(mean), H = dh/dx there, R its noise
@@ -120,9 +131,15 @@ class EkfState {
   // marker that initialized the state).
   StepStatus Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
                    const CrossCovariance& cross);
+  // The same when the marker has a factor F_m: with cross = A Sigma_m (A = cross Sigma_m^-1),
+  // C_m = A D_m and C_xi = A F_m. kInvalidInput when Sigma_m is not positive definite.
+  StepStatus Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
+                   const CrossCovariance& cross, const Matrix6d& marker_covariance, const CovarianceFactor& factor);
   // C_m, zero when the marker is not kept.
   CrossCovariance Cross(const MarkerKey& key) const;
   size_t considered_markers() const { return cross_.size(); }
+  // C_xi (dim x k); no columns until a marker with a factor was used.
+  const Eigen::MatrixXd& cross_factor() const { return cross_factor_; }
   // How many markers keep their C_m (the most recently used; default 16, >= 1).
   void set_max_considered(size_t count) { max_considered_ = std::max<size_t>(count, 1); }
   // Prediction step; mean_new = f(mean, u) computed by the caller (online/motion_model.h).
@@ -148,16 +165,20 @@ class EkfState {
   };
   // The one writer of covariance_ and cross_: symmetrizes P, and keeps the old P and C_m
   // (returning an error) when the new ones are not finite.
-  StepStatus WriteCovariance(const Eigen::MatrixXd& covariance, std::vector<CrossEntry> cross);
-  // One iteration's S, P H^T + C_m H_m^T and the kept C_m of the considered marker.
+  StepStatus WriteCovariance(const Eigen::MatrixXd& covariance, std::vector<CrossEntry> cross,
+                             Eigen::MatrixXd cross_factor);
+  // One iteration's S, P H^T + C_m H_m^T + C_xi A_m^T, D_m and A_m.
   struct Gain;
   std::optional<Gain> ComputeGain(const Linearization& lin) const;
-  std::vector<CrossEntry> UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin) const;
+  // The C_j and C_xi after the update with gain K.
+  std::vector<CrossEntry> UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin, const Gain& gain,
+                                       Eigen::MatrixXd* cross_factor) const;
 
   MotionModel motion_;
   Eigen::VectorXd mean_;
   Eigen::MatrixXd covariance_;
   std::vector<CrossEntry> cross_;
+  Eigen::MatrixXd cross_factor_;  // C_xi
   size_t max_considered_ = 16;
   long updates_ = 0;
   Eigen::Matrix3d R_level_ = Eigen::Matrix3d::Identity();

@@ -279,7 +279,8 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
                                   map_uncertainty == MapUncertainty::kInNoise ? marker.covariance : std::nullopt),
                       std::nullopt};
     if (map_uncertainty == MapUncertainty::kConsider)
-      lin.consider = ConsideredMarker{marker.key, p->J_marker, *marker.covariance};
+      lin.consider = ConsideredMarker{marker.key, p->J_marker, *marker.covariance,
+                                      marker.covariance_factor.value_or(CovarianceFactor(6, 0))};
     return lin;
   };
   FinishCorrection(state_.UpdateIterated(linearize, gate_tight_, options_.tight_iterations), &result);
@@ -326,8 +327,10 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
   }
   const Eigen::VectorXd mean = PoseToStateVector(code.T_world_robot, options_.motion);
   const bool consider = options_.map_uncertainty == MapUncertainty::kConsider && marker.covariance;
-  const StepStatus status = consider ? state_.Reset(mean, code.covariance, marker.key, code.cross_marker)
-                                     : state_.Reset(mean, code.covariance);
+  const StepStatus status =
+      consider ? state_.Reset(mean, code.covariance, marker.key, code.cross_marker, *marker.covariance,
+                              marker.covariance_factor.value_or(CovarianceFactor(6, 0)))
+               : state_.Reset(mean, code.covariance);
   if (status != StepStatus::kOk) return false;
   state_.SetLevel(code.T_world_robot.rotation_matrix());
   tracking_ = TrackingStatus::kTracking;

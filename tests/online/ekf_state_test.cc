@@ -160,7 +160,7 @@ TEST(EkfStateTest, ConsiderUpdateCovarianceIsTheTrueErrorCovariance) {
   const Eigen::MatrixXd R = Eigen::MatrixXd::Identity(8, 8) * 0.25;
   for (int k = 0; k < 6; ++k) {
     const Eigen::MatrixXd H = random(8, 3), H_m = 10.0 * random(8, 6);
-    const Linearization lin{Eigen::VectorXd::Zero(8), H, R, ConsideredMarker{key, H_m, Sigma}};
+    const Linearization lin{Eigen::VectorXd::Zero(8), H, R, ConsideredMarker{key, H_m, Sigma, {}}};
     const Eigen::MatrixXd S = H * state.covariance() * H.transpose() + H * state.Cross(key) * H_m.transpose() +
                               H_m * state.Cross(key).transpose() * H.transpose() + H_m * Sigma * H_m.transpose() + R;
     const Eigen::MatrixXd K =
@@ -188,6 +188,100 @@ TEST(EkfStateTest, ConsiderUpdateCovarianceIsTheTrueErrorCovariance) {
   EXPECT_EQ(Eigen::MatrixXd(state.Cross(key)), Eigen::MatrixXd::Zero(3, 6));
 }
 
+// Markers with a joint covariance factor (eps_i = F_i xi + eta_i): the filter's P, and its
+// correlation with every marker error, C_xi F_j^T + C_j, equal those of the Schmidt filter on
+// the augmented vector [delta; eps_1 .. eps_M] with the full joint map covariance
+// F F^T + blockdiag(D_i), propagated and updated in full (the marker rows get no gain).
+TEST(EkfStateTest, ConsiderWithFactorMatchesAugmentedSchmidtFilter) {
+  std::mt19937 rng(23);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const auto random = [&](int rows, int cols) {
+    Eigen::MatrixXd M(rows, cols);
+    for (int i = 0; i < M.size(); ++i) M(i) = normal(rng);
+    return M;
+  };
+  constexpr int kMarkers = 3, kRank = 2, kDim = 3, kAug = kDim + 6 * kMarkers;
+  const Eigen::MatrixXd F_all = 0.01 * random(6 * kMarkers, kRank);
+  std::vector<Matrix6d> D(kMarkers), Sigma(kMarkers);
+  Eigen::MatrixXd joint = F_all * F_all.transpose();
+  for (int i = 0; i < kMarkers; ++i) {
+    const Eigen::MatrixXd B = 0.003 * random(6, 6);
+    D[i] = B * B.transpose() + Matrix6d::Identity() * 1e-6;
+    joint.block<6, 6>(6 * i, 6 * i) += D[i];
+    Sigma[i] = joint.block<6, 6>(6 * i, 6 * i);
+  }
+  const auto key = [](int i) { return MarkerKey{kFamilyQr, std::to_string(i)}; };
+  EkfState state(MotionModel::kPlanar);
+  state.set_max_considered(kMarkers);
+  const Eigen::Matrix3d P0 = SomeCovariance();
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), P0), StepStatus::kOk);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(kAug, kAug);  // covariance of [delta; eps]
+  J.topLeftCorner(kDim, kDim) = P0;
+  J.bottomRightCorner(6 * kMarkers, 6 * kMarkers) = joint;
+  const Eigen::MatrixXd R = Eigen::MatrixXd::Identity(8, 8) * 0.25;
+  for (int step = 0; step < 9; ++step) {
+    const int m = (step * 2) % kMarkers;
+    const Eigen::MatrixXd H = random(8, kDim), H_m = 10.0 * random(8, 6);
+    const CovarianceFactor F_m = F_all.middleRows(6 * m, 6);
+    const Linearization lin{random(8, 1), H, R, ConsideredMarker{key(m), H_m, Sigma[m], F_m}};
+    Eigen::MatrixXd H_aug = Eigen::MatrixXd::Zero(8, kAug);
+    H_aug.leftCols(kDim) = H;
+    H_aug.middleCols(kDim + 6 * m, 6) = H_m;
+    const Eigen::MatrixXd S = H_aug * J * H_aug.transpose() + R;
+    const Eigen::MatrixXd K = J.topRows(kDim) * H_aug.transpose() * S.inverse();
+    const Eigen::VectorXd mean_expected = state.mean() + K * lin.innovation;
+    ASSERT_TRUE(state.UpdateIterated([&lin](const EkfState&) { return lin; }, std::nullopt, 1).accepted);
+    Eigen::MatrixXd A = Eigen::MatrixXd::Identity(kAug, kAug);
+    A.topRows(kDim) -= K * H_aug;
+    J = A * J * A.transpose();
+    J.topLeftCorner(kDim, kDim) += K * R * K.transpose();
+    EXPECT_LT((state.mean() - mean_expected).norm(), 1e-10 * mean_expected.norm()) << "update " << step;
+    EXPECT_LT((state.covariance() - J.topLeftCorner(kDim, kDim)).norm(), 1e-9 * J.norm()) << "update " << step;
+    ASSERT_EQ(state.cross_factor().cols(), kRank);
+    for (int i = 0; i < kMarkers; ++i) {
+      const Eigen::MatrixXd cross = state.cross_factor() * F_all.middleRows(6 * i, 6).transpose() +
+                                    Eigen::MatrixXd(state.Cross(key(i)));
+      EXPECT_LT((cross - J.block(0, kDim + 6 * i, kDim, 6)).norm(), 1e-9 * J.norm()) << "update " << step;
+    }
+    const Eigen::Matrix3d F = Eigen::Matrix3d::Identity() + 0.1 * random(3, 3);
+    const Eigen::Matrix3d Q = Eigen::Matrix3d::Identity() * 1e-4;
+    ASSERT_EQ(state.Propagate(state.mean(), F, Eigen::Matrix3d::Identity(), Q), StepStatus::kOk);
+    Eigen::MatrixXd A_f = Eigen::MatrixXd::Identity(kAug, kAug);
+    A_f.topLeftCorner(kDim, kDim) = F;
+    J = A_f * J * A_f.transpose();
+    J.topLeftCorner(kDim, kDim) += Q;
+  }
+  // A factor with another number of columns than the map's so far is invalid input.
+  const Linearization wrong_k{Eigen::VectorXd::Zero(8), random(8, kDim), R,
+                              ConsideredMarker{key(0), random(8, 6), Sigma[0], CovarianceFactor::Zero(6, kRank + 1)}};
+  EXPECT_EQ(state.UpdateIterated([&](const EkfState&) { return wrong_k; }, std::nullopt, 1).status,
+            StepStatus::kInvalidInput);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), P0), StepStatus::kOk);  // forgets C_xi
+  EXPECT_EQ(state.cross_factor().cols(), 0);
+}
+
+// Initialization from a code whose map error has a factor: cross = A Sigma_m splits into
+// C_m = A D_m and C_xi = A F_m.
+TEST(EkfStateTest, ResetSplitsTheMarkerCrossCovariance) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd A(3, 6), B(6, 6), F(6, 2);
+  for (int i = 0; i < A.size(); ++i) A(i) = normal(rng);
+  for (int i = 0; i < B.size(); ++i) B(i) = 0.01 * normal(rng);
+  for (int i = 0; i < F.size(); ++i) F(i) = 0.01 * normal(rng);
+  const Matrix6d D = B * B.transpose() + Matrix6d::Identity() * 1e-6;
+  const Matrix6d Sigma = D + F * F.transpose();
+  const MarkerKey key{kFamilyQr, "a"};
+  EkfState state(MotionModel::kPlanar);
+  ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), SomeCovariance(), key, CrossCovariance(A * Sigma), Sigma, F),
+            StepStatus::kOk);
+  EXPECT_LT((Eigen::MatrixXd(state.Cross(key)) - A * D).norm(), 1e-9 * (A * D).norm());
+  EXPECT_LT((state.cross_factor() - A * F).norm(), 1e-9 * (A * F).norm());
+  EXPECT_EQ(state.Reset(Eigen::Vector3d::Zero(), SomeCovariance(), key, CrossCovariance(A * Sigma),
+                        Matrix6d::Zero(), F),
+            StepStatus::kInvalidInput);
+}
+
 // Only the `max_considered` most recently used markers keep their C_m.
 TEST(EkfStateTest, ConsideredMarkersAreCapped) {
   EkfState state(MotionModel::kPlanar);
@@ -199,7 +293,7 @@ TEST(EkfStateTest, ConsideredMarkersAreCapped) {
   H_m(0, 3) = H_m(1, 4) = 1.0;
   for (const char* id : {"a", "b", "c"}) {
     const Linearization lin{Eigen::Vector2d::Zero(), H, Eigen::Matrix2d::Identity() * 1e-4,
-                            ConsideredMarker{{kFamilyQr, id}, H_m, Matrix6d::Identity() * 1e-4}};
+                            ConsideredMarker{{kFamilyQr, id}, H_m, Matrix6d::Identity() * 1e-4, {}}};
     ASSERT_TRUE(state.UpdateIterated([&lin](const EkfState&) { return lin; }, std::nullopt, 1).accepted);
   }
   EXPECT_EQ(state.considered_markers(), 2u);
