@@ -16,6 +16,7 @@
 
 #include "factors/odometry_se2_factor.h"
 #include "mapping/calibrated_odometry_factor.h"
+#include "mapping/map_covariance.h"
 #include "factors/odometry_se3_factor.h"
 #include "factors/pose_prior_se3_factor.h"
 #include "factors/position_prior_factor.h"
@@ -68,6 +69,10 @@ class GlobalProblem {
   double SquaredError(int o) const;
   // Marker covariances in map.json's convention; false when Ceres cannot compute them.
   bool Covariances(std::vector<std::optional<Matrix6d>>* covariance) const;
+  // The markers' rows of the joint covariance factor (mapping/map_covariance.h), given their
+  // marginals; all nullopt when it cannot be computed.
+  std::vector<std::optional<CovarianceFactor>> CovarianceFactors(
+      const std::vector<std::optional<Matrix6d>>& covariance, int rank) const;
 
   // Re-places the codes with an observation above the outlier gate by consensus over their
   // views at the current frame poses (mapping/initializer.h); returns how many moved.
@@ -285,6 +290,31 @@ bool GlobalProblem::Covariances(std::vector<std::optional<Matrix6d>>* covariance
     (*covariance)[m] = 0.5 * (body + body.transpose());
   }
   return true;
+}
+
+std::vector<std::optional<CovarianceFactor>> GlobalProblem::CovarianceFactors(
+    const std::vector<std::optional<Matrix6d>>& covariance, int rank) const {
+  std::vector<std::optional<CovarianceFactor>> factors(survey_.markers.size());
+  std::vector<size_t> index;
+  std::vector<const double*> blocks;
+  std::vector<SE3d> poses;
+  std::vector<Matrix6d> marginals;
+  for (size_t m = 0; m < survey_.markers.size(); ++m) {
+    const double* block = marker_[m].data();
+    if (!covariance[m] || std::find(covariance_markers_.begin(), covariance_markers_.end(), block) ==
+                              covariance_markers_.end()) {
+      continue;
+    }
+    index.push_back(m);
+    blocks.push_back(block);
+    poses.push_back(Marker(static_cast<int>(m)));
+    marginals.push_back(*covariance[m]);
+  }
+  CovarianceFactorOptions options;
+  options.rank = rank;
+  const auto rows = MarkerCovarianceFactors(problem_.get(), blocks, poses, marginals, options);
+  for (size_t i = 0; rows && i < index.size(); ++i) factors[index[i]] = (*rows)[i];
+  return factors;
 }
 
 // Observations usable in the optimization: a usable single view, both ends placed.
@@ -548,6 +578,10 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     result.covariance_computed = problem.Covariances(&covariance);
     if (result.covariance_computed) {
       for (MapMarker& marker : result.map.markers) marker.covariance = covariance[survey.FindMarker(marker.key)];
+      if (options.covariance_factor_rank > 0) {
+        const auto factors = problem.CovarianceFactors(covariance, options.covariance_factor_rank);
+        for (MapMarker& marker : result.map.markers) marker.covariance_factor = factors[survey.FindMarker(marker.key)];
+      }
     } else {
       result.notes.push_back("marker covariances could not be computed (rank-deficient problem)");
     }

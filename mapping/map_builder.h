@@ -55,6 +55,8 @@ struct MapBuildOptions {
   int max_iterations = 200;
   int num_threads = 1;
   bool compute_covariance = true;
+  // Columns k of each marker's covariance_factor (mapping/map_covariance.h); 0: none.
+  int covariance_factor_rank = 20;
   std::function<void(const std::string&)> progress;  // progress lines, if set
   bool Check(std::string* why) const;
 };

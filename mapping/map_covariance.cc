@@ -1,0 +1,127 @@
+#include "mapping/map_covariance.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <map>
+#include <random>
+
+#include "factors/pose_block.h"
+
+namespace waymark {
+namespace {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
+
+// J of the problem at its current values over its free blocks (tangent coordinates), and the
+// first column of each block.
+SparseMatrix EvaluateJacobian(ceres::Problem* problem, std::map<const double*, int>* column_of) {
+  std::vector<double*> blocks;
+  problem->GetParameterBlocks(&blocks);
+  ceres::Problem::EvaluateOptions evaluate;
+  int columns = 0;
+  for (double* block : blocks) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    evaluate.parameter_blocks.push_back(block);
+    (*column_of)[block] = columns;
+    columns += problem->ParameterBlockTangentSize(block);
+  }
+  ceres::CRSMatrix crs;
+  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return SparseMatrix();
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(crs.values.size());
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int i = crs.rows[r]; i < crs.rows[r + 1]; ++i) entries.emplace_back(r, crs.cols[i], crs.values[i]);
+  }
+  SparseMatrix J(crs.num_rows, crs.num_cols);
+  J.setFromTriplets(entries.begin(), entries.end());
+  return J;
+}
+
+Eigen::MatrixXd Orthonormalize(const Eigen::MatrixXd& Y) {
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Y);
+  return qr.householderQ() * Eigen::MatrixXd::Identity(Y.rows(), Y.cols());
+}
+
+}  // namespace
+
+Eigen::MatrixXd TopEigenFactor(const std::function<Eigen::MatrixXd(const Eigen::MatrixXd&)>& apply, int n,
+                               const CovarianceFactorOptions& options) {
+  const int k = std::clamp(options.rank, 0, n);
+  const int l = std::min(n, k + std::max(options.oversampling, 0));
+  if (k == 0) return Eigen::MatrixXd::Zero(n, 0);
+  std::mt19937_64 rng(options.seed);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd Y(n, l);
+  for (int c = 0; c < l; ++c) {
+    for (int r = 0; r < n; ++r) Y(r, c) = normal(rng);
+  }
+  Y = apply(Y);
+  for (int q = 0; q < options.power_iterations; ++q) Y = apply(Orthonormalize(Y));
+  const Eigen::MatrixXd Q = Orthonormalize(Y);
+  Eigen::MatrixXd B = Q.transpose() * apply(Q);
+  B = 0.5 * (B + B.transpose()).eval();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(B);  // ascending eigenvalues
+  const Eigen::VectorXd lambda = eigen.eigenvalues().tail(k).cwiseMax(0.0);
+  return Q * eigen.eigenvectors().rightCols(k) * lambda.cwiseSqrt().asDiagonal();
+}
+
+double FitFactorToMarginal(const Matrix6d& marginal, CovarianceFactor* factor) {
+  const Eigen::LLT<Matrix6d> llt(marginal);
+  if (llt.info() != Eigen::Success) {
+    factor->setZero();
+    return 0.0;
+  }
+  const Eigen::MatrixXd M = llt.matrixL().solve(*factor);  // L^-1 F_i
+  const double lambda_max = Eigen::SelfAdjointEigenSolver<Matrix6d>(M * M.transpose()).eigenvalues().maxCoeff();
+  if (lambda_max <= 1.0) return 1.0;
+  const double scale = (1.0 - 1e-9) / std::sqrt(lambda_max);
+  *factor *= scale;
+  return scale;
+}
+
+std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
+    ceres::Problem* problem, const std::vector<const double*>& marker_blocks, const std::vector<SE3d>& T_world_marker,
+    const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options) {
+  const size_t count = marker_blocks.size();
+  if (count == 0 || T_world_marker.size() != count || marginal.size() != count) return std::nullopt;
+  std::map<const double*, int> column_of;
+  const SparseMatrix J = EvaluateJacobian(problem, &column_of);
+  if (J.cols() == 0) return std::nullopt;
+  std::vector<int> columns;
+  std::vector<Matrix6d> B;  // manifold -> body tangent
+  for (size_t i = 0; i < count; ++i) {
+    const auto it = column_of.find(marker_blocks[i]);
+    if (it == column_of.end() || problem->ParameterBlockTangentSize(marker_blocks[i]) != 6) return std::nullopt;
+    columns.push_back(it->second);
+    B.push_back(ManifoldToBodyTangentJacobian(T_world_marker[i]));
+  }
+  const SparseMatrix H = SparseMatrix(J.transpose() * J);
+  const Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> llt(H);
+  if (llt.info() != Eigen::Success) return std::nullopt;
+  // A free gauge shows as a pivot at round-off level (P H P^T = L L^T).
+  const Eigen::VectorXd H_diagonal = llt.permutationP() * Eigen::VectorXd(H.diagonal());
+  const Eigen::VectorXd L_diagonal = SparseMatrix(llt.matrixL()).diagonal();
+  if ((L_diagonal.array().square() < 1e-12 * H_diagonal.array()).any()) return std::nullopt;
+  const auto apply = [&](const Eigen::MatrixXd& X) {  // Sigma X, body tangent
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(H.rows(), X.cols());
+    for (size_t i = 0; i < count; ++i) rhs.middleRows<6>(columns[i]) = B[i].transpose() * X.middleRows<6>(6 * i);
+    const Eigen::MatrixXd Z = llt.solve(rhs);
+    Eigen::MatrixXd Y(X.rows(), X.cols());
+    for (size_t i = 0; i < count; ++i) Y.middleRows<6>(6 * i) = B[i] * Z.middleRows<6>(columns[i]);
+    return Y;
+  };
+  const Eigen::MatrixXd F = TopEigenFactor(apply, static_cast<int>(6 * count), options);
+  if (!F.allFinite()) return std::nullopt;
+  std::vector<CovarianceFactor> rows(count);
+  for (size_t i = 0; i < count; ++i) {
+    rows[i] = F.middleRows<6>(6 * i);
+    FitFactorToMarginal(marginal[i], &rows[i]);
+  }
+  return rows;
+}
+
+}  // namespace waymark
