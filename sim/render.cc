@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/detect_synthetic.h"
@@ -26,9 +27,16 @@ constexpr float kDarkAlbedo = 0.06f;
 constexpr float kLightAlbedo = 0.85f;
 constexpr double kCodeWinsRelative = 1e-5;  // coplanar code vs wall: the printed code wins
 constexpr int kOutlineSamplesPerEdge = 16;
+constexpr double kMinRayDepth = 1e-9;  // nearest hit along a ray (z = 1 normalized)
+// Pixels per side of the tiles over which the background surfaces are culled.
+constexpr int kTilePx = 32;
 constexpr double kBoxPaddingPx = 2.0;
 // Sub-samples per pixel axis of the optical blur around codes (see BlurAlbedo).
 constexpr int kBlurSupersample = 4;
+
+// Pixels around a code that its optical blur reaches: 4 sigma + 1, more than the radius of
+// OpenCV's float Gaussian kernel (ksize = round(8 sigma + 1) | 1).
+int BlurReachPx(double sigma_px) { return static_cast<int>(std::ceil(4.0 * sigma_px)) + 1; }
 
 enum class SurfaceKind { kWall, kFloor, kCeiling, kCode };
 
@@ -44,6 +52,12 @@ struct Surface {
   double half_width_m = 0.0;  // walls only; floor and ceiling are unbounded
   double half_height_m = 0.0;
   cv::Rect box_px;  // codes only: pixels that can see it
+  int id = 0;       // background only: its index in FramePlanes::background
+  // Walls only: bounding box of the wall's part in front of the camera, projected on the
+  // normalized image plane (x/z, y/z), where the cached rays (x, y, 1) live; a ray outside
+  // it cannot hit the wall. Empty when the wall is wholly behind the camera.
+  bool bounded = false;
+  Eigen::AlignedBox2d view_box;
 };
 
 Surface MakeSurface(SurfaceKind kind, int index, const SE3d& T_camera_world, const SE3d& T_world_plane) {
@@ -137,8 +151,54 @@ int CodeModule(const CodeTexture& code, const Eigen::Vector3d& p_marker) {
   return code.modules.at<std::uint8_t>(static_cast<int>(row), static_cast<int>(col));
 }
 
-// Pixel box that can see the code's quiet-zone outline; empty if none.
-cv::Rect CodeBox(const Camera& camera, const CodeTexture& code, const SE3d& T_camera_marker) {
+// The part of a wall in front of the camera (z >= kMinRayDepth), projected on the
+// normalized image plane: its bounding box (empty if none). The polygon is clipped against
+// the plane z = kMinRayDepth (Sutherland-Hodgman with one plane).
+Eigen::AlignedBox2d WallViewBox(const SE3d& T_camera_panel, double half_width_m, double half_height_m) {
+  const double sx[4] = {-1.0, 1.0, 1.0, -1.0}, sy[4] = {-1.0, -1.0, 1.0, 1.0};
+  Eigen::Vector3d corner_camera[4];
+  for (int k = 0; k < 4; ++k) {
+    corner_camera[k] = T_camera_panel * Eigen::Vector3d(sx[k] * half_width_m, sy[k] * half_height_m, 0.0);
+  }
+  Eigen::AlignedBox2d box;  // empty
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector3d& a = corner_camera[k];
+    const Eigen::Vector3d& b = corner_camera[(k + 1) % 4];
+    if (a.z() >= kMinRayDepth) box.extend(Eigen::Vector2d(a.x() / a.z(), a.y() / a.z()));
+    if ((a.z() >= kMinRayDepth) != (b.z() >= kMinRayDepth)) {  // the edge crosses the clip plane
+      const Eigen::Vector3d c = a + (kMinRayDepth - a.z()) / (b.z() - a.z()) * (b - a);
+      box.extend(Eigen::Vector2d(c.x() / kMinRayDepth, c.y() / kMinRayDepth));
+    }
+  }
+  return box;
+}
+
+// Pixel box of the rays (cached, through pixel centres) inside the normalized-plane box
+// `view` widened by `margin`; empty if none. Rays outside the lens' field of view are NaN
+// and never inside.
+cv::Rect RayBoxPixels(const Camera& camera, const std::vector<Eigen::Vector3f>& rays,
+                      const Eigen::AlignedBox2d& view, double margin) {
+  int min_c = camera.width(), min_r = camera.height(), max_c = -1, max_r = -1;
+  const double x0 = view.min().x() - margin, x1 = view.max().x() + margin;
+  const double y0 = view.min().y() - margin, y1 = view.max().y() + margin;
+  for (int r = 0; r < camera.height(); ++r) {
+    const Eigen::Vector3f* row = &rays[static_cast<size_t>(r) * camera.width()];
+    for (int c = 0; c < camera.width(); ++c) {
+      if (!(row[c].x() >= x0 && row[c].x() <= x1 && row[c].y() >= y0 && row[c].y() <= y1)) continue;
+      min_c = std::min(min_c, c), max_c = std::max(max_c, c);
+      min_r = std::min(min_r, r), max_r = std::max(max_r, r);
+    }
+  }
+  if (max_c < 0) return cv::Rect();
+  return cv::Rect(cv::Point(min_c, min_r), cv::Point(max_c + 1, max_r + 1));
+}
+
+// Pixel box that can see the code's quiet-zone outline; empty if none. A code wholly in
+// front of the camera: the outline sampled at 16 points per edge, projected, padded by
+// kBoxPaddingPx. A code crossing the camera plane: the pixels whose ray meets the view box
+// of its part in front (WallViewBox), widened by kBoxPaddingPx pixels' worth.
+cv::Rect CodeBox(const Camera& camera, const std::vector<Eigen::Vector3f>& rays, const CodeTexture& code,
+                 const SE3d& T_camera_marker) {
   const double m = code.module_m;
   const double x0 = -0.5 * code.size_m - code.symbol.x * m;
   const double y1 = 0.5 * code.size_m + code.symbol.y * m;
@@ -151,7 +211,13 @@ cv::Rect CodeBox(const Camera& camera, const CodeTexture& code, const SE3d& T_ca
     behind += (T_camera_marker * Eigen::Vector3d(outline[corner].x(), outline[corner].y(), 0.0)).z() <= kMinDepth;
   }
   if (behind == 4) return cv::Rect();  // wholly behind the camera
-  if (behind > 0) return image;        // straddles the camera plane: test every pixel
+  if (behind > 0) {                    // straddles the camera plane
+    const SE3d T_camera_outline = T_camera_marker * SE3d(Eigen::Quaterniond::Identity(),
+                                                         Eigen::Vector3d(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0));
+    const Eigen::AlignedBox2d view = WallViewBox(T_camera_outline, 0.5 * (x1 - x0), 0.5 * (y1 - y0));
+    const auto& k = camera.info().intrinsics;
+    return view.isEmpty() ? cv::Rect() : RayBoxPixels(camera, rays, view, (kBoxPaddingPx + 1.0) / std::min(k[0], k[1]));
+  }
   for (int edge = 0; edge < 4; ++edge) {
     for (int k = 0; k < kOutlineSamplesPerEdge; ++k) {
       const double a = static_cast<double>(k) / kOutlineSamplesPerEdge;
@@ -178,7 +244,7 @@ double Intersect(const Surface& s, const Eigen::Vector3d& ray_camera, Eigen::Vec
   const double denom = s.n_camera.dot(ray_camera);
   if (std::abs(denom) < 1e-12) return INFINITY;
   const double t = s.d_camera / denom;
-  if (!(t > 1e-9)) return INFINITY;
+  if (!(t > kMinRayDepth)) return INFINITY;
   *p_plane = s.R_plane_camera * (t * ray_camera) + s.t_plane_camera;
   if (s.kind == SurfaceKind::kWall &&
       (std::abs(p_plane->x()) > s.half_width_m || std::abs(p_plane->y()) > s.half_height_m)) {
@@ -195,22 +261,24 @@ struct FramePlanes {
 };
 
 // Albedo seen along ray_camera (z = 1 normalized), and the id of the surface it hit
-// (-1: nothing; codes are numbered after the background surfaces).
-float Shade(const Eigen::Vector3d& ray_camera, const std::vector<Surface>& background,
+// (-1: nothing; codes are numbered after the background surfaces). `background` holds the
+// surfaces the ray can hit, in FramePlanes order (the first of equal depths wins).
+float Shade(const Eigen::Vector3d& ray_camera, const std::vector<const Surface*>& background,
             const std::vector<const Surface*>& codes, const std::vector<CodeTexture>& textures,
-            double contrast, int* surface_id) {
+            int background_count, double contrast, int* surface_id) {
   double best_t = INFINITY;
-  float albedo = 0.0f;
-  *surface_id = -1;
-  Eigen::Vector3d p_plane;
-  for (size_t i = 0; i < background.size(); ++i) {
-    const double t = Intersect(background[i], ray_camera, &p_plane);
+  const Surface* best = nullptr;
+  Eigen::Vector3d p_plane, best_p_plane;
+  for (const Surface* s : background) {
+    const double t = Intersect(*s, ray_camera, &p_plane);
     if (t < best_t) {
       best_t = t;
-      albedo = BackgroundAlbedo(background[i], p_plane, contrast);
-      *surface_id = static_cast<int>(i);
+      best = s;
+      best_p_plane = p_plane;
     }
   }
+  float albedo = best != nullptr ? BackgroundAlbedo(*best, best_p_plane, contrast) : 0.0f;
+  *surface_id = best != nullptr ? best->id : -1;
   double best_code_t = INFINITY;
   for (const Surface* s : codes) {
     const double t = Intersect(*s, ray_camera, &p_plane);
@@ -219,10 +287,11 @@ float Shade(const Eigen::Vector3d& ray_camera, const std::vector<Surface>& backg
     if (module < 0) continue;
     best_code_t = t;
     albedo = module < 128 ? kDarkAlbedo : kLightAlbedo;
-    *surface_id = static_cast<int>(background.size()) + s->index;
+    *surface_id = background_count + s->index;
   }
   return albedo;
 }
+
 
 }  // namespace
 
@@ -307,7 +376,8 @@ namespace {
 
 // The planes a camera at T_world_camera sees: walls, floor, ceiling, and the codes facing it.
 FramePlanes MakeFramePlanes(const World& world, const std::vector<CodeTexture>& textures, double ceiling_z_m,
-                            const Camera& camera, const SE3d& T_world_camera) {
+                            const Camera& camera, const std::vector<Eigen::Vector3f>& rays,
+                            const SE3d& T_world_camera) {
   const SE3d T_camera_world = T_world_camera.inverse();
   FramePlanes planes;
   for (size_t i = 0; i < world.occluders.size(); ++i) {
@@ -315,21 +385,76 @@ FramePlanes MakeFramePlanes(const World& world, const std::vector<CodeTexture>& 
     Surface s = MakeSurface(SurfaceKind::kWall, static_cast<int>(i), T_camera_world, o.T_world_panel);
     s.half_width_m = o.half_width_m;
     s.half_height_m = o.half_height_m;
+    s.bounded = true;
+    s.view_box = WallViewBox(T_camera_world * o.T_world_panel, o.half_width_m, o.half_height_m);
     planes.background.push_back(s);
   }
   planes.background.push_back(MakeSurface(SurfaceKind::kFloor, 0, T_camera_world, SE3d()));
   planes.background.push_back(MakeSurface(SurfaceKind::kCeiling, 0, T_camera_world,
                                           SE3d(Eigen::Quaterniond::Identity(),
                                                Eigen::Vector3d(0.0, 0.0, ceiling_z_m))));
+  for (size_t i = 0; i < planes.background.size(); ++i) planes.background[i].id = static_cast<int>(i);
   for (size_t i = 0; i < world.markers.size(); ++i) {
     const SE3d T_camera_marker = T_camera_world * world.markers[i].T_world_marker;
     Surface s = MakeSurface(SurfaceKind::kCode, static_cast<int>(i), T_camera_world,
                             world.markers[i].T_world_marker);
     if (s.t_plane_camera.z() <= 0.0) continue;  // seen from behind (or edge-on)
-    s.box_px = CodeBox(camera, textures[i], T_camera_marker);
+    s.box_px = CodeBox(camera, rays, textures[i], T_camera_marker);
     if (!s.box_px.empty()) planes.codes.push_back(s);
   }
   return planes;
+}
+
+// The background surfaces that a ray through the pixels of `tile_px` (sub-pixel positions
+// included) can hit, in FramePlanes order. The tile's rays lie in the bounding box of the
+// cached rays of its pixels, widened by two pixels' worth (2 / f: sub-pixel offsets, the
+// image border where rays are unprojected directly, rounding); a wall whose view box misses
+// it is left out. A tile with a ray outside the lens' field of view keeps every surface.
+std::vector<const Surface*> TileBackground(const Camera& camera, const std::vector<Eigen::Vector3f>& rays,
+                                           const FramePlanes& planes, const cv::Rect& tile_px) {
+  const cv::Rect tile = tile_px & cv::Rect(0, 0, camera.width(), camera.height());
+  Eigen::AlignedBox2d ray_box;
+  bool all_finite = !tile.empty();
+  for (int r = tile.y; r < tile.y + tile.height && all_finite; ++r) {
+    const Eigen::Vector3f* row = &rays[static_cast<size_t>(r) * camera.width()];
+    for (int c = tile.x; c < tile.x + tile.width; ++c) {
+      if (!std::isfinite(row[c].x() + row[c].y())) all_finite = false;
+      ray_box.extend(Eigen::Vector2d(row[c].x(), row[c].y()));
+    }
+  }
+  const auto& k = camera.info().intrinsics;
+  const double margin = 2.0 / std::min(k[0], k[1]);
+  ray_box.min().array() -= margin;
+  ray_box.max().array() += margin;
+  std::vector<const Surface*> out;
+  for (const Surface& s : planes.background) {
+    if (all_finite && s.bounded && !s.view_box.intersects(ray_box)) continue;
+    out.push_back(&s);
+  }
+  return out;
+}
+
+// The codes whose pixel box meets `rect`.
+std::vector<const Surface*> CodesIn(const FramePlanes& planes, const cv::Rect& rect) {
+  std::vector<const Surface*> codes;
+  for (const Surface& s : planes.codes) {
+    if ((s.box_px & rect).area() > 0) codes.push_back(&s);
+  }
+  return codes;
+}
+
+// Calls body(tile) for the kTilePx tiles covering `rect`, rows of tiles in parallel (every
+// pixel is computed on its own: the result does not depend on the split).
+template <typename Body>
+void ForEachTile(const cv::Rect& rect, const Body& body) {
+  const int tiles_x = (rect.width + kTilePx - 1) / kTilePx, tiles_y = (rect.height + kTilePx - 1) / kTilePx;
+  cv::parallel_for_(cv::Range(0, tiles_y), [&](const cv::Range& range) {
+    for (int ty = range.start; ty < range.end; ++ty) {
+      for (int tx = 0; tx < tiles_x; ++tx) {
+        body(cv::Rect(rect.x + tx * kTilePx, rect.y + ty * kTilePx, kTilePx, kTilePx) & rect);
+      }
+    }
+  });
 }
 
 // Ray through pixel (x, y): bilinear between the cached rays of the four nearest pixel
@@ -360,71 +485,125 @@ cv::Mat SupersampledAlbedo(const Camera& camera, const std::vector<Eigen::Vector
                            const FramePlanes& planes, const std::vector<CodeTexture>& textures, double contrast,
                            const cv::Rect& rect, int n) {
   cv::Mat fine(rect.height * n, rect.width * n, CV_32F, cv::Scalar(0.0f));
-  std::vector<const Surface*> codes;
+  const std::vector<const Surface*> codes = CodesIn(planes, rect);
+  const int background_count = static_cast<int>(planes.background.size());
+  ForEachTile(rect, [&](const cv::Rect& tile) {
+    const std::vector<const Surface*> background = TileBackground(camera, rays, planes, tile);
+    int id = -1;
+    for (int j = (tile.y - rect.y) * n; j < (tile.y - rect.y + tile.height) * n; ++j) {
+      float* row = fine.ptr<float>(j);
+      const int gj = rect.y * n + j;  // global sub-sample indices: the jitter does not depend on rect
+      for (int i = (tile.x - rect.x) * n; i < (tile.x - rect.x + tile.width) * n; ++i) {
+        const int gi = rect.x * n + i;
+        const double x = -0.5 + (gi + Hash(gi, gj, 17)) / n;
+        const double y = -0.5 + (gj + Hash(gi, gj, 29)) / n;
+        const std::optional<Eigen::Vector3d> ray = InterpolatedRay(camera, rays, x, y);
+        if (ray) row[i] = Shade(*ray, background, codes, textures, background_count, contrast, &id);
+      }
+    }
+  });
+  return fine;
+}
+
+// Pixels whose value cannot reach the image: deeper than `reach` inside a code box, when
+// the optical blur (kernel radius < reach) later replaces the whole box (BlurAlbedo).
+cv::Mat HiddenByCodeBlur(const FramePlanes& planes, cv::Size size, int reach) {
+  cv::Mat hidden(size, CV_8U, cv::Scalar(0));
   for (const Surface& s : planes.codes) {
-    if ((s.box_px & rect).area() > 0) codes.push_back(&s);
+    const cv::Rect inner =
+        cv::Rect(s.box_px.x + reach, s.box_px.y + reach, s.box_px.width - 2 * reach, s.box_px.height - 2 * reach);
+    if (inner.width > 0 && inner.height > 0) hidden(inner & cv::Rect(cv::Point(), size)).setTo(1);
   }
-  int id = -1;
-  for (int j = 0; j < fine.rows; ++j) {
-    float* row = fine.ptr<float>(j);
-    const int gj = rect.y * n + j;  // global sub-sample indices: the jitter does not depend on rect
-    for (int i = 0; i < fine.cols; ++i) {
-      const int gi = rect.x * n + i;
-      const double x = -0.5 + (gi + Hash(gi, gj, 17)) / n;
-      const double y = -0.5 + (gj + Hash(gi, gj, 29)) / n;
-      const std::optional<Eigen::Vector3d> ray = InterpolatedRay(camera, rays, x, y);
-      if (ray) row[i] = Shade(*ray, planes.background, codes, textures, contrast, &id);
+  return hidden;
+}
+
+// Pixels to average over several rays: those that can see a code, and both pixels of every
+// horizontally or vertically adjacent pair whose centres hit different surfaces.
+cv::Mat FinePixels(const FramePlanes& planes, const cv::Mat& surface_id) {
+  const int width = surface_id.cols, height = surface_id.rows;
+  cv::Mat fine(height, width, CV_8U, cv::Scalar(0));
+  for (const Surface& s : planes.codes) fine(s.box_px).setTo(1);
+  for (int r = 0; r < height; ++r) {
+    const int* id = surface_id.ptr<int>(r);
+    const int* below = r + 1 < height ? surface_id.ptr<int>(r + 1) : nullptr;
+    std::uint8_t* f = fine.ptr<std::uint8_t>(r);
+    std::uint8_t* f_below = below != nullptr ? fine.ptr<std::uint8_t>(r + 1) : nullptr;
+    for (int c = 0; c < width; ++c) {
+      if (c + 1 < width && id[c + 1] != id[c]) f[c] = f[c + 1] = 1;
+      if (below != nullptr && below[c] != id[c]) f[c] = f_below[c] = 1;
     }
   }
   return fine;
 }
 
+// Albedo of every pixel for one ray through its centre (cached rays); the id of the surface
+// hit into *surface_id. Pixels marked in `skip` are left at 0 (id -1).
+void CentreRayAlbedo(const Camera& camera, const std::vector<Eigen::Vector3f>& rays, const FramePlanes& planes,
+                     const std::vector<CodeTexture>& textures, double contrast, const cv::Mat& skip,
+                     cv::Mat* albedo, cv::Mat* surface_id) {
+  const std::vector<const Surface*> no_codes;
+  const int background_count = static_cast<int>(planes.background.size());
+  ForEachTile(cv::Rect(0, 0, camera.width(), camera.height()), [&](const cv::Rect& tile) {
+    const std::vector<const Surface*> background = TileBackground(camera, rays, planes, tile);
+    for (int r = tile.y; r < tile.y + tile.height; ++r) {
+      for (int c = tile.x; c < tile.x + tile.width; ++c) {
+        const Eigen::Vector3f& ray = rays[static_cast<size_t>(r) * camera.width() + c];
+        if (!std::isfinite(ray.x()) || skip.at<std::uint8_t>(r, c)) continue;
+        albedo->at<float>(r, c) = Shade(ray.cast<double>(), background, no_codes, textures, background_count,
+                                        contrast, &surface_id->at<int>(r, c));
+      }
+    }
+  });
+}
+
+// The pixels marked in `fine` (and not in `skip`) averaged over n x n rays on a regular
+// sub-pixel grid, each unprojected exactly.
+void FineAlbedo(const Camera& camera, const std::vector<Eigen::Vector3f>& rays, const FramePlanes& planes,
+                const std::vector<CodeTexture>& textures, double contrast, int n, const cv::Mat& fine,
+                const cv::Mat& skip, cv::Mat* albedo) {
+  const int background_count = static_cast<int>(planes.background.size());
+  ForEachTile(cv::Rect(0, 0, camera.width(), camera.height()), [&](const cv::Rect& tile) {
+    const std::vector<const Surface*> background = TileBackground(camera, rays, planes, tile);
+    std::vector<const Surface*> codes_here;
+    for (int r = tile.y; r < tile.y + tile.height; ++r) {
+      for (int c = tile.x; c < tile.x + tile.width; ++c) {
+        if (!fine.at<std::uint8_t>(r, c) || skip.at<std::uint8_t>(r, c)) continue;
+        codes_here.clear();
+        for (const Surface& s : planes.codes) {
+          if (s.box_px.contains(cv::Point(c, r))) codes_here.push_back(&s);
+        }
+        double sum = 0.0;
+        int id = -1;
+        for (int k = 0; k < n * n; ++k) {
+          const Eigen::Vector2d px(c - 0.5 + (k % n + 0.5) / n, r - 0.5 + (k / n + 0.5) / n);
+          const std::optional<Eigen::Vector3d> ray = camera.Unproject(px);
+          if (ray) sum += Shade(*ray, background, codes_here, textures, background_count, contrast, &id);
+        }
+        albedo->at<float>(r, c) = static_cast<float>(sum / (n * n));
+      }
+    }
+  });
+}
+
 }  // namespace
 
-cv::Mat Renderer::RenderAlbedo(const Camera& camera, const SE3d& T_world_camera) const {
-  const FramePlanes planes = MakeFramePlanes(world_, codes_, ceiling_z_m_, camera, T_world_camera);
-  const int width = camera.width(), height = camera.height();
+cv::Mat Renderer::AlbedoImage(const Camera& camera, const SE3d& T_world_camera, bool skip_blurred_codes) const {
   const std::vector<Eigen::Vector3f>& rays = PixelRays(camera);
-  cv::Mat albedo(height, width, CV_32F, cv::Scalar(0.0f));
-  cv::Mat surface_id(height, width, CV_32S, cv::Scalar(-1));
-  cv::Mat fine(height, width, CV_8U, cv::Scalar(0));
-  const std::vector<const Surface*> no_codes;
-  for (int r = 0; r < height; ++r) {
-    for (int c = 0; c < width; ++c) {
-      const Eigen::Vector3f& ray = rays[static_cast<size_t>(r) * width + c];
-      if (!std::isfinite(ray.x())) continue;
-      albedo.at<float>(r, c) = Shade(ray.cast<double>(), planes.background, no_codes, codes_,
-                                     options_.texture_contrast, &surface_id.at<int>(r, c));
-    }
-  }
-  for (const Surface& s : planes.codes) fine(s.box_px).setTo(1);
-  for (int r = 0; r < height; ++r) {
-    for (int c = 0; c < width; ++c) {
-      const int id = surface_id.at<int>(r, c);
-      if (c + 1 < width && surface_id.at<int>(r, c + 1) != id) fine.at<uchar>(r, c) = fine.at<uchar>(r, c + 1) = 1;
-      if (r + 1 < height && surface_id.at<int>(r + 1, c) != id) fine.at<uchar>(r, c) = fine.at<uchar>(r + 1, c) = 1;
-    }
-  }
-  const int n = options_.supersample;
-  std::vector<const Surface*> codes_here;
-  for (int r = 0; r < height; ++r) {
-    for (int c = 0; c < width; ++c) {
-      if (!fine.at<uchar>(r, c)) continue;
-      codes_here.clear();
-      for (const Surface& s : planes.codes) {
-        if (s.box_px.contains(cv::Point(c, r))) codes_here.push_back(&s);
-      }
-      double sum = 0.0;
-      int id = -1;
-      for (int k = 0; k < n * n; ++k) {
-        const Eigen::Vector2d px(c - 0.5 + (k % n + 0.5) / n, r - 0.5 + (k / n + 0.5) / n);
-        const std::optional<Eigen::Vector3d> ray = camera.Unproject(px);
-        if (ray) sum += Shade(*ray, planes.background, codes_here, codes_, options_.texture_contrast, &id);
-      }
-      albedo.at<float>(r, c) = static_cast<float>(sum / (n * n));
-    }
-  }
+  const FramePlanes planes = MakeFramePlanes(world_, codes_, ceiling_z_m_, camera, rays, T_world_camera);
+  const cv::Size size(camera.width(), camera.height());
+  cv::Mat albedo(size, CV_32F, cv::Scalar(0.0f));
+  cv::Mat surface_id(size, CV_32S, cv::Scalar(-1));
+  const bool skip = skip_blurred_codes && options_.blur_sigma_px > 0.0;
+  const cv::Mat hidden = skip ? HiddenByCodeBlur(planes, size, BlurReachPx(options_.blur_sigma_px))
+                              : cv::Mat(size, CV_8U, cv::Scalar(0));
+  CentreRayAlbedo(camera, rays, planes, codes_, options_.texture_contrast, hidden, &albedo, &surface_id);
+  FineAlbedo(camera, rays, planes, codes_, options_.texture_contrast, options_.supersample,
+             FinePixels(planes, surface_id), hidden, &albedo);
   return albedo;
+}
+
+cv::Mat Renderer::RenderAlbedo(const Camera& camera, const SE3d& T_world_camera) const {
+  return AlbedoImage(camera, T_world_camera, false);
 }
 
 void Renderer::BlurAlbedo(const Camera& camera, const SE3d& T_world_camera, cv::Mat* albedo) const {
@@ -434,10 +613,10 @@ void Renderer::BlurAlbedo(const Camera& camera, const SE3d& T_world_camera, cv::
   // Around each code, the optical blur before the pixel integration: the albedo at n x n
   // points per pixel (over the code box plus the blur's reach), blurred at that resolution,
   // then averaged per pixel. Only the box is replaced: its border is quiet zone or background.
-  const FramePlanes planes = MakeFramePlanes(world_, codes_, ceiling_z_m_, camera, T_world_camera);
   const std::vector<Eigen::Vector3f>& rays = PixelRays(camera);
+  const FramePlanes planes = MakeFramePlanes(world_, codes_, ceiling_z_m_, camera, rays, T_world_camera);
   const int n = std::max(options_.supersample, kBlurSupersample);
-  const int reach = static_cast<int>(std::ceil(4.0 * sigma)) + 1;
+  const int reach = BlurReachPx(sigma);
   const cv::Rect image(0, 0, camera.width(), camera.height());
   for (const Surface& code : planes.codes) {
     const cv::Rect inner = code.box_px & image;
@@ -454,7 +633,8 @@ void Renderer::BlurAlbedo(const Camera& camera, const SE3d& T_world_camera, cv::
 
 cv::Mat Renderer::Render(const Camera& camera, const SE3d& T_world_camera, std::uint64_t seed,
                          std::uint64_t image_index) const {
-  cv::Mat radiance = RenderAlbedo(camera, T_world_camera);
+  // The pixels deep inside a code box are replaced by BlurAlbedo: not computed here.
+  cv::Mat radiance = AlbedoImage(camera, T_world_camera, true);
   BlurAlbedo(camera, T_world_camera, &radiance);
   std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
                     static_cast<std::uint32_t>(image_index), static_cast<std::uint32_t>(image_index >> 32),
