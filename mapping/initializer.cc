@@ -231,6 +231,32 @@ void AlignComponent(const Survey& survey, int component, Initialization* init) {
 
 }  // namespace
 
+std::optional<SE3d> OtherFlipBranch(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                                    const std::vector<SingleView>& views,
+                                    const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
+                                    const SE3d& current, const LocalMapOptions& options) {
+  std::vector<FusionView> fusion;
+  Eigen::Vector3d ray_sum = Eigen::Vector3d::Zero();
+  for (int o : survey.markers[marker].observations) {
+    const SurveyObservation& obs = survey.observations[o];
+    if (!views[o].usable || !T_world_robot[obs.frame]) continue;
+    fusion.push_back(MakeFusionView(cameras.at(obs.camera), *T_world_robot[obs.frame], obs));
+    ray_sum += (fusion.back().T_frame_camera.translation() - current.translation()).normalized();
+  }
+  if (fusion.empty() || ray_sum.norm() < 1e-9) return std::nullopt;
+  const Eigen::Vector3d v = ray_sum.normalized();
+  const Eigen::Vector3d n = current.rotation() * Eigen::Vector3d::UnitZ();
+  const Eigen::Quaterniond reflect = Eigen::Quaterniond::FromTwoVectors(n, 2.0 * n.dot(v) * v - n);
+  const SE3d mirrored(reflect * current.rotation(), current.translation());
+  if (RotationAngleBetween(mirrored, current) < kFlipCheckMinRad) return std::nullopt;  // seen head-on
+  const std::optional<FusedPose> fused =
+      FuseMarkerViews(fusion, survey.markers[marker].size_m, {current, mirrored}, false, options);
+  if (!fused || !fused->resolved || RotationAngleBetween(fused->T_frame_marker, current) < kFlipCheckMinRad) {
+    return std::nullopt;
+  }
+  return fused->T_frame_marker;
+}
+
 std::optional<SE3d> MarkerByConsensus(const Survey& survey, const std::map<std::string, Camera>& cameras,
                                       const std::vector<SingleView>& views,
                                       const std::vector<std::optional<SE3d>>& T_world_robot, int marker,

@@ -100,6 +100,24 @@ std::optional<SE3d> MarkerByConsensus(const Survey& survey, const std::map<std::
                                       const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
                                       double cauchy_scale, size_t max_candidates = 20);
 
+// The planar-flip check at solved frame poses. Inside a local map the frames come from odometry,
+// whose few tenths of a degree of error are pixels on a code 2 m away, so a code seen from one
+// place can keep the wrong branch of the planar ambiguity through the initialization; once the
+// global solve has placed every frame from all the views and the odometry, the branches are
+// compared again at those frames. The other branch of `current` is its mirror about the mean
+// viewing ray v (unit, from the code centre towards the cameras seeing it):
+//   n' = 2 (n . v) v - n      (n the code's normal, z of T_world_marker; the centre stays),
+// i.e. the rotation by twice the angle between n and v about n x v. The code is fused over all
+// its views at T_world_robot from both (mapping/local_maps.h, FuseMarkerViews); the result is the
+// fused pose when it lies on the other branch (more than kFlipCheckMinRad from `current`) and
+// the flip is resolved (alt_chi2 - chi2 >= options.flip_chi2), nullopt otherwise (current
+// branch kept, code seen head-on, no view in a placed frame).
+inline constexpr double kFlipCheckMinRad = 0.1;
+std::optional<SE3d> OtherFlipBranch(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                                    const std::vector<SingleView>& views,
+                                    const std::vector<std::optional<SE3d>>& T_world_robot, int marker,
+                                    const SE3d& current, const LocalMapOptions& options);
+
 Initialization Initialize(const Survey& survey, const InitializerOptions& options = {});
 
 }  // namespace waymark

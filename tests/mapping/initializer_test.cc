@@ -116,6 +116,61 @@ TEST(InitializerTest, FlippedFirstViewIsCorrected) {
   EXPECT_GT(init.marker_link_quality[0], 0.0);
 }
 
+// A robot turning in place (sim rooms: a code seen only from a room's centre) looking at a small
+// oblique code 2 m away; frames at their true poses, as after the global solve.
+SurveyBuilder TurnInPlaceBeforeCode(unsigned seed) {
+  std::mt19937 rng(seed);
+  SurveyBuilder builder;
+  builder.AddCode("B", WallCode(Eigen::Vector3d(2.0, 0.0, 0.3), 25.0 * kDeg), 0.08);
+  for (int i = 0; i < 12; ++i) {
+    builder.AddFrame(SE3d::FromXYZYaw(0.0, 0.0, 0.0, (-11.0 + 2.0 * i) * kDeg), {0}, true, &rng);
+  }
+  return builder;
+}
+
+std::vector<std::optional<SE3d>> TrueFrames(const SurveyBuilder& builder) {
+  std::vector<std::optional<SE3d>> T_world_robot;
+  for (size_t f = 0; f < builder.survey().frames.size(); ++f) {
+    T_world_robot.push_back(builder.robot(static_cast<int>(f)));
+  }
+  return T_world_robot;
+}
+
+TEST(InitializerTest, OtherFlipBranchTurnsAFlippedCodeBack) {
+  const SurveyBuilder builder = TurnInPlaceBeforeCode(3);
+  const Survey& survey = builder.survey();
+  const std::map<std::string, Camera> cameras = MakeCameras(survey);
+  const std::vector<SingleView> views = ComputeSingleViews(survey, cameras, 3.0);
+  const std::vector<std::optional<SE3d>> T_world_robot = TrueFrames(builder);
+  // The mirrored pose: rotated by twice the viewing angle (25 degrees) about the vertical.
+  const SE3d truth = builder.code(0);
+  const Eigen::Quaterniond mirror(Eigen::AngleAxisd(-50.0 * kDeg, Eigen::Vector3d::UnitZ()));
+  const SE3d flipped(mirror * truth.rotation(), truth.translation());
+  const LocalMapOptions options;
+  const std::optional<SE3d> back = OtherFlipBranch(survey, cameras, views, T_world_robot, 0, flipped, options);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_LT(RotationAngleBetween(*back, truth), 3.0 * kDeg);
+  EXPECT_LT((back->translation() - truth.translation()).norm(), 0.02);
+  // On the true branch nothing changes; nor without a view in a placed frame.
+  EXPECT_FALSE(OtherFlipBranch(survey, cameras, views, T_world_robot, 0, truth, options).has_value());
+  const std::vector<std::optional<SE3d>> none(T_world_robot.size());
+  EXPECT_FALSE(OtherFlipBranch(survey, cameras, views, none, 0, flipped, options).has_value());
+}
+
+// A code seen head-on has no second branch to try.
+TEST(InitializerTest, OtherFlipBranchLeavesAHeadOnCode) {
+  std::mt19937 rng(5);
+  SurveyBuilder builder;
+  builder.AddCode("C", WallCode(Eigen::Vector3d(1.5, 0.0, 0.3), 0.0), 0.1);
+  for (int i = 0; i < 5; ++i) {
+    builder.AddFrame(SE3d::FromXYZYaw(0.0, 0.0, 0.0, (-2.0 + i) * kDeg), {0}, true, &rng);
+  }
+  const std::map<std::string, Camera> cameras = MakeCameras(builder.survey());
+  const std::vector<SingleView> views = ComputeSingleViews(builder.survey(), cameras, 3.0);
+  EXPECT_FALSE(OtherFlipBranch(builder.survey(), cameras, views, TrueFrames(builder), 0, builder.code(0), {})
+                   .has_value());
+}
+
 TEST(InitializerTest, DisconnectedGroupsBecomeComponents) {
   std::mt19937 rng(5);
   SurveyBuilder builder;
