@@ -55,7 +55,7 @@ Options (build, merge):
                       (e.g. smoothed.tum, smoothed.component1.tum), each in its component's frame
   --report FILE       the summary as JSON: components, reprojection per camera, every
                       rejected observation (code, stamp, camera, reason), unmapped codes, timings
-  --threads N         solver threads (default 1)
+  --threads N         solver threads (default 2)
   --no-covariance     skip the marker covariances
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
   --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
@@ -73,6 +73,7 @@ std::function<void(const std::string&)> TerminalProgress() {
 
 MapBuildOptions ParseBuildOptions(const Args& args) {
   MapBuildOptions options;
+  options.num_threads = 2;
   if (const auto n = args.GetInt("threads")) options.num_threads = static_cast<int>(*n);
   if (const auto n = args.GetInt("min-frames")) options.min_frames = static_cast<int>(*n);
   if (const auto x = args.GetDouble("outlier-chi2")) options.outlier_chi2 = *x;

@@ -18,8 +18,10 @@
 // with outlying views by consensus (replace_rounds); (3) observations whose whitened
 // squared error exceeds outlier_chi2 are outliers, reported and removed, and codes left with
 // fewer than min_frames frames are reported and not mapped; (4) solve again with the plain
-// squared loss; (5) marker covariances from ceres::Covariance, converted from the manifold's
-// tangent to map.json's right perturbation [rx ry rz tx ty tz] (factors/pose_block.h).
+// squared loss; (5) marker covariances, the marker blocks of H^-1 with H = J^T J of the final
+// problem (mapping/marginal_covariance.h: selected inverse, linear in the survey; equal to
+// ceres::Covariance), converted from the manifold's tangent to map.json's right perturbation
+// [rx ry rz tx ty tz] (factors/pose_block.h).
 #pragma once
 
 #include <functional>
@@ -53,7 +55,7 @@ struct MapBuildOptions {
   bool calibrate_odometry = true;
   double calibration_sigma = 0.05;
   int max_iterations = 200;
-  int num_threads = 1;
+  int num_threads = 1;           // Jacobian evaluation, linear solver, covariance Jacobian
   bool compute_covariance = true;
   // Columns k of each marker's covariance_factor (mapping/map_covariance.h); 0: none.
   int covariance_factor_rank = 20;

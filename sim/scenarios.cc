@@ -128,8 +128,8 @@ namespace {
 ParamSet CorridorParams() {
   ParamSet p;
   p.AddDouble("place.spacing_m", 1.0, 0.05, 100.0, "distance between neighbouring codes on a wall (d)");
-  p.AddDouble("place.loop_length_m", 12.0, 2.0, 200.0, "centre-line rectangle, long side");
-  p.AddDouble("place.loop_width_m", 8.0, 2.0, 200.0, "centre-line rectangle, short side");
+  p.AddDouble("place.loop_length_m", 12.0, 2.0, 500.0, "centre-line rectangle, long side");
+  p.AddDouble("place.loop_width_m", 8.0, 2.0, 500.0, "centre-line rectangle, short side");
   p.AddDouble("place.corridor_width_m", 1.2, 0.4, 10.0, "wall to wall");
   p.AddDouble("place.wall_height_m", 2.5, 0.5, 10.0, "wall height");
   p.AddDouble("place.marker_size_m", 0.10, 0.01, 2.0, "code edge length");
