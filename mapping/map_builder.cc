@@ -76,7 +76,8 @@ class GlobalProblem {
       const std::vector<std::optional<Matrix6d>>& covariance, int rank) const;
 
   // Re-places the codes with an observation above the outlier gate by consensus over their
-  // views at the current frame poses (mapping/initializer.h); returns how many moved.
+  // views at the current frame poses (mapping/initializer.h), and moves the codes whose other
+  // planar-flip branch fits better there (OtherFlipBranch); returns how many moved.
   size_t ReplaceOutlyingMarkers(const std::vector<int>& active, const std::map<std::string, Camera>& cameras);
 
   bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
@@ -161,6 +162,21 @@ size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
     if (!T) continue;
     const SE3d before = Marker(m);
     if ((T->translation() - before.translation()).norm() > 1e-3 || RotationAngleBetween(*T, before) > 1e-3) {
+      SE3ToBlock(*T, marker_[m].data());
+      ++moved;
+    }
+  }
+  // Codes left on the wrong branch of the planar ambiguity (mapping/initializer.h, OtherFlipBranch).
+  LocalMapOptions fusion = options_.initializer.local_maps;
+  fusion.cauchy_scale = options_.initializer.cauchy_scale;
+  for (size_t m = 0; m < marker_.size(); ++m) {
+    const SurveyMarker& marker = survey_.markers[m];
+    const bool fixed = marker.known && marker.known->fixed;
+    const int code = static_cast<int>(m);
+    if (!init_.T_world_marker[m] || outlying.count(code) > 0 || fixed) continue;
+    const std::optional<SE3d> T =
+        OtherFlipBranch(survey_, cameras, init_.views, T_world_robot, code, Marker(code), fusion);
+    if (T) {
       SE3ToBlock(*T, marker_[m].data());
       ++moved;
     }
