@@ -20,6 +20,7 @@ CodeSighting MakeCodeSighting(const Camera& camera, const MarkerObservation& obs
   if (!sighting.T_camera_marker.empty() && estimate.covariance.allFinite())
     sighting.covariance = estimate.covariance;
   sighting.ambiguous = estimate.ambiguous;
+  if (!estimate.solutions.empty()) sighting.rms_px = estimate.best().rms_px;
   return sighting;
 }
 

@@ -1,8 +1,11 @@
 // One code seen in one image, as the localizer consumes it: the detected corners plus the
 // code's single-image pose solutions (core/marker_pose.h), which initialization, the loosely
-// coupled update and relocalization need. The tightly coupled update uses only the corners.
+// coupled update and relocalization need. The tightly coupled update uses only the corners, so
+// Localizer::AddDetections leaves the pose unsolved (`solved` false) and the localizer solves
+// it only when one of those needs it.
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,6 +22,8 @@ struct CodeSighting {
   std::vector<SE3d> T_camera_marker;   // best first (IPPE gives two); empty when unavailable
   std::optional<Matrix6d> covariance;  // of T_camera_marker[0], right perturbation
   bool ambiguous = false;              // the two solutions fit about equally well
+  bool solved = true;                  // false: the pose fields above were not computed yet
+  double rms_px = std::numeric_limits<double>::infinity();  // reprojection RMS of solution 0
 };
 
 // Runs EstimateMarkerPose on the observation. When the estimator rejects the corners

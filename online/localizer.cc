@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "online/chi_square.h"
 #include "online/marker_measurement.h"
@@ -31,6 +32,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   }
   if (!(agree_trans_m > 0.0) || !(agree_rot_rad > 0.0) || !(max_position_sigma_m > 0.0)) {
     return fail("agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
+  }
+  if (!(clear_max_rms_sigmas > 0.0) || !(clear_max_range_sizes > 0.0)) {
+    return fail("clear_max_rms_sigmas and clear_max_range_sizes must be > 0");
   }
   if (tight_iterations < 1) return fail("tight_iterations must be >= 1");
   if (max_considered_markers < 1) return fail("max_considered_markers must be >= 1");
@@ -68,13 +72,13 @@ StepStatus Localizer::Accept(double stamp_s) {
 }
 
 void Localizer::SetLost() {
-  if (tracking_ == TrackingStatus::kTracking) ++counters_.times_lost;
+  if (HasTrack()) ++counters_.times_lost;
   tracking_ = TrackingStatus::kLost;
   rejected_frames_in_a_row_ = 0;
 }
 
 void Localizer::CheckUncertainty() {
-  if (tracking_ != TrackingStatus::kTracking) return;
+  if (!HasTrack()) return;
   const int n = state_.dim() - 1;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(state_.covariance().topLeftCorner(n, n),
                                                              Eigen::EigenvaluesOnly);
@@ -83,7 +87,7 @@ void Localizer::CheckUncertainty() {
 }
 
 StepStatus Localizer::ApplyPrediction(const MotionPrediction& prediction, const SE3d& increment) {
-  if (hypothesis_T_world_robot_) hypothesis_T_world_robot_ = *hypothesis_T_world_robot_ * increment;
+  for (Hypothesis& hypothesis : hypotheses_) hypothesis.T_world_robot = hypothesis.T_world_robot * increment;
   if (tracking_ == TrackingStatus::kUninitialized) return StepStatus::kOk;
   const StepStatus status = state_.Propagate(prediction.mean, prediction.F, prediction.G, prediction.Qu);
   if (status != StepStatus::kOk) {
@@ -113,8 +117,9 @@ StepStatus Localizer::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
   }
   MotionPrediction prediction =
       PredictFreeIncrement(state_.mean(), state_.R_level(), increment, options_.odometry);
+  odometry_tilt_.Propagate(increment, options_.odometry);
   if (options_.attitude_source == AttitudeSource::kOdometry)
-    prediction.R_world_robot = T_odom_robot.rotation_matrix();
+    prediction.R_world_robot = odometry_tilt_.Level(T_odom_robot.rotation_matrix());
   return ApplyPrediction(prediction, increment);
 }
 
@@ -170,47 +175,65 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   result.tracking = tracking_;
   if (result.status != StepStatus::kOk) return result;
   ++counters_.frames;
-  const bool was_tracking = tracking_ == TrackingStatus::kTracking;
+  const bool had_track = HasTrack();
   const SE3d T_world_robot_predicted = state_.T_world_robot();
-  int accepted = 0, gated = 0;
+  gated_.clear();
+  int accepted = 0;
   for (const CodeSighting& sighting : frame.sightings) {
     result.corrections.push_back(ProcessSighting(camera_it->second, sighting));
     const CorrectionResult& correction = result.corrections.back();
     if (correction.status != StepStatus::kOk && result.status == StepStatus::kOk)
       result.status = correction.status;
     accepted += correction.outcome == CorrectionOutcome::kAccepted;
-    gated += correction.outcome == CorrectionOutcome::kGated;
   }
-  if (was_tracking && accepted > 0)
+  if (had_track && accepted > 0)
     predicted_before_correction_.push_back({frame.stamp_s, T_world_robot_predicted});
-  if (tracking_ == TrackingStatus::kTracking) {
-    if (accepted > 0) {
-      rejected_frames_in_a_row_ = 0;
-      hypothesis_T_world_robot_.reset();
-      hypotheses_agreeing_ = 0;
-    } else if (gated > 0 && ++rejected_frames_in_a_row_ >= options_.lost_after_rejected_frames) {
-      SetLost();
-    }
-  }
+  if (HasTrack()) FinishFrame(accepted);
+  gated_.clear();
   result.tracking = tracking_;
   return result;
+}
+
+void Localizer::FinishFrame(int accepted) {
+  if (accepted > 0) {
+    if (tracking_ == TrackingStatus::kSuspect) ++counters_.suspect_cleared;
+    tracking_ = TrackingStatus::kTracking;
+    rejected_frames_in_a_row_ = 0;
+    hypotheses_.clear();
+    return;
+  }
+  if (gated_.empty()) return;
+  bool contradicted = false;
+  for (const GatedSighting& g : gated_) contradicted = contradicted || Contradicts(*g.camera, *g.marker, g.sighting);
+  if (contradicted && tracking_ == TrackingStatus::kTracking) {
+    tracking_ = TrackingStatus::kSuspect;
+    ++counters_.times_suspect;
+  }
+  for (const GatedSighting& g : gated_) {
+    if (OfferHypothesis(*g.camera, *g.marker, g.sighting)) return;  // restarted
+  }
+  if (++rejected_frames_in_a_row_ >= options_.lost_after_rejected_frames) SetLost();
 }
 
 FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
   CameraFrame frame;
   frame.stamp_s = detections.stamp_s;
   frame.camera = detections.camera;
-  const auto camera_it = cameras_.find(detections.camera);
+  frame.sightings.reserve(detections.markers.size());
   for (const MarkerObservation& observation : detections.markers) {
-    const MapMarker* marker = map_.Find(observation.key);
-    if (!marker || camera_it == cameras_.end()) {
-      frame.sightings.push_back(CodeSighting{observation, {}, std::nullopt, false});
-      continue;
-    }
-    frame.sightings.push_back(
-        MakeCodeSighting(camera_it->second, observation, marker->size_m, options_.marker_pose));
+    CodeSighting sighting;
+    sighting.observation = observation;
+    sighting.solved = !map_.Find(observation.key);  // nothing to solve for an unknown code
+    frame.sightings.push_back(std::move(sighting));
   }
   return AddFrame(frame);
+}
+
+const CodeSighting& Localizer::Solved(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                                      CodeSighting* storage) const {
+  if (sighting.solved) return sighting;
+  *storage = MakeCodeSighting(camera, sighting.observation, marker.size_m, options_.marker_pose);
+  return *storage;
 }
 
 CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSighting& sighting) {
@@ -222,19 +245,42 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
     result.outcome = CorrectionOutcome::kUnknownMarker;
     return result;
   }
+  CodeSighting storage;
   if (tracking_ == TrackingStatus::kUninitialized) {
-    result.outcome = Initialize(camera, *marker, sighting) ? CorrectionOutcome::kInitialized
-                                                           : CorrectionOutcome::kNotUsable;
+    const CodeSighting& solved = Solved(camera, *marker, sighting, &storage);
+    result.outcome = !solved.ambiguous && Initialize(camera, *marker, solved) ? CorrectionOutcome::kInitialized
+                                                                              : CorrectionOutcome::kNotUsable;
   } else if (tracking_ == TrackingStatus::kLost) {
-    result.outcome = OfferHypothesis(camera, *marker, sighting) ? CorrectionOutcome::kInitialized
-                                                                : CorrectionOutcome::kHypothesis;
+    result.outcome = OfferHypothesis(camera, *marker, Solved(camera, *marker, sighting, &storage))
+                         ? CorrectionOutcome::kInitialized
+                         : CorrectionOutcome::kHypothesis;
+  } else if (options_.mode == CorrectionMode::kLoosePose) {
+    result = CorrectLoose(camera, *marker, Solved(camera, *marker, sighting, &storage));
   } else {
-    result = options_.mode == CorrectionMode::kTightCorners ? CorrectTight(camera, *marker, sighting)
-                                                            : CorrectLoose(camera, *marker, sighting);
-    if (result.outcome == CorrectionOutcome::kGated) OfferHypothesis(camera, *marker, sighting);
+    result = CorrectTight(camera, *marker, sighting);
+    if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker) {
+      const CodeSighting& solved = Solved(camera, *marker, sighting, &storage);
+      if (!solved.T_camera_marker.empty() && !solved.ambiguous)
+        state_.SetLevel(CodeHypothesis(camera, *marker, solved, 0).rotation_matrix());
+    }
   }
+  if (result.outcome == CorrectionOutcome::kGated) {
+    gated_.push_back({&camera, marker, Solved(camera, *marker, sighting, &storage)});
+  }
+  if (result.outcome == CorrectionOutcome::kAccepted || result.outcome == CorrectionOutcome::kInitialized)
+    UpdateOdometryTilt(camera, *marker, sighting);
   counters_.not_usable += result.outcome == CorrectionOutcome::kNotUsable;
   return result;
+}
+
+void Localizer::UpdateOdometryTilt(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+  if (options_.motion != MotionModel::kFree || options_.attitude_source != AttitudeSource::kOdometry ||
+      !last_T_odom_robot_ || sighting.ambiguous || sighting.T_camera_marker.empty() || !sighting.covariance)
+    return;
+  const Eigen::Matrix3d R_odom_robot = last_T_odom_robot_->rotation_matrix();
+  if (odometry_tilt_.Update(R_odom_robot, CodeHypothesis(camera, marker, sighting, 0).rotation_matrix(),
+                            CodeAttitudeCovariance(marker, *sighting.covariance)))
+    state_.SetLevel(odometry_tilt_.Level(R_odom_robot));
 }
 
 void Localizer::FinishCorrection(const UpdateResult& update, CorrectionResult* result) {
@@ -271,12 +317,19 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
   const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
   const Vector8d z = StackCorners(sighting.observation.corners_px);
   const MapUncertainty map_uncertainty = marker.covariance ? options_.map_uncertainty : MapUncertainty::kIgnore;
+  // Free model: the roll and pitch error (the odometry tilt's) enters R (OdometryTilt::WorldCovariance).
+  std::optional<Eigen::Matrix3d> attitude_covariance;
+  if (options_.motion == MotionModel::kFree && options_.attitude_source == AttitudeSource::kOdometry &&
+      last_T_odom_robot_)
+    attitude_covariance = odometry_tilt_.WorldCovariance(state_.T_world_robot().rotation_matrix(),
+                                                         last_T_odom_robot_->rotation_matrix());
   const MeasurementFunction linearize = [&](const EkfState& at) -> std::optional<Linearization> {
     const std::optional<CornerPrediction> p = PredictCorners(at, camera, marker);
     if (!p || !NearImage(camera.info(), p->px)) return std::nullopt;
     Linearization lin{z - p->px, p->H,
                       CornerNoise(sigma_px, *p,
-                                  map_uncertainty == MapUncertainty::kInNoise ? marker.covariance : std::nullopt),
+                                  map_uncertainty == MapUncertainty::kInNoise ? marker.covariance : std::nullopt,
+                                  attitude_covariance),
                       std::nullopt};
     if (map_uncertainty == MapUncertainty::kConsider)
       lin.consider = ConsideredMarker{marker.key, p->J_marker, *marker.covariance,
@@ -284,10 +337,6 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
     return lin;
   };
   FinishCorrection(state_.UpdateIterated(linearize, gate_tight_, options_.tight_iterations), &result);
-  if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker &&
-      !sighting.T_camera_marker.empty() && !sighting.ambiguous) {
-    state_.SetLevel(CodeHypothesis(camera, marker, sighting, 0).rotation_matrix());
-  }
   return result;
 }
 
@@ -317,9 +366,10 @@ CorrectionResult Localizer::CorrectLoose(const Camera& camera, const MapMarker& 
   return result;
 }
 
-bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
-  if (sighting.ambiguous || sighting.T_camera_marker.empty() || !sighting.covariance) return false;
-  const CodeRobotPose code = RobotPoseFromCode(marker, sighting.T_camera_marker[0], *sighting.covariance,
+bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                           size_t i) {
+  if (i >= sighting.T_camera_marker.size() || !sighting.covariance) return false;
+  const CodeRobotPose code = RobotPoseFromCode(marker, sighting.T_camera_marker[i], *sighting.covariance,
                                                camera.info().T_robot_camera, options_.motion);
   if (!code.T_world_robot.IsFinite() || !code.covariance.allFinite() ||
       Eigen::LLT<Eigen::MatrixXd>(code.covariance).info() != Eigen::Success) {
@@ -336,38 +386,63 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
   tracking_ = TrackingStatus::kTracking;
   ++counters_.initializations;
   rejected_frames_in_a_row_ = 0;
-  hypothesis_T_world_robot_.reset();
-  hypotheses_agreeing_ = 0;
+  hypotheses_.clear();
+  return true;
+}
+
+std::pair<double, double> Localizer::Distance(const SE3d& a, const SE3d& b) const {
+  const int yaw_index = state_.yaw_index();
+  const Eigen::VectorXd delta = EkfState::BoxMinus(PoseToStateVector(a, options_.motion),
+                                                   PoseToStateVector(b, options_.motion), yaw_index);
+  return {delta.head(yaw_index).norm(), std::abs(delta(yaw_index))};
+}
+
+bool Localizer::IsClear(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const {
+  if (sighting.ambiguous || sighting.T_camera_marker.empty() || !sighting.covariance) return false;
+  const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
+  return sighting.rms_px <= options_.clear_max_rms_sigmas * sigma_px &&
+         sighting.T_camera_marker[0].translation().norm() <= options_.clear_max_range_sizes * marker.size_m;
+}
+
+bool Localizer::Contradicts(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const {
+  if (sighting.T_camera_marker.empty()) return false;  // no pose: no evidence either way
+  const int yaw_index = state_.yaw_index();
+  const Eigen::MatrixXd& P = state_.covariance();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(P.topLeftCorner(yaw_index, yaw_index),
+                                                             Eigen::EigenvaluesOnly);
+  const double sigma_m = std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff()));
+  const double sigma_rad = std::sqrt(std::max(0.0, P(yaw_index, yaw_index)));
+  const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
+  for (size_t i = 0; i < candidates; ++i) {
+    const auto [trans_m, rot_rad] = Distance(state_.T_world_robot(), CodeHypothesis(camera, marker, sighting, i));
+    if (trans_m <= options_.agree_trans_m + 3.0 * sigma_m && rot_rad <= options_.agree_rot_rad + 3.0 * sigma_rad)
+      return false;
+  }
   return true;
 }
 
 bool Localizer::OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
   if (sighting.T_camera_marker.empty()) return false;
-  const int yaw_index = state_.yaw_index();
-  const auto distance = [&](const SE3d& a, const SE3d& b) {
-    const Eigen::VectorXd delta = EkfState::BoxMinus(PoseToStateVector(a, options_.motion),
-                                                     PoseToStateVector(b, options_.motion), yaw_index);
-    return std::make_pair(delta.head(yaw_index).norm(), std::abs(delta(yaw_index)));
-  };
+  const bool clear = IsClear(camera, marker, sighting);
+  const int needed = !clear ? options_.relocalize_after_agreeing : tracking_ == TrackingStatus::kLost ? 1 : 2;
   const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
+  std::vector<Hypothesis> chained;
+  size_t best = 0;
   for (size_t i = 0; i < candidates; ++i) {
-    const SE3d T_world_robot_code = CodeHypothesis(camera, marker, sighting, i);
-    if (hypothesis_T_world_robot_) {
-      const auto [trans_m, rot_rad] = distance(*hypothesis_T_world_robot_, T_world_robot_code);
-      if (trans_m < options_.agree_trans_m && rot_rad < options_.agree_rot_rad) {
-        ++hypotheses_agreeing_;
-        hypothesis_T_world_robot_ = T_world_robot_code;
-        return tracking_ == TrackingStatus::kLost &&
-               hypotheses_agreeing_ >= options_.relocalize_after_agreeing &&
-               Initialize(camera, marker, sighting);
-      }
+    Hypothesis hypothesis{CodeHypothesis(camera, marker, sighting, i), 1};
+    for (const Hypothesis& previous : hypotheses_) {
+      const auto [trans_m, rot_rad] = Distance(previous.T_world_robot, hypothesis.T_world_robot);
+      if (trans_m < options_.agree_trans_m && rot_rad < options_.agree_rot_rad)
+        hypothesis.agreeing = std::max(hypothesis.agreeing, previous.agreeing + 1);
     }
+    if (chained.empty() || hypothesis.agreeing > chained[best].agreeing) best = i;
+    chained.push_back(hypothesis);
   }
-  if (sighting.ambiguous) return false;  // no agreement and no trustworthy solution: no new start
-  hypothesis_T_world_robot_ = CodeHypothesis(camera, marker, sighting, 0);
-  hypotheses_agreeing_ = 1;
-  return tracking_ == TrackingStatus::kLost && options_.relocalize_after_agreeing <= 1 &&
-         Initialize(camera, marker, sighting);
+  hypotheses_ = std::move(chained);
+  // An ambiguous code restarts only from a solution some earlier sighting confirmed.
+  const bool confirmed = !sighting.ambiguous || hypotheses_[best].agreeing > 1;
+  return tracking_ != TrackingStatus::kTracking && confirmed && hypotheses_[best].agreeing >= needed &&
+         Initialize(camera, marker, sighting, best);
 }
 
 PoseOutput Localizer::Output() const {

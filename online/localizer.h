@@ -16,13 +16,30 @@
 // Life cycle (TrackingStatus, reported with every output; a pose only while kTracking):
 //   kUninitialized -> kTracking: the first unambiguous code of the map with a single-image pose
 //     initializes the mean (RobotPoseFromCode) and P (single-image covariance + map covariance).
-//   kTracking -> kLost: `lost_after_rejected_frames` frames in a row whose every code was gated
-//     out (kidnapping, or a diverged filter), the position sigma above `max_position_sigma_m`,
-//     or a non-finite covariance.
-//   kLost -> kTracking: `relocalize_after_agreeing` single-code robot-pose hypotheses in a row
-//     that agree with each other (within agree_trans_m / agree_rot_rad after moving the older one
-//     by the odometry since) restart the filter from the latest one. Hypotheses are collected
-//     from every gated code while tracking too, so a kidnapping is recovered at the next code.
+//   kTracking -> kSuspect: a frame whose codes were all gated out and one of whose codes
+//     contradicts the track: every single-image robot pose of that code (both IPPE solutions
+//     when ambiguous) is farther from the state than agree_trans_m + 3 sigma_position or
+//     agree_rot_rad + 3 sigma_yaw (a gated code that agrees with the track, e.g. a few bad
+//     corner pixels, is not a contradiction). No pose is output while suspect; the filter keeps
+//     predicting and keeps correcting with every code that passes its gate.
+//   kSuspect -> kTracking: a code of a later frame passes the gate (a misdecoded id or a flip
+//     seen once: a false alarm, counted in suspect_cleared).
+//   kTracking/kSuspect -> kLost: `lost_after_rejected_frames` frames in a row whose every code
+//     was gated out, the position sigma above `max_position_sigma_m`, or a non-finite P.
+//   Relocalization (kSuspect or kLost -> kTracking, a restart from the latest sighting): the
+//     gated or lost-time codes give single-code robot-pose hypotheses (both IPPE solutions of
+//     an ambiguous code), chained while each agrees with one of the previous sighting's
+//     (within agree_trans_m / agree_rot_rad after moving the older one by the odometry since;
+//     two codes of one frame chain too). A chain restarts the filter once it holds
+//       1 sighting   when lost and the latest code is "clear": unambiguous (IPPE), reprojection
+//                    RMS <= clear_max_rms_sigmas * sigma_px over its own four corners, and
+//                    nearer than clear_max_range_sizes code sizes;
+//       2 sightings  when suspect and the latest code is clear: the first code seen after a
+//                    kidnapping is confirmed by its next sighting (or another code), so one
+//                    misdecoded id never moves a healthy filter;
+//       relocalize_after_agreeing sightings otherwise (ambiguous, poorly fitting or far codes).
+//   Frames whose codes are gated while suspect are decided at the end of the frame: a code that
+//   passes the gate in the same frame keeps the track.
 // Codes absent from the map are counted and ignored. Inputs older than the last one processed
 // are rejected (StepStatus::kTimeWentBackwards) and change nothing.
 #pragma once
@@ -69,6 +86,8 @@ struct LocalizerOptions {
   double agree_trans_m = 0.2;
   double agree_rot_rad = 0.2;
   double max_position_sigma_m = 2.0;
+  double clear_max_rms_sigmas = 3.0;    // a clear code: reprojection RMS <= this * sigma_px
+  double clear_max_range_sizes = 40.0;  // and range <= this * size_m (4 m for a 10 cm code)
   MarkerPoseOptions marker_pose;  // single-image poses computed by AddDetections
   MapUncertainty map_uncertainty = MapUncertainty::kConsider;
   int max_considered_markers = 16;  // kConsider: markers whose correlation is kept (most recent)
@@ -124,6 +143,8 @@ struct LocalizerCounters {
   long not_usable = 0;
   long initializations = 0;  // first start and every relocalization
   long times_lost = 0;
+  long times_suspect = 0;    // kTracking -> kSuspect
+  long suspect_cleared = 0;  // kSuspect -> kTracking without a restart (false alarms)
   long rejected_inputs = 0;  // time going backwards, invalid input, unknown camera
 };
 
@@ -138,33 +159,60 @@ class Localizer {
   StepStatus AddVelocity(double stamp_s, double v_mps, double omega_radps);
   // Corrects with every code of the frame, in order.
   FrameResult AddFrame(const CameraFrame& frame);
-  // The same from raw detections: single-image poses are computed here (MakeCodeSighting)
-  // with the map's code sizes; codes absent from the map are counted as unknown.
+  // The same from raw detections: single-image poses are computed (MakeCodeSighting, with the
+  // map's code sizes) only for the codes that need one: initialization, the loose update,
+  // relocalization hypotheses, kMarker attitude. Codes absent from the map are counted.
   FrameResult AddDetections(const DetectionFrame& detections);
 
   PoseOutput Output() const;
   TrackingStatus tracking() const { return tracking_; }
   const EkfState& state() const { return state_; }
   const LocalizerCounters& counters() const { return counters_; }
+  // Free model: the odometry frame's estimated tilt (online/motion_model.h).
+  const OdometryTilt& odometry_tilt() const { return odometry_tilt_; }
   // The pose predicted just before each frame that corrected the state (seed 000's PE/TE):
   // one entry per such frame, stamped with the frame.
   const Trajectory& predicted_before_correction() const { return predicted_before_correction_; }
 
  private:
+  // A code gated while tracking or suspect, kept for the decision at the end of its frame.
+  struct GatedSighting {
+    const Camera* camera;
+    const MapMarker* marker;
+    CodeSighting sighting;  // solved
+  };
+
   StepStatus Accept(double stamp_s);  // time check
   StepStatus ApplyPrediction(const MotionPrediction& prediction, const SE3d& increment);
   CorrectionResult ProcessSighting(const Camera& camera, const CodeSighting& sighting);
   CorrectionResult CorrectTight(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
   CorrectionResult CorrectLoose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
   void FinishCorrection(const UpdateResult& update, CorrectionResult* result);
+  // `sighting` when solved, else its solved copy in *storage.
+  const CodeSighting& Solved(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                             CodeSighting* storage) const;
   // The robot pose implied by solution i of a sighting.
   SE3d CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
                       size_t i) const;
-  // Offers a gated or lost-time sighting as a relocalization hypothesis; true if it restarted the filter.
+  bool IsClear(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
+  // True when every solution of the (solved) sighting is far from the track (header comment).
+  bool Contradicts(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
+  // Translation and rotation distance between two robot poses in the state's coordinates.
+  std::pair<double, double> Distance(const SE3d& a, const SE3d& b) const;
+  // Adds a (solved) sighting to the relocalization chain; true if it restarted the filter.
   bool OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
-  bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
+  // End of a frame while tracking or suspect: the state change its outcomes call for.
+  void FinishFrame(int accepted);
+  // Restarts from solution i of a sighting (an ambiguous code's second solution borrows the
+  // first one's covariance: the two are near each other, which is what makes them ambiguous).
+  bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i = 0);
   void SetLost();
   void CheckUncertainty();
+  // Free model, kOdometry: a used code's attitude refines the odometry frame's tilt.
+  void UpdateOdometryTilt(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
+  bool HasTrack() const {
+    return tracking_ == TrackingStatus::kTracking || tracking_ == TrackingStatus::kSuspect;
+  }
 
   LocalizerOptions options_;
   MarkerMap map_;
@@ -176,10 +224,16 @@ class Localizer {
   std::optional<double> last_stamp_s_;
   std::optional<SE3d> last_T_odom_robot_;
   int rejected_frames_in_a_row_ = 0;
-  // Relocalization: the latest hypothesis, moved with the odometry, and how many agreed in a row.
-  std::optional<SE3d> hypothesis_T_world_robot_;
-  int hypotheses_agreeing_ = 0;
+  // Relocalization: the latest sighting's robot poses (both solutions of an ambiguous code),
+  // moved with the odometry, each with the length of the chain of agreeing sightings it ends.
+  struct Hypothesis {
+    SE3d T_world_robot;
+    int agreeing = 1;
+  };
+  std::vector<Hypothesis> hypotheses_;
+  std::vector<GatedSighting> gated_;  // this frame's gated codes (AddFrame)
   double gate_loose_ = 0.0;  // chi-square quantiles of gate_probability
+  OdometryTilt odometry_tilt_;  // free model: the odometry frame's tilt (online/motion_model.h)
   double gate_tight_ = 0.0;
 };
 

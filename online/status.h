@@ -17,6 +17,8 @@ enum class StepStatus {
 enum class TrackingStatus {
   kUninitialized,  // no code seen yet: no pose
   kTracking,       // pose and covariance are valid
+  kSuspect,        // the last frame's codes all contradicted the track: no pose until codes agree
+                   // with it again (kTracking), confirm another pose (relocalized) or it is lost
   kLost,           // kidnapped, diverged or numerically broken: no pose until relocalized
 };
 
@@ -44,6 +46,8 @@ inline const char* TrackingStatusName(TrackingStatus status) {
       return "uninitialized";
     case TrackingStatus::kTracking:
       return "tracking";
+    case TrackingStatus::kSuspect:
+      return "suspect";
     case TrackingStatus::kLost:
       return "lost";
   }
