@@ -13,8 +13,9 @@
 //             filters' own difference without the learned map's error.
 //   nees      Monte-Carlo NEES of ours at d = 1 m: at every odometry stamp where every run tracks,
 //             the NEES averaged over the N runs against the two-sided 95 % band of chi2(dim N)/N.
-//   kidnap    a corridor run cut at t1 and resumed at t2 (the truth jumps, odometry does not):
-//             seconds from the jump to the first pose again, poses output while wrong (> 0.3 m).
+//   kidnap    a corridor run cut at t1 and resumed at t2 (the truth jumps, odometry does not),
+//             three jumps: seconds from the jump to the first pose again, poses output while
+//             wrong (> 0.2 m); and the plain and 10 %-misdecoded runs' tracking % (false alarms).
 //   ceiling-grid and warehouse-drone: ours, mean position error and per-axis mean |error|.
 //
 // Usage: bench_online_accuracy_bench [--quick] [--seeds N] [--table-runs N] [--only STUDY] [--out FILE]
@@ -28,6 +29,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -426,48 +428,107 @@ Dataset Kidnap(const Dataset& dataset, double t1_s, double t2_s) {
   return out;
 }
 
-Json KidnapStudy() {
-  const std::vector<std::string> sets = {"place.spacing_m=1"};
-  const sim::SimResult run = Simulate("corridor", sets, 1);
-  const double t1_s = 20.0, t2_s = 30.0;  // the robot is carried ~5 m ahead, around the loop
-  const Dataset kidnapped = Kidnap(run.dataset, t1_s, t2_s);
-  const Trajectory& truth = *kidnapped.groundtruth_trajectory;
-  const LocalizedRun localized =
-      Localize(kidnapped, truth, LearnMap("corridor", sets, 1), OptionsFor(kidnapped, CorrectionMode::kTightCorners));
-  double jump_m = 0.0;
-  for (size_t k = 1; k < truth.size(); ++k)
-    jump_m = std::max(jump_m, (truth[k].T.translation() - truth[k - 1].T.translation()).norm());
-  long wrong_outputs = 0, lost_stamps = 0;
-  double first_pose_again_s = -1.0, error_at_relocalization_m = -1.0;
-  size_t t = 0;
-  for (size_t k = 0; k < truth.size(); ++k) {
-    const bool after = truth[k].stamp_s > t1_s + 1e-9;
-    if (!localized.tracking[k]) {
-      lost_stamps += after;
-      continue;
-    }
-    const double error_m = (localized.tracked[t++].T.translation() - truth[k].T.translation()).norm();
-    wrong_outputs += error_m > 0.3;
-    if (after && first_pose_again_s < 0.0 && k > 0 && !localized.tracking[k - 1]) {
-      first_pose_again_s = truth[k].stamp_s - t1_s;
-      error_at_relocalization_m = error_m;
+// One localizer run of the kidnap study: poses output with error > 0.2 m while tracking, the
+// share of stamps tracked, and (with a jump at t1) the stamps without a pose after it, the time
+// from the jump to the first pose again and that pose's error.
+struct KidnapFigures {
+  long wrong_outputs = 0, untracked_after_jump = 0;
+  long wrong_after_first_code = 0;  // from the first frame with a code after the jump on
+  double tracking_percent = 0.0, first_pose_again_s = -1.0, error_at_relocalization_m = -1.0;
+  LocalizerCounters counters;
+};
+
+KidnapFigures KidnapRun(const Dataset& dataset, const MarkerMap& map, double t1_s) {
+  const Trajectory& truth = *dataset.groundtruth_trajectory;
+  const LocalizedRun localized = Localize(dataset, truth, map, OptionsFor(dataset, CorrectionMode::kTightCorners));
+  KidnapFigures figures;
+  double first_code_s = std::numeric_limits<double>::infinity();
+  for (const DetectionFrame& frame : dataset.detections) {
+    if (t1_s >= 0.0 && frame.stamp_s > t1_s + 1e-9 && !frame.markers.empty()) {
+      first_code_s = frame.stamp_s;
+      break;
     }
   }
+  size_t t = 0;
+  long tracked = 0;
+  for (size_t k = 0; k < truth.size(); ++k) {
+    const bool after = t1_s >= 0.0 && truth[k].stamp_s > t1_s + 1e-9;
+    if (!localized.tracking[k]) {
+      figures.untracked_after_jump += after;
+      continue;
+    }
+    ++tracked;
+    const double error_m = (localized.tracked[t++].T.translation() - truth[k].T.translation()).norm();
+    figures.wrong_outputs += error_m > 0.2;
+    figures.wrong_after_first_code += error_m > 0.2 && truth[k].stamp_s >= first_code_s - 1e-9;
+    if (after && figures.first_pose_again_s < 0.0 && k > 0 && !localized.tracking[k - 1]) {
+      figures.first_pose_again_s = truth[k].stamp_s - t1_s;
+      figures.error_at_relocalization_m = error_m;
+    }
+  }
+  figures.tracking_percent = 100.0 * tracked / std::max<size_t>(truth.size(), 1);
+  figures.counters = localized.counters;
+  return figures;
+}
+
+Json KidnapJson(const KidnapFigures& f) {
+  return {{"wrong_pose_outputs", f.wrong_outputs},
+          {"wrong_pose_outputs_from_first_code_after_jump", f.wrong_after_first_code},
+          {"tracking_percent", f.tracking_percent},
+          {"untracked_stamps_after_jump", f.untracked_after_jump},
+          {"first_pose_again_after_s", f.first_pose_again_s},
+          {"error_at_relocalization_m", f.error_at_relocalization_m},
+          {"initializations", f.counters.initializations},
+          {"times_suspect", f.counters.times_suspect},
+          {"suspect_cleared", f.counters.suspect_cleared},
+          {"times_lost", f.counters.times_lost}};
+}
+
+void PrintKidnapRow(const std::string& label, const KidnapFigures& f) {
+  std::printf("| %s | %ld (%ld) | %.1f | %ld | %.2f | %.4f | %ld | %ld / %ld | %ld |\n", label.c_str(), f.wrong_outputs,
+              f.wrong_after_first_code, f.tracking_percent, f.untracked_after_jump, f.first_pose_again_s, f.error_at_relocalization_m,
+              f.counters.initializations, f.counters.times_suspect, f.counters.suspect_cleared, f.counters.times_lost);
+}
+
+// Corridor d = 1 m, seed 1, against the map learned from seed 1001's survey: the plain run, the
+// run with 10 % misdecoded ids (false alarms must not cost tracking), and kidnappings.
+Json KidnapStudy() {
+  const std::vector<std::string> sets = {"place.spacing_m=1"};
+  const MarkerMap map = LearnMap("corridor", sets, 1);
+  const sim::SimResult run = Simulate("corridor", sets, 1);
+  const sim::SimResult misdecoded = Simulate("corridor", {sets[0], "detect.misdecode_fraction=0.1"}, 1);
   std::printf(
-      "\n## Kidnapping (corridor d = 1 m, seed 1, carried %.2f m from t = %.0f s to the pose of t = %.0f s)\n\n"
-      "lost for %ld stamps, first pose again %.2f s after the jump (error %.4f m); poses output with error > 0.3 m: "
-      "%ld; initializations %ld, times lost %ld\n",
-      jump_m, t1_s, t2_s, lost_stamps, first_pose_again_s, error_at_relocalization_m, wrong_outputs,
-      localized.counters.initializations, localized.counters.times_lost);
-  return {{"jump_m", jump_m},
-          {"t1_s", t1_s},
-          {"t2_s", t2_s},
-          {"lost_stamps", lost_stamps},
-          {"first_pose_again_after_s", first_pose_again_s},
-          {"error_at_relocalization_m", error_at_relocalization_m},
-          {"wrong_pose_outputs", wrong_outputs},
-          {"initializations", localized.counters.initializations},
-          {"times_lost", localized.counters.times_lost}};
+      "\n## Kidnapping (corridor d = 1 m, seed 1; wrong = pose output with error > 0.2 m, in brackets those\n"
+      "from the first frame with a code after the jump on)\n\n"
+      "| run | wrong | tracking %% | stamps without pose after the jump | first pose again after (s) | its error (m) | "
+      "initializations | suspect / cleared | lost |\n|---|---|---|---|---|---|---|---|---|\n");
+  Json out;
+  const KidnapFigures plain = KidnapRun(run.dataset, map, -1.0);
+  PrintKidnapRow("no kidnapping", plain);
+  out["plain"] = KidnapJson(plain);
+  const KidnapFigures misread = KidnapRun(misdecoded.dataset, map, -1.0);
+  PrintKidnapRow("10 % misdecoded ids", misread);
+  out["misdecoded_0.1"] = KidnapJson(misread);
+  const std::vector<std::pair<double, double>> jumps = {{20.0, 30.0}, {45.0, 57.0}, {70.0, 78.0}};
+  Json kidnaps = Json::array();
+  for (const auto& [t1_s, t2_s] : jumps) {
+    const Dataset kidnapped = Kidnap(run.dataset, t1_s, t2_s);
+    const Trajectory& truth = *kidnapped.groundtruth_trajectory;
+    double jump_m = 0.0;
+    for (size_t k = 1; k < truth.size(); ++k)
+      jump_m = std::max(jump_m, (truth[k].T.translation() - truth[k - 1].T.translation()).norm());
+    const KidnapFigures f = KidnapRun(kidnapped, map, t1_s);
+    char label[96];
+    std::snprintf(label, sizeof(label), "carried %.2f m at t = %.0f s (to the pose of t = %.0f s)", jump_m, t1_s, t2_s);
+    PrintKidnapRow(label, f);
+    Json entry = KidnapJson(f);
+    entry["t1_s"] = t1_s;
+    entry["t2_s"] = t2_s;
+    entry["jump_m"] = jump_m;
+    kidnaps.push_back(entry);
+  }
+  out["kidnaps"] = kidnaps;
+  return out;
 }
 
 // Ours on `runs` seeds of a scenario: errors against the truth as they are, in the learned
