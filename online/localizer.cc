@@ -267,8 +267,9 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
   if (result.outcome == CorrectionOutcome::kGated) {
     gated_.push_back({&camera, marker, Solved(camera, *marker, sighting, &storage)});
   }
-  if (result.outcome == CorrectionOutcome::kAccepted || result.outcome == CorrectionOutcome::kInitialized)
-    UpdateOdometryTilt(camera, *marker, sighting);
+  if ((result.outcome == CorrectionOutcome::kAccepted || result.outcome == CorrectionOutcome::kInitialized) &&
+      options_.motion == MotionModel::kFree && options_.attitude_source == AttitudeSource::kOdometry)
+    UpdateOdometryTilt(camera, *marker, Solved(camera, *marker, sighting, &storage));
   counters_.not_usable += result.outcome == CorrectionOutcome::kNotUsable;
   return result;
 }

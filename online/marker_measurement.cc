@@ -43,6 +43,13 @@ CodeRobotPose RobotPoseFromCode(const MapMarker& marker, const SE3d& T_camera_ma
   return out;
 }
 
+Eigen::Matrix3d CodeAttitudeCovariance(const MapMarker& marker, const Matrix6d& covariance_camera_marker) {
+  const Eigen::Matrix3d R_wm = marker.T_world_marker.rotation_matrix();
+  Eigen::Matrix3d sigma_rr = covariance_camera_marker.topLeftCorner<3, 3>();
+  if (marker.covariance) sigma_rr += marker.covariance->topLeftCorner<3, 3>();
+  return R_wm * sigma_rr * R_wm.transpose();
+}
+
 Eigen::VectorXd LooseInnovation(const EkfState& state, const SE3d& T_world_robot_measured) {
   return EkfState::BoxMinus(state.mean(), PoseToStateVector(T_world_robot_measured, state.motion()),
                             state.yaw_index());
@@ -75,14 +82,16 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
     const Eigen::Matrix<double, 2, 3> J_world = J_robot * R_wr_T;  // d px / d c_w
     out.J_marker.block<2, 3>(2 * j, 0) = -J_world * R_wm * Hat(corners_marker[j]);
     out.J_marker.block<2, 3>(2 * j, 3) = J_world * R_wm;
+    out.J_attitude.block<2, 3>(2 * j, 0) = J_world * Hat(offset_world);
   }
   return out;
 }
 
-Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction,
-                     const std::optional<Matrix6d>& covariance) {
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance,
+                     const std::optional<Eigen::Matrix3d>& attitude_covariance) {
   Matrix8d R = Matrix8d::Identity() * (sigma_px * sigma_px);
   if (covariance) R += prediction.J_marker * (*covariance) * prediction.J_marker.transpose();
+  if (attitude_covariance) R += prediction.J_attitude * (*attitude_covariance) * prediction.J_attitude.transpose();
   return R;
 }
 

@@ -59,6 +59,12 @@ CodeRobotPose RobotPoseFromCode(const MapMarker& marker, const SE3d& T_camera_ma
                                 const Matrix6d& covariance_camera_marker, const SE3d& T_robot_camera,
                                 MotionModel motion);
 
+// Covariance of the world-frame rotation error phi (R_true = Exp(phi) R) of the robot attitude a
+// single code implies (RobotPoseFromCode): d phi / d dr = -R_wm, d phi / d er = R_wm, so
+//   Sigma_phi = R_wm (Sigma_code_rr + Sigma_map_rr) R_wm^T     (rotation blocks; map part when known)
+// (the code and map errors independent). Feeds OdometryTilt::Update (online/motion_model.h).
+Eigen::Matrix3d CodeAttitudeCovariance(const MapMarker& marker, const Matrix6d& covariance_camera_marker);
+
 // Loosely coupled innovation y = z [-] x for a measured pose (H = I).
 Eigen::VectorXd LooseInnovation(const EkfState& state, const SE3d& T_world_robot_measured);
 
@@ -67,15 +73,20 @@ struct CornerPrediction {
   Vector8d px;                           // h(x): [u0 v0 u1 v1 u2 v2 u3 v3]
   Eigen::MatrixXd H;                     // 8 x dim
   Eigen::Matrix<double, 8, 6> J_marker;  // d h / d eps (map marker's right perturbation)
+  // d h / d phi for a world-frame rotation error of the robot (R_true = Exp(phi) R_world_robot):
+  //   d c_r / d phi = R_world_robot^T Hat(c_w - t_world_robot),  J_attitude_j = J_p R_camera_robot (that)
+  Eigen::Matrix<double, 8, 3> J_attitude;
 };
 
 // nullopt when a corner is behind the camera (Camera::Project undefined).
 std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Camera& camera,
                                                const MapMarker& marker);
 
-// R = sigma_px^2 I8 + J_marker Sigma_marker J_marker^T (second term only with a covariance).
-Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction,
-                     const std::optional<Matrix6d>& covariance);
+// R = sigma_px^2 I8 + J_marker Sigma_marker J_marker^T + J_attitude Sigma_phi J_attitude^T
+// (second term only with a marker covariance, third only with an attitude covariance: the free
+// model's roll and pitch are not in the state, OdometryTilt::WorldCovariance gives theirs).
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance,
+                     const std::optional<Eigen::Matrix3d>& attitude_covariance = std::nullopt);
 
 // The 8-vector of detected corners, DESIGN.md order.
 Vector8d StackCorners(const std::array<Eigen::Vector2d, 4>& corners_px);

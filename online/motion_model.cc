@@ -1,5 +1,7 @@
 #include "online/motion_model.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <string>
 
@@ -95,6 +97,73 @@ MotionPrediction PredictFreeIncrement(const Eigen::Vector4d& x, const Eigen::Mat
   p.Qu = variances.asDiagonal();
   p.R_world_robot = R_new;
   return p;
+}
+
+Eigen::Matrix<double, 3, 2> TangentBasis(const Eigen::Vector3d& u) {
+  // Start from the axis least aligned with u, so the cross products are well conditioned.
+  Eigen::Index axis = 0;
+  u.cwiseAbs().minCoeff(&axis);
+  const Eigen::Vector3d a = u.cross(Eigen::Vector3d::Unit(axis)).normalized();
+  Eigen::Matrix<double, 3, 2> B;
+  B << a, u.cross(a);
+  return B;
+}
+
+Eigen::Matrix3d LevelFromUp(const Eigen::Vector3d& up_robot) {
+  const double pitch = std::atan2(-up_robot.x(), std::hypot(up_robot.y(), up_robot.z()));
+  const double roll = std::atan2(up_robot.y(), up_robot.z());
+  return (Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+OdometryTilt::OdometryTilt(double prior_sigma_rad, double gate) : prior_sigma_rad_(prior_sigma_rad), gate_(gate) {
+  Reset();
+}
+
+void OdometryTilt::Reset() {
+  up_odom_ = Eigen::Vector3d::UnitZ();
+  covariance_ = Eigen::Matrix2d::Identity() * (prior_sigma_rad_ * prior_sigma_rad_);
+  updates_ = 0;
+}
+
+void OdometryTilt::Propagate(const SE3d& increment, const OdometryNoise& noise) {
+  const double sigma_rot =
+      noise.sigma.rot_per_rad * RotationAngleBetween(SE3d(), increment) + noise.floor_rot_rad;
+  covariance_ += Eigen::Matrix2d::Identity() * (sigma_rot * sigma_rot);
+}
+
+bool OdometryTilt::Update(const Eigen::Matrix3d& R_odom_robot, const Eigen::Matrix3d& R_world_robot_code,
+                          const Eigen::Matrix3d& covariance_phi_world) {
+  const Eigen::Matrix3d R_odom_world = R_odom_robot * R_world_robot_code.transpose();
+  const Eigen::Vector3d up_measured = R_odom_world.col(2);
+  const Eigen::Matrix<double, 3, 2> B = TangentBasis(up_odom_);
+  const Eigen::Matrix<double, 2, 3> BJ = B.transpose() * R_odom_world * Hat(Eigen::Vector3d::UnitZ().eval());
+  const Eigen::Vector2d y = B.transpose() * (up_measured - up_odom_);
+  const Eigen::Matrix2d R = BJ * covariance_phi_world * BJ.transpose();
+  const Eigen::Matrix2d S = covariance_ + R;
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  if (!y.allFinite() || !R.allFinite() || llt.info() != Eigen::Success) return false;
+  if (y.dot(llt.solve(y)) > gate_) return false;
+  const Eigen::Matrix2d K = llt.solve(covariance_).transpose();  // P S^-1 (P, S symmetric)
+  const Eigen::Matrix2d I_K = Eigen::Matrix2d::Identity() - K;
+  Eigen::Matrix2d P = I_K * covariance_ * I_K.transpose() + K * R * K.transpose();
+  up_odom_ = (up_odom_ + B * (K * y)).normalized();
+  covariance_ = 0.5 * (P + P.transpose());
+  ++updates_;
+  return true;
+}
+
+Eigen::Matrix3d OdometryTilt::Level(const Eigen::Matrix3d& R_odom_robot) const {
+  return LevelFromUp(R_odom_robot.transpose() * up_odom_);
+}
+
+Eigen::Matrix3d OdometryTilt::WorldCovariance(const Eigen::Matrix3d& R_world_robot,
+                                              const Eigen::Matrix3d& R_odom_robot) const {
+  const Eigen::Matrix<double, 3, 2> M = R_world_robot * R_odom_robot.transpose() * TangentBasis(up_odom_);
+  Eigen::Matrix<double, 3, 2> J = Eigen::Matrix<double, 3, 2>::Zero();
+  J.row(0) = M.row(1);
+  J.row(1) = -M.row(0);
+  return J * covariance_ * J.transpose();
 }
 
 }  // namespace waymark

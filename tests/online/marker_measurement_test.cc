@@ -122,5 +122,51 @@ TEST(MarkerMeasurementTest, MapCovarianceInflatesCornerNoise) {
   EXPECT_GT(eigen.eigenvalues().maxCoeff(), 100.0);
 }
 
+// J_attitude (d px / d phi, R_true = Exp(phi) R_world_robot) against central differences of
+// the projection, and the attitude part of R.
+TEST(MarkerMeasurementTest, AttitudeJacobianAndNoiseMatchCentralDifferences) {
+  const Camera camera(testing::SideCamera("left", true, 0.3));
+  const MapMarker marker = LeftWallMarker();
+  EkfState state(MotionModel::kFree);
+  state.SetLevel(
+      (Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(-0.03, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix());
+  ASSERT_EQ(state.Reset(Eigen::Vector4d(1.4, 0.05, 0.02, 0.1), Eigen::Matrix4d::Identity()), StepStatus::kOk);
+  const std::optional<CornerPrediction> prediction = PredictCorners(state, camera, marker);
+  ASSERT_TRUE(prediction);
+  const SE3d T_world_robot = state.T_world_robot();
+  const SE3d T_camera_robot = camera.info().T_robot_camera.inverse();
+  const auto h_phi = [&](const Eigen::VectorXd& phi) -> Eigen::VectorXd {
+    const SE3d T_perturbed(Eigen::Quaterniond(ExpSO3(Eigen::Vector3d(phi)) * T_world_robot.rotation()),
+                           T_world_robot.translation());
+    Vector8d px;
+    const std::array<Eigen::Vector3d, 4> corners = MarkerCorners(marker.size_m);
+    for (int j = 0; j < 4; ++j) {
+      px.segment<2>(2 * j) =
+          *camera.Project(T_camera_robot * (T_perturbed.inverse() * (marker.T_world_marker * corners[j])));
+    }
+    return px;
+  };
+  const Eigen::MatrixXd J_numeric = NumericJacobian(h_phi, Eigen::Vector3d::Zero(), 1e-6);
+  EXPECT_LT((prediction->J_attitude - J_numeric).norm(), 1e-5 * J_numeric.norm());
+  const Eigen::Matrix3d attitude_covariance = Eigen::Vector3d(1e-6, 4e-6, 0.0).asDiagonal();
+  const Matrix8d R = CornerNoise(0.5, *prediction, std::nullopt, attitude_covariance);
+  const Matrix8d expected = 0.25 * Matrix8d::Identity() +
+                            J_numeric * attitude_covariance * J_numeric.transpose();
+  EXPECT_LT((R - expected).norm(), 1e-6 * expected.norm());
+}
+
+TEST(MarkerMeasurementTest, CodeAttitudeCovarianceIsTheRotationBlocksInTheWorldFrame) {
+  MapMarker marker = LeftWallMarker();
+  const Matrix6d code = SomeMarkerCovariance();
+  const Eigen::Matrix3d R_wm = marker.T_world_marker.rotation_matrix();
+  EXPECT_LT((CodeAttitudeCovariance(marker, code) - R_wm * code.topLeftCorner<3, 3>() * R_wm.transpose()).norm(),
+            1e-15);
+  const Matrix6d map = SomeMarkerCovariance();
+  marker.covariance = map;
+  const Eigen::Matrix3d both = R_wm * (code + map).topLeftCorner<3, 3>() * R_wm.transpose();
+  EXPECT_LT((CodeAttitudeCovariance(marker, code) - both).norm(), 1e-15);
+}
+
 }  // namespace
 }  // namespace waymark

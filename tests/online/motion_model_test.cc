@@ -2,7 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
+#include "core/camera.h"
 #include "online/ekf_state.h"
+#include "online/localizer.h"
+#include "online/marker_measurement.h"
 #include "tests/online/jacobian_check.h"
 
 namespace waymark {
@@ -127,6 +132,144 @@ TEST(MotionModelTest, HeadingWalkGrowsWithDistanceNotRate) {
   noise.heading_per_sqrt_m = -1.0;
   EXPECT_FALSE(noise.Check(&why));
   EXPECT_NE(why.find("heading_per_sqrt_m"), std::string::npos);
+}
+
+Eigen::Matrix3d RollPitch(double roll_rad, double pitch_rad) {
+  return (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+Eigen::Matrix3d Yaw(double yaw_rad) { return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
+
+TEST(OdometryTiltTest, LevelFromUpAndTangentBasis) {
+  for (const auto& [roll, pitch] : {std::pair{0.0, 0.0}, {0.3, -0.2}, {-1.2, 0.7}}) {
+    const Eigen::Matrix3d R_level = RollPitch(roll, pitch);
+    EXPECT_LT((LevelFromUp(R_level.transpose() * Eigen::Vector3d::UnitZ()) - R_level).norm(), 1e-12);
+  }
+  for (const Eigen::Vector3d& u : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, -1, 0),
+                                   Eigen::Vector3d(0.3, -0.5, 0.8).normalized()}) {
+    const Eigen::Matrix<double, 3, 2> B = TangentBasis(u);
+    EXPECT_LT((B.transpose() * B - Eigen::Matrix2d::Identity()).norm(), 1e-12);
+    EXPECT_LT((B.transpose() * u).norm(), 1e-12);
+  }
+}
+
+// An odometry that started at the identity while the robot was pitched and rolled: its own
+// roll and pitch are off by that tilt; the estimate from noisy single-code attitudes recovers it.
+TEST(OdometryTiltTest, RecoversTheOdometryFramesTiltFromCodeAttitudes) {
+  const Eigen::Matrix3d R_world_odom = Yaw(1.2) * RollPitch(-0.02, 0.03);
+  const double sigma_rad = 0.01;
+  const Eigen::Matrix3d covariance_phi = Eigen::Matrix3d::Identity() * sigma_rad * sigma_rad;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal(0.0, sigma_rad);
+  OdometryTilt tilt;
+  OdometryNoise noise;
+  double before_deg = 0.0, after_deg = 0.0;
+  for (int k = 0; k < 400; ++k) {
+    const Eigen::Matrix3d R_world_robot = Yaw(0.01 * k) * RollPitch(0.03 * std::sin(0.1 * k), 0.02 * std::cos(0.07 * k));
+    const Eigen::Matrix3d R_odom_robot = R_world_odom.transpose() * R_world_robot;
+    tilt.Propagate(SE3d(), noise);
+    const Eigen::Matrix3d R_code = ExpSO3(Eigen::Vector3d(normal(rng), normal(rng), normal(rng))) * R_world_robot;
+    EXPECT_TRUE(tilt.Update(R_odom_robot, R_code, covariance_phi));
+    const Eigen::Matrix3d truth = LevelRotation(R_world_robot);
+    before_deg = RotationAngleBetween(SE3d(LevelRotation(R_odom_robot), Eigen::Vector3d::Zero()), SE3d(truth, Eigen::Vector3d::Zero())) * 180.0 / M_PI;
+    after_deg = RotationAngleBetween(SE3d(tilt.Level(R_odom_robot), Eigen::Vector3d::Zero()), SE3d(truth, Eigen::Vector3d::Zero())) * 180.0 / M_PI;
+  }
+  EXPECT_GT(before_deg, 1.0);  // the odometry's own attitude is off by the start tilt
+  EXPECT_LT(after_deg, 0.1);
+  // The estimate's covariance tells its error: sigma / sqrt(400) per axis plus the random walk.
+  const Eigen::Vector3d up_true = R_world_odom.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector2d d = TangentBasis(tilt.up_odom()).transpose() * (up_true - tilt.up_odom());
+  EXPECT_LT(d.dot(tilt.covariance().llt().solve(d)), 13.8);  // chi2(2) 0.999
+  EXPECT_LT(std::sqrt(tilt.covariance()(0, 0)), 2.0 * sigma_rad / std::sqrt(400.0) + 3e-3);
+  EXPECT_EQ(tilt.updates(), 400);
+}
+
+TEST(OdometryTiltTest, GatesAFlippedAttitudeAndPropagatesTheRotationNoise) {
+  OdometryTilt tilt(0.01);
+  const Eigen::Matrix3d covariance_phi = Eigen::Matrix3d::Identity() * 1e-4;
+  const Eigen::Matrix3d flipped = RollPitch(0.5, 0.0);  // a code pose 29 deg off (IPPE's other solution)
+  EXPECT_FALSE(tilt.Update(Eigen::Matrix3d::Identity(), flipped, covariance_phi));
+  EXPECT_EQ(tilt.up_odom(), Eigen::Vector3d::UnitZ());
+  EXPECT_FALSE(tilt.Update(Eigen::Matrix3d::Identity(), flipped, Eigen::Matrix3d::Constant(NAN)));
+  OdometryNoise noise;
+  noise.sigma = {0.0, 0.1};
+  noise.floor_rot_rad = 1e-3;
+  const Eigen::Matrix2d before = tilt.covariance();
+  tilt.Propagate(SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ())), Eigen::Vector3d::Zero()), noise);
+  const double sigma_rot = 0.1 * 0.2 + 1e-3;
+  EXPECT_LT((tilt.covariance() - before - Eigen::Matrix2d::Identity() * sigma_rot * sigma_rot).norm(), 1e-15);
+}
+
+// A drone at 1.2 m over a grid of floor codes with exact odometry increments whose frame is
+// tilted (it started at the identity while the drone was pitched 2 deg and rolled -1 deg): with
+// the true map, the localizer's position must not inherit the tilt (h tan(2 deg) = 4 cm).
+TEST(OdometryTiltTest, LocalizerOverFloorCodesIsNotTiltedByTheOdometryFrame) {
+  CameraInfo down;
+  down.name = "down";
+  down.model = CameraModel::kPinholeRadtan;
+  down.width = 640;
+  down.height = 480;
+  down.intrinsics = {380.0, 380.0, 320.0, 240.0};
+  down.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  down.pixel_sigma = 0.5;
+  Eigen::Matrix3d R_robot_camera;  // camera z down (robot -z), camera x along robot -y
+  R_robot_camera << 0, -1, 0, -1, 0, 0, 0, 0, -1;
+  down.T_robot_camera = SE3d(R_robot_camera, Eigen::Vector3d::Zero());
+  MarkerMap map;
+  for (int i = -2; i <= 12; ++i) {
+    for (int j = -1; j <= 1; ++j) {
+      MapMarker marker;
+      marker.key = {"qr", "0/" + std::to_string(i) + "/" + std::to_string(j)};
+      marker.size_m = 0.15;
+      marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.7 * i, 0.7 * j, 0.0));
+      map.markers.push_back(marker);
+    }
+  }
+  LocalizerOptions options;
+  options.motion = MotionModel::kFree;
+  options.loose_noise = Eigen::Vector4d::Constant(0.001);
+  Localizer localizer(options, map, {down});
+  const Camera camera(down);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> normal(0.0, 0.5);
+  const auto truth_at = [](int k) {
+    const double t = 0.05 * k;
+    return SE3d(Eigen::Quaterniond(Yaw(0.1 + 0.02 * t) * RollPitch(-0.0175 + 0.02 * std::sin(1.3 * t),
+                                                                  0.035 + 0.02 * std::sin(2.1 * t + 1.0))),
+                Eigen::Vector3d(0.3 * t, 0.1 * std::sin(0.5 * t), 1.2 + 0.05 * std::sin(0.8 * t)));
+  };
+  const SE3d T_odom_world = truth_at(0).inverse();  // the odometry starts at the identity
+  double sum_error_m = 0.0;
+  int count = 0;
+  for (int k = 0; k <= 500; ++k) {
+    const SE3d T_world_robot = truth_at(k);
+    localizer.AddOdometry(0.05 * k, T_odom_world * T_world_robot);
+    if (k % 2 != 0) continue;
+    DetectionFrame frame;
+    frame.stamp_s = 0.05 * k;
+    frame.camera = "down";
+    const SE3d T_camera_world = (T_world_robot * down.T_robot_camera).inverse();
+    for (const MapMarker& marker : map.markers) {
+      MarkerObservation observation;
+      observation.key = marker.key;
+      bool visible = true;
+      const std::array<Eigen::Vector3d, 4> corners = MarkerCorners(marker.size_m);
+      for (int c = 0; c < 4 && visible; ++c) {
+        const auto px = camera.Project(T_camera_world * marker.T_world_marker * corners[c]);
+        visible = px && down.InImage(*px);
+        if (visible) observation.corners_px[c] = *px + Eigen::Vector2d(normal(rng), normal(rng));
+      }
+      if (visible) frame.markers.push_back(observation);
+    }
+    localizer.AddDetections(frame);
+    const PoseOutput output = localizer.Output();
+    if (k < 100 || !output.T_world_robot) continue;  // the first 5 s: the tilt estimate settles
+    sum_error_m += (output.T_world_robot->translation() - T_world_robot.translation()).norm();
+    ++count;
+  }
+  ASSERT_GT(count, 150);
+  EXPECT_LT(sum_error_m / count, 0.005);
 }
 
 }  // namespace
