@@ -16,6 +16,8 @@ constexpr double kInlierBandPx = 0.6;  // RANSAC inlier distance
 constexpr int kRansacIterations = 64;
 constexpr double kCentroidLevel = 0.5;  // centroid of the derivative above this fraction of its peak
 constexpr double kHalfBaselinePx = 0.5;  // the derivative is a central difference over 1 px
+constexpr double kBarLobe = 0.15;  // an inner edge at least this fraction of the outer one makes a bar
+constexpr double kMaxBarPx = 3.5;  // wider bars leave the outer edge's centroid unbiased
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
@@ -31,42 +33,6 @@ double Bilinear(const cv::Mat& gray, double x, double y) {
   const uint8_t* r0 = gray.ptr<uint8_t>(y0);
   const uint8_t* r1 = gray.ptr<uint8_t>(y1);
   return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
-}
-
-// Offset s along the outward normal `n` of the outermost strong light-outside edge near
-// `p`, or NaN. The derivative is a central difference over 1 px.
-// *strength receives the step's peak derivative (gray levels per px).
-double EdgeOffset(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n, double half_window,
-                  double min_step, double* strength) {
-  const int count = static_cast<int>(std::round(2.0 * (half_window + 0.5) / kStepPx)) + 1;
-  std::vector<double> profile(count);
-  for (int k = 0; k < count; ++k) {
-    const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
-    profile[k] = Bilinear(gray, q.x(), q.y());
-    if (std::isnan(profile[k])) return std::numeric_limits<double>::quiet_NaN();
-  }
-  const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
-  std::vector<double> step(count, 0.0);
-  double strongest = 0.0;
-  for (int k = h; k + h < count; ++k) {
-    step[k] = profile[k + h] - profile[k - h];
-    strongest = std::max(strongest, step[k]);
-  }
-  if (strongest < min_step) return std::numeric_limits<double>::quiet_NaN();
-  for (int k = count - h - 2; k > h; --k) {  // outermost first
-    if (step[k] < 0.5 * strongest || step[k] < step[k - 1] || step[k] < step[k + 1]) continue;
-    // Centroid of the derivative above half its peak around k: unbiased for a symmetric
-    // blur, and well defined on the plateau a sharp step makes under bilinear sampling.
-    const double half = kCentroidLevel * step[k];
-    double weight_sum = 0.0;
-    double moment = 0.0;
-    for (int j = k; j >= h && step[j] > half; --j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
-    for (int j = k + 1; j + h < count && step[j] > half; ++j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
-    if (weight_sum <= 0.0) continue;
-    *strength = step[k];
-    return -half_window - 0.5 + (moment / weight_sum) * kStepPx;
-  }
-  return std::numeric_limits<double>::quiet_NaN();
 }
 
 // The edge points whose step is at least kFullContrast times the typical step of the
@@ -87,12 +53,6 @@ std::vector<Eigen::Vector2d> KeepFullContrast(const std::vector<Eigen::Vector2d>
   }
   return kept;
 }
-
-struct Line2d {
-  Eigen::Vector2d point;
-  Eigen::Vector2d direction;  // unit
-  double inlier_fraction = 0.0;
-};
 
 double Distance(const Line2d& line, const Eigen::Vector2d& q) {
   const Eigen::Vector2d d = q - line.point;
@@ -144,34 +104,34 @@ std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, co
   return fitted;
 }
 
-std::optional<Eigen::Vector2d> Intersect(const Line2d& a, const Line2d& b) {
-  const double det = a.direction.x() * b.direction.y() - a.direction.y() * b.direction.x();
-  if (std::abs(det) < 0.1) return std::nullopt;  // sides closer than ~6 degrees to parallel
-  const Eigen::Vector2d d = b.point - a.point;
-  const double t = (d.x() * b.direction.y() - d.y() * b.direction.x()) / det;
-  return a.point + t * a.direction;
+// Edge points of the side a -> b between fractions t0 and t1 of its length, `samples` profiles.
+void SideEdgePoints(const cv::Mat& gray, const Eigen::Vector2d& a, const Eigen::Vector2d& b, double t0, double t1,
+                    int samples, double half_window, double min_step, bool fit_model,
+                    std::vector<Eigen::Vector2d>* points, std::vector<double>* strengths) {
+  const Eigen::Vector2d along = (b - a).normalized();
+  const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
+  for (int k = 0; k < samples; ++k) {
+    const Eigen::Vector2d p = a + (t0 + (t1 - t0) * k / (samples - 1.0)) * (b - a);
+    if (const std::optional<EdgeHit> hit = FindOuterEdge(gray, p, outward, half_window, min_step)) {
+      const std::optional<double> fitted =
+          fit_model ? FitEdgeModel(gray, p, outward, hit->offset_px) : std::optional<double>();
+      points->push_back(p + fitted.value_or(hit->offset_px) * outward), strengths->push_back(hit->strength);
+    }
+  }
 }
 
 // One round: edge points along each side within +-half_window, lines, intersections.
 std::optional<RefinedQuad> RefineOnce(const cv::Mat& gray, const Quad2d& corners, double half_window,
-                                      const RefineOptions& options) {
+                                      bool fit_model, const RefineOptions& options) {
   std::array<Line2d, 4> lines;
   double worst = 1.0;
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector2d a = corners[i];
     const Eigen::Vector2d b = corners[(i + 1) % 4];
-    const double length = (b - a).norm();
-    const Eigen::Vector2d along = (b - a) / length;
-    const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
-    const int samples = std::clamp(static_cast<int>(length / 1.5), 8, 96);
+    const int samples = std::clamp(static_cast<int>((b - a).norm() / 1.5), 8, 96);
     std::vector<Eigen::Vector2d> points;
     std::vector<double> strengths;
-    for (int k = 0; k < samples; ++k) {
-      const Eigen::Vector2d p = a + (0.1 + 0.8 * k / (samples - 1.0)) * (b - a);
-      double strength = 0.0;
-      const double s = EdgeOffset(gray, p, outward, half_window, options.min_step, &strength);
-      if (!std::isnan(s)) points.push_back(p + s * outward), strengths.push_back(strength);
-    }
+    SideEdgePoints(gray, a, b, 0.1, 0.9, samples, half_window, options.min_step, fit_model, &points, &strengths);
     const std::optional<Line2d> line = FitEdgeLine(points, strengths, samples);
     if (!line || line->inlier_fraction < options.min_inlier_fraction) return std::nullopt;
     lines[i] = *line;
@@ -181,14 +141,175 @@ std::optional<RefinedQuad> RefineOnce(const cv::Mat& gray, const Quad2d& corners
   out.inlier_fraction = worst;
   for (int i = 0; i < 4; ++i) {
     // Corner i joins side i-1 (ending at i) and side i (starting at i).
-    const std::optional<Eigen::Vector2d> c = Intersect(lines[(i + 3) % 4], lines[i]);
+    const std::optional<Eigen::Vector2d> c = IntersectLines(lines[(i + 3) % 4], lines[i]);
     if (!c || (*c - corners[i]).norm() > options.max_shift_px) return std::nullopt;
     out.corners_px[i] = *c;
   }
   return out;
 }
 
+// True if a pixel that the bilinear sample at (x, y) reads is saturated (>= kClippedLevel).
+constexpr int kClippedLevel = 254;
+bool ReadsClippedPixel(const cv::Mat& gray, double x, double y) {
+  const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
+  const uint8_t* r0 = gray.ptr<uint8_t>(y0);
+  const uint8_t* r1 = gray.ptr<uint8_t>(y0 + 1);
+  return std::max({r0[x0], r0[x0 + 1], r1[x0], r1[x0 + 1]}) >= kClippedLevel;
+}
+
+// Blurred dark bar model of a profile along the outward normal (see the header):
+//   I(s) = L - A [Phi((e - s) / sigma) - Phi((e - w - s) / sigma)]
+// parameters x = [e, sigma, L, A, w] (w dropped when `fit_width` is false).
+struct BarModel {
+  double e, sigma, light, amplitude, width;
+};
+
+double NormalCdf(double u) { return 0.5 * std::erfc(-u / std::sqrt(2.0)); }
+double NormalPdf(double u) { return std::exp(-0.5 * u * u) / std::sqrt(2.0 * M_PI); }
+
+// Levenberg-Marquardt on the samples (s_k, I_k); returns false if it did not converge to a
+// plausible model (sigma in [0.2, 4] px, positive amplitude, e within the samples).
+bool FitBarModel(const std::vector<double>& s, const std::vector<double>& intensity, bool fit_width, BarModel* m) {
+  const int n = fit_width ? 5 : 4;
+  double lambda = 1e-3;
+  auto cost = [&](const BarModel& b) {
+    double c = 0.0;
+    for (size_t k = 0; k < s.size(); ++k) {
+      const double r = b.light - b.amplitude * (NormalCdf((b.e - s[k]) / b.sigma) -
+                                                NormalCdf((b.e - b.width - s[k]) / b.sigma)) - intensity[k];
+      c += r * r;
+    }
+    return c;
+  };
+  double current = cost(*m);
+  for (int it = 0; it < 20; ++it) {
+    Eigen::Matrix<double, 5, 5> jtj = Eigen::Matrix<double, 5, 5>::Zero();
+    Eigen::Matrix<double, 5, 1> jtr = Eigen::Matrix<double, 5, 1>::Zero();
+    for (size_t k = 0; k < s.size(); ++k) {
+      const double u1 = (m->e - s[k]) / m->sigma, u2 = (m->e - m->width - s[k]) / m->sigma;
+      const double p1 = NormalPdf(u1), p2 = NormalPdf(u2);
+      const double r = m->light - m->amplitude * (NormalCdf(u1) - NormalCdf(u2)) - intensity[k];
+      Eigen::Matrix<double, 5, 1> j;
+      j << -m->amplitude * (p1 - p2) / m->sigma, m->amplitude * (p1 * u1 - p2 * u2) / m->sigma, 1.0,
+          -(NormalCdf(u1) - NormalCdf(u2)), -m->amplitude * p2 / m->sigma;
+      if (!fit_width) j[4] = 0.0;
+      jtj += j * j.transpose();
+      jtr += j * r;
+    }
+    if (!fit_width) jtj(4, 4) = 1.0;
+    Eigen::Matrix<double, 5, 5> damped = jtj;
+    for (int i = 0; i < n; ++i) damped(i, i) *= 1.0 + lambda;
+    const Eigen::Matrix<double, 5, 1> dx = -damped.ldlt().solve(jtr);
+    BarModel next{m->e + dx[0], m->sigma + dx[1], m->light + dx[2], m->amplitude + dx[3], m->width + dx[4]};
+    const double next_cost = next.sigma > 0.1 ? cost(next) : std::numeric_limits<double>::infinity();
+    if (next_cost < current) {
+      *m = next, current = next_cost, lambda *= 0.3;
+      if (std::abs(dx[0]) < 1e-4) break;
+    } else {
+      lambda *= 10.0;
+      if (lambda > 1e6) break;
+    }
+  }
+  return m->sigma >= 0.2 && m->sigma <= 4.0 && m->amplitude > 0.0 && m->e >= s.front() && m->e <= s.back();
+}
+
 }  // namespace
+
+std::optional<double> FitEdgeModel(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n,
+                                   double offset_px) {
+  // Samples from kInnerPx inside to kOuterPx outside of the first estimate.
+  constexpr double kInnerPx = 4.0, kOuterPx = 2.5;
+  std::vector<double> s_all, profile;
+  std::vector<bool> clipped;
+  for (double t = offset_px - kInnerPx; t <= offset_px + kOuterPx + 1e-9; t += kStepPx) {
+    const Eigen::Vector2d q = p + t * n;
+    const double value = Bilinear(gray, q.x(), q.y());
+    if (std::isnan(value)) return std::nullopt;
+    s_all.push_back(t), profile.push_back(value), clipped.push_back(ReadsClippedPixel(gray, q.x(), q.y()));
+  }
+  // The bar's inner edge: the most negative derivative (1 px baseline) inside the estimate.
+  const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
+  const int at = static_cast<int>(std::round(kInnerPx / kStepPx));
+  double peak = 0.0, trough = 0.0;
+  int trough_k = -1;
+  for (int k = h; k + h < static_cast<int>(profile.size()); ++k) {
+    const double d = profile[k + h] - profile[k - h];
+    if (std::abs(k - at) <= 2 * h) peak = std::max(peak, d);
+    if (k < at - h && d < trough) trough = d, trough_k = k;
+  }
+  if (peak <= 0.0) return std::nullopt;
+  const bool bar = trough_k >= 0 && trough < -kBarLobe * peak;
+  // Only a thin bar biases the first estimate; a clipped profile leaves L undetermined.
+  if (!bar || s_all[at] - s_all[trough_k] > kMaxBarPx) return offset_px;
+  if (std::find(clipped.begin(), clipped.end(), true) != clipped.end()) return offset_px;
+  BarModel m{offset_px, 0.8, 0.0, 0.0, bar ? s_all[at] - s_all[trough_k] : 1e3};
+  // Samples used: unclipped, and inside at most half a pixel past the inner edge.
+  std::vector<double> s, intensity;
+  double dark = 255.0;
+  for (size_t k = 0; k < profile.size(); ++k) {
+    if (clipped[k] || (bar && s_all[k] < offset_px - m.width - 0.75)) continue;
+    s.push_back(s_all[k]), intensity.push_back(profile[k]);
+    if (s_all[k] < offset_px) dark = std::min(dark, profile[k]);
+    if (s_all[k] > offset_px) m.light = std::max(m.light, profile[k]);
+  }
+  if (s.size() < 10 || m.light <= dark) return std::nullopt;
+  m.amplitude = m.light - dark;
+  if (!FitBarModel(s, intensity, bar, &m)) return std::nullopt;
+  if (std::abs(m.e - offset_px) > 0.75) return std::nullopt;
+  return m.e;
+}
+
+std::optional<Eigen::Vector2d> IntersectLines(const Line2d& a, const Line2d& b) {
+  const double det = a.direction.x() * b.direction.y() - a.direction.y() * b.direction.x();
+  if (std::abs(det) < 0.1) return std::nullopt;  // sides closer than ~6 degrees to parallel
+  const Eigen::Vector2d d = b.point - a.point;
+  const double t = (d.x() * b.direction.y() - d.y() * b.direction.x()) / det;
+  return a.point + t * a.direction;
+}
+
+std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d& from_px, const Eigen::Vector2d& to_px,
+                                     double t0, double t1, double half_window_px, double min_step) {
+  if (gray.empty() || gray.type() != CV_8UC1 || !(t1 > t0)) return std::nullopt;
+  const int samples = std::clamp(static_cast<int>((t1 - t0) * (to_px - from_px).norm() / 0.5), 8, 96);
+  std::vector<Eigen::Vector2d> points;
+  std::vector<double> strengths;
+  SideEdgePoints(gray, from_px, to_px, t0, t1, samples, half_window_px, min_step, false, &points, &strengths);
+  return FitEdgeLine(points, strengths, samples);
+}
+
+std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n,
+                                     double half_window, double min_step) {
+  const int count = static_cast<int>(std::round(2.0 * (half_window + 0.5) / kStepPx)) + 1;
+  std::vector<double> profile(count);
+  for (int k = 0; k < count; ++k) {
+    const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
+    profile[k] = Bilinear(gray, q.x(), q.y());
+    if (std::isnan(profile[k])) return std::nullopt;
+  }
+  const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
+  std::vector<double> step(count, 0.0);
+  double strongest = 0.0;
+  for (int k = h; k + h < count; ++k) {
+    step[k] = profile[k + h] - profile[k - h];
+    strongest = std::max(strongest, step[k]);
+  }
+  if (strongest < min_step) return std::nullopt;
+  for (int k = count - h - 2; k > h; --k) {  // outermost first
+    if (step[k] < 0.5 * strongest || step[k] < step[k - 1] || step[k] < step[k + 1]) continue;
+    // Centroid of the derivative above half its peak around k: unbiased for a symmetric
+    // blur, and well defined on the plateau a sharp step makes under bilinear sampling.
+    const double half = kCentroidLevel * step[k];
+    double weight_sum = 0.0;
+    double moment = 0.0;
+    for (int j = k; j >= h && step[j] > half; --j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
+    for (int j = k + 1; j + h < count && step[j] > half; ++j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
+    if (weight_sum <= 0.0) continue;
+    return EdgeHit{-half_window - 0.5 + (moment / weight_sum) * kStepPx, step[k]};
+  }
+  return std::nullopt;
+}
+
 
 std::optional<RefinedQuad> RefineQuadCorners(const cv::Mat& gray, const Quad2d& corners_px,
                                              const RefineOptions& options) {
@@ -201,9 +322,9 @@ std::optional<RefinedQuad> RefineQuadCorners(const cv::Mat& gray, const Quad2d& 
   if (!(window >= 0.75)) return std::nullopt;
   RefineOptions round = options;
   round.max_shift_px = std::max(options.max_shift_px, 1.5 * window);
-  const std::optional<RefinedQuad> first = RefineOnce(gray, corners_px, window, round);
+  const std::optional<RefinedQuad> first = RefineOnce(gray, corners_px, window, false, round);
   if (!first) return std::nullopt;
-  std::optional<RefinedQuad> second = RefineOnce(gray, first->corners_px, std::min(window, 1.25), round);
+  std::optional<RefinedQuad> second = RefineOnce(gray, first->corners_px, std::min(window, 1.25), options.fit_edge_model, round);
   if (!second) return first;
   for (int i = 0; i < 4; ++i) {
     if ((second->corners_px[i] - corners_px[i]).norm() > round.max_shift_px) return first;

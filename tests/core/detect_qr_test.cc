@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include <opencv2/imgproc.hpp>
 
@@ -68,6 +69,31 @@ TEST(DetectQr, PerspectiveBlurAndNoiseStaySubPixel) {
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "waymark:A01");
   EXPECT_LT(MaxCornerError(found[0], truth), 0.25);
+}
+
+// Version 1 has no alignment pattern: the bottom-right corner has no finder of its own and
+// comes from the symbol's edges (CornerFromFinderEdges in core/detect_qr.cc).
+TEST(DetectQr, VersionOneFourthCornerUnderPerspective) {
+  auto detector = CreateDetector("qr");
+  const SymbolImage symbol = QrSymbol("0/2/1.5");  // 21 x 21 modules
+  // Strong keystones, 120 .. 140 px wide: the bottom-right corner 15 px from the
+  // parallelogram's. (zxing-cpp 1.4 reads these well by itself; its misplaced corner shows on
+  // small rendered codes: bench/render_corner_bench.cc, 40 .. 46 px codes at 1.6 .. 2.4 m.)
+  const std::vector<Quad2d> truths = {
+      {Eigen::Vector2d(200.3, 150.6), Eigen::Vector2d(341.2, 171.4), Eigen::Vector2d(322.7, 296.1),
+       Eigen::Vector2d(190.4, 291.8)},
+      {Eigen::Vector2d(180.6, 160.2), Eigen::Vector2d(300.9, 140.3), Eigen::Vector2d(318.4, 280.7),
+       Eigen::Vector2d(170.2, 300.5)}};
+  for (size_t i = 0; i < truths.size(); ++i) {
+    cv::Mat image = Canvas();
+    DrawSymbol(symbol, truths[i], &image);
+    cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+    const auto found = detector->Detect(image);
+    ASSERT_EQ(found.size(), 1u) << i;
+    EXPECT_EQ(found[0].key.id, "0/2/1.5");
+    EXPECT_LT(MaxCornerError(found[0], truths[i]), 0.15) << i;
+    std::printf("keystone %zu: worst corner error %.3f px\n", i, MaxCornerError(found[0], truths[i]));
+  }
 }
 
 TEST(DetectQr, SeveralCodesInOneBgrImage) {
