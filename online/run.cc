@@ -127,6 +127,10 @@ bool LocalizeRunOptions::Check(std::string* why) const {
   if (!(odometry_wait_s >= 0.0) || !std::isfinite(odometry_wait_s)) {
     return fail("odometry_wait_s must be finite and >= 0");
   }
+  if (!(late_frame_window_s >= 0.0) || !std::isfinite(late_frame_window_s)) {
+    return fail("late_frame_window_s must be finite and >= 0");
+  }
+  if (!std::isfinite(odometry_time_offset_s)) return fail("odometry_time_offset_s must be finite");
   if (detect_images && !detector.Check(why)) return false;
   return true;
 }
@@ -211,7 +215,8 @@ void LocalizeStream::CountStatus(StepStatus status, const std::string& example) 
   }
 }
 
-void LocalizeStream::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
+void LocalizeStream::AddOdometry(double odometry_stamp_s, const SE3d& T_odom_robot) {
+  const double stamp_s = odometry_stamp_s - options_.odometry_time_offset_s;
   const std::string example = "odometry at " + StampText(stamp_s);
   if (!std::isfinite(stamp_s) || !T_odom_robot.IsFinite()) return warnings_.Add(kWarnInvalidInput, example);
   const std::optional<double> last_s =
@@ -222,6 +227,25 @@ void LocalizeStream::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
   latest_input_s_ = std::max(latest_input_s_.value_or(stamp_s), stamp_s);
   odometry_.push_back({stamp_s, T_odom_robot});
   Drain(false);
+}
+
+void LocalizeStream::AddVelocity(double stamp_s, double v_mps, double omega_radps) {
+  const std::string example = "velocity at " + StampText(stamp_s);
+  if (options_.localizer.motion != MotionModel::kPlanar || !std::isfinite(stamp_s) || !std::isfinite(v_mps) ||
+      !std::isfinite(omega_radps)) {
+    return warnings_.Add(kWarnInvalidInput, example + " (velocities need finite numbers and planar motion)");
+  }
+  if (!velocity_pose_) {
+    velocity_pose_ = StampedSE3{stamp_s, SE3d()};
+  } else {
+    if (stamp_s <= velocity_pose_->stamp_s) return warnings_.Add(kWarnTimeBackwards, example);
+    const double dt_s = stamp_s - velocity_pose_->stamp_s;
+    const double a = omega_radps * dt_s;  // the arc's chord: 2 v / omega sin(a / 2) (v dt when straight)
+    const double d = std::abs(a) > 1e-9 ? 2.0 * v_mps / omega_radps * std::sin(0.5 * a) : v_mps * dt_s;
+    velocity_pose_ =
+        StampedSE3{stamp_s, velocity_pose_->T * SE2d(d * std::cos(0.5 * a), d * std::sin(0.5 * a), a).ToSE3()};
+  }
+  AddOdometry(stamp_s, velocity_pose_->T);
 }
 
 void LocalizeStream::AddFrame(const DetectionFrame& frame, double detection_ms) {
@@ -243,7 +267,11 @@ void LocalizeStream::Drain(bool flush) {
     pending_.pop_front();
     ProcessFrame(pending);
   }
-  if (pending_.empty()) FeedOdometryBefore(std::numeric_limits<double>::infinity(), true);
+  if (!pending_.empty()) return;
+  // Odometry within late_frame_window_s of the newest input waits (a late frame may still come).
+  const double hold_from_s = flush || !latest_input_s_ ? std::numeric_limits<double>::infinity()
+                                                       : *latest_input_s_ - options_.late_frame_window_s;
+  FeedOdometryBefore(hold_from_s, true);
 }
 
 void LocalizeStream::FeedOdometryBefore(double stamp_s, bool inclusive) {
@@ -348,10 +376,10 @@ struct RunEvent {
 };
 
 // The streams to merge: odometry first (it wins ties), then one per camera, each in file order.
-std::vector<std::vector<RunEvent>> BuildStreams(const Dataset& dataset, bool images) {
+std::vector<std::vector<RunEvent>> BuildStreams(const Dataset& dataset, bool images, double odometry_offset_s) {
   std::vector<std::vector<RunEvent>> streams(1);
   for (size_t i = 0; i < dataset.odometry.size(); ++i)
-    streams[0].push_back({RunEvent::kOdometry, dataset.odometry[i].stamp_s, i});
+    streams[0].push_back({RunEvent::kOdometry, dataset.odometry[i].stamp_s - odometry_offset_s, i});
   std::map<std::string, size_t> camera_stream;
   const auto stream_of = [&](const std::string& camera) -> std::vector<RunEvent>& {
     auto [it, inserted] = camera_stream.try_emplace(camera, streams.size());
@@ -430,7 +458,7 @@ LocalizeRun RunLocalizer(const Dataset& dataset, const MarkerMap& map, const Loc
                         [&run](const LocalizeStream::FrameOutput& output) { CollectFrame(output, &run); });
   std::unique_ptr<MarkerDetector> detector;
   if (options.detect_images) detector = CreateMultiDetector(DetectionFamilies(map, options.families), options.detector);
-  const std::vector<std::vector<RunEvent>> streams = BuildStreams(dataset, options.detect_images);
+  const std::vector<std::vector<RunEvent>> streams = BuildStreams(dataset, options.detect_images, options.odometry_time_offset_s);
   size_t total_frames = 0, frames = 0;
   for (size_t s = 1; s < streams.size(); ++s) total_frames += streams[s].size();
   RealtimePacer pacer;

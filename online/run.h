@@ -54,6 +54,13 @@ struct LocalizeRunOptions {
   // Live streams: how long (in stamp time) a frame may wait for odometry beyond its stamp
   // before it is corrected without the interpolated prediction.
   double odometry_wait_s = 0.5;
+  // Live streams: odometry is held this long (stamp time) behind the newest input before the
+  // filter moves past it, so a camera frame that arrives after newer odometry, up to this late,
+  // is still corrected at its own stamp (later than that: time going backwards, a warning).
+  double late_frame_window_s = 0.2;
+  // Odometry clock minus image clock (s), e.g. the survey's estimate that `waymark map build`
+  // reports: an odometry sample stamped t is used at t - odometry_time_offset_s.
+  double odometry_time_offset_s = 0.0;
 
   bool Check(std::string* why) const;
 };
@@ -154,7 +161,13 @@ class LocalizeStream {
                  std::function<void(const FrameOutput&)> on_frame);
   ~LocalizeStream();
 
+  // `stamp_s` on the odometry's clock (odometry_time_offset_s is subtracted here).
   void AddOdometry(double stamp_s, const SE3d& T_odom_robot);
+  // Planar only: the robot moved with (v, omega) since the previous velocity sample (seed 000's
+  // unicycle, the exact arc: turn a = omega dt, chord 2 v / omega sin(a / 2) at a / 2). The samples are
+  // integrated into odometry poses T_odom_robot and go the odometry's way (interpolation to
+  // the frame instants included). Odometry clock, like AddOdometry.
+  void AddVelocity(double stamp_s, double v_mps, double omega_radps);
   // `detection_ms`: time already spent detecting the frame's codes (added to its latency).
   void AddFrame(const DetectionFrame& frame, double detection_ms = 0.0);
   // Processes every waiting frame (end of input).
@@ -185,6 +198,7 @@ class LocalizeStream {
   std::deque<Pending> pending_;
   std::deque<StampedSE3> odometry_;           // received, not yet fed
   std::optional<StampedSE3> last_odometry_;   // last recorded sample fed (interpolation base)
+  std::optional<StampedSE3> velocity_pose_;   // AddVelocity: the integrated T_odom_robot
   bool seen_odometry_ = false;
   std::optional<double> latest_input_s_;  // largest stamp received (frames and odometry)
   std::set<MarkerKey> unknown_keys_;       // detected codes absent from the map

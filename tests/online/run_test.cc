@@ -290,6 +290,90 @@ TEST(LocalizeStreamTest, AFrameWaitsForTheOdometryPastItsStamp) {
   EXPECT_EQ(stream.warnings().Count(kWarnOutsideOdometry), 2);
 }
 
+// A frame that arrives after newer odometry (a slower camera pipeline) is used at its own stamp
+// when it is at most late_frame_window_s late; without the window it is rejected.
+TEST(LocalizeStreamTest, ALateFrameIsUsedAtItsStampWithinTheWindow) {
+  const ArcCase arc;
+  for (double window_s : {0.2, 0.0}) {
+    LocalizeRunOptions options;
+    options.localizer = DefaultLocalizerOptions(arc.dataset);
+    options.late_frame_window_s = window_s;
+    std::vector<LocalizeStream::FrameOutput> outputs;
+    LocalizeStream stream(arc.dataset, arc.map, options,
+                          [&](const LocalizeStream::FrameOutput& output) { outputs.push_back(output); });
+    stream.AddOdometry(0.0, ArcCase::Odometry(0.0));
+    stream.AddFrame(arc.dataset.detections[0]);
+    for (double t : {0.1, 0.2, 0.3, 0.4}) stream.AddOdometry(t, ArcCase::Odometry(t));
+    stream.AddFrame(arc.dataset.detections[1]);  // t = 0.25, 0.15 s late
+    ASSERT_EQ(outputs.size(), 2u);
+    if (window_s > 0.0) {
+      ASSERT_TRUE(outputs[1].pose.T_world_robot.has_value());
+      const SE3d expected = *outputs[0].pose.T_world_robot * ArcCase::Odometry(0.25);
+      EXPECT_LT((outputs[1].pose.T_world_robot->translation() - expected.translation()).norm(), 1e-9);
+      EXPECT_EQ(outputs[1].pose.stamp_s, 0.25);
+      EXPECT_EQ(stream.warnings().Total(), 0);
+    } else {
+      EXPECT_EQ(outputs[1].result.status, StepStatus::kTimeWentBackwards);
+      EXPECT_EQ(stream.warnings().Count(kWarnTimeBackwards), 1);
+    }
+  }
+}
+
+// Seed 000's input: (v, omega) samples integrated along the unicycle's arc give the same poses
+// as the odometry poses of that arc.
+TEST(LocalizeStreamTest, VelocitiesPredictLikeTheOdometryOfTheSameArc) {
+  const ArcCase arc;
+  LocalizeRunOptions options;
+  options.localizer = DefaultLocalizerOptions(arc.dataset);
+  std::vector<LocalizeStream::FrameOutput> outputs;
+  LocalizeStream stream(arc.dataset, arc.map, options,
+                        [&](const LocalizeStream::FrameOutput& output) { outputs.push_back(output); });
+  size_t f = 0;
+  for (int i = 0; i <= 10; ++i) {
+    const double t = 0.1 * i;
+    stream.AddVelocity(t, 0.5, 0.6);  // ArcCase's constant twist
+    for (; f < arc.dataset.detections.size() && arc.dataset.detections[f].stamp_s <= t; ++f)
+      stream.AddFrame(arc.dataset.detections[f]);
+  }
+  stream.Flush();
+  ASSERT_EQ(outputs.size(), 4u);
+  for (const LocalizeStream::FrameOutput& output : outputs) {
+    ASSERT_TRUE(output.pose.T_world_robot.has_value());
+    const SE3d expected = *outputs[0].pose.T_world_robot * ArcCase::Odometry(output.pose.stamp_s);
+    EXPECT_LT((output.pose.T_world_robot->translation() - expected.translation()).norm(), 1e-9);
+  }
+  EXPECT_EQ(stream.warnings().Total(), 0);
+  stream.AddVelocity(0.5, 0.5, 0.6);
+  EXPECT_EQ(stream.warnings().Count(kWarnTimeBackwards), 1);
+}
+
+// Odometry stamped on a clock 0.3 s ahead of the images: with the offset given, the run is the
+// one with synchronized stamps; without it, the poses are off.
+TEST(RunLocalizerTest, OdometryTimeOffsetIsApplied) {
+  const ArcCase arc;
+  Dataset shifted = arc.dataset;
+  for (StampedSE3& sample : shifted.odometry) sample.stamp_s += 0.3;
+  LocalizeRunOptions options;
+  options.localizer = DefaultLocalizerOptions(arc.dataset);
+  const LocalizeRun reference = RunLocalizer(arc.dataset, arc.map, options);
+  const LocalizeRun unsynced = RunLocalizer(shifted, arc.map, options);
+  options.odometry_time_offset_s = 0.3;
+  const LocalizeRun corrected = RunLocalizer(shifted, arc.map, options);
+  ASSERT_EQ(corrected.trajectory.size(), reference.trajectory.size());
+  double unsynced_worst_m = 0.0;
+  for (size_t i = 0; i < reference.trajectory.size(); ++i) {
+    EXPECT_LT((corrected.trajectory[i].T.translation() - reference.trajectory[i].T.translation()).norm(), 1e-9);
+    if (i < unsynced.trajectory.size()) {
+      unsynced_worst_m = std::max(
+          unsynced_worst_m, (unsynced.trajectory[i].T.translation() - reference.trajectory[i].T.translation()).norm());
+    }
+  }
+  EXPECT_GT(unsynced_worst_m, 0.05);
+  options.odometry_time_offset_s = std::nan("");
+  std::string why;
+  EXPECT_FALSE(options.Check(&why));
+}
+
 TEST(RealtimePacerTest, ReleasesInputsAtThePaceOfTheirStamps) {
   RealtimePacer pacer;
   const auto start = std::chrono::steady_clock::now();
