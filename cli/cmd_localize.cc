@@ -49,11 +49,13 @@ It prints frames, tracking %, correction counts, relocalizations and the per-fra
 
 --live reads JSON lines on stdin, in time order (docs/formats.md, "Localization input/output"):
   {"t": 1.25, "T_odom_robot": {"t": [x, y, z], "q_xyzw": [qx, qy, qz, qw]}}      odometry
+  {"t": 1.25, "v": 0.5, "omega": 0.1}     velocities (planar: m/s, rad/s since the previous one)
   {"t": 1.30, "camera": "cam0", "markers": [...]}            detections (detections.jsonl)
   {"t": 1.30, "camera": "cam0", "image": "frames/0001.png"}   an image to detect on
 and writes one JSON line per camera frame on stdout (the --poses format), flushed at once.
 A frame is answered when the odometry has passed its stamp (interpolated), or 0.5 s of input
-later. DATASET gives only dataset.yaml and the cameras. A malformed line is reported on
+later. Odometry is held --late-frame-window seconds behind the newest input, so a frame that
+arrives after newer odometry, up to that late, is still used at its own stamp. DATASET gives only dataset.yaml and the cameras. A malformed line is reported on
 stderr with its line number, counted and skipped; the counts go to stderr at the end.
 
 Options:
@@ -65,9 +67,14 @@ Options:
                       qr,datamatrix,apriltag-36h11
   --realtime          pace the input by its timestamps (replay at the recorded speed)
   --live              read the input from stdin (above) instead of DATASET's files
+  --odometry-time-offset S   odometry clock minus image clock, s (as `waymark map build` reports
+                      it for the survey): odometry stamped t is used at t - S (default 0)
+  --late-frame-window S      live: how late (s) a frame may arrive after newer odometry and still
+                      be used at its stamp (default 0.2)
 )";
 
-const std::set<std::string> kValues = {"map", "out", "mode", "predicted", "poses", "families"};
+const std::set<std::string> kValues = {"map",      "out",          "mode", "predicted", "poses", "families",
+                                       "odometry-time-offset", "late-frame-window"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 
 std::string Fixed(double value, int digits) {
@@ -90,6 +97,8 @@ LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
   options.detect_images = args.Flag("detect-images");
   if (args.Has("families")) options.families = ParseFamilyList(*args.Get("families"));
   options.realtime = args.Flag("realtime");
+  if (args.Has("odometry-time-offset")) options.odometry_time_offset_s = *args.GetDouble("odometry-time-offset");
+  if (args.Has("late-frame-window")) options.late_frame_window_s = *args.GetDouble("late-frame-window");
   if (StderrIsTerminal()) {
     options.progress = [](const std::string& line) { std::cerr << "\r\033[K" << line << std::flush; };
   }
@@ -231,6 +240,12 @@ void LiveInput::HandleLine(const std::string& line, RealtimePacer* pacer) {
     JsonWarnUnknownKeys(source, object, "", {"t", "T_odom_robot"}, &read_warnings_);
     return stream_.AddOdometry(stamp_s, JsonPose(source, object["T_odom_robot"], "T_odom_robot"));
   }
+  if (object.contains("v") || object.contains("omega")) {
+    JsonWarnUnknownKeys(source, object, "", {"t", "v", "omega"}, &read_warnings_);
+    const double v_mps = JsonNumber(source, *JsonMember(source, object, "", "v", true), "v");
+    const double omega_radps = JsonNumber(source, *JsonMember(source, object, "", "omega", true), "omega");
+    return stream_.AddVelocity(stamp_s, v_mps, omega_radps);
+  }
   if (object.contains("markers")) {
     ReadWarnings warnings;
     std::vector<DetectionFrame> frames = ParseDetections(line, "stdin", &warnings, &dataset_.cameras);
@@ -239,7 +254,8 @@ void LiveInput::HandleLine(const std::string& line, RealtimePacer* pacer) {
   }
   if (object.contains("image")) return HandleImage(object, source, stamp_s);
   throw std::invalid_argument(
-      "expected an odometry line (T_odom_robot), a detection line (markers) or an image line (image)");
+      "expected an odometry line (T_odom_robot), a velocity line (v, omega), a detection line (markers) or an "
+      "image line (image)");
 }
 
 void LiveInput::HandleImage(const nlohmann::json& object, const JsonSource& source, double stamp_s) {
