@@ -1,10 +1,10 @@
 // Corner accuracy of the detectors on rendered images (sim/render.h) against the exact
 // ground truth, versus distance and viewing angle, per family.
 //
-//   bench_render_corner_bench [--quick] [--verbose]
+//   bench_render_corner_bench [--quick] [--verbose] [--family NAME] [--clean-only]
 //
-// Scene: a 1280x960 camera (fx = fy = 1000 px, mild barrel distortion, the camera of
-// tests/sim/render_test.cc) 1.2 m above the floor looking along world +x at a textured wall;
+// Scene: a 1280x960 camera (fx = fy = 1000 px, mild barrel distortion: sim/test_scenes.h,
+// shared with tests/sim/render_test.cc) 1.2 m above the floor looking along world +x at a textured wall;
 // 0.10 m codes stand `range` metres ahead, turned by `yaw` about the vertical, four per image
 // at different image positions (normalized offsets (+-0.4, +-0.25) and near the centre), so
 // every cell mixes centre and off-axis codes (lens distortion bends their edges).
@@ -18,7 +18,8 @@
 // every such code <= 0.15 px with the clean setting).
 // Prints a table and writes bench/results/render_corners.json atomically.
 // --quick: ranges 1.0 and 2.0 m, yaws 0 and 45 deg, clean only (a smoke run of a few
-// seconds; prints, writes nothing).
+// seconds; prints, writes nothing). --family (qr, datamatrix, apriltag-36h11) and
+// --clean-only restrict the run (for diagnosis: prints, writes nothing).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -34,6 +35,7 @@
 #include "core/detector.h"
 #include "core/io_util.h"
 #include "sim/render.h"
+#include "sim/test_scenes.h"
 #include "sim/world.h"
 
 namespace waymark {
@@ -42,25 +44,10 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr double kSizeM = 0.10;
-constexpr double kCameraHeightM = 1.2;
+constexpr double kCameraHeightM = sim::kTestCameraHeightM;
 constexpr double kMinWidthPx = 40.0;
 // Normalized image offsets (x right, y down) of the four codes in each image.
 const Eigen::Vector2d kOffsets[4] = {{-0.4, -0.25}, {0.38, -0.22}, {-0.33, 0.25}, {0.05, 0.04}};
-
-Camera BenchCamera() {
-  CameraInfo info;
-  info.name = "cam";
-  info.width = 1280;
-  info.height = 960;
-  info.intrinsics = {1000.0, 1000.0, 640.0, 480.0};
-  info.distortion = {-0.05, 0.01, 0.0005, -0.0003, 0.0};
-  return Camera(info);
-}
-
-SE3d CameraPose() {
-  return SE3d(sim::RotationFromZY(Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitZ()),
-              Eigen::Vector3d(0.0, 0.0, kCameraHeightM));
-}
 
 std::string CodeId(const std::string& family, int cell, int k) {
   if (family == "qr") return "0/" + std::to_string(cell) + "/" + std::to_string(k) + ".5";
@@ -93,11 +80,11 @@ struct CodeResult {
 
 std::vector<CodeResult> MeasureCell(const std::string& family, int cell, double range_m, double yaw_deg,
                                     const sim::RenderOptions& options, bool verbose) {
-  const Camera camera = BenchCamera();
+  const Camera camera = sim::TestCamera();
   const sim::World world = CellWorld(family, cell, range_m, yaw_deg);
   const sim::Renderer renderer(world, options);
-  const std::vector<MarkerObservation> truth = renderer.GroundTruth(camera, CameraPose());
-  const cv::Mat image = renderer.Render(camera, CameraPose(), 7, static_cast<std::uint64_t>(cell));
+  const std::vector<MarkerObservation> truth = renderer.GroundTruth(camera, sim::TestCameraPose());
+  const cv::Mat image = renderer.Render(camera, sim::TestCameraPose(), 7, static_cast<std::uint64_t>(cell));
   const std::vector<MarkerObservation> found = CreateDetector(family)->Detect(image);
   std::vector<CodeResult> results;
   for (const MarkerObservation& t : truth) {
@@ -144,8 +131,8 @@ struct Summary {
 };
 
 nlohmann::json RunSetting(const std::string& name, const sim::RenderOptions& options,
-                          const std::vector<double>& ranges_m, const std::vector<double>& yaws_deg, bool verbose) {
-  const std::vector<std::string> families = {"qr", "datamatrix", "apriltag-36h11"};
+                          const std::vector<double>& ranges_m, const std::vector<double>& yaws_deg,
+                          const std::vector<std::string>& families, bool verbose) {
   nlohmann::json out = {{"setting", name},
                         {"noise_sigma", options.noise_sigma},
                         {"blur_sigma_px", options.blur_sigma_px},
@@ -189,18 +176,27 @@ nlohmann::json RunSetting(const std::string& name, const sim::RenderOptions& opt
 }  // namespace waymark
 
 int main(int argc, char** argv) {
-  bool quick = false, verbose = false;
+  bool quick = false, verbose = false, clean_only = false;
+  std::vector<std::string> families = {"qr", "datamatrix", "apriltag-36h11"};
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--quick") {
       quick = true;
     } else if (arg == "--verbose") {
       verbose = true;
+    } else if (arg == "--clean-only") {
+      clean_only = true;
+    } else if (arg == "--family" && i + 1 < argc &&
+               std::find(families.begin(), families.end(), argv[i + 1]) != families.end()) {
+      families = {argv[++i]};
     } else {
-      std::fprintf(stderr, "usage: bench_render_corner_bench [--quick] [--verbose]\n");
+      std::fprintf(stderr,
+                   "usage: bench_render_corner_bench [--quick] [--verbose] [--family qr|datamatrix|apriltag-36h11] "
+                   "[--clean-only]\n");
       return 2;
     }
   }
+  const bool partial = quick || clean_only || families.size() < 3;
   cv::setNumThreads(1);  // one core, like the detectors' timing
   const auto start = std::chrono::steady_clock::now();
   const std::vector<double> ranges_m = quick ? std::vector<double>{1.0, 2.0} : std::vector<double>{0.6, 1.0, 1.6, 2.4};
@@ -213,13 +209,14 @@ int main(int argc, char** argv) {
   out["camera"] = {{"width", 1280}, {"height", 960}, {"intrinsics", {1000, 1000, 640, 480}},
                    {"distortion", {-0.05, 0.01, 0.0005, -0.0003, 0.0}}};
   out["code_size_m"] = waymark::kSizeM;
-  out["settings"].push_back(waymark::RunSetting("clean", clean, ranges_m, yaws_deg, verbose));
-  if (!quick) {
-    out["settings"].push_back(waymark::RunSetting("default", waymark::sim::RenderOptions{}, ranges_m, yaws_deg, verbose));
+  out["settings"].push_back(waymark::RunSetting("clean", clean, ranges_m, yaws_deg, families, verbose));
+  if (!quick && !clean_only) {
+    out["settings"].push_back(
+        waymark::RunSetting("default", waymark::sim::RenderOptions{}, ranges_m, yaws_deg, families, verbose));
   }
   out["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (quick) {  // a smoke run does not replace the full figures
-    std::printf("\n%.0f s (quick: nothing written)\n", out["seconds"].get<double>());
+  if (partial) {  // a smoke or partial run does not replace the full figures
+    std::printf("\n%.0f s (partial run: nothing written)\n", out["seconds"].get<double>());
     return 0;
   }
   const std::filesystem::path json =

@@ -10,24 +10,13 @@
 
 #include "core/camera.h"
 #include "core/detector.h"
+#include "sim/test_scenes.h"
 
 namespace waymark::sim {
 namespace {
 
-// A 1280x960 camera with mild barrel distortion, 1.2 m above the floor, looking along +x.
-Camera TestCamera() {
-  CameraInfo info;
-  info.name = "cam";
-  info.width = 1280;
-  info.height = 960;
-  info.intrinsics = {1000.0, 1000.0, 640.0, 480.0};
-  info.distortion = {-0.05, 0.01, 0.0005, -0.0003, 0.0};
-  return Camera(info);
-}
-
-SE3d CameraPose() {
-  return SE3d(RotationFromZY(Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitZ()), Eigen::Vector3d(0, 0, 1.2));
-}
+// The camera of sim/test_scenes.h, 1.2 m above the floor, looking along +x.
+SE3d CameraPose() { return TestCameraPose(); }
 
 // One code `range_m` ahead, shifted left/up by `offset_m`, turned by `yaw_deg` about the
 // vertical; a textured wall 5 cm behind it.
