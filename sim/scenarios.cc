@@ -142,6 +142,9 @@ ParamSet CorridorParams() {
            "loop corner the robot starts and ends at: 0 = (0, 0), then counter-clockwise");
   p.AddDouble("path.inset_m", 0.0, -1.0, 1.0,
               "drive a loop this far inside the centre line (towards the inner block; < 0: outwards)");
+  p.AddDouble("path.overlap_m", 0.0, 0.0, 500.0,
+              "after the loop, drive this far again along the first side (re-sees the first codes, "
+              "which closes the loop when codes are sparse)");
   AddCommonParams(&p, OdometryKind::kWheel, {0.2, 0.8, 60.0, 0.02, 0.02, 0.3, 45.0});
   return p;
 }
@@ -182,7 +185,9 @@ constexpr double kCorridorCameraOffsetM = 0.12;
 // The loop: the rectangle [i, L - i] x [i, W - i] (i = path.inset_m; i = 0 is the centre line),
 // corners numbered counter-clockwise from (i, i). The robot starts at corner path.start_corner
 // facing the next corner in its direction of travel, drives once round, and turns back to its
-// start heading. Defaults: from (0, 0) facing +x, counter-clockwise.
+// start heading; path.overlap_m > 0 then drives on along the first side (at most its length),
+// as a surveyor closes a loop by passing the first codes again. Defaults: from (0, 0) facing +x,
+// counter-clockwise, no overlap.
 SimTrajectory CorridorPath(const ParamSet& p, double half_w) {
   const double inset_m = p.Double("path.inset_m");
   if (std::abs(inset_m) > half_w - kCorridorCameraOffsetM - 0.05) {
@@ -202,6 +207,8 @@ SimTrajectory CorridorPath(const ParamSet& p, double half_w) {
                          p.Double("robot.turn_rate_dps") * kDegToRad);
   for (int k = 1; k <= 4; ++k) path.DriveTo(corners[(start + k * step) % 4]);
   path.TurnTo(start_yaw_rad);
+  const double overlap_m = std::min(p.Double("path.overlap_m"), heading.norm());
+  if (overlap_m > 0.0) path.DriveTo(corners[start] + overlap_m * heading.normalized());
   return path.Build();
 }
 

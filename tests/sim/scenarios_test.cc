@@ -1,6 +1,6 @@
 // The corridor's path.* and camera.* keys: a second, different run through the same place.
 // The defaults keep the original path (from (0, 0) facing +x, counter-clockwise on the centre
-// line); path.clockwise, path.start_corner and path.inset_m change only the path, never the
+// line); path.clockwise, path.start_corner, path.inset_m and path.overlap_m change only the path, never the
 // codes, walls or cameras; camera.image_scale scales the images with the same field of view.
 #include "sim/scenarios.h"
 
@@ -69,9 +69,19 @@ TEST(CorridorPathTest, InsetLoopStaysInsideTheCentreLine) {
   EXPECT_NEAR(Corridor({"path.inset_m=-0.2"}).truth.LengthM(), 2.0 * (12.0 + 8.0) + 8.0 * inset_m, 1e-6);
 }
 
+TEST(CorridorPathTest, OverlapDrivesOnAlongTheFirstSideAfterTheLoop) {
+  const Trajectory& path = Corridor({"path.overlap_m=3"}).truth.T_world_robot;
+  ExpectAt(path.front().T, 0.0, 0.0, 0.0);
+  ExpectAt(path.back().T, 3.0, 0.0, 0.0);  // past the start, facing the way it first drove
+  EXPECT_NEAR(Corridor({"path.overlap_m=3"}).truth.LengthM(), 2.0 * (12.0 + 8.0) + 3.0, 1e-6);
+  // Never further than the first side's length (12 m).
+  EXPECT_NEAR(Corridor({"path.overlap_m=50"}).truth.LengthM(), 2.0 * (12.0 + 8.0) + 12.0, 1e-6);
+}
+
 TEST(CorridorPathTest, PathKeysLeaveThePlaceAlone) {
   const Scene base = Corridor({});
-  const Scene other = Corridor({"path.clockwise=true", "path.start_corner=3", "path.inset_m=0.1"});
+  const Scene other =
+      Corridor({"path.clockwise=true", "path.start_corner=3", "path.inset_m=0.1", "path.overlap_m=2"});
   ASSERT_EQ(base.world.markers.size(), other.world.markers.size());
   for (size_t i = 0; i < base.world.markers.size(); ++i) {
     EXPECT_EQ(base.world.markers[i].key, other.world.markers[i].key);
