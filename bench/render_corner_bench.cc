@@ -25,11 +25,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <string>
-#include <vector>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
+#include <string>
+#include <vector>
 
 #include "core/camera.h"
 #include "core/detector.h"
@@ -64,7 +63,8 @@ sim::World CellWorld(const std::string& family, int cell, double range_m, double
     marker.key = {family, CodeId(family, cell, k)};
     marker.size_m = kSizeM;
     // Camera x right = world -y, camera y down = world -z.
-    const Eigen::Vector3d centre(range_m, -kOffsets[k].x() * range_m, kCameraHeightM - kOffsets[k].y() * range_m);
+    const Eigen::Vector3d centre(range_m, -kOffsets[k].x() * range_m,
+                                 kCameraHeightM - kOffsets[k].y() * range_m);
     marker.T_world_marker =
         sim::WallMarkerPose(centre, Eigen::Vector3d(-std::cos(yaw_rad), std::sin(yaw_rad), 0.0));
     world.markers.push_back(marker);
@@ -96,8 +96,8 @@ std::vector<CodeResult> MeasureCell(const std::string& family, int cell, double 
       for (int k = 0; k < 4; ++k) sum_sq += (obs.corners_px[k] - t.corners_px[k]).squaredNorm();
       r.rms_px = std::sqrt(sum_sq / 4.0);
       if (verbose) {
-        std::printf("    %s %-8s width %5.1f px RMS %.3f px, errors", family.c_str(), t.key.id.c_str(), r.width_px,
-                    r.rms_px);
+        std::printf("    %s %-8s width %5.1f px RMS %.3f px, errors", family.c_str(), t.key.id.c_str(),
+                    r.width_px, r.rms_px);
         for (int k = 0; k < 4; ++k) {
           const Eigen::Vector2d e = obs.corners_px[k] - t.corners_px[k];
           std::printf(" (%+.2f %+.2f)", e.x(), e.y());
@@ -146,7 +146,8 @@ nlohmann::json RunSetting(const std::string& name, const sim::RenderOptions& opt
     int cell = 0;
     for (double range_m : ranges_m) {
       for (double yaw_deg : yaws_deg) {
-        const std::vector<CodeResult> results = MeasureCell(family, cell++, range_m, yaw_deg, options, verbose);
+        const std::vector<CodeResult> results =
+            MeasureCell(family, cell++, range_m, yaw_deg, options, verbose);
         Summary s;
         double width_sum = 0.0;
         for (const CodeResult& r : results) {
@@ -155,8 +156,8 @@ nlohmann::json RunSetting(const std::string& name, const sim::RenderOptions& opt
           if (r.width_px >= kMinWidthPx) wide.Add(r);
         }
         const double mean_width = results.empty() ? 0.0 : width_sum / results.size();
-        std::printf("%-15s %7.1f %7.0f %6ld %9ld %10.1f %10.3f %12.3f\n", family.c_str(), range_m, yaw_deg, s.codes,
-                    s.detected, mean_width, s.Rms(), s.worst);
+        std::printf("%-15s %7.1f %7.0f %6ld %9ld %10.1f %10.3f %12.3f\n", family.c_str(), range_m, yaw_deg,
+                    s.codes, s.detected, mean_width, s.Rms(), s.worst);
         nlohmann::json j = s.Json();
         j["family"] = family;
         j["range_m"] = range_m;
@@ -190,23 +191,28 @@ int main(int argc, char** argv) {
                std::find(families.begin(), families.end(), argv[i + 1]) != families.end()) {
       families = {argv[++i]};
     } else {
-      std::fprintf(stderr,
-                   "usage: bench_render_corner_bench [--quick] [--verbose] [--family qr|datamatrix|apriltag-36h11] "
-                   "[--clean-only]\n");
+      std::fprintf(
+          stderr,
+          "usage: bench_render_corner_bench [--quick] [--verbose] [--family qr|datamatrix|apriltag-36h11] "
+          "[--clean-only]\n");
       return 2;
     }
   }
   const bool partial = quick || clean_only || families.size() < 3;
   cv::setNumThreads(1);  // one core, like the detectors' timing
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<double> ranges_m = quick ? std::vector<double>{1.0, 2.0} : std::vector<double>{0.6, 1.0, 1.6, 2.4};
-  const std::vector<double> yaws_deg = quick ? std::vector<double>{0.0, 45.0} : std::vector<double>{0.0, 25.0, 45.0, 60.0};
+  const std::vector<double> ranges_m =
+      quick ? std::vector<double>{1.0, 2.0} : std::vector<double>{0.6, 1.0, 1.6, 2.4};
+  const std::vector<double> yaws_deg =
+      quick ? std::vector<double>{0.0, 45.0} : std::vector<double>{0.0, 25.0, 45.0, 60.0};
   waymark::sim::RenderOptions clean;
   clean.noise_sigma = 0.0;
   clean.blur_sigma_px = 0.7;
   nlohmann::json out;
   out["quick"] = quick;
-  out["camera"] = {{"width", 1280}, {"height", 960}, {"intrinsics", {1000, 1000, 640, 480}},
+  out["camera"] = {{"width", 1280},
+                   {"height", 960},
+                   {"intrinsics", {1000, 1000, 640, 480}},
                    {"distortion", {-0.05, 0.01, 0.0005, -0.0003, 0.0}}};
   out["code_size_m"] = waymark::kSizeM;
   out["settings"].push_back(waymark::RunSetting("clean", clean, ranges_m, yaws_deg, families, verbose));

@@ -2,11 +2,10 @@
 
 #include <algorithm>
 #include <limits>
-#include <optional>
-
 #include <opencv2/imgproc.hpp>
 #include <opencv2/objdetect.hpp>
 #include <opencv2/wechat_qrcode.hpp>
+#include <optional>
 
 #include "core/detect_common.h"
 #include "core/detect_refine.h"
@@ -43,7 +42,8 @@ void CornerFromFinderEdges(const cv::Mat& gray, MarkerObservation* obs) {
   for (int i = 0; i < 4; ++i) shortest = std::min(shortest, (c[(i + 1) % 4] - c[i]).norm());
   const double window = std::min(std::max(kFinderWindowPx, 0.1 * shortest), shortest / 6.0);
   constexpr double kMinStep = 12.0;  // gray levels per px, as RefineOptions::min_step
-  const std::optional<Line2d> right = FitSideSegment(gray, c[1], c[2], 0.02, kFinderFraction, window, kMinStep);
+  const std::optional<Line2d> right =
+      FitSideSegment(gray, c[1], c[2], 0.02, kFinderFraction, window, kMinStep);
   const std::optional<Line2d> bottom =
       FitSideSegment(gray, c[2], c[3], 1.0 - kFinderFraction, 0.98, window, kMinStep);
   if (!right || !bottom || right->inlier_fraction < 0.5 || bottom->inlier_fraction < 0.5) return;

@@ -1,27 +1,27 @@
 #include "core/detect_refine.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
-
 namespace waymark {
 namespace {
 
-constexpr double kStepPx = 0.25;      // profile sampling step along the normal
+constexpr double kStepPx = 0.25;       // profile sampling step along the normal
 constexpr double kInlierBandPx = 0.6;  // RANSAC inlier distance
 constexpr int kRansacIterations = 64;
-constexpr double kCentroidLevel = 0.5;  // centroid of the derivative above this fraction of its peak
+constexpr double kCentroidLevel = 0.5;   // centroid of the derivative above this fraction of its peak
 constexpr double kHalfBaselinePx = 0.5;  // the derivative is a central difference over 1 px
-constexpr double kBarLobe = 0.15;  // an inner edge at least this fraction of the outer one makes a bar
-constexpr double kMaxBarPx = 3.5;  // wider bars leave the outer edge's centroid unbiased
+constexpr double kBarLobe = 0.15;        // an inner edge at least this fraction of the outer one makes a bar
+constexpr double kMaxBarPx = 3.5;        // wider bars leave the outer edge's centroid unbiased
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
-  if (!(x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0) || gray.cols < 2 || gray.rows < 2) {
+  if (!(x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0) || gray.cols < 2 ||
+      gray.rows < 2) {
     return std::numeric_limits<double>::quiet_NaN();
   }
   const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
@@ -36,9 +36,9 @@ double Bilinear(const cv::Mat& gray, double x, double y) {
 }
 
 // The edge points whose step is at least kFullContrast times the typical step of the
-// side's line (80th percentile over its inliers). On a dashed side (DataMatrix timing pattern, QR data modules) the
-// profiles near the end of a dark module see a weaker step, displaced along the normal when
-// the module's end is slanted (perspective); mid-module profiles see the whole step.
+// side's line (80th percentile over its inliers). On a dashed side (DataMatrix timing pattern, QR data
+// modules) the profiles near the end of a dark module see a weaker step, displaced along the normal when the
+// module's end is slanted (perspective); mid-module profiles see the whole step.
 constexpr double kFullContrast = 0.75;
 std::vector<Eigen::Vector2d> KeepFullContrast(const std::vector<Eigen::Vector2d>& points,
                                               const std::vector<double>& strengths) {
@@ -73,8 +73,8 @@ Line2d FitTls(const std::vector<Eigen::Vector2d>& points) {
 // RANSAC (deterministic sample pairs), then TLS on the inliers with a full-contrast step
 // (KeepFullContrast). `samples` is the number of profiles taken, including those without
 // an edge; the inlier fraction counts every RANSAC inlier.
-std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, const std::vector<double>& strengths,
-                                  int samples) {
+std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points,
+                                  const std::vector<double>& strengths, int samples) {
   if (points.size() < 4) return std::nullopt;
   uint32_t state = 12345u;  // fixed seed: the result does not depend on anything else
   auto next = [&state](size_t n) {
@@ -96,7 +96,8 @@ std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, co
   std::vector<Eigen::Vector2d> inliers;
   std::vector<double> inlier_strengths;
   for (size_t i = 0; i < points.size(); ++i) {
-    if (Distance(best, points[i]) < kInlierBandPx) inliers.push_back(points[i]), inlier_strengths.push_back(strengths[i]);
+    if (Distance(best, points[i]) < kInlierBandPx)
+      inliers.push_back(points[i]), inlier_strengths.push_back(strengths[i]);
   }
   const std::vector<Eigen::Vector2d> full = KeepFullContrast(inliers, inlier_strengths);
   Line2d fitted = FitTls(full.size() >= 4 ? full : inliers);
@@ -105,8 +106,8 @@ std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points, co
 }
 
 // Edge points of the side a -> b between fractions t0 and t1 of its length, `samples` profiles.
-void SideEdgePoints(const cv::Mat& gray, const Eigen::Vector2d& a, const Eigen::Vector2d& b, double t0, double t1,
-                    int samples, double half_window, double min_step, bool fit_model,
+void SideEdgePoints(const cv::Mat& gray, const Eigen::Vector2d& a, const Eigen::Vector2d& b, double t0,
+                    double t1, int samples, double half_window, double min_step, bool fit_model,
                     std::vector<Eigen::Vector2d>* points, std::vector<double>* strengths) {
   const Eigen::Vector2d along = (b - a).normalized();
   const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
@@ -131,7 +132,8 @@ std::optional<RefinedQuad> RefineOnce(const cv::Mat& gray, const Quad2d& corners
     const int samples = std::clamp(static_cast<int>((b - a).norm() / 1.5), 8, 96);
     std::vector<Eigen::Vector2d> points;
     std::vector<double> strengths;
-    SideEdgePoints(gray, a, b, 0.1, 0.9, samples, half_window, options.min_step, fit_model, &points, &strengths);
+    SideEdgePoints(gray, a, b, 0.1, 0.9, samples, half_window, options.min_step, fit_model, &points,
+                   &strengths);
     const std::optional<Line2d> line = FitEdgeLine(points, strengths, samples);
     if (!line || line->inlier_fraction < options.min_inlier_fraction) return std::nullopt;
     lines[i] = *line;
@@ -170,14 +172,17 @@ double NormalPdf(double u) { return std::exp(-0.5 * u * u) / std::sqrt(2.0 * M_P
 
 // Levenberg-Marquardt on the samples (s_k, I_k); returns false if it did not converge to a
 // plausible model (sigma in [0.2, 4] px, positive amplitude, e within the samples).
-bool FitBarModel(const std::vector<double>& s, const std::vector<double>& intensity, bool fit_width, BarModel* m) {
+bool FitBarModel(const std::vector<double>& s, const std::vector<double>& intensity, bool fit_width,
+                 BarModel* m) {
   const int n = fit_width ? 5 : 4;
   double lambda = 1e-3;
   auto cost = [&](const BarModel& b) {
     double c = 0.0;
     for (size_t k = 0; k < s.size(); ++k) {
-      const double r = b.light - b.amplitude * (NormalCdf((b.e - s[k]) / b.sigma) -
-                                                NormalCdf((b.e - b.width - s[k]) / b.sigma)) - intensity[k];
+      const double r =
+          b.light -
+          b.amplitude * (NormalCdf((b.e - s[k]) / b.sigma) - NormalCdf((b.e - b.width - s[k]) / b.sigma)) -
+          intensity[k];
       c += r * r;
     }
     return c;
@@ -268,8 +273,9 @@ std::optional<Eigen::Vector2d> IntersectLines(const Line2d& a, const Line2d& b) 
   return a.point + t * a.direction;
 }
 
-std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d& from_px, const Eigen::Vector2d& to_px,
-                                     double t0, double t1, double half_window_px, double min_step) {
+std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d& from_px,
+                                     const Eigen::Vector2d& to_px, double t0, double t1,
+                                     double half_window_px, double min_step) {
   if (gray.empty() || gray.type() != CV_8UC1 || !(t1 > t0)) return std::nullopt;
   const int samples = std::clamp(static_cast<int>((t1 - t0) * (to_px - from_px).norm() / 0.5), 8, 96);
   std::vector<Eigen::Vector2d> points;
@@ -302,14 +308,15 @@ std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d&
     const double half = kCentroidLevel * step[k];
     double weight_sum = 0.0;
     double moment = 0.0;
-    for (int j = k; j >= h && step[j] > half; --j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
-    for (int j = k + 1; j + h < count && step[j] > half; ++j) weight_sum += step[j] - half, moment += (step[j] - half) * j;
+    for (int j = k; j >= h && step[j] > half; --j)
+      weight_sum += step[j] - half, moment += (step[j] - half) * j;
+    for (int j = k + 1; j + h < count && step[j] > half; ++j)
+      weight_sum += step[j] - half, moment += (step[j] - half) * j;
     if (weight_sum <= 0.0) continue;
     return EdgeHit{-half_window - 0.5 + (moment / weight_sum) * kStepPx, step[k]};
   }
   return std::nullopt;
 }
-
 
 std::optional<RefinedQuad> RefineQuadCorners(const cv::Mat& gray, const Quad2d& corners_px,
                                              const RefineOptions& options) {
@@ -318,13 +325,15 @@ std::optional<RefinedQuad> RefineQuadCorners(const cv::Mat& gray, const Quad2d& 
   // rotated symbols) and stays well inside it: a sixth of the shortest side at most.
   double shortest = std::numeric_limits<double>::infinity();
   for (int i = 0; i < 4; ++i) shortest = std::min(shortest, (corners_px[(i + 1) % 4] - corners_px[i]).norm());
-  const double window = std::min(std::max(options.search_px, options.search_fraction * shortest), shortest / 6.0);
+  const double window =
+      std::min(std::max(options.search_px, options.search_fraction * shortest), shortest / 6.0);
   if (!(window >= 0.75)) return std::nullopt;
   RefineOptions round = options;
   round.max_shift_px = std::max(options.max_shift_px, 1.5 * window);
   const std::optional<RefinedQuad> first = RefineOnce(gray, corners_px, window, false, round);
   if (!first) return std::nullopt;
-  std::optional<RefinedQuad> second = RefineOnce(gray, first->corners_px, std::min(window, 1.25), options.fit_edge_model, round);
+  std::optional<RefinedQuad> second =
+      RefineOnce(gray, first->corners_px, std::min(window, 1.25), options.fit_edge_model, round);
   if (!second) return first;
   for (int i = 0; i < 4; ++i) {
     if ((second->corners_px[i] - corners_px[i]).norm() > round.max_shift_px) return first;

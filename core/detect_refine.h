@@ -17,9 +17,8 @@
 // Pixel convention: the centre of pixel (c, r) is at (c, r).
 #pragma once
 
-#include <optional>
-
 #include <opencv2/core.hpp>
+#include <optional>
 
 #include "core/detect_common.h"
 
@@ -66,20 +65,21 @@ std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d&
 // sample reads a saturated pixel (>= 254: L is then undetermined), offset_px is returned
 // unchanged. nullopt if the profile leaves the image or the fit fails or moves more than
 // 0.75 px.
-std::optional<double> FitEdgeModel(const cv::Mat& gray, const Eigen::Vector2d& point_px, const Eigen::Vector2d& outward,
-                                   double offset_px);
+std::optional<double> FitEdgeModel(const cv::Mat& gray, const Eigen::Vector2d& point_px,
+                                   const Eigen::Vector2d& outward, double offset_px);
 
 struct Line2d {
   Eigen::Vector2d point = Eigen::Vector2d::Zero();
   Eigen::Vector2d direction = Eigen::Vector2d::UnitX();  // unit
-  double inlier_fraction = 0.0;  // edge samples on the line / profiles taken
+  double inlier_fraction = 0.0;                          // edge samples on the line / profiles taken
 };
 
 // The outer edge line of the part t in [t0, t1] (fractions of its length) of the side
 // from_px -> to_px of a clockwise quad (outward normal on its left, y down): edge points
 // (FindOuterEdge) every 0.5 px, RANSAC and total least squares as for a whole side.
-std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d& from_px, const Eigen::Vector2d& to_px,
-                                     double t0, double t1, double half_window_px, double min_step);
+std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d& from_px,
+                                     const Eigen::Vector2d& to_px, double t0, double t1,
+                                     double half_window_px, double min_step);
 
 // Intersection of two lines, or nullopt when they are within ~6 degrees of parallel.
 std::optional<Eigen::Vector2d> IntersectLines(const Line2d& a, const Line2d& b);

@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <cstdio>
-
 #include <opencv2/imgproc.hpp>
 
 #include "core/detect_synthetic.h"
@@ -79,11 +78,10 @@ TEST(DetectQr, VersionOneFourthCornerUnderPerspective) {
   // Strong keystones, 120 .. 140 px wide: the bottom-right corner 15 px from the
   // parallelogram's. (zxing-cpp 1.4 reads these well by itself; its misplaced corner shows on
   // small rendered codes: bench/render_corner_bench.cc, 40 .. 46 px codes at 1.6 .. 2.4 m.)
-  const std::vector<Quad2d> truths = {
-      {Eigen::Vector2d(200.3, 150.6), Eigen::Vector2d(341.2, 171.4), Eigen::Vector2d(322.7, 296.1),
-       Eigen::Vector2d(190.4, 291.8)},
-      {Eigen::Vector2d(180.6, 160.2), Eigen::Vector2d(300.9, 140.3), Eigen::Vector2d(318.4, 280.7),
-       Eigen::Vector2d(170.2, 300.5)}};
+  const std::vector<Quad2d> truths = {{Eigen::Vector2d(200.3, 150.6), Eigen::Vector2d(341.2, 171.4),
+                                       Eigen::Vector2d(322.7, 296.1), Eigen::Vector2d(190.4, 291.8)},
+                                      {Eigen::Vector2d(180.6, 160.2), Eigen::Vector2d(300.9, 140.3),
+                                       Eigen::Vector2d(318.4, 280.7), Eigen::Vector2d(170.2, 300.5)}};
   for (size_t i = 0; i < truths.size(); ++i) {
     cv::Mat image = Canvas();
     DrawSymbol(symbol, truths[i], &image);

@@ -16,7 +16,8 @@ double Phi(double u) { return 0.5 * std::erfc(-u / std::sqrt(2.0)); }
 // light `light` outside, a dark (15) bar of width `bar_px` inside, light again beyond it;
 // Gaussian blur `sigma_px`, each pixel the mean of 8x8 samples, rounded and clipped to
 // [0, 255] (light > 255 saturates the outside as an over-exposed quiet zone does).
-cv::Mat EdgeImage(const Eigen::Vector2d& point, double angle_rad, double sigma_px, double light, double bar_px) {
+cv::Mat EdgeImage(const Eigen::Vector2d& point, double angle_rad, double sigma_px, double light,
+                  double bar_px) {
   const Eigen::Vector2d n(std::cos(angle_rad), std::sin(angle_rad));
   cv::Mat image(64, 64, CV_8U);
   for (int r = 0; r < image.rows; ++r) {
@@ -95,7 +96,8 @@ cv::Mat SquareImage() {
   cv::Mat image(64, 64, CV_8U);
   for (int r = 0; r < 64; ++r) {
     for (int c = 0; c < 64; ++c) {
-      const double inside = (Phi((c - 10.0) / 0.7) - Phi((c - 50.0) / 0.7)) * (Phi((r - 10.0) / 0.7) - Phi((r - 50.0) / 0.7));
+      const double inside =
+          (Phi((c - 10.0) / 0.7) - Phi((c - 50.0) / 0.7)) * (Phi((r - 10.0) / 0.7) - Phi((r - 50.0) / 0.7));
       image.at<uint8_t>(r, c) = cv::saturate_cast<uint8_t>(std::round(200.0 - 185.0 * inside));
     }
   }
