@@ -73,15 +73,19 @@ OdometrySigma ReadOdometrySigma(const fs::path& path, const YAML::Node& node) {
 }
 
 PayloadSpec ReadPayload(const fs::path& path, const YAML::Node& node) {
-  if (!node.IsMap()) ThrowYamlError(path, node, "payload: expected a map {pattern, fields}");
+  if (!node.IsMap()) ThrowYamlError(path, node, "payload: expected a map {pattern, fields[, default_z_m]}");
   PayloadSpec spec;
   spec.pattern = YamlString(path, YamlRequire(path, node, "pattern"), "payload.pattern");
   spec.fields = YamlStrings(path, YamlRequire(path, node, "fields"), "payload.fields");
   for (const auto& key_value : node) {
     const std::string key = key_value.first.Scalar();
-    if (key != "pattern" && key != "fields") {
-      ThrowYamlError(path, key_value.first, "payload: unknown key '" + key + "' (expected pattern, fields)");
+    if (key != "pattern" && key != "fields" && key != "default_z_m") {
+      ThrowYamlError(path, key_value.first,
+                     "payload: unknown key '" + key + "' (expected pattern, fields, default_z_m)");
     }
+  }
+  if (const YAML::Node z = node["default_z_m"]; z.IsDefined() && !z.IsNull()) {
+    spec.default_z_m = YamlNumber(path, z, "payload.default_z_m");
   }
   if (const std::string why = CheckPayloadSpec(spec); !why.empty())
     ThrowYamlError(path, node, "payload: " + why);
@@ -198,7 +202,9 @@ std::string FormatDatasetYaml(const DatasetConfig& config) {
       throw std::invalid_argument("dataset writer: payload: " + why);
     }
     out << "payload: {pattern: " << QuoteString(config.payload->pattern)
-        << ", fields: " << QuotedList(config.payload->fields) << "}\n";
+        << ", fields: " << QuotedList(config.payload->fields);
+    if (config.payload->default_z_m) out << ", default_z_m: " << FormatDouble(*config.payload->default_z_m);
+    out << "}\n";
   }
   const DatasetConfig defaults;
   const std::pair<const char*, std::pair<std::string, std::string>> files[] = {

@@ -36,6 +36,9 @@ void CheckFields(const PayloadSpec& spec, size_t groups) {
     if (!seen.insert(name).second) throw std::runtime_error("payload: fields: `" + name + "` appears twice");
   }
   const bool has_xy = seen.count("x") > 0 && seen.count("y") > 0;
+  if (spec.default_z_m && (!std::isfinite(*spec.default_z_m) || !has_xy)) {
+    throw std::runtime_error("payload: default_z_m: expected a finite height, with fields `x` and `y`");
+  }
   for (const char* name : {"x", "y", "z", "yaw_deg"}) {
     if (seen.count(name) > 0 && !has_xy) {
       throw std::runtime_error(std::string("payload: fields: `") + name + "` needs both `x` and `y`");
@@ -111,6 +114,7 @@ std::optional<PayloadData> PayloadParser::Parse(const std::string& text, std::st
     }
     if (!StoreField(name, match[i + 1].str(), &data, why)) return std::nullopt;
   }
+  if (!data.z_m && spec_.default_z_m && data.HasPosition()) data.z_m = spec_.default_z_m;
   return data;
 }
 

@@ -83,7 +83,7 @@ struct MapMarker {
   bool has_pose = true;                // false: a size-only entry of a known-markers file
   // Optional rows F_i (6 x k) of the map's low-rank joint covariance, Sigma ~ F F^T + blockdiag(D_i)
   // with D_i = covariance - F_i F_i^T (mapping/map_covariance.h); k is the same for every marker.
-  std::optional<CovarianceFactor> covariance_factor;
+  std::optional<CovarianceFactor> covariance_factor = std::nullopt;
 };
 
 struct MarkerMap {
@@ -129,6 +129,9 @@ struct OdometrySigma {
 struct PayloadSpec {
   std::string pattern;              // ECMAScript regular expression over the decoded text
   std::vector<std::string> fields;  // one name per capture group; x, y, z, yaw_deg are special
+  // dataset.yaml `payload.default_z_m`: the height of a code whose text gives x and y but no z
+  // (e.g. seed 004's floor codes "0/x/y", printed on the floor at z = 0). Unset: z stays unknown.
+  std::optional<double> default_z_m = std::nullopt;
 };
 
 // One row of images.csv.

@@ -222,7 +222,7 @@ void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
 
 void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {
   gauges->assign(init_.components, "");
-  std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0);
+  std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0), payloads_z(init_.components, 0);
   for (int m : markers_used) {
     const SurveyMarker& marker = survey_.markers[m];
     const int c = init_.marker_component[m];
@@ -246,6 +246,7 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
       problem_->AddResidualBlock(
           PositionPriorFactor<3>::Create(Eigen::Vector3d(*p.x_m, *p.y_m, *p.z_m), options_.payload_sigma_m), nullptr,
           marker_[m].data());
+      ++payloads_z[c];
     } else {
       problem_->AddResidualBlock(PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m),
                                  nullptr, marker_[m].data());
@@ -265,9 +266,11 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
       (*gauges)[c] = std::to_string(anchors[c]) + " anchor(s) from markers.json";
     } else if (payloads[c] >= (planar ? 2 : 3)) {
       (*gauges)[c] = std::to_string(payloads[c]) + " payload position prior(s)";
-      if (!planar && first >= 0) {
+      if (!planar && first >= 0 && payloads_z[c] < 3) {
         // Positions printed without z leave the height free: a weak prior on the first frame's
-        // pose, tight only in z (body frame), fixes it.
+        // pose, tight only in z (body frame), fixes it (the map's height origin is then the
+        // first frame's, and its tilt is held only weakly). Three or more codes with a z
+        // (printed, or payload.default_z_m) fix height and tilt themselves.
         Vector6d variances;
         variances << 1.0, 1.0, 1.0, 1e4, 1e4, 1e-6;
         problem_->AddResidualBlock(PosePriorSE3Factor::Create(Robot(first), Matrix6d(variances.asDiagonal())), nullptr,

@@ -263,7 +263,7 @@ Scene BuildCeilingGrid(const ParamSet& p) {
   const double ceiling_h = p.Double("place.ceiling_height_m"), cam_h = p.Double("place.camera_height_m");
   if (cam_h >= ceiling_h) throw std::invalid_argument("place.camera_height_m must be below the ceiling");
   world.default_marker_size_m = size_m;
-  world.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"index", "x", "y"}};
+  world.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"index", "x", "y"}, std::nullopt};
   AddRectangleWalls(0, 0, room_x, room_y, ceiling_h, &world.occluders);
   for (double y : PositionsAlong(room_y, pitch, 0.0)) {
     for (double x : PositionsAlong(room_x, pitch, 0.0)) {
@@ -492,7 +492,8 @@ Scene BuildWarehouseDrone(const ParamSet& p) {
   World& world = scene.world;
   world.name = "sim-warehouse-drone";
   world.motion = MotionModel::kFree;
-  world.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"kind", "x", "y"}};
+  // Floor codes "0/x/y" lie on the floor, z = 0 (their payload gives no z).
+  world.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"kind", "x", "y"}, 0.0};
   world.default_marker_size_m = p.Double("place.marker_size_m");
   AddRacks(p, &world);
   AddFloorCodes(p, &world);

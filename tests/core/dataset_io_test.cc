@@ -84,7 +84,7 @@ Dataset MakeDataset() {
   dataset.config.cameras = {"cam0", "cam1"};
   dataset.config.default_marker_size_m = 0.1;
   dataset.config.odometry_sigma = OdometrySigma{0.02, 0.01};
-  dataset.config.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"kind", "x", "y"}};
+  dataset.config.payload = PayloadSpec{"^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", {"kind", "x", "y"}, 0.0};
   dataset.config.odometry_file = "odom/wheel.tum";
   dataset.cameras["cam0"] = MakeCamera("cam0", CameraModel::kPinholeRadtan);
   dataset.cameras["cam1"] = MakeCamera("cam1", CameraModel::kPinholeEquidistant);
@@ -166,6 +166,10 @@ TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
   // The payload parser's own rules: a coordinate needs its partner.
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, other]")),
               HasSubstr("dataset.yaml:8: payload: fields: `x` needs both `x` and `y`"));
+  EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, y], default_z_m: low")),
+              HasSubstr("dataset.yaml:8: payload.default_z_m: expected a finite number, got 'low'"));
+  EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, y], z: 0")),
+              HasSubstr("payload: unknown key 'z' (expected pattern, fields, default_z_m)"));
   EXPECT_THAT(ParseError(GoodYamlWith("motion: planar\n", "")),
               HasSubstr("dataset.yaml:1: missing key 'motion'"));
   EXPECT_THAT(ParseError("format: [\n"), HasSubstr("dataset.yaml:2: invalid YAML"));
@@ -209,6 +213,8 @@ TEST(DatasetIoTest, WriteThenLoadIsExact) {
   EXPECT_EQ(read.dir, dir.path);
   EXPECT_EQ(FormatDatasetYaml(read.config), FormatDatasetYaml(dataset.config));
   EXPECT_EQ(read.config.odometry_file, "odom/wheel.tum");
+  ASSERT_TRUE(read.config.payload && read.config.payload->default_z_m);
+  EXPECT_EQ(*read.config.payload->default_z_m, 0.0);
   ASSERT_EQ(read.cameras.size(), 2u);
   EXPECT_EQ(read.cameras.at("cam1").model, CameraModel::kPinholeEquidistant);
   EXPECT_EQ(read.cameras.at("cam0").intrinsics, dataset.cameras.at("cam0").intrinsics);

@@ -42,6 +42,27 @@ TEST(PayloadTest, Seed004FloorCode) {
   EXPECT_EQ(negative->attributes.at("kind"), "1");
 }
 
+TEST(PayloadTest, DefaultHeightFillsAMissingZOnly) {
+  PayloadSpec floor = Seed004Spec();
+  floor.default_z_m = 0.0;  // seed 004's floor codes lie on the floor
+  const std::optional<PayloadData> data = PayloadParser(floor).Parse("0/2/10");
+  ASSERT_TRUE(data.has_value());
+  ASSERT_TRUE(data->z_m.has_value());
+  EXPECT_DOUBLE_EQ(*data->z_m, 0.0);
+  // A printed z wins over the default; a text without coordinates gets none.
+  PayloadSpec wall = Seed000Spec();
+  wall.default_z_m = 0.3;
+  const PayloadParser parser(wall);
+  EXPECT_DOUBLE_EQ(*parser.Parse("ID=W07;X=1;Y=2;Z=1.2")->z_m, 1.2);
+  EXPECT_DOUBLE_EQ(*parser.Parse("ID=W07;X=1;Y=2")->z_m, 0.3);
+  EXPECT_FALSE(parser.Parse("unrelated text").has_value());
+  // A default height needs x and y, and must be finite.
+  PayloadSpec no_xy{"^(\\w+)$", {"name"}, 0.0};
+  EXPECT_THROW(ValidatePayloadSpec(no_xy), std::runtime_error);
+  floor.default_z_m = std::nan("");
+  EXPECT_THROW(ValidatePayloadSpec(floor), std::runtime_error);
+}
+
 TEST(PayloadTest, Seed000IdentifierAndCoordinates) {
   const PayloadParser parser(Seed000Spec());
   const std::optional<PayloadData> full = parser.Parse("ID=W07;X=12.5;Y=-3.25;Z=1.2;YAW=270");
