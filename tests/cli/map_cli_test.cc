@@ -78,7 +78,8 @@ TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {
   MarkerMap map = ReadMap(dir_ / "map.json");
   MapMarker extra = map.markers.front();
   extra.key.id = "not-in-survey";
-  extra.covariance.reset();
+  extra.covariance.reset();  // and so no joint factor either
+  extra.covariance_factor.reset();
   map.markers.push_back(extra);
   WriteMap(dir_ / "map_plus.json", map);
   const RunResult merge = Run("map merge " + (dir_ / "map_plus.json").string() + " " + survey.string() + " --out " +
