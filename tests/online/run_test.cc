@@ -263,13 +263,26 @@ TEST(RunLocalizerTest, DefaultOptionsFollowTheDataset) {
   EXPECT_TRUE(free_options.Check(&why)) << why;
 }
 
+// A LocalizeStream over ArcCase's dataset and map that collects every frame output.
+struct CollectingStream {
+  CollectingStream(const ArcCase& arc, double late_frame_window_s = LocalizeRunOptions{}.late_frame_window_s)
+      : stream(arc.dataset, arc.map, Options(arc, late_frame_window_s),
+               [this](const LocalizeStream::FrameOutput& output) { outputs.push_back(output); }) {}
+  static LocalizeRunOptions Options(const ArcCase& arc, double late_frame_window_s) {
+    LocalizeRunOptions options;
+    options.localizer = DefaultLocalizerOptions(arc.dataset);
+    options.late_frame_window_s = late_frame_window_s;
+    return options;
+  }
+  std::vector<LocalizeStream::FrameOutput> outputs;  // declared first: filled by `stream`
+  LocalizeStream stream;
+};
+
 TEST(LocalizeStreamTest, AFrameWaitsForTheOdometryPastItsStamp) {
   const ArcCase arc;
-  LocalizeRunOptions options;
-  options.localizer = DefaultLocalizerOptions(arc.dataset);
-  std::vector<LocalizeStream::FrameOutput> outputs;
-  LocalizeStream stream(arc.dataset, arc.map, options,
-                        [&](const LocalizeStream::FrameOutput& output) { outputs.push_back(output); });
+  CollectingStream collecting(arc);
+  LocalizeStream& stream = collecting.stream;
+  const std::vector<LocalizeStream::FrameOutput>& outputs = collecting.outputs;
   stream.AddOdometry(0.0, ArcCase::Odometry(0.0));
   stream.AddFrame(arc.dataset.detections[0]);
   ASSERT_EQ(outputs.size(), 1u);
@@ -283,7 +296,7 @@ TEST(LocalizeStreamTest, AFrameWaitsForTheOdometryPastItsStamp) {
   EXPECT_LT((outputs[1].pose.T_world_robot->translation() - expected.translation()).norm(), 1e-9);
   // Without odometry past it, a frame is released once the input is odometry_wait_s ahead.
   stream.AddFrame({0.55, "front", {}, std::nullopt, std::nullopt});
-  stream.AddFrame({0.55 + options.odometry_wait_s + 0.01, "front", {}, std::nullopt, std::nullopt});
+  stream.AddFrame({0.55 + LocalizeRunOptions{}.odometry_wait_s + 0.01, "front", {}, std::nullopt, std::nullopt});
   EXPECT_EQ(outputs.size(), 3u);
   stream.Flush();
   EXPECT_EQ(outputs.size(), 4u);
@@ -295,12 +308,9 @@ TEST(LocalizeStreamTest, AFrameWaitsForTheOdometryPastItsStamp) {
 TEST(LocalizeStreamTest, ALateFrameIsUsedAtItsStampWithinTheWindow) {
   const ArcCase arc;
   for (double window_s : {0.2, 0.0}) {
-    LocalizeRunOptions options;
-    options.localizer = DefaultLocalizerOptions(arc.dataset);
-    options.late_frame_window_s = window_s;
-    std::vector<LocalizeStream::FrameOutput> outputs;
-    LocalizeStream stream(arc.dataset, arc.map, options,
-                          [&](const LocalizeStream::FrameOutput& output) { outputs.push_back(output); });
+    CollectingStream collecting(arc, window_s);
+    LocalizeStream& stream = collecting.stream;
+    const std::vector<LocalizeStream::FrameOutput>& outputs = collecting.outputs;
     stream.AddOdometry(0.0, ArcCase::Odometry(0.0));
     stream.AddFrame(arc.dataset.detections[0]);
     for (double t : {0.1, 0.2, 0.3, 0.4}) stream.AddOdometry(t, ArcCase::Odometry(t));
@@ -323,11 +333,9 @@ TEST(LocalizeStreamTest, ALateFrameIsUsedAtItsStampWithinTheWindow) {
 // as the odometry poses of that arc.
 TEST(LocalizeStreamTest, VelocitiesPredictLikeTheOdometryOfTheSameArc) {
   const ArcCase arc;
-  LocalizeRunOptions options;
-  options.localizer = DefaultLocalizerOptions(arc.dataset);
-  std::vector<LocalizeStream::FrameOutput> outputs;
-  LocalizeStream stream(arc.dataset, arc.map, options,
-                        [&](const LocalizeStream::FrameOutput& output) { outputs.push_back(output); });
+  CollectingStream collecting(arc);
+  LocalizeStream& stream = collecting.stream;
+  const std::vector<LocalizeStream::FrameOutput>& outputs = collecting.outputs;
   size_t f = 0;
   for (int i = 0; i <= 10; ++i) {
     const double t = 0.1 * i;
