@@ -19,6 +19,8 @@ constexpr int kMaxUpscaleSidePx = 240;  // only small crops are upscaled
 constexpr int kDmtxShrinkAbovePx = 320;
 // libdmtx's timeout granularity is 1 ms; below this a scan is not worth starting.
 constexpr double kMinDmtxTimeoutMs = 1.0;
+// In the first round of pass 2 a region gets at least this much of the time left.
+constexpr double kMinDmtxShareMs = 4.0;
 
 // Corners of a decoded libdmtx region in y-down pixels of an image `height` rows tall
 // scanned at 1/shrink resolution, DESIGN.md order. Grid (0,0) is the L corner
@@ -52,16 +54,25 @@ class DataMatrixDetector : public MarkerDetector {
     const double unlimited = std::numeric_limits<double>::infinity();
     RunSecondPass(gray, regions, first, clock, {unlimited, unlimited}, &found);
     if (options_.second_pass) {
+      // Two rounds over the regions zxing left: first each gets an equal share of the time
+      // left (so one slow region, e.g. clutter early in the list, cannot starve a code behind
+      // it), then the regions still unread get whatever is left, in order.
       const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
-      const std::vector<CropAttempt> second = {
-          [&clock, &budget, &found](const cv::Mat& crop) {
-            const double left_ms = budget.For(found) - clock.ElapsedMs();
-            if (left_ms < kMinDmtxTimeoutMs) return std::vector<MarkerObservation>{};
-            return ReadWithLibdmtx(crop, left_ms);
-          },
-          [](const cv::Mat& crop) { return ReadUpscaled(crop); },
+      int shares_left = static_cast<int>(std::count_if(regions.begin(), regions.end(), [&found](const cv::Rect& r) {
+        return std::none_of(found.begin(), found.end(), [&r](const MarkerObservation& o) { return ObservationInside(o, r); });
+      }));
+      const auto libdmtx = [&clock, &budget, &found, &shares_left](const cv::Mat& crop, bool shared) {
+        double left_ms = budget.For(found) - clock.ElapsedMs();
+        if (shared) left_ms = std::min(left_ms, std::max(kMinDmtxShareMs, left_ms / std::max(1, shares_left--)));
+        if (left_ms < kMinDmtxTimeoutMs) return std::vector<MarkerObservation>{};
+        return ReadWithLibdmtx(crop, left_ms);
       };
-      RunSecondPass(gray, regions, second, clock, budget, &found);
+      RunSecondPass(gray, regions,
+                    {[&libdmtx](const cv::Mat& crop) { return libdmtx(crop, true); },
+                     [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
+                    clock, budget, &found);
+      RunSecondPass(gray, regions, {[&libdmtx](const cv::Mat& crop) { return libdmtx(crop, false); }}, clock, budget,
+                    &found);
     }
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
   }

@@ -8,11 +8,14 @@
 // Pass 2, while the frame's CPU time is within DetectorOptions::time_budget_ms, on the
 // crops still holding no decoded code, best score first:
 //   a. libdmtx on the crop only (the crop is a view into the frame: libdmtx scans no other
-//      pixel; at half resolution above 320 px) with a timeout of the budget left and
-//      stopping at the first symbol, which is what makes libdmtx usable per frame (seed
-//      003 needed ~1 s per 1280x960 image scanning all of it). It reads the rotations
-//      (around 45 degrees) that zxing 1.4's DataMatrix detector misses.
+//      pixel; at half resolution above 320 px) with a timeout of an equal share of the
+//      budget left among the crops not yet tried (at least 4 ms), stopping at the first
+//      symbol, which is what makes libdmtx usable per frame (seed 003 needed ~1 s per
+//      1280x960 image scanning all of it). It reads the rotations (around 45 degrees) that
+//      zxing 1.4's DataMatrix detector misses.
 //   b. zxing on small crops (<= 240 px) upscaled 2x (small modules).
+//   Then, while budget is left, libdmtx again on the crops still unread, each with all the
+//   time left (a slow crop early in the list can no longer starve a code behind it).
 // libdmtx's image origin is the bottom-left corner with y up; its fitted grid maps the
 // symbol's (0,0) (the corner of the L finder) .. (1,1) to raw pixels, converted here to
 // y-down image pixels and DESIGN.md order (top-left = grid (0,1)).
