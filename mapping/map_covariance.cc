@@ -10,36 +10,12 @@
 #include <random>
 
 #include "factors/pose_block.h"
+#include "mapping/marginal_covariance.h"
 
 namespace waymark {
 namespace {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
-
-// J of the problem at its current values over its free blocks (tangent coordinates), and the
-// first column of each block.
-SparseMatrix EvaluateJacobian(ceres::Problem* problem, std::map<const double*, int>* column_of) {
-  std::vector<double*> blocks;
-  problem->GetParameterBlocks(&blocks);
-  ceres::Problem::EvaluateOptions evaluate;
-  int columns = 0;
-  for (double* block : blocks) {
-    if (problem->IsParameterBlockConstant(block)) continue;
-    evaluate.parameter_blocks.push_back(block);
-    (*column_of)[block] = columns;
-    columns += problem->ParameterBlockTangentSize(block);
-  }
-  ceres::CRSMatrix crs;
-  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return SparseMatrix();
-  std::vector<Eigen::Triplet<double>> entries;
-  entries.reserve(crs.values.size());
-  for (int r = 0; r < crs.num_rows; ++r) {
-    for (int i = crs.rows[r]; i < crs.rows[r + 1]; ++i) entries.emplace_back(r, crs.cols[i], crs.values[i]);
-  }
-  SparseMatrix J(crs.num_rows, crs.num_cols);
-  J.setFromTriplets(entries.begin(), entries.end());
-  return J;
-}
 
 Eigen::MatrixXd Orthonormalize(const Eigen::MatrixXd& Y) {
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Y);
@@ -88,9 +64,10 @@ std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
     const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options) {
   const size_t count = marker_blocks.size();
   if (count == 0 || T_world_marker.size() != count || marginal.size() != count) return std::nullopt;
-  std::map<const double*, int> column_of;
-  const SparseMatrix J = EvaluateJacobian(problem, &column_of);
-  if (J.cols() == 0) return std::nullopt;
+  ProblemInformation information;
+  if (!EvaluateInformation(problem, 1, &information) || information.H.cols() == 0) return std::nullopt;
+  const SparseMatrix& H = information.H;
+  const std::map<const double*, int>& column_of = information.first_column;
   std::vector<int> columns;
   std::vector<Matrix6d> B;  // manifold -> body tangent
   for (size_t i = 0; i < count; ++i) {
@@ -99,7 +76,6 @@ std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
     columns.push_back(it->second);
     B.push_back(ManifoldToBodyTangentJacobian(T_world_marker[i]));
   }
-  const SparseMatrix H = SparseMatrix(J.transpose() * J);
   const Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> llt(H);
   if (llt.info() != Eigen::Success) return std::nullopt;
   // A free gauge shows as a pivot at round-off level (P H P^T = L L^T).

@@ -16,42 +16,9 @@ namespace {
 
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
-// Columns of the tangent of every variable block, in `variables` order.
-struct ColumnLayout {
-  std::vector<double*> variables;
-  std::map<const double*, int> first_column;  // of each block
-  int columns = 0;
-};
-
-ColumnLayout LayoutOf(ceres::Problem* problem) {
-  std::vector<double*> all;
-  problem->GetParameterBlocks(&all);
-  ColumnLayout layout;
-  for (double* block : all) {
-    if (problem->IsParameterBlockConstant(block)) continue;
-    layout.variables.push_back(block);
-    layout.first_column[block] = layout.columns;
-    layout.columns += problem->ParameterBlockTangentSize(block);
-  }
-  return layout;
-}
-
-// H = J^T J over the variable blocks, with every pair of entries inside a requested block
-// stored (so the block is in the pattern of L even where J^T J has exact zeros).
-SparseMatrix Information(ceres::Problem* problem, const ColumnLayout& layout,
-                         const std::vector<std::pair<int, int>>& requested, int num_threads) {
-  ceres::Problem::EvaluateOptions evaluate;
-  evaluate.parameter_blocks = layout.variables;
-  evaluate.num_threads = num_threads;
-  ceres::CRSMatrix crs;
-  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) {
-    throw std::runtime_error("marginal covariance: the Jacobian could not be evaluated at the current values");
-  }
-  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> J(
-      crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()), crs.rows.data(), crs.cols.data(),
-      crs.values.data());
-  const SparseMatrix J_col(J);
-  SparseMatrix H = SparseMatrix(J_col.transpose()) * J_col;
+// H plus explicit zeros on every pair of entries inside a requested block (first column,
+// size), so the block is in the pattern of L even where J^T J has exact zeros.
+SparseMatrix WithBlockPattern(const SparseMatrix& H, const std::vector<std::pair<int, int>>& requested) {
   std::vector<Eigen::Triplet<double>> pattern;
   for (const auto& [first, size] : requested) {
     for (int a = 0; a < size; ++a) {
@@ -116,20 +83,48 @@ bool PivotsPositive(const Eigen::VectorXd& d, const SparseMatrix& H, const Eigen
 
 }  // namespace
 
+bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInformation* information) {
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.num_threads = num_threads;
+  information->first_column.clear();
+  int columns = 0;
+  for (double* block : all) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    evaluate.parameter_blocks.push_back(block);
+    information->first_column[block] = columns;
+    columns += problem->ParameterBlockTangentSize(block);
+  }
+  information->H = SparseMatrix(columns, columns);
+  if (columns == 0) return true;
+  ceres::CRSMatrix crs;
+  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return false;
+  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> J(
+      crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()), crs.rows.data(), crs.cols.data(),
+      crs.values.data());
+  const SparseMatrix J_col(J);
+  information->H = SparseMatrix(J_col.transpose()) * J_col;
+  return true;
+}
+
 bool MarginalCovariances(ceres::Problem* problem, const std::vector<const double*>& blocks,
                          std::vector<Eigen::MatrixXd>* covariance, const MarginalCovarianceOptions& options) {
   covariance->clear();
-  const ColumnLayout layout = LayoutOf(problem);
+  ProblemInformation information;
+  if (!EvaluateInformation(problem, options.num_threads, &information)) {
+    throw std::runtime_error("marginal covariance: the Jacobian could not be evaluated at the current values");
+  }
   std::vector<std::pair<int, int>> requested;  // first column, tangent size
   for (const double* block : blocks) {
-    const auto it = layout.first_column.find(block);
-    if (it == layout.first_column.end()) {
+    const auto it = information.first_column.find(block);
+    if (it == information.first_column.end()) {
       throw std::runtime_error("marginal covariance: a requested block is not a variable of the problem");
     }
     requested.emplace_back(it->second, problem->ParameterBlockTangentSize(block));
   }
-  if (layout.columns == 0) return blocks.empty();
-  const SparseMatrix H = Information(problem, layout, requested, options.num_threads);
+  if (information.H.cols() == 0) return blocks.empty();
+  const SparseMatrix H = WithBlockPattern(information.H, requested);
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(H);
   if (ldlt.info() != Eigen::Success) return false;
   const Eigen::VectorXi permuted_of = ldlt.permutationP().indices();

@@ -18,9 +18,11 @@
 // The result equals ceres::Covariance's GetCovarianceBlockInTangentSpace (to round-off).
 #pragma once
 
+#include <map>
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <ceres/problem.h>
 
 namespace waymark {
@@ -31,6 +33,17 @@ struct MarginalCovarianceOptions {
   // fraction of the diagonal entry it was eliminated from.
   double min_relative_pivot = 1e-12;
 };
+
+// H = J^T J as above, over the problem's non-constant blocks (in GetParameterBlocks order),
+// with the first column of each block; also used by mapping/map_covariance.h.
+struct ProblemInformation {
+  Eigen::SparseMatrix<double> H;
+  std::map<const double*, int> first_column;
+};
+
+// False when the Jacobian cannot be evaluated at the current values. A problem without a
+// variable block gives an empty H.
+bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInformation* information);
 
 // Fills (*covariance)[i] with the tangent-space covariance of blocks[i] (a non-constant
 // parameter block of `problem`). Returns false when H is singular or not positive definite
