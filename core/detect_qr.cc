@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "core/detect_common.h"
+#include "core/detect_qr_finder.h"
 #include "core/detect_refine.h"
 #include "core/detect_zxing.h"
 
@@ -17,42 +18,12 @@ namespace {
 // Crops larger than this (longer side, px) are not upscaled in pass 2.
 constexpr int kMaxUpscaleSidePx = 480;
 
-// Fraction of a side next to a finder pattern that the finder's outer ring covers in every
-// version up to 3 (7 of 4 v + 17 modules: 0.33 at version 1, 0.24 at version 3); in larger
-// versions the rest of the segment is the separator and format modules, rejected as
-// outliers by the line fit.
-constexpr double kFinderFraction = 0.24;
-// Half window (px) of the edge search along the finders' outer edges: at least this, or
-// a tenth of the side (zxing's fourth corner can be off by a few modules).
-constexpr double kFinderWindowPx = 2.5;
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
 // modules), less in larger versions.
 constexpr double kRefineWindowFraction = 0.035;
 
-// The bottom-right corner from the symbol's own edges: the intersection of the outer edge
-// of the top-right finder (right side, next to the top-right corner) and of the
-// bottom-left finder (bottom side, next to the bottom-left corner). zxing places that
-// corner from the alignment pattern, or, in version 1 (no alignment pattern), by
-// completing the parallelogram of the three finders, a few pixels off under perspective.
-// Keeps zxing's corner when an edge is not found or the corner would move more than a
-// fifth of the shortest side.
-void CornerFromFinderEdges(const cv::Mat& gray, MarkerObservation* obs) {
-  Quad2d& c = obs->corners_px;
-  double shortest = std::numeric_limits<double>::infinity();
-  for (int i = 0; i < 4; ++i) shortest = std::min(shortest, (c[(i + 1) % 4] - c[i]).norm());
-  const double window = std::min(std::max(kFinderWindowPx, 0.1 * shortest), shortest / 6.0);
-  constexpr double kMinStep = 12.0;  // gray levels per px, as RefineOptions::min_step
-  const std::optional<Line2d> right =
-      FitSideSegment(gray, c[1], c[2], 0.02, kFinderFraction, window, kMinStep);
-  const std::optional<Line2d> bottom =
-      FitSideSegment(gray, c[2], c[3], 1.0 - kFinderFraction, 0.98, window, kMinStep);
-  if (!right || !bottom || right->inlier_fraction < 0.5 || bottom->inlier_fraction < 0.5) return;
-  const std::optional<Eigen::Vector2d> corner = IntersectLines(*right, *bottom);
-  if (corner && (*corner - c[2]).norm() < 0.2 * shortest) c[2] = *corner;
-}
-
 // The corners from the symbol's edges: the fourth corner from the finders
-// (CornerFromFinderEdges), then every side refined (core/detect_refine.h) with a first
+// (QrCornerFromFinderEdges), then every side refined (core/detect_refine.h) with a first
 // window of at most a module: the outermost row and column of a QR code hold data modules,
 // and where one is light the next dark module inwards makes an edge one module inside,
 // which a wider window would take for the side (a line of them can outvote the true side).
@@ -61,7 +32,7 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   options.search_px = 1.25;
   options.search_fraction = kRefineWindowFraction;
   MarkerObservation corrected = *obs;
-  CornerFromFinderEdges(gray, &corrected);
+  QrCornerFromFinderEdges(gray, &corrected.corners_px);
   // A light-on-dark code has no light-outside edges: nothing refines, zxing's corners stay.
   std::optional<RefinedQuad> refined = RefineQuadCorners(gray, corrected.corners_px, options);
   if (!refined) refined = RefineQuadCorners(gray, obs->corners_px, options);
@@ -69,6 +40,49 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   if (refined) {
     obs->corners_px = refined->corners_px;
     obs->quality = refined->inlier_fraction;
+  }
+}
+
+// True if `region` is mostly one code of `found`: a code's centre inside it, and the code's
+// bounding box at least kCoveredFraction of the region (a candidate region pads its blob by
+// a quarter side, so a lone code covers about 0.44 of it).
+constexpr double kCoveredFraction = 0.3;
+bool RegionIsOneReadCode(const cv::Rect& region, const std::vector<MarkerObservation>& found) {
+  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
+    if (!ObservationInside(obs, region)) return false;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
+    return cv::boundingRect(corners).area() >= kCoveredFraction * region.area();
+  });
+}
+
+// True if the candidate's centre lies within half a side of a code already read.
+bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObservation>& found) {
+  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
+    return (QuadCenter(obs.corners_px) - QuadCenter(candidate.corners_px)).norm() <
+           0.5 * QuadMeanSide(obs.corners_px);
+  });
+}
+
+// Pass 2a: QR candidates from finder patterns (core/detect_qr_finder.h) in each region
+// (smallest first) that is not one code already read, each candidate not read yet resampled upright and
+// read, while the frame's budget lasts (checked before every region and candidate).
+void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, const FrameClock& clock,
+                          const FrameBudget& budget, std::vector<MarkerObservation>* found) {
+  // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
+  // many blobs) and small codes are the ones zxing misses on the whole frame.
+  std::stable_sort(regions.begin(), regions.end(),
+                   [](const cv::Rect& a, const cv::Rect& b) { return a.area() < b.area(); });
+  for (const cv::Rect& region : regions) {
+    if (clock.ElapsedMs() >= budget.For(*found)) return;
+    if (RegionIsOneReadCode(region, *found)) continue;
+    const std::vector<QrCandidate> candidates =
+        GroupQrFinders(FindQrFinderPatterns(gray, region), gray.size());
+    for (const QrCandidate& candidate : candidates) {
+      if (CandidateIsRead(candidate, *found)) continue;
+      if (clock.ElapsedMs() >= budget.For(*found)) return;
+      AppendUnique(ReadRectifiedQr(gray, candidate), found);
+    }
   }
 }
 
@@ -93,8 +107,10 @@ class QrDetector : public MarkerDetector {
             return crop.size() == full ? ReadWeChat(crop) : std::vector<MarkerObservation>{};
           },
       };
-      RunSecondPass(gray, SecondPassRegions(gray, options_.max_candidates), attempts, clock,
-                    {options_.time_budget_ms, options_.time_budget_with_codes_ms}, &found);
+      const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
+      const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
+      ReadFinderCandidates(gray, regions, clock, budget, &found);
+      RunSecondPass(gray, regions, attempts, clock, budget, &found);
     }
     if (options_.refine_corners) {
       for (MarkerObservation& obs : found) RefineQrCorners(gray, &obs);
