@@ -347,11 +347,10 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   init.links = FindLocalMapLinks(survey, init.local_maps, local);
   const int num_maps = static_cast<int>(init.local_maps.size());
   init.tree = SpanningForest(num_maps, init.links);
-  const bool planar = survey.motion == MotionModel::kPlanar;
-  PlaceFromLocalMaps(survey,
-                     RelaxLocalMaps(num_maps, init.links, init.tree,
-                                    PlaceLocalMaps(num_maps, init.links, init.tree, planar), planar),
-                     &init);
+  const LocalMapGraph graph =
+      SolveLocalMapGraph(init.local_maps, init.links, survey.motion == MotionModel::kPlanar, options.graph);
+  init.odometry_calibration = graph.odometry_calibration;
+  PlaceFromLocalMaps(survey, graph.T_world_ref, &init);
   RefineMarkers(survey, cameras, local, &init);
   for (int round = 0; round < options.refine_rounds; ++round) {
     RefineFrames(survey, cameras, options, &init);
@@ -359,6 +358,7 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   }
   for (int c = 0; c < init.components; ++c) AlignComponent(survey, c, &init);
   init.notes = DescribeInitialization(survey, init);
+  init.notes.push_back(DescribeLocalMapGraph(graph));
   return init;
 }
 

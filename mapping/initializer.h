@@ -16,8 +16,10 @@
 //     each); inside a map, frames are placed by odometry and every code seen gets one pose
 //     fused over its views, both branches of the planar ambiguity tried, unstable ones marked;
 //   - local maps are linked by shared codes (quality 1 / predicted error of the link) and by
-//     odometry; the maximum-quality spanning forest places them, one tree per component, the
-//     component's first local map at the identity;
+//     odometry, and placed by a pose graph over the links in two stages, which estimates the
+//     odometry's systematic errors from the links between maps close along the odometry before
+//     it closes the long loops (mapping/local_map_graph.h); the component's first local map
+//     stays at the identity;
 //   - every frame gets T_world_ref * T_ref_robot; every code the pose of its most certain
 //     local map;
 //   - then every code is re-fused over all its views at the placed frames (seeds: its pose
@@ -37,6 +39,7 @@
 
 #include "core/camera.h"
 #include "core/marker_pose.h"
+#include "mapping/local_map_graph.h"
 #include "mapping/local_maps.h"
 #include "mapping/survey.h"
 
@@ -49,6 +52,7 @@ struct InitializerOptions {
   int refine_rounds = 2;            // frames by PnP, then codes fused again (header comment)
   // Local maps; its ambiguity_ratio and cauchy_scale are taken from the two fields above.
   LocalMapOptions local_maps;
+  LocalMapGraphOptions graph;       // their placement (mapping/local_map_graph.h)
 };
 
 // The single view of one observation.
@@ -74,6 +78,9 @@ struct Initialization {
   std::vector<LocalMapLink> links;                  // every candidate link
   std::vector<int> tree;                            // indices into `links`: the spanning forest
   std::vector<double> marker_link_quality;          // per marker: best quality of a link through it, 0 if none
+  // The odometry's systematic errors estimated with the placement (mapping/local_map_graph.h):
+  // [k_rad_per_m, turn_scale, distance_scale] of mapping/calibrated_odometry_factor.h.
+  Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   std::vector<std::string> notes;                   // facts for the build summary
 };
 

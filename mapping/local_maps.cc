@@ -6,9 +6,8 @@
 #include <numeric>
 #include <queue>
 
-#include <ceres/ceres.h>
 
-#include "factors/odometry_se3_factor.h"
+
 #include "factors/pose_block.h"
 #include "mapping/initializer.h"
 #include "mapping/residuals.h"
@@ -402,9 +401,32 @@ std::optional<LocalMapLink> OdometryLinkBetween(const Survey& survey, const std:
   link.map_a = a;
   link.map_b = b;
   link.T_a_b = Planarize(survey.motion, maps[a].T_ref_robot.back() * step.T_a_b);
+  link.odometry_covariance = covariance;
   link.sigma_m = std::sqrt(position2 + kLinkLeverM * kLinkLeverM * rotation2);
   link.quality = 1.0 / std::max(link.sigma_m, 1e-9);
   return link;
+}
+
+// Chains and path lengths of the maps (LocalMap::chain, path_m), in time order per component.
+void NumberChains(const Survey& survey, std::vector<LocalMap>* maps) {
+  const std::vector<int> prev = PreviousLinks(survey);
+  std::map<int, int> last_of_component;
+  int chains = 0;
+  for (size_t b = 0; b < maps->size(); ++b) {
+    LocalMap& map = (*maps)[b];
+    const auto it = last_of_component.find(map.component);
+    const int l = prev[map.frames.front()];
+    if (it != last_of_component.end() && l >= 0 &&
+        survey.odometry_links[l].frame_a == (*maps)[it->second].frames.back()) {
+      const LocalMap& before = (*maps)[it->second];
+      map.chain = before.chain;
+      map.path_m = before.path_m + before.travel_m + survey.odometry_links[l].T_a_b.translation().norm();
+    } else {
+      map.chain = chains++;
+      map.path_m = 0.0;
+    }
+    last_of_component[map.component] = static_cast<int>(b);
+  }
 }
 
 }  // namespace
@@ -416,6 +438,7 @@ std::vector<LocalMap> BuildLocalMaps(const Survey& survey, const std::map<std::s
   if (!options.Check(&why)) throw std::runtime_error("initializer options: " + why);
   std::vector<LocalMap> maps = SplitFrames(survey, frame_component, options);
   for (LocalMap& map : maps) FuseCodes(survey, cameras, views, options, &map);
+  NumberChains(survey, &maps);
   return maps;
 }
 
@@ -496,63 +519,6 @@ std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& 
   std::vector<SE3d> placed;
   for (const auto& T : T_world_ref) placed.push_back(*T);
   return placed;
-}
-
-// The lowest map index of each tree of the forest (union-find).
-static std::vector<int> TreeRoots(int num_maps, const std::vector<LocalMapLink>& links, const std::vector<int>& forest) {
-  std::vector<int> parent(num_maps);
-  std::iota(parent.begin(), parent.end(), 0);
-  const auto find = [&parent](int i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  for (int l : forest) {
-    const int a = find(links[l].map_a), b = find(links[l].map_b);
-    parent[std::max(a, b)] = std::min(a, b);
-  }
-  std::vector<int> root(num_maps);
-  for (int i = 0; i < num_maps; ++i) root[i] = find(i);
-  return root;
-}
-
-std::vector<SE3d> RelaxLocalMaps(int num_maps, const std::vector<LocalMapLink>& links, const std::vector<int>& forest,
-                                 std::vector<SE3d> T_world_ref, bool planar, int max_iterations) {
-  if (links.size() <= forest.size()) return T_world_ref;  // no loop: the forest is already exact
-  std::vector<std::array<double, kSE3BlockSize>> blocks(num_maps);
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  SE3Manifold manifold;
-  for (int i = 0; i < num_maps; ++i) {
-    SE3ToBlock(T_world_ref[i], blocks[i].data());
-    problem.AddParameterBlock(blocks[i].data(), kSE3BlockSize, &manifold);
-  }
-  for (const LocalMapLink& link : links) {
-    if (!(link.quality > 0.0) || !std::isfinite(link.quality)) continue;
-    const double sigma_m = 1.0 / link.quality;
-    Matrix6d covariance = Matrix6d::Zero();
-    covariance.topLeftCorner<3, 3>().setIdentity();
-    covariance.topLeftCorner<3, 3>() *= (sigma_m / kLinkLeverM) * (sigma_m / kLinkLeverM);
-    covariance.bottomRightCorner<3, 3>() = sigma_m * sigma_m * Eigen::Matrix3d::Identity();
-    problem.AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, covariance), new ceres::CauchyLoss(3.0),
-                             blocks[link.map_a].data(), blocks[link.map_b].data());
-  }
-  const std::vector<int> root = TreeRoots(num_maps, links, forest);
-  for (int i = 0; i < num_maps; ++i) {
-    if (root[i] == i) problem.SetParameterBlockConstant(blocks[i].data());
-  }
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = max_iterations;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return T_world_ref;
-  for (int i = 0; i < num_maps; ++i) {
-    const SE3d T = SE3FromBlock(blocks[i].data());
-    T_world_ref[i] = planar ? SE2d::FromSE3(T).ToSE3() : T;
-  }
-  return T_world_ref;
 }
 
 }  // namespace waymark

@@ -42,9 +42,11 @@
 // Each local map holding code m is linked to the code's two best local maps (smallest own
 // sigma), so the number of links grows linearly with the observations.
 //
-// Stitching: a maximum-quality spanning forest of the links (Kruskal), one tree per
-// component, rooted at the component's first local map (T_world_ref = identity), placed by
-// composing the tree's link transforms outwards (planarized for planar surveys).
+// Stitching: mapping/local_map_graph.h places the maps by a pose graph over the odometry links
+// and the codes' sightings. SpanningForest and PlaceLocalMaps below give a maximum-quality
+// spanning forest of links (Kruskal), one tree per component, rooted at its first map
+// (T_world_ref = identity), placed by composing the tree's link transforms outwards
+// (planarized for planar surveys); the graph uses them for its start values.
 #pragma once
 
 #include <limits>
@@ -134,6 +136,11 @@ struct LocalMap {
   std::map<int, FusedPose> codes;          // marker -> fused pose in the ref frame
   double travel_m = 0.0;
   double turn_rad = 0.0;
+  // Chains: maps following one another by odometry (each map's first frame has an odometry link
+  // from the previous map's last frame) share a chain number; path_m is the odometry path length
+  // from the chain's first frame to this map's reference (mapping/local_map_graph.h).
+  int chain = -1;
+  double path_m = 0.0;
 };
 
 struct LocalMapLink {
@@ -143,6 +150,9 @@ struct LocalMapLink {
   SE3d T_a_b;            // T_refA_refB
   double sigma_m = 0.0;  // header comment
   double quality = 0.0;  // 1 / sigma_m, after penalties
+  // Odometry links: the summed covariance of their odometry steps, [rx ry rz tx ty tz], without
+  // the systematic allowance (mapping/local_map_graph.h estimates the systematic errors instead).
+  Matrix6d odometry_covariance = Matrix6d::Zero();
 };
 
 // Local maps of every component (frames with component -1 belong to none), in time order.
@@ -161,16 +171,6 @@ std::vector<int> SpanningForest(int num_maps, const std::vector<LocalMapLink>& l
 // identity, the others follow its links outwards. Planarized when `planar`.
 std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& links,
                                                 const std::vector<int>& forest, bool planar);
-
-// Pose-graph relaxation of the placed local maps over every link, not only the forest's: the
-// forest leaves one link of every loop out, so the loop's whole drift sits there (a long
-// corridor closes through one code seen at its start and its end). Each link is a between-factor
-//   r = S BoxMinus(T_a_b, T_world_refA^-1 T_world_refB),  Sigma = diag((sigma/L)^2 I3, sigma^2 I3)
-// (sigma = 1 / quality, L = kLinkLeverM; factors/odometry_se3_factor.h) with a Cauchy loss of
-// scale 3 against a wrong link (a misread or flipped code); the first map of each tree is held
-// constant. Planarized when `planar`. Returns the relaxed T_world_ref.
-std::vector<SE3d> RelaxLocalMaps(int num_maps, const std::vector<LocalMapLink>& links, const std::vector<int>& forest,
-                                 std::vector<SE3d> T_world_ref, bool planar, int max_iterations = 50);
 
 // sqrt(tr Sigma_tt + kLinkLeverM^2 tr Sigma_rr) of a fused pose, times kUnstablePenalty when
 // unstable or kAmbiguousPenalty when its flip is not resolved: ranks a code's local maps.

@@ -235,62 +235,6 @@ TEST(LocalMapsTest, RobotPnpRecoversAPerturbedPose) {
   EXPECT_LT((same.translation() - start.translation()).norm(), 1e-12);
 }
 
-// A loop of maps: odometry links that each turn 1 degree too much, and one strong code link that
-// closes the loop. The forest leaves the weakest odometry link out, so its placement carries the
-// whole drift there; the relaxation over every link spreads it and brings every map back.
-TEST(LocalMapsTest, RelaxationClosesALoopTheForestLeavesOpen) {
-  constexpr int kMaps = 12;
-  const double step_rad = 2.0 * M_PI / kMaps;
-  std::vector<SE3d> T_world_ref_true;
-  for (int i = 0; i < kMaps; ++i) {
-    T_world_ref_true.push_back(SE2d(5.0 * std::cos(i * step_rad), 5.0 * std::sin(i * step_rad),
-                                    i * step_rad + M_PI / 2).ToSE3());
-  }
-  const SE3d T_ref0_world = T_world_ref_true[0].inverse();  // the forest's gauge: map 0 at the identity
-  for (SE3d& T : T_world_ref_true) T = T_ref0_world * T;
-  std::vector<LocalMapLink> links;
-  const SE3d turn_error = SE2d(0.0, 0.0, 1.0 * M_PI / 180.0).ToSE3();
-  for (int i = 0; i + 1 < kMaps; ++i) {
-    LocalMapLink link;
-    link.map_a = i;
-    link.map_b = i + 1;
-    link.T_a_b = T_world_ref_true[i].inverse() * T_world_ref_true[i + 1] * turn_error;
-    link.sigma_m = (i == 5) ? 0.06 : 0.05;  // map 5-6: the weakest odometry link
-    link.quality = 1.0 / link.sigma_m;
-    links.push_back(link);
-  }
-  LocalMapLink closure;  // a code seen by the last map and the first
-  closure.map_a = kMaps - 1;
-  closure.map_b = 0;
-  closure.marker = 7;
-  closure.T_a_b = T_world_ref_true[kMaps - 1].inverse() * T_world_ref_true[0];
-  closure.sigma_m = 0.005;
-  closure.quality = 1.0 / closure.sigma_m;
-  links.push_back(closure);
-
-  const std::vector<int> forest = SpanningForest(kMaps, links);
-  ASSERT_EQ(forest.size(), static_cast<size_t>(kMaps - 1));
-  const std::vector<SE3d> placed = PlaceLocalMaps(kMaps, links, forest, true);
-  const std::vector<SE3d> relaxed = RelaxLocalMaps(kMaps, links, forest, placed, true);
-  double worst_placed_m = 0.0, worst_relaxed_m = 0.0;
-  for (int i = 0; i < kMaps; ++i) {
-    worst_placed_m = std::max(worst_placed_m, (placed[i].translation() - T_world_ref_true[i].translation()).norm());
-    worst_relaxed_m =
-        std::max(worst_relaxed_m, (relaxed[i].translation() - T_world_ref_true[i].translation()).norm());
-    EXPECT_NEAR(relaxed[i].translation().z(), 0.0, 1e-9);  // planarized
-  }
-  EXPECT_GT(worst_placed_m, 0.5);  // 11 degrees of drift at the open link, metres away
-  EXPECT_LT(worst_relaxed_m, 0.25 * worst_placed_m) << "placed " << worst_placed_m << " m";
-  // Without a loop the forest is already exact and nothing moves.
-  const std::vector<LocalMapLink> chain(links.begin(), links.end() - 1);
-  const std::vector<int> chain_forest = SpanningForest(kMaps, chain);
-  const std::vector<SE3d> chain_placed = PlaceLocalMaps(kMaps, chain, chain_forest, true);
-  const std::vector<SE3d> chain_relaxed = RelaxLocalMaps(kMaps, chain, chain_forest, chain_placed, true);
-  for (int i = 0; i < kMaps; ++i) {
-    EXPECT_LT((chain_relaxed[i].translation() - chain_placed[i].translation()).norm(), 1e-12);
-  }
-}
-
 TEST(LocalMapsTest, OptionsAreChecked) {
   LocalMapOptions options;
   std::string why;

@@ -1,0 +1,139 @@
+#include "mapping/local_map_graph.h"
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace waymark {
+namespace {
+
+// A planar loop of maps 1 m apart on a circle of kMaps metres, each holding the code beside it
+// and the one beside the previous map; the last map also sees code 0 (the loop closure). The
+// odometry bends every metre by kDriftRadPerM (unequal wheel radii): 4 radians round the loop,
+// more than half a turn, so the loop's end is composed tens of metres off and its heading the
+// other way round.
+constexpr int kMaps = 400;
+constexpr double kDriftRadPerM = 0.01;
+
+struct Loop {
+  std::vector<SE3d> T_world_ref;   // truth, map 0 at the identity
+  std::vector<SE3d> T_world_code;  // truth, code i beside map i
+  std::vector<LocalMap> maps;
+  std::vector<LocalMapLink> links;
+};
+
+FusedPose Sighting(const SE3d& T_ref_code, std::mt19937* rng) {
+  std::normal_distribution<double> noise(0.0, 1.0);
+  Vector6d delta;
+  for (int k = 0; k < 3; ++k) delta[k] = 0.01 * noise(*rng);
+  for (int k = 3; k < 6; ++k) delta[k] = 0.003 * noise(*rng);
+  FusedPose fused;
+  fused.T_frame_marker = T_ref_code.BoxPlus(delta);
+  fused.covariance.setZero();
+  fused.covariance.diagonal() << 1e-4, 1e-4, 1e-4, 9e-6, 9e-6, 9e-6;
+  fused.stable = fused.resolved = true;
+  return fused;
+}
+
+Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
+  std::mt19937 rng(seed);
+  Loop loop;
+  const double radius_m = kMaps / (2.0 * M_PI);
+  const SE3d T_ref0_world = SE2d(radius_m, 0.0, M_PI / 2).ToSE3().inverse();
+  for (int i = 0; i < kMaps; ++i) {
+    const double angle = 2.0 * M_PI * i / kMaps;
+    const SE3d T_world_ref = SE2d(radius_m * std::cos(angle), radius_m * std::sin(angle), angle + M_PI / 2).ToSE3();
+    loop.T_world_ref.push_back(T_ref0_world * T_world_ref);
+    // The code on the outer wall, 1 m out, facing the centre, 0.5 m up.
+    const SE3d T_ref_code(Eigen::Quaterniond(Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX())),
+                          Eigen::Vector3d(0.0, -1.0, 0.5));
+    loop.T_world_code.push_back(loop.T_world_ref.back() * T_ref_code);
+  }
+  for (int i = 0; i < kMaps; ++i) {
+    LocalMap map;
+    map.component = 0;
+    map.chain = 0;
+    map.path_m = i;
+    map.frames = {i};
+    map.T_ref_robot = {SE3d::Identity()};
+    const SE3d T_ref_world = loop.T_world_ref[i].inverse();
+    map.codes.emplace(i, Sighting(T_ref_world * loop.T_world_code[i], &rng));
+    if (i > 0) map.codes.emplace(i - 1, Sighting(T_ref_world * loop.T_world_code[i - 1], &rng));
+    if (i == kMaps - 1) {
+      const SE3d T_world_code0(loop.T_world_code[0].rotation(),
+                               loop.T_world_code[0].translation() + Eigen::Vector3d(closure_offset_m, 0.0, 0.0));
+      map.codes.emplace(0, Sighting(T_ref_world * T_world_code0, &rng));
+    }
+    loop.maps.push_back(map);
+  }
+  for (int i = 0; i + 1 < kMaps; ++i) {
+    // The measured increment M of a true one C (mapping/calibrated_odometry_factor.h, turn and
+    // distance scale 0): theta_M = theta_C + k s, t_M = R(k s / 2) t_C.
+    const SE2d C = SE2d::FromSE3(loop.T_world_ref[i].inverse() * loop.T_world_ref[i + 1]);
+    const double bend = kDriftRadPerM * C.translation().norm();
+    const Eigen::Vector2d t_M = Eigen::Rotation2Dd(0.5 * bend) * C.translation();
+    LocalMapLink link;
+    link.map_a = i;
+    link.map_b = i + 1;
+    link.T_a_b = SE2d(t_M.x(), t_M.y(), C.theta() + bend).ToSE3();
+    link.odometry_covariance.diagonal() << 1e-8, 1e-8, 1e-6, 1e-6, 1e-6, 1e-8;
+    link.sigma_m = 0.01;
+    link.quality = 100.0;
+    loop.links.push_back(link);
+  }
+  return loop;
+}
+
+double WorstPositionErrorM(const std::vector<SE3d>& estimate, const std::vector<SE3d>& truth) {
+  double worst_m = 0.0;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    worst_m = std::max(worst_m, (estimate[i].translation() - truth[i].translation()).norm());
+  }
+  return worst_m;
+}
+
+TEST(LocalMapGraphTest, ClosesALoopWhoseOdometryDriftedMoreThanHalfATurn) {
+  const Loop loop = MakeLoop(7, 0.0);
+  // The odometry alone: the composed chain.
+  std::vector<SE3d> composed{SE3d::Identity()};
+  for (const LocalMapLink& link : loop.links) composed.push_back(composed.back() * link.T_a_b);
+  const double composed_m = WorstPositionErrorM(composed, loop.T_world_ref);
+  EXPECT_GT(composed_m, 50.0);
+
+  const LocalMapGraph graph = SolveLocalMapGraph(loop.maps, loop.links, true);
+  ASSERT_EQ(graph.T_world_ref.size(), loop.maps.size());
+  EXPECT_EQ(graph.closures_accepted, 1);
+  EXPECT_EQ(graph.closures_rejected, 0);
+  EXPECT_NEAR(graph.odometry_calibration[0], kDriftRadPerM, 0.1 * kDriftRadPerM);
+  const double worst_m = WorstPositionErrorM(graph.T_world_ref, loop.T_world_ref);
+  // Measured 2.7 m: what the sightings' noise (10 mrad, 3 mm) leaves of a 400 m loop closed once.
+  EXPECT_LT(worst_m, 0.01 * kMaps) << "odometry alone " << composed_m << " m";
+  for (const SE3d& T : graph.T_world_ref) EXPECT_NEAR(T.translation().z(), 0.0, 1e-9);  // planar
+}
+
+TEST(LocalMapGraphTest, AClosureFarOffTheGateStaysApart) {
+  // Code 0 seen at the loop's end 60 m away from where it is at the start: not the same place
+  // (a misread id), more than the gate allows after 400 m (0.5 + 0.05 * 399 m).
+  const Loop loop = MakeLoop(7, 60.0);
+  const LocalMapGraph graph = SolveLocalMapGraph(loop.maps, loop.links, true);
+  EXPECT_EQ(graph.closures_accepted, 0);
+  EXPECT_EQ(graph.closures_rejected, 1);
+  EXPECT_EQ(graph.instances, kMaps + 1);
+}
+
+TEST(LocalMapGraphTest, OptionsAreChecked) {
+  LocalMapGraphOptions options;
+  std::string why;
+  EXPECT_TRUE(options.Check(&why));
+  options.gate_per_m = -1.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("local map graph"), std::string::npos);
+  const Loop loop = MakeLoop(7, 0.0);
+  EXPECT_THROW(SolveLocalMapGraph(loop.maps, loop.links, true, options), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace waymark
