@@ -9,6 +9,7 @@
 
 #include "core/detect_common.h"
 #include "core/detect_qr_finder.h"
+#include "core/detect_qr_grid.h"
 #include "core/detect_refine.h"
 #include "core/detect_zxing.h"
 
@@ -27,6 +28,8 @@ constexpr double kRefineWindowFraction = 0.035;
 // window of at most a module: the outermost row and column of a QR code hold data modules,
 // and where one is light the next dark module inwards makes an edge one module inside,
 // which a wider window would take for the side (a line of them can outvote the true side).
+// Last, with the module grid read off those corners, every side re-fitted on its dark outer
+// modules only (core/detect_qr_grid.h), when the grid is found.
 void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   RefineOptions options;
   options.search_px = 1.25;
@@ -40,6 +43,11 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   if (refined) {
     obs->corners_px = refined->corners_px;
     obs->quality = refined->inlier_fraction;
+    if (const std::optional<QrGridEstimate> grid = EstimateQrGrid(gray, obs->corners_px)) {
+      if (const std::optional<Quad2d> fitted = FitQrSidesOnDarkModules(gray, obs->corners_px, *grid)) {
+        obs->corners_px = *fitted;
+      }
+    }
   }
 }
 

@@ -284,6 +284,22 @@ std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d&
   return FitEdgeLine(points, strengths, samples);
 }
 
+std::optional<Line2d> FitEdgeThrough(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& points_px,
+                                     const Eigen::Vector2d& outward, double half_window_px, double min_step,
+                                     bool fit_model) {
+  if (gray.empty() || gray.type() != CV_8UC1) return std::nullopt;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<double> strengths;
+  for (const Eigen::Vector2d& p : points_px) {
+    const std::optional<EdgeHit> hit = FindOuterEdge(gray, p, outward, half_window_px, min_step);
+    if (!hit) continue;
+    const std::optional<double> fitted =
+        fit_model ? FitEdgeModel(gray, p, outward, hit->offset_px) : std::optional<double>();
+    points.push_back(p + fitted.value_or(hit->offset_px) * outward), strengths.push_back(hit->strength);
+  }
+  return FitEdgeLine(points, strengths, static_cast<int>(points_px.size()));
+}
+
 std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n,
                                      double half_window, double min_step) {
   const int count = static_cast<int>(std::round(2.0 * (half_window + 0.5) / kStepPx)) + 1;

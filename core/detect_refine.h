@@ -19,6 +19,7 @@
 
 #include <opencv2/core.hpp>
 #include <optional>
+#include <vector>
 
 #include "core/detect_common.h"
 
@@ -80,6 +81,14 @@ struct Line2d {
 std::optional<Line2d> FitSideSegment(const cv::Mat& gray, const Eigen::Vector2d& from_px,
                                      const Eigen::Vector2d& to_px, double t0, double t1,
                                      double half_window_px, double min_step);
+
+// The outer edge line through edge points found at `points_px` (FindOuterEdge along
+// `outward`, a unit vector, within +-half_window_px; each point's offset then corrected by
+// FitEdgeModel when `fit_model`), by RANSAC and total least squares as for a whole side.
+// For sides whose outermost modules are known: the caller passes points on dark modules only.
+std::optional<Line2d> FitEdgeThrough(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& points_px,
+                                     const Eigen::Vector2d& outward, double half_window_px, double min_step,
+                                     bool fit_model);
 
 // Intersection of two lines, or nullopt when they are within ~6 degrees of parallel.
 std::optional<Eigen::Vector2d> IntersectLines(const Line2d& a, const Line2d& b);

@@ -39,6 +39,14 @@ double MaxCornerError(const Quad2d& a, const Quad2d& b) {
 
 const cv::Rect kWhole(0, 0, 640, 480);
 
+// Pass 2 runs within a CPU budget per frame: a loaded test machine must not decide the
+// outcome (zxing alone takes 5-7 ms of the default 8 ms on a 1280x960 frame here).
+DetectorOptions Generous() {
+  DetectorOptions options;
+  options.time_budget_ms = 1000.0;
+  return options;
+}
+
 TEST(DetectQrFinder, ThreeFindersAtTheSymbolsFinderCentres) {
   const SymbolImage symbol = QrSymbol("0/2/10");
   const int n = symbol.symbol.width;  // 21 modules
@@ -95,7 +103,7 @@ TEST(DetectQrFinder, SmallBlurredCodeIsReadRectified) {
   EXPECT_EQ(read[0].key.id, "waymark-ceiling/12/0.7/3.5");
   EXPECT_LT(MaxCornerError(read[0].corners_px, truth), 1.0);
   // The detector finds it too, with refined corners.
-  const std::vector<MarkerObservation> found = CreateDetector("qr")->Detect(image);
+  const std::vector<MarkerObservation> found = CreateDetector("qr", Generous())->Detect(image);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "waymark-ceiling/12/0.7/3.5");
   EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.5);
@@ -113,7 +121,7 @@ TEST(DetectQrFinder, ObliqueVersionOneCodeIsRead) {
   cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
   std::printf("zxing on the whole frame: %zu codes\n",
               ReadWithZxing(image, ZxingSymbology::kQrCode, ZxingPass{}).size());
-  const std::vector<MarkerObservation> found = CreateDetector("qr")->Detect(image);
+  const std::vector<MarkerObservation> found = CreateDetector("qr", Generous())->Detect(image);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "0/5/2.5");
   EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.5);
