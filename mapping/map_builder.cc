@@ -34,6 +34,9 @@ std::string Num(double value, int precision = 4) {
   return out.str();
 }
 
+// Levenberg-Marquardt's first trust region (see GlobalProblem::Solve).
+constexpr double kInitialTrustRegionRadius = 1e12;
+
 // Forwards Ceres iterations to the progress callback.
 class ProgressCallback : public ceres::IterationCallback {
  public:
@@ -68,12 +71,11 @@ class GlobalProblem {
   ceres::Solver::Summary Solve(const std::vector<int>& active, bool robust, std::vector<std::string>* gauges);
   // Whitened squared norm of an observation at the current values (+inf behind the camera).
   double SquaredError(int o) const;
-  // Marker covariances in map.json's convention; false when Ceres cannot compute them.
-  bool Covariances(std::vector<std::optional<Matrix6d>>* covariance) const;
-  // The markers' rows of the joint covariance factor (mapping/map_covariance.h), given their
-  // marginals; all nullopt when it cannot be computed.
-  std::vector<std::optional<CovarianceFactor>> CovarianceFactors(
-      const std::vector<std::optional<Matrix6d>>& covariance, int rank) const;
+  // Marker covariances in map.json's convention and, with factor_rank > 0, the markers' rows of
+  // the joint covariance factor (mapping/map_covariance.h), both from one factorization of H
+  // (mapping/marginal_covariance.h); false when H is not positive definite (a free gauge).
+  bool Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
+                   std::vector<std::optional<CovarianceFactor>>* factors) const;
 
   // Re-places the codes with an observation above the outlier gate by consensus over their
   // views at the current frame poses (mapping/initializer.h), and moves the codes whose other
@@ -120,17 +122,23 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
   for (int m : markers_used) {
     if (!problem_->IsParameterBlockConstant(marker_[m].data())) covariance_markers_.push_back(marker_[m].data());
   }
-  // Measured on a 320 m corridor loop (docs/mapping.md, speed): Cholesky of the normal
-  // equations with SuiteSparse (CHOLMOD, AMD) beats SPARSE_SCHUR with the codes eliminated first
-  // (the reduced system is still every frame, 1.6x slower), EIGEN_SPARSE is on par and
-  // ITERATIVE_SCHUR + SCHUR_JACOBI crawls on the long odometry chains. A relative cost change of
-  // 1e-6 (Ceres' default) ends the robust solves, which only decide the outliers: their last
-  // 1e-6 .. 1e-10 took 11 of 17 iterations on that loop. The final solve runs to 1e-10: these
-  // maps lie in flat valleys of the cost, and stopping it at 1e-6 left sparse-code maps up to
-  // 50 % worse (corridor d = 4 m seed 3: 45 -> 69 mm; rooms seed 7: 5.8 -> 7.2 mm).
+  // Measured on corridor loops (docs/mapping.md, speed): Cholesky of the normal equations with
+  // SuiteSparse (CHOLMOD, AMD) is on par with EIGEN_SPARSE and beats SPARSE_SCHUR with the codes
+  // eliminated first (the reduced system is still every frame: 640 m loop, linear solver 6x
+  // slower); ITERATIVE_SCHUR + SCHUR_JACOBI crawls on the long odometry chains; Jacobi scaling and
+  // non-monotonic steps change nothing. Levenberg-Marquardt starts at a trust region of 1e12
+  // (Ceres' default is 1e4), i.e. at Gauss-Newton steps, and shrinks it only when a step fails:
+  // Ceres damps the normal equations by diag(J^T J) / radius, and with the default every solve
+  // crept along the loop's weakly constrained drift modes: each step was accepted with a model
+  // fit of 1.00, the radius tripled, and the iteration count grew with the loop (640 m: 40 + 20
+  // iterations -> 8 + 3, maps equal within 11 um on the accuracy scenarios). A relative cost change of 1e-6 ends the
+  // robust solves, which only decide the outliers. The final solve runs to 1e-10: stopping it at
+  // 1e-6 moves the maps by up to 0.08 mm now for one iteration, and left sparse-code maps up to
+  // 50 % worse with the default radius (corridor d = 4 m seed 3: 45 -> 69 mm).
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  solver_options.initial_trust_region_radius = kInitialTrustRegionRadius;
   solver_options.max_num_iterations = options_.max_iterations;
   solver_options.num_threads = options_.num_threads;
   solver_options.function_tolerance = robust ? 1e-6 : 1e-10;
@@ -300,47 +308,39 @@ double GlobalProblem::SquaredError(int o) const {
   return s;
 }
 
-bool GlobalProblem::Covariances(std::vector<std::optional<Matrix6d>>* covariance) const {
+bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
+                                std::vector<std::optional<CovarianceFactor>>* factors) const {
   covariance->assign(survey_.markers.size(), std::nullopt);
+  factors->assign(survey_.markers.size(), std::nullopt);
   MarginalCovarianceOptions marginal_options;
   marginal_options.num_threads = options_.num_threads;
-  std::vector<Eigen::MatrixXd> manifold;  // tangent of the marker manifold, covariance_markers_ order
-  if (!MarginalCovariances(problem_.get(), covariance_markers_, &manifold, marginal_options)) return false;
+  const InformationFactor information(problem_.get(), covariance_markers_, marginal_options);
+  if (information.size() == 0) return covariance_markers_.empty();
+  if (!information.positive_definite()) return false;
+  const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // covariance_markers_ order
   std::map<const double*, size_t> index_of;
   for (size_t i = 0; i < covariance_markers_.size(); ++i) index_of[covariance_markers_[i]] = i;
+  const size_t count = covariance_markers_.size();
+  std::vector<size_t> markers(count);  // in covariance_markers_ order
+  std::vector<SE3d> poses(count);
+  std::vector<Matrix6d> marginals(count);
   for (size_t m = 0; m < survey_.markers.size(); ++m) {
     const auto it = index_of.find(marker_[m].data());
     if (it == index_of.end()) continue;
-    const Matrix6d J = ManifoldToBodyTangentJacobian(Marker(static_cast<int>(m)));
+    const SE3d T_world_marker = Marker(static_cast<int>(m));
+    const Matrix6d J = ManifoldToBodyTangentJacobian(T_world_marker);
     const Matrix6d body = J * Matrix6d(manifold[it->second]) * J.transpose();
     (*covariance)[m] = 0.5 * (body + body.transpose());
+    markers[it->second] = m;
+    poses[it->second] = T_world_marker;
+    marginals[it->second] = *(*covariance)[m];
   }
+  if (factor_rank <= 0) return true;
+  CovarianceFactorOptions factor_options;
+  factor_options.rank = factor_rank;
+  const auto rows = MarkerCovarianceFactors(information, covariance_markers_, poses, marginals, factor_options);
+  for (size_t i = 0; rows && i < markers.size(); ++i) (*factors)[markers[i]] = (*rows)[i];
   return true;
-}
-
-std::vector<std::optional<CovarianceFactor>> GlobalProblem::CovarianceFactors(
-    const std::vector<std::optional<Matrix6d>>& covariance, int rank) const {
-  std::vector<std::optional<CovarianceFactor>> factors(survey_.markers.size());
-  std::vector<size_t> index;
-  std::vector<const double*> blocks;
-  std::vector<SE3d> poses;
-  std::vector<Matrix6d> marginals;
-  for (size_t m = 0; m < survey_.markers.size(); ++m) {
-    const double* block = marker_[m].data();
-    if (!covariance[m] || std::find(covariance_markers_.begin(), covariance_markers_.end(), block) ==
-                              covariance_markers_.end()) {
-      continue;
-    }
-    index.push_back(m);
-    blocks.push_back(block);
-    poses.push_back(Marker(static_cast<int>(m)));
-    marginals.push_back(*covariance[m]);
-  }
-  CovarianceFactorOptions options;
-  options.rank = rank;
-  const auto rows = MarkerCovarianceFactors(problem_.get(), blocks, poses, marginals, options);
-  for (size_t i = 0; rows && i < index.size(); ++i) factors[index[i]] = (*rows)[i];
-  return factors;
 }
 
 // Observations usable in the optimization: a usable single view, both ends placed.
@@ -371,34 +371,56 @@ constexpr double kMinDuplicateFacingCos = 0.5;
 // larger code's size, faces within 60 degrees) cannot both be right: one is another code read under a wrong id (the
 // same code misdecoded alike in several frames, which the id check cannot see). The code with
 // fewer observations loses them, reported. Returns the observations kept.
+// The pairs (i, j), i < j, of `markers` whose centres are within `gate_m` in x, in lexicographic
+// order: a sweep over the markers sorted by x, linear in the survey where all pairs are not.
+std::vector<std::pair<size_t, size_t>> NearbyPairs(const std::vector<SE3d>& T_world_marker, double gate_m) {
+  std::vector<size_t> by_x(T_world_marker.size());
+  for (size_t i = 0; i < by_x.size(); ++i) by_x[i] = i;
+  const auto x = [&](size_t i) { return T_world_marker[i].translation().x(); };
+  std::sort(by_x.begin(), by_x.end(), [&](size_t a, size_t b) { return x(a) < x(b); });
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (size_t p = 0; p < by_x.size(); ++p) {
+    for (size_t q = p + 1; q < by_x.size() && x(by_x[q]) - x(by_x[p]) <= gate_m; ++q) {
+      pairs.emplace_back(std::min(by_x[p], by_x[q]), std::max(by_x[p], by_x[q]));
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
 std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization& init, const GlobalProblem& problem,
                                       const std::vector<int>& active, MapBuildResult* result) {
   std::map<int, std::vector<int>> observations_of;  // marker -> active observations
   for (int o : active) observations_of[survey.observations[o].marker].push_back(o);
   std::vector<int> markers;
-  for (const auto& [m, obs] : observations_of) markers.push_back(m);
+  std::vector<SE3d> T_world_marker;
+  double largest_gate_m = 0.0;
+  for (const auto& [m, obs] : observations_of) {
+    markers.push_back(m);
+    T_world_marker.push_back(problem.Marker(m));
+    largest_gate_m = std::max(largest_gate_m, 0.5 * survey.markers[m].size_m);
+  }
   std::set<int> dropped;
-  for (size_t i = 0; i < markers.size(); ++i) {
-    for (size_t j = i + 1; j < markers.size(); ++j) {
-      const int a = markers[i], b = markers[j];
-      if (init.marker_component[a] != init.marker_component[b] || dropped.count(a) || dropped.count(b)) continue;
-      const double gate_m = 0.5 * std::max(survey.markers[a].size_m, survey.markers[b].size_m);
-      const SE3d T_world_a = problem.Marker(a), T_world_b = problem.Marker(b);
-      if ((T_world_a.translation() - T_world_b.translation()).norm() > gate_m) continue;
-      // Codes printed back to back on a thin wall share a place but face away from each other.
-      const Eigen::Vector3d z_a = T_world_a.rotation() * Eigen::Vector3d::UnitZ();
-      if (z_a.dot(T_world_b.rotation() * Eigen::Vector3d::UnitZ()) < kMinDuplicateFacingCos) continue;
-      const bool a_loses = observations_of[a].size() < observations_of[b].size() ||
-                           (observations_of[a].size() == observations_of[b].size() && survey.markers[b].known);
-      const int loser = a_loses ? a : b, winner = a_loses ? b : a;
-      if (survey.markers[loser].known && survey.markers[loser].known->fixed) continue;
-      dropped.insert(loser);
-      for (int o : observations_of[loser]) {
-        result->outliers.push_back({survey.markers[loser].key, survey.frames[survey.observations[o].frame].stamp_s,
-                                    survey.observations[o].camera, 0.0,
-                                    "id conflicts with " + survey.markers[winner].key.ToString() +
-                                        ", mapped at the same place (misdecoded?)"});
-      }
+  for (const auto& [i, j] : NearbyPairs(T_world_marker, largest_gate_m)) {
+    const int a = markers[i], b = markers[j];
+    if (init.marker_component[a] != init.marker_component[b] || dropped.count(a) || dropped.count(b)) continue;
+    const double gate_m = 0.5 * std::max(survey.markers[a].size_m, survey.markers[b].size_m);
+    const SE3d& T_world_a = T_world_marker[i];
+    const SE3d& T_world_b = T_world_marker[j];
+    if ((T_world_a.translation() - T_world_b.translation()).norm() > gate_m) continue;
+    // Codes printed back to back on a thin wall share a place but face away from each other.
+    const Eigen::Vector3d z_a = T_world_a.rotation() * Eigen::Vector3d::UnitZ();
+    if (z_a.dot(T_world_b.rotation() * Eigen::Vector3d::UnitZ()) < kMinDuplicateFacingCos) continue;
+    const bool a_loses = observations_of[a].size() < observations_of[b].size() ||
+                         (observations_of[a].size() == observations_of[b].size() && survey.markers[b].known);
+    const int loser = a_loses ? a : b, winner = a_loses ? b : a;
+    if (survey.markers[loser].known && survey.markers[loser].known->fixed) continue;
+    dropped.insert(loser);
+    for (int o : observations_of[loser]) {
+      result->outliers.push_back({survey.markers[loser].key, survey.frames[survey.observations[o].frame].stamp_s,
+                                  survey.observations[o].camera, 0.0,
+                                  "id conflicts with " + survey.markers[winner].key.ToString() +
+                                      ", mapped at the same place (misdecoded?)"});
     }
   }
   std::vector<int> kept;
@@ -573,7 +595,13 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     }
     return kept;
   };
+  const auto record = [&](const std::string& stage, const ceres::Solver::Summary& summary) {
+    result.solves.push_back({stage, static_cast<int>(summary.iterations.size()), summary.total_time_in_seconds,
+                             summary.linear_solver_time_in_seconds, summary.jacobian_evaluation_time_in_seconds,
+                             summary.residual_evaluation_time_in_seconds});
+  };
   ceres::Solver::Summary robust = problem.Solve(in_front(active), true, &gauges);
+  record("robust", robust);
   int iterations = static_cast<int>(robust.iterations.size());
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
   for (int round = 0; round < options.replace_rounds; ++round) {
@@ -582,12 +610,14 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     progress("re-placed " + std::to_string(moved) + " code(s) with outlying views");
     const double first_cost = robust.initial_cost;
     robust = problem.Solve(in_front(active), true, &gauges);
+    record("robust after re-placing", robust);
     robust.initial_cost = first_cost;
     iterations += static_cast<int>(robust.iterations.size());
   }
   const std::vector<int> kept =
       RejectOutliers(survey, problem, RemoveDuplicateCodes(survey, init, problem, active, &result), options, &result);
   const ceres::Solver::Summary final_summary = problem.Solve(kept, false, &gauges);
+  record("final", final_summary);
   result.solver_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.iterations = iterations + static_cast<int>(final_summary.iterations.size());
   result.termination = ceres::TerminationTypeToString(final_summary.termination_type) + std::string(": ") +
@@ -601,12 +631,13 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     progress("marker covariances");
     const auto covariance_start = std::chrono::steady_clock::now();
     std::vector<std::optional<Matrix6d>> covariance;
-    result.covariance_computed = problem.Covariances(&covariance);
+    std::vector<std::optional<CovarianceFactor>> factors;
+    result.covariance_computed = problem.Covariances(options.covariance_factor_rank, &covariance, &factors);
     if (result.covariance_computed) {
-      for (MapMarker& marker : result.map.markers) marker.covariance = covariance[survey.FindMarker(marker.key)];
-      if (options.covariance_factor_rank > 0) {
-        const auto factors = problem.CovarianceFactors(covariance, options.covariance_factor_rank);
-        for (MapMarker& marker : result.map.markers) marker.covariance_factor = factors[survey.FindMarker(marker.key)];
+      for (MapMarker& marker : result.map.markers) {
+        const int m = survey.FindMarker(marker.key);
+        marker.covariance = covariance[m];
+        marker.covariance_factor = factors[m];
       }
     } else {
       result.notes.push_back("marker covariances could not be computed (rank-deficient problem)");

@@ -90,6 +90,16 @@ struct ComponentSummary {
   std::string gauge;
 };
 
+// One Ceres solve of stages (2) and (4), where its time went (Ceres' summary).
+struct SolveStageSummary {
+  std::string stage;  // "robust", "robust after re-placing", "final"
+  int iterations = 0;
+  double total_s = 0.0;
+  double linear_solver_s = 0.0;
+  double jacobian_s = 0.0;  // Jacobian and residual evaluations
+  double residual_s = 0.0;  // residual-only evaluations
+};
+
 struct MapBuildResult {
   MarkerMap map;
   Trajectory trajectory;                 // smoothed T_world_robot of the frames of component 0
@@ -106,6 +116,7 @@ struct MapBuildResult {
   double solver_time_s = 0.0;            // robust and final solves, outlier stages
   double covariance_time_s = 0.0;
   int iterations = 0;
+  std::vector<SolveStageSummary> solves;  // in the order they ran
   std::string termination;               // Ceres' final termination type and message
   bool covariance_computed = false;
   std::vector<std::string> notes;

@@ -3,8 +3,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
 #include <algorithm>
 #include <map>
 #include <random>
@@ -14,8 +12,6 @@
 
 namespace waymark {
 namespace {
-
-using SparseMatrix = Eigen::SparseMatrix<double>;
 
 Eigen::MatrixXd Orthonormalize(const Eigen::MatrixXd& Y) {
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Y);
@@ -60,32 +56,23 @@ double FitFactorToMarginal(const Matrix6d& marginal, CovarianceFactor* factor) {
 }
 
 std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
-    ceres::Problem* problem, const std::vector<const double*>& marker_blocks, const std::vector<SE3d>& T_world_marker,
-    const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options) {
+    const InformationFactor& information, const std::vector<const double*>& marker_blocks,
+    const std::vector<SE3d>& T_world_marker, const std::vector<Matrix6d>& marginal,
+    const CovarianceFactorOptions& options) {
   const size_t count = marker_blocks.size();
   if (count == 0 || T_world_marker.size() != count || marginal.size() != count) return std::nullopt;
-  ProblemInformation information;
-  if (!EvaluateInformation(problem, 1, &information) || information.H.cols() == 0) return std::nullopt;
-  const SparseMatrix& H = information.H;
-  const std::map<const double*, int>& column_of = information.first_column;
+  if (!information.positive_definite()) return std::nullopt;
   std::vector<int> columns;
   std::vector<Matrix6d> B;  // manifold -> body tangent
   for (size_t i = 0; i < count; ++i) {
-    const auto it = column_of.find(marker_blocks[i]);
-    if (it == column_of.end() || problem->ParameterBlockTangentSize(marker_blocks[i]) != 6) return std::nullopt;
-    columns.push_back(it->second);
+    if (information.TangentSize(marker_blocks[i]) != 6) return std::nullopt;
+    columns.push_back(information.FirstColumn(marker_blocks[i]));
     B.push_back(ManifoldToBodyTangentJacobian(T_world_marker[i]));
   }
-  const Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> llt(H);
-  if (llt.info() != Eigen::Success) return std::nullopt;
-  // A free gauge shows as a pivot at round-off level (P H P^T = L L^T).
-  const Eigen::VectorXd H_diagonal = llt.permutationP() * Eigen::VectorXd(H.diagonal());
-  const Eigen::VectorXd L_diagonal = SparseMatrix(llt.matrixL()).diagonal();
-  if ((L_diagonal.array().square() < 1e-12 * H_diagonal.array()).any()) return std::nullopt;
   const auto apply = [&](const Eigen::MatrixXd& X) {  // Sigma X, body tangent
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(H.rows(), X.cols());
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(information.size(), X.cols());
     for (size_t i = 0; i < count; ++i) rhs.middleRows<6>(columns[i]) = B[i].transpose() * X.middleRows<6>(6 * i);
-    const Eigen::MatrixXd Z = llt.solve(rhs);
+    const Eigen::MatrixXd Z = information.Solve(rhs);
     Eigen::MatrixXd Y(X.rows(), X.cols());
     for (size_t i = 0; i < count; ++i) Y.middleRows<6>(6 * i) = B[i] * Z.middleRows<6>(columns[i]);
     return Y;
@@ -98,6 +85,17 @@ std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
     FitFactorToMarginal(marginal[i], &rows[i]);
   }
   return rows;
+}
+
+std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
+    ceres::Problem* problem, const std::vector<const double*>& marker_blocks, const std::vector<SE3d>& T_world_marker,
+    const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options) {
+  try {
+    const InformationFactor information(problem, {});
+    return MarkerCovarianceFactors(information, marker_blocks, T_world_marker, marginal, options);
+  } catch (const std::runtime_error&) {  // a block outside the problem, or no Jacobian
+    return std::nullopt;
+  }
 }
 
 }  // namespace waymark

@@ -14,7 +14,7 @@
 // Sigma is the marker block of the inverse of the Gauss-Newton information H = J^T J of the
 // final (non-robust) problem over all its free blocks (frames, markers, odometry calibration),
 // in the gauge of its constant blocks (anchors). It is never formed: a product Sigma_m v is one
-// solve with the sparse Cholesky factor of H,
+// solve with the sparse LDL^T of H that also gives the marginals (InformationFactor),
 //   Sigma_m v = B P (H^-1 P^T B^T v),   P: selects the markers' manifold coordinates,
 //   B = blockdiag(ManifoldToBodyTangentJacobian(T_i))  (manifold -> body tangent, factors/pose_block.h),
 // and the top k eigenpairs come from a randomized subspace iteration (Halko et al. 2011):
@@ -35,6 +35,7 @@
 
 #include "core/geometry.h"
 #include "core/types.h"
+#include "mapping/marginal_covariance.h"
 
 namespace waymark {
 
@@ -52,6 +53,12 @@ struct CovarianceFactorOptions {
 std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
     ceres::Problem* problem, const std::vector<const double*>& marker_blocks, const std::vector<SE3d>& T_world_marker,
     const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options);
+
+// The same with the factorization of H made once for the marginals (mapping/marginal_covariance.h).
+std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
+    const InformationFactor& information, const std::vector<const double*>& marker_blocks,
+    const std::vector<SE3d>& T_world_marker, const std::vector<Matrix6d>& marginal,
+    const CovarianceFactorOptions& options);
 
 // The largest k eigenpairs of a symmetric PSD operator y = apply(x) on R^n by the randomized
 // subspace iteration above; returns F = V_k Lambda_k^(1/2) (n x k).

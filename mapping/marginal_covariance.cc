@@ -22,7 +22,7 @@ SparseMatrix WithBlockPattern(const SparseMatrix& H, const std::vector<std::pair
   std::vector<Eigen::Triplet<double>> pattern;
   for (const auto& [first, size] : requested) {
     for (int a = 0; a < size; ++a) {
-      for (int b = 0; b < size; ++b) pattern.emplace_back(first + a, first + b, 0.0);
+      for (int b = 0; b <= a; ++b) pattern.emplace_back(first + a, first + b, 0.0);
     }
   }
   SparseMatrix block_pattern(H.rows(), H.cols());
@@ -81,6 +81,53 @@ bool PivotsPositive(const Eigen::VectorXd& d, const SparseMatrix& H, const Eigen
   return true;
 }
 
+// The lower triangle of J^T J for J in compressed rows, column by column (Gustavson):
+//   H_ij = sum_{r: J_rj != 0} J_rj J_ri   for i >= j,
+// gathered in a dense accumulator over the rows of column j; O(sum_r nnz(J_r:)^2).
+SparseMatrix LowerGram(const ceres::CRSMatrix& J) {
+  const int n = J.num_cols;
+  std::vector<int> column_start(n + 1, 0);  // J transposed: the entries p of each column
+  for (int c : J.cols) ++column_start[c + 1];
+  for (int c = 0; c < n; ++c) column_start[c + 1] += column_start[c];
+  std::vector<int> entry(J.cols.size()), row(J.cols.size());
+  std::vector<int> next(column_start.begin(), column_start.end() - 1);
+  for (int r = 0; r < J.num_rows; ++r) {
+    for (int p = J.rows[r]; p < J.rows[r + 1]; ++p) {
+      const int q = next[J.cols[p]]++;
+      entry[q] = p;
+      row[q] = r;
+    }
+  }
+  std::vector<double> accumulator(n, 0.0);
+  std::vector<int> last_column(n, -1), pattern;
+  std::vector<int> outer(n + 1, 0), inner;
+  std::vector<double> values;
+  for (int j = 0; j < n; ++j) {
+    pattern.clear();
+    for (int q = column_start[j]; q < column_start[j + 1]; ++q) {
+      const double J_rj = J.values[entry[q]];
+      for (int p = J.rows[row[q]]; p < J.rows[row[q] + 1]; ++p) {
+        const int i = J.cols[p];
+        if (i < j) continue;
+        if (last_column[i] != j) {
+          last_column[i] = j;
+          accumulator[i] = 0.0;
+          pattern.push_back(i);
+        }
+        accumulator[i] += J_rj * J.values[p];
+      }
+    }
+    std::sort(pattern.begin(), pattern.end());
+    for (int i : pattern) {
+      inner.push_back(i);
+      values.push_back(accumulator[i]);
+    }
+    outer[j + 1] = static_cast<int>(inner.size());
+  }
+  return Eigen::Map<const SparseMatrix>(n, n, static_cast<int>(inner.size()), outer.data(), inner.data(),
+                                        values.data());
+}
+
 }  // namespace
 
 bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInformation* information) {
@@ -100,46 +147,85 @@ bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInform
   if (columns == 0) return true;
   ceres::CRSMatrix crs;
   if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return false;
-  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> J(
-      crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()), crs.rows.data(), crs.cols.data(),
-      crs.values.data());
-  const SparseMatrix J_col(J);
-  information->H = SparseMatrix(J_col.transpose()) * J_col;
+  information->H = LowerGram(crs);
   return true;
+}
+
+InformationFactor::InformationFactor(ceres::Problem* problem, const std::vector<const double*>& marginal_blocks,
+                                     const MarginalCovarianceOptions& options) {
+  ProblemInformation information;
+  if (!EvaluateInformation(problem, options.num_threads, &information)) {
+    throw std::runtime_error("marginal covariance: the Jacobian could not be evaluated at the current values");
+  }
+  for (const auto& [block, first] : information.first_column) {
+    columns_[block] = {first, problem->ParameterBlockTangentSize(block)};
+  }
+  for (const double* block : marginal_blocks) marginal_columns_.push_back(Find(block));
+  if (information.H.cols() == 0) return;
+  const SparseMatrix H = WithBlockPattern(information.H, marginal_columns_);
+  const Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(H);
+  if (ldlt.info() != Eigen::Success) return;
+  permuted_of_ = ldlt.permutationP().indices();
+  d_ = ldlt.vectorD();
+  L_ = ldlt.matrixL().nestedExpression();
+  L_.makeCompressed();
+  positive_definite_ = PivotsPositive(d_, H, permuted_of_, options.min_relative_pivot);
+}
+
+const InformationFactor::Columns& InformationFactor::Find(const double* block) const {
+  const auto it = columns_.find(block);
+  if (it == columns_.end()) {
+    throw std::runtime_error("marginal covariance: a requested block is not a variable of the problem");
+  }
+  return it->second;
+}
+
+int InformationFactor::FirstColumn(const double* block) const { return Find(block).first; }
+
+int InformationFactor::TangentSize(const double* block) const { return Find(block).second; }
+
+std::vector<Eigen::MatrixXd> InformationFactor::Marginals() const {
+  if (!positive_definite_) throw std::logic_error("marginal covariance: H is not positive definite");
+  const SelectedInverse Z(L_, d_);
+  std::vector<Eigen::MatrixXd> covariance;
+  for (const auto& [first, size] : marginal_columns_) {
+    Eigen::MatrixXd block(size, size);
+    for (int a = 0; a < size; ++a) {
+      for (int b = 0; b < size; ++b) block(a, b) = Z.At(permuted_of_[first + a], permuted_of_[first + b]);
+    }
+    covariance.push_back(block);
+  }
+  return covariance;
+}
+
+Eigen::MatrixXd InformationFactor::Solve(const Eigen::MatrixXd& B) const {
+  if (!positive_definite_) throw std::logic_error("marginal covariance: H is not positive definite");
+  if (B.rows() != size()) throw std::logic_error("marginal covariance: Solve with a wrong number of rows");
+  using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  RowMajorMatrix Y(B.rows(), B.cols());
+  for (int a = 0; a < size(); ++a) Y.row(permuted_of_[a]) = B.row(a);
+  const int* outer = L_.outerIndexPtr();
+  const int* rows = L_.innerIndexPtr();
+  const double* values = L_.valuePtr();
+  for (int j = 0; j < size(); ++j) {  // L^-1
+    for (int p = outer[j]; p < outer[j + 1]; ++p) Y.row(rows[p]) -= values[p] * Y.row(j);
+  }
+  for (int j = 0; j < size(); ++j) Y.row(j) /= d_[j];
+  for (int j = size() - 1; j >= 0; --j) {  // L^-T
+    for (int p = outer[j]; p < outer[j + 1]; ++p) Y.row(j) -= values[p] * Y.row(rows[p]);
+  }
+  Eigen::MatrixXd X(B.rows(), B.cols());
+  for (int a = 0; a < size(); ++a) X.row(a) = Y.row(permuted_of_[a]);
+  return X;
 }
 
 bool MarginalCovariances(ceres::Problem* problem, const std::vector<const double*>& blocks,
                          std::vector<Eigen::MatrixXd>* covariance, const MarginalCovarianceOptions& options) {
   covariance->clear();
-  ProblemInformation information;
-  if (!EvaluateInformation(problem, options.num_threads, &information)) {
-    throw std::runtime_error("marginal covariance: the Jacobian could not be evaluated at the current values");
-  }
-  std::vector<std::pair<int, int>> requested;  // first column, tangent size
-  for (const double* block : blocks) {
-    const auto it = information.first_column.find(block);
-    if (it == information.first_column.end()) {
-      throw std::runtime_error("marginal covariance: a requested block is not a variable of the problem");
-    }
-    requested.emplace_back(it->second, problem->ParameterBlockTangentSize(block));
-  }
-  if (information.H.cols() == 0) return blocks.empty();
-  const SparseMatrix H = WithBlockPattern(information.H, requested);
-  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(H);
-  if (ldlt.info() != Eigen::Success) return false;
-  const Eigen::VectorXi permuted_of = ldlt.permutationP().indices();
-  const Eigen::VectorXd d = ldlt.vectorD();
-  if (!PivotsPositive(d, H, permuted_of, options.min_relative_pivot)) return false;
-  SparseMatrix L = ldlt.matrixL().nestedExpression();
-  L.makeCompressed();
-  const SelectedInverse Z(L, d);
-  for (const auto& [first, size] : requested) {
-    Eigen::MatrixXd block(size, size);
-    for (int a = 0; a < size; ++a) {
-      for (int b = 0; b < size; ++b) block(a, b) = Z.At(permuted_of[first + a], permuted_of[first + b]);
-    }
-    covariance->push_back(block);
-  }
+  const InformationFactor factor(problem, blocks, options);
+  if (factor.size() == 0) return blocks.empty();
+  if (!factor.positive_definite()) return false;
+  *covariance = factor.Marginals();
   return true;
 }
 

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -34,8 +35,9 @@ struct MarginalCovarianceOptions {
   double min_relative_pivot = 1e-12;
 };
 
-// H = J^T J as above, over the problem's non-constant blocks (in GetParameterBlocks order),
-// with the first column of each block; also used by mapping/map_covariance.h.
+// H = J^T J as above (its lower triangle only: the upper one follows by symmetry), over the
+// problem's non-constant blocks (in GetParameterBlocks order), with the first column of each
+// block.
 struct ProblemInformation {
   Eigen::SparseMatrix<double> H;
   std::map<const double*, int> first_column;
@@ -44,6 +46,44 @@ struct ProblemInformation {
 // False when the Jacobian cannot be evaluated at the current values. A problem without a
 // variable block gives an empty H.
 bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInformation* information);
+
+// The sparse LDL^T of a problem's information H, computed once and shared by the marginal
+// covariances (Marginals, the selected inverse above) and by solves with H (Solve; the markers'
+// covariance factor, mapping/map_covariance.h, needs H^-1 times k + p columns, q + 2 times).
+//   Solve:  X = H^-1 B = P^T L^-T D^-1 L^-1 P B,
+// with the two triangular sweeps run over all columns of B at once (B kept row-major, so each
+// entry of L updates one contiguous row): L is read once per sweep, not once per column.
+class InformationFactor {
+ public:
+  // Evaluates H at the problem's current values and factors it; the diagonal blocks of
+  // `marginal_blocks` (non-constant blocks of `problem`) are added to the pattern so that
+  // Marginals() can read them. Throws std::runtime_error when the Jacobian cannot be evaluated
+  // or a block is not a variable of the problem.
+  InformationFactor(ceres::Problem* problem, const std::vector<const double*>& marginal_blocks,
+                    const MarginalCovarianceOptions& options = {});
+
+  // False when H is singular or not positive definite (a free gauge) or has no column.
+  bool positive_definite() const { return positive_definite_; }
+  int size() const { return static_cast<int>(d_.size()); }
+  // First column of a variable block in H, and its tangent size; throws for other blocks.
+  int FirstColumn(const double* block) const;
+  int TangentSize(const double* block) const;
+  // (H^-1)_bb of every block given at construction, in that order (positive_definite() only).
+  std::vector<Eigen::MatrixXd> Marginals() const;
+  // H^-1 B for B with size() rows (positive_definite() only).
+  Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
+
+ private:
+  using Columns = std::pair<int, int>;  // first column, tangent size
+  const Columns& Find(const double* block) const;
+
+  std::map<const double*, Columns> columns_;
+  std::vector<Columns> marginal_columns_;
+  Eigen::SparseMatrix<double> L_;  // strictly lower, unit diagonal implied, permuted order
+  Eigen::VectorXd d_;
+  Eigen::VectorXi permuted_of_;    // column a of H is column permuted_of_[a] of L
+  bool positive_definite_ = false;
+};
 
 // Fills (*covariance)[i] with the tangent-space covariance of blocks[i] (a non-constant
 // parameter block of `problem`). Returns false when H is singular or not positive definite

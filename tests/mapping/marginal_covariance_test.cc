@@ -6,6 +6,7 @@
 #include <memory>
 #include <random>
 
+#include <Eigen/Dense>
 #include <ceres/ceres.h>
 #include <ceres/covariance.h>
 #include <gtest/gtest.h>
@@ -127,6 +128,52 @@ TEST(MarginalCovarianceTest, ConstantBlocksAreConditionedOn) {
   }
 }
 
+// H = J^T J formed densely from Ceres' Jacobian over the non-constant blocks, in the column order
+// of InformationFactor (GetParameterBlocks order).
+Eigen::MatrixXd DenseInformation(ceres::Problem* problem) {
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  ceres::Problem::EvaluateOptions evaluate;
+  for (double* block : all) {
+    if (!problem->IsParameterBlockConstant(block)) evaluate.parameter_blocks.push_back(block);
+  }
+  ceres::CRSMatrix crs;
+  EXPECT_TRUE(problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs));
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int p = crs.rows[r]; p < crs.rows[r + 1]; ++p) J(r, crs.cols[p]) = crs.values[p];
+  }
+  return J.transpose() * J;
+}
+
+// One factorization serves both uses: its marginals are the diagonal blocks of the dense H^-1,
+// and Solve(B) is H^-1 B for every column of B at once.
+TEST(MarginalCovarianceTest, FactorSolvesAndMarginalsMatchTheDenseInverse) {
+  ChainProblem chain(25, 10, false, 3);
+  chain.problem.SetParameterBlockConstant(chain.values[5].data());
+  const std::vector<const double*> blocks = {chain.values[1].data(), chain.values[26].data(),
+                                             chain.values[30].data()};
+  const InformationFactor factor(&chain.problem, blocks);
+  ASSERT_TRUE(factor.positive_definite());
+  const Eigen::MatrixXd H = DenseInformation(&chain.problem);
+  ASSERT_EQ(factor.size(), H.rows());
+  const Eigen::MatrixXd H_inverse = H.ldlt().solve(Eigen::MatrixXd::Identity(H.rows(), H.cols()));
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd B(H.rows(), 7);
+  for (int i = 0; i < B.size(); ++i) B(i) = normal(rng);
+  const Eigen::MatrixXd X = factor.Solve(B);
+  EXPECT_LE((X - H_inverse * B).norm(), 1e-9 * (H_inverse * B).norm());
+  const std::vector<Eigen::MatrixXd> marginals = factor.Marginals();
+  ASSERT_EQ(marginals.size(), blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const int first = factor.FirstColumn(blocks[b]), size = factor.TangentSize(blocks[b]);
+    const Eigen::MatrixXd reference = H_inverse.block(first, first, size, size);
+    EXPECT_LE((marginals[b] - reference).norm(), 1e-9 * reference.norm()) << "block " << b;
+  }
+  EXPECT_THROW(factor.FirstColumn(chain.values[5].data()), std::runtime_error);  // constant
+}
+
 TEST(MarginalCovarianceTest, FreeGaugeIsReportedNotInverted) {
   // Pure differences: r = x_b - x_a - c leaves a common shift of every block free.
   std::vector<std::array<double, 3>> x(8, {0.0, 0.0, 0.0});
@@ -139,6 +186,7 @@ TEST(MarginalCovarianceTest, FreeGaugeIsReportedNotInverted) {
   std::vector<Eigen::MatrixXd> covariance;
   EXPECT_FALSE(MarginalCovariances(&problem, {x[4].data()}, &covariance));
   EXPECT_TRUE(covariance.empty());
+  EXPECT_FALSE(InformationFactor(&problem, {x[4].data()}).positive_definite());
   // Holding one block fixes the gauge: the chain's marginal grows by one unit per link.
   problem.SetParameterBlockConstant(x[0].data());
   ASSERT_TRUE(MarginalCovariances(&problem, {x[4].data()}, &covariance));
