@@ -136,6 +136,9 @@ class Graph {
                                maps_[sighting.map].data(), codes_[code].data());
   }
 
+  void HoldCalibrationConstant() {
+    if (calibration_added_) problem_->SetParameterBlockConstant(calibration_.data());
+  }
   void HoldMapConstant(int map) { problem_->SetParameterBlockConstant(maps_[map].data()); }
   void HoldCodeConstant(int code) { problem_->SetParameterBlockConstant(codes_[code].data()); }
 
@@ -432,6 +435,7 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
   FindInstances(maps, options.near_path_m, &sightings, &instances);
   Stage stage = SolveInstancesApart(maps, odometry, &sightings, instances, planar, options);
   const double dk = SearchHeadingDrift(maps, sightings, instances, options, &stage);
+
   stage.calibration[0] += dk;
   const Placement placement = PlaceAndMerge(maps, stage, instances, planar, options);
   LocalMapGraph result;
@@ -461,6 +465,7 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
   for (int i = 0; i < num_maps; ++i) {
     if (components.Find(i) == i) graph.HoldMapConstant(i);
   }
+  graph.HoldCalibrationConstant();  // header comment, stage 2
   graph.Solve(options.max_iterations);
   for (int i = 0; i < num_maps; ++i) result.T_world_ref.push_back(Flatten(planar, graph.Map(i)));
   result.odometry_calibration = graph.Calibration();

