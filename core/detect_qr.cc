@@ -73,25 +73,34 @@ bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObser
 }
 
 // Pass 2a: QR candidates from finder patterns (core/detect_qr_finder.h) in each region
-// (smallest first) that is not one code already read, each candidate not read yet resampled upright and
-// read, while the frame's budget lasts (checked before every region and candidate).
-void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, const FrameClock& clock,
+// (smallest first) that is not one code already read, each candidate not read yet resampled
+// upright and read, while the frame's budget lasts (checked before every region and
+// candidate). Three finders in a code's layout count as a code in the frame: from the first
+// candidate on, the budget is the one for frames with codes. Returns true if a candidate
+// was seen.
+bool ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, const FrameClock& clock,
                           const FrameBudget& budget, std::vector<MarkerObservation>* found) {
   // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
   // many blobs) and small codes are the ones zxing misses on the whole frame.
   std::stable_sort(regions.begin(), regions.end(),
                    [](const cv::Rect& a, const cv::Rect& b) { return a.area() < b.area(); });
+  bool seen_candidate = false;
+  const auto within_budget = [&] {
+    return clock.ElapsedMs() < (seen_candidate ? budget.with_codes_ms : budget.For(*found));
+  };
   for (const cv::Rect& region : regions) {
-    if (clock.ElapsedMs() >= budget.For(*found)) return;
+    if (!within_budget()) break;
     if (RegionIsOneReadCode(region, *found)) continue;
     const std::vector<QrCandidate> candidates =
         GroupQrFinders(FindQrFinderPatterns(gray, region), gray.size());
     for (const QrCandidate& candidate : candidates) {
       if (CandidateIsRead(candidate, *found)) continue;
-      if (clock.ElapsedMs() >= budget.For(*found)) return;
+      seen_candidate = true;
+      if (!within_budget()) return true;
       AppendUnique(ReadRectifiedQr(gray, candidate), found);
     }
   }
+  return seen_candidate;
 }
 
 class QrDetector : public MarkerDetector {
@@ -117,8 +126,10 @@ class QrDetector : public MarkerDetector {
       };
       const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
       const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
-      ReadFinderCandidates(gray, regions, clock, budget, &found);
-      RunSecondPass(gray, regions, attempts, clock, budget, &found);
+      const bool seen_candidate = ReadFinderCandidates(gray, regions, clock, budget, &found);
+      // An unread finder triple counts as a code in the frame for the other attempts too.
+      const FrameBudget rest{seen_candidate ? budget.with_codes_ms : budget.empty_ms, budget.with_codes_ms};
+      RunSecondPass(gray, regions, attempts, clock, rest, &found);
     }
     if (options_.refine_corners) {
       for (MarkerObservation& obs : found) RefineQrCorners(gray, &obs);

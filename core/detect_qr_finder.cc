@@ -1,5 +1,6 @@
 #include "core/detect_qr_finder.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -31,6 +32,8 @@ constexpr double kMaxWidthRatio = 1.8;
 constexpr double kMaxArmRatio = 3.0;
 constexpr double kMinAngleDeg = 40.0;
 constexpr double kMinArmToWidth = 1.2, kMaxArmToWidth = 10.0;
+// Each arm of the corner finder within this angle of one of its outline's edges.
+constexpr double kMaxArmToEdgeDeg = 20.0;
 
 // Fraction of a side next to a finder pattern that the finder's outer ring covers in every
 // version up to 3 (7 of 4 v + 17 modules: 0.33 at version 1, 0.24 at version 3); in larger
@@ -103,6 +106,17 @@ cv::Mat BinarizeRegion(const cv::Mat& gray, const cv::Rect& region, double scale
   return binary;
 }
 
+// |sin| of the angle between `direction` and the nearest edge of the finder's outline.
+double EdgeMisalignment(const QrFinderPattern& finder, const Eigen::Vector2d& direction) {
+  const Eigen::Vector2d u = direction.normalized();
+  double best = 1.0;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d e = (finder.outer_px[(i + 1) % 4] - finder.outer_px[i]).normalized();
+    best = std::min(best, std::abs(u.x() * e.y() - u.y() * e.x()));
+  }
+  return best;
+}
+
 // Score of the triple with right-angle corner a (lower is better), or +inf if it cannot
 // be a QR code's three finders.
 double TripleScore(const QrFinderPattern& a, const QrFinderPattern& b, const QrFinderPattern& c) {
@@ -120,14 +134,27 @@ double TripleScore(const QrFinderPattern& a, const QrFinderPattern& b, const QrF
   }
   const double cos_angle = ab.dot(ac) / (d_ab * d_ac);
   if (std::abs(cos_angle) > std::cos(kMinAngleDeg * M_PI / 180.0)) return kInf;
-  return std::abs(cos_angle) + 0.5 * std::log(arm_ratio) + std::log(w_max / w_min);
+  // The arms run along the corner finder's own edges (a wrong corner sees a diagonal).
+  const double misalignment = std::max(EdgeMisalignment(a, ab), EdgeMisalignment(a, ac));
+  if (misalignment > std::sin(kMaxArmToEdgeDeg * M_PI / 180.0)) return kInf;
+  return std::abs(cos_angle) + 0.5 * std::log(arm_ratio) + std::log(w_max / w_min) + 2.0 * misalignment;
 }
 
-// Index of the vertex of `quad` farthest from `from`.
-int Farthest(const std::array<Eigen::Vector2d, 4>& quad, const Eigen::Vector2d& from) {
+// Index of the vertex of `quad` with the largest weight_s * s + weight_t * t, where (s, t)
+// are its affine coordinates in the code's axes: v = origin + s * axis_s + t * axis_t.
+// Affine coordinates keep their order under the shear and foreshortening of an oblique
+// view, where distances do not.
+int Extreme(const std::array<Eigen::Vector2d, 4>& quad, const Eigen::Vector2d& origin,
+            const Eigen::Vector2d& axis_s, const Eigen::Vector2d& axis_t, double weight_s, double weight_t) {
+  Eigen::Matrix2d basis;
+  basis << axis_s, axis_t;
+  const Eigen::Matrix2d inverse = basis.inverse();
   int best = 0;
-  for (int i = 1; i < 4; ++i) {
-    if ((quad[i] - from).norm() > (quad[best] - from).norm()) best = i;
+  double best_value = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d st = inverse * (quad[i] - origin);
+    const double value = weight_s * st.x() + weight_t * st.y();
+    if (value > best_value) best_value = value, best = i;
   }
   return best;
 }
@@ -139,11 +166,14 @@ Line2d LineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
   return line;
 }
 
-// The code's corners from finders a (top-left), b (top-right), c (bottom-left).
+// The code's corners from finders a (top-left), b (top-right), c (bottom-left): in the
+// affine frame of the arms a->b (s) and a->c (t), a's vertex of least s + t, b's of
+// greatest s - t, c's of greatest t - s.
 Quad2d CodeCorners(const QrFinderPattern& a, const QrFinderPattern& b, const QrFinderPattern& c) {
-  const int ia = Farthest(a.outer_px, 0.5 * (b.centre_px + c.centre_px));
-  const int ib = Farthest(b.outer_px, c.centre_px);
-  const int ic = Farthest(c.outer_px, b.centre_px);
+  const Eigen::Vector2d ab = b.centre_px - a.centre_px, ac = c.centre_px - a.centre_px;
+  const int ia = Extreme(a.outer_px, a.centre_px, ab, ac, -1.0, -1.0);
+  const int ib = Extreme(b.outer_px, a.centre_px, ab, ac, 1.0, -1.0);
+  const int ic = Extreme(c.outer_px, a.centre_px, ab, ac, -1.0, 1.0);
   Quad2d q;
   q[0] = a.outer_px[ia];
   q[1] = b.outer_px[ib];

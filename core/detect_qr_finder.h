@@ -10,9 +10,11 @@
 //      3x3 centre: areas 49 : 25 : 9), checked by area ratios, concentricity and
 //      convexity; its outer contour is reduced to a quadrilateral;
 //   2. triples (GroupQrFinders): three finders of similar size where one (the top-left)
-//      sees the two others at similar distances and at 50-130 deg, ordered clockwise on
+//      sees the two others at similar distances, at 40-140 deg, each along one of its own
+//      outline's edges (within 20 deg; a wrong corner sees a diagonal), ordered clockwise on
 //      screen (top-right, then bottom-left: cross(B - A, C - A) > 0 with y down); the
-//      code's corners are the outermost corners of the three finders and, for the
+//      code's corners are the outermost corners of the three finders (extreme in the
+//      affine frame of the arms B - A and C - A) and, for the
 //      bottom-right, the intersection of the top-right finder's right edge and the
 //      bottom-left finder's bottom edge;
 //   3. rectification (ReadRectifiedQr): the bottom-right corner re-found on the image's

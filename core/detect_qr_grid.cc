@@ -17,6 +17,7 @@ constexpr double kMinModulePx = 1.0;
 constexpr int kMaxModules = 97;    // version 20
 constexpr double kMinStep = 12.0;  // gray levels per px, as RefineOptions::min_step
 constexpr int kMinSidePoints = 6;
+constexpr double kMinPointSpacingPx = 1.25;  // along a side
 constexpr double kMinSideInliers = 0.6;
 
 // H_image_module: module coordinates (pixel edges of the symbol, 0 .. n) to image pixels.
@@ -91,7 +92,7 @@ std::optional<QrGridEstimate> GridFor(const cv::Mat& gray, const Quad2d& corners
 // Edge points of side `side` (0 top, 1 right, 2 bottom, 3 left; from corner side to corner
 // side + 1) at its dark outer modules, in image pixels.
 std::vector<Eigen::Vector2d> DarkModulePoints(const cv::Mat& gray, const cv::Matx33d& H, int n, int side,
-                                              double threshold) {
+                                              double threshold, double module_px) {
   // Module k along the side, and the point at fraction s of it (0 .. n) on the side's edge.
   const auto module = [&](int k) -> cv::Point {
     switch (side) {
@@ -122,15 +123,19 @@ std::vector<Eigen::Vector2d> DarkModulePoints(const cv::Mat& gray, const cv::Mat
     const cv::Point m = module(k);
     dark[k] = Sample(gray, Apply(H, m.x + 0.5, m.y + 0.5)) < threshold;
   }
-  // Every quarter module along dark runs, but never within a quarter module of a dark
-  // module's light neighbour (the step fades there, and slants under perspective).
+  // Every half module along dark runs (every quarter when that is still kMinPointSpacingPx
+  // apart: on sharp, nearly axis-aligned edges the pixel staircase needs the denser
+  // sampling), but never within a quarter module of a dark module's light neighbour (the
+  // step fades there, and slants under perspective).
+  const bool quarters = 0.25 * module_px >= kMinPointSpacingPx;
   std::vector<Eigen::Vector2d> points;
   for (int k = 0; k < n; ++k) {
     if (!dark[k]) continue;
     const bool before = k > 0 && dark[k - 1];
-    if (before) points.push_back(on_edge(k)), points.push_back(on_edge(k + 0.25));
+    if (before) points.push_back(on_edge(k));
+    if (before && quarters) points.push_back(on_edge(k + 0.25));
     points.push_back(on_edge(k + 0.5));
-    if (dark[k + 1]) points.push_back(on_edge(k + 0.75));
+    if (dark[k + 1] && quarters) points.push_back(on_edge(k + 0.75));
   }
   return points;
 }
@@ -184,7 +189,7 @@ std::optional<Quad2d> FitQrSidesOnDarkModules(const cv::Mat& gray, const Quad2d&
   std::array<Line2d, 4> lines;
   for (int side = 0; side < 4; ++side) {
     const Eigen::Vector2d along = (corners_px[(side + 1) % 4] - corners_px[side]).normalized();
-    const std::vector<Eigen::Vector2d> points = DarkModulePoints(gray, H, n, side, threshold);
+    const std::vector<Eigen::Vector2d> points = DarkModulePoints(gray, H, n, side, threshold, module_px);
     if (static_cast<int>(points.size()) < kMinSidePoints) return std::nullopt;
     const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
     const std::optional<Line2d> modelled =

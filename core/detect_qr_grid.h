@@ -13,14 +13,14 @@
 //     ring, timing contrast = the light minus the dark modules of the timing patterns
 //     (row 6 and column 6, modules 8 .. n-9, dark at even indices);
 //   - sides: every module of the outer row/column darker than the midpoint of those two
-//     references gives edge points every quarter module along it, except within a
-//     quarter module of a light neighbour (core/detect_refine.h FitEdgeThrough); each side
-//     is the mean of two lines fitted to those profiles: one from the derivative centroids
-//     (steady, but pulled outwards by a thin dark bar: +0.1-0.2 px for a 2 px module) and
-//     one from the thin-bar model (unbiased, noisier on 2 px modules); corners are the
-//     intersections of adjacent lines. (Rendered, the mean did better than either line:
-//     drone codes worst corner 0.36 / 0.38 px -> 0.28 px, ceiling codes 0.63 / 0.35 ->
-//     0.42 px, corner bench pooled RMS 0.106 / 0.131 -> 0.107 px.)
+//     references gives an edge point at its centre, and one at its boundary with a dark
+//     predecessor (core/detect_refine.h FitEdgeThrough); each side is the mean of two lines
+//     fitted to those profiles: one from the derivative centroids (steady, but pulled
+//     outwards by a thin dark bar: +0.1-0.2 px for a 2 px module) and one from the thin-bar
+//     model (unbiased, noisier on 2 px modules); corners are the intersections of adjacent
+//     lines. Rendered, the mean did better than either line alone (worst corner of the
+//     drone codes 0.36 / 0.38 px -> 0.28 px, of the ceiling codes 0.63 / 0.35 -> 0.36 px;
+//     corner bench pooled RMS 0.106 / 0.131 -> 0.105 px).
 // Pixel convention: OpenCV pixel centres (core/detect_common.h).
 #pragma once
 

@@ -4,11 +4,10 @@
 //
 // Measured 2026-11-23 (QR detector with the finder-pattern pass and the dark-module side
 // fit, core/detect_qr_finder.h and core/detect_qr_grid.h):
-//   corridor         70 images  69/70 wide codes matched, 70 read, worst corner 0.544 px
-//                    (C052, 91 px, whose quiet zone clips at 255: 0.495 px before the
-//                    side fit)
-//   warehouse-drone  40 images 100/100 matched (was 95/100, 97 read), worst 0.275 px (was 0.70)
-//   ceiling-grid     10 images  10/10 matched (was 1/10), worst 0.418 px
+//   corridor         70 images  70/70 wide codes matched, worst corner 0.497 px (C052,
+//                    91 px, whose quiet zone clips at 255)
+//   warehouse-drone  40 images 100/100 matched (was 95/100, 97 read), worst 0.281 px (was 0.70)
+//   ceiling-grid     10 images  10/10 matched (was 1/10), worst 0.358 px
 // The ceiling codes are barely over 40 px (12 cm at 1.85 m, f = 620 px: 1.9 px per module
 // under a 0.7 px blur): zxing-cpp does not read them in the frame; the finder pass reads
 // them resampled upright. The drone's floor and rack codes are seen obliquely at 640x480.
@@ -23,7 +22,9 @@ TEST(RenderDetectQrTest, WarehouseDrone) {
   ExpectAccepted("warehouse-drone", RenderAndDetect("warehouse-drone", "", 40), 60);
 }
 
-TEST(RenderDetectQrTest, CeilingGrid) { ExpectAccepted("ceiling-grid", RenderAndDetect("ceiling-grid", "", 10), 5); }
+TEST(RenderDetectQrTest, CeilingGrid) {
+  ExpectAccepted("ceiling-grid", RenderAndDetect("ceiling-grid", "", 10), 5);
+}
 
 }  // namespace
 }  // namespace waymark::e2e
