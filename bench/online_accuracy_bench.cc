@@ -25,6 +25,7 @@
 //   the other scenarios; --quick: 4, 2 and 1. Prints the tables and writes
 //   bench/results/online_accuracy.json (or --out).
 #include <Eigen/Cholesky>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -33,6 +34,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <tuple>
 #include <string>
 #include <vector>
 
@@ -509,34 +511,54 @@ Dataset Kidnap(const Dataset& dataset, double t1_s, double t2_s) {
 // from the jump to the first pose again and that pose's error.
 struct KidnapFigures {
   long wrong_outputs = 0, untracked_after_jump = 0;
-  long wrong_after_first_code = 0;  // from the first frame with a code after the jump on
+  long wrong_after_first_code = 0;   // from the first frame with a code after the jump on
+  long wrong_before_first_code = 0;  // between the jump and the first frame with a code
+  long wrong_before_first_frame = 0;  // of those, before any camera frame after the jump (no evidence yet)
+  std::vector<std::array<double, 3>> wrong_stamps_s;  // stamp, error (m), 1 if after the jump
   double tracking_percent = 0.0, first_pose_again_s = -1.0, error_at_relocalization_m = -1.0;
   LocalizerCounters counters;
 };
 
-KidnapFigures KidnapRun(const Dataset& dataset, const MarkerMap& map, double t1_s) {
+// `negative`: the localizer's test on codes expected in view but not seen (online/visibility.h).
+KidnapFigures KidnapRun(const Dataset& dataset, const MarkerMap& map, double t1_s, bool negative = true) {
   const Trajectory& truth = *dataset.groundtruth_trajectory;
-  const LocalizedRun localized = Localize(dataset, truth, map, OptionsFor(dataset, CorrectionMode::kTightCorners));
+  LocalizerOptions options = OptionsFor(dataset, CorrectionMode::kTightCorners);
+  options.visibility.enabled = negative;
+  const LocalizedRun localized = Localize(dataset, truth, map, options);
   KidnapFigures figures;
   double first_code_s = std::numeric_limits<double>::infinity();
+  double first_frame_s = std::numeric_limits<double>::infinity();
   for (const DetectionFrame& frame : dataset.detections) {
-    if (t1_s >= 0.0 && frame.stamp_s > t1_s + 1e-9 && !frame.markers.empty()) {
+    if (t1_s < 0.0 || frame.stamp_s <= t1_s + 1e-9) continue;
+    first_frame_s = std::min(first_frame_s, frame.stamp_s);
+    if (!frame.markers.empty()) {
       first_code_s = frame.stamp_s;
       break;
     }
   }
+  // The carry: the largest step of the truth (the stamp at t1 may be repeated by the cut).
+  size_t jump_index = 0;
+  double jump_m = 0.0;
+  for (size_t k = 1; k < truth.size(); ++k) {
+    const double step_m = (truth[k].T.translation() - truth[k - 1].T.translation()).norm();
+    if (step_m > jump_m) std::tie(jump_m, jump_index) = std::make_pair(step_m, k);
+  }
   size_t t = 0;
   long tracked = 0;
   for (size_t k = 0; k < truth.size(); ++k) {
-    const bool after = t1_s >= 0.0 && truth[k].stamp_s > t1_s + 1e-9;
+    const bool after = t1_s >= 0.0 && k >= jump_index;
     if (!localized.tracking[k]) {
       figures.untracked_after_jump += after;
       continue;
     }
     ++tracked;
     const double error_m = (localized.tracked[t++].T.translation() - truth[k].T.translation()).norm();
-    figures.wrong_outputs += error_m > 0.2;
-    figures.wrong_after_first_code += error_m > 0.2 && truth[k].stamp_s >= first_code_s - 1e-9;
+    const bool wrong = error_m > 0.2;
+    figures.wrong_outputs += wrong;
+    figures.wrong_after_first_code += wrong && truth[k].stamp_s >= first_code_s - 1e-9;
+    figures.wrong_before_first_code += wrong && after && truth[k].stamp_s < first_code_s - 1e-9;
+    figures.wrong_before_first_frame += wrong && after && truth[k].stamp_s < first_frame_s - 1e-9;
+    if (wrong) figures.wrong_stamps_s.push_back({truth[k].stamp_s, error_m, after ? 1.0 : 0.0});
     if (after && figures.first_pose_again_s < 0.0 && k > 0 && !localized.tracking[k - 1]) {
       figures.first_pose_again_s = truth[k].stamp_s - t1_s;
       figures.error_at_relocalization_m = error_m;
@@ -550,6 +572,9 @@ KidnapFigures KidnapRun(const Dataset& dataset, const MarkerMap& map, double t1_
 Json KidnapJson(const KidnapFigures& f) {
   return {{"wrong_pose_outputs", f.wrong_outputs},
           {"wrong_pose_outputs_from_first_code_after_jump", f.wrong_after_first_code},
+          {"wrong_pose_outputs_between_jump_and_first_code", f.wrong_before_first_code},
+          {"of_which_before_the_first_camera_frame", f.wrong_before_first_frame},
+          {"wrong_pose_stamps_s", f.wrong_stamps_s},
           {"tracking_percent", f.tracking_percent},
           {"untracked_stamps_after_jump", f.untracked_after_jump},
           {"first_pose_again_after_s", f.first_pose_again_s},
@@ -557,13 +582,19 @@ Json KidnapJson(const KidnapFigures& f) {
           {"initializations", f.counters.initializations},
           {"times_suspect", f.counters.times_suspect},
           {"suspect_cleared", f.counters.suspect_cleared},
-          {"times_lost", f.counters.times_lost}};
+          {"times_lost", f.counters.times_lost},
+          {"suspect_by_missed_codes", f.counters.suspect_by_missed_codes},
+          {"lost_by_missed_codes", f.counters.lost_by_missed_codes},
+          {"expected_codes", f.counters.expected_codes},
+          {"expected_codes_missed", f.counters.expected_missed}};
 }
 
 void PrintKidnapRow(const std::string& label, const KidnapFigures& f) {
-  std::printf("| %s | %ld (%ld) | %.1f | %ld | %.2f | %.4f | %ld | %ld / %ld | %ld |\n", label.c_str(), f.wrong_outputs,
-              f.wrong_after_first_code, f.tracking_percent, f.untracked_after_jump, f.first_pose_again_s, f.error_at_relocalization_m,
-              f.counters.initializations, f.counters.times_suspect, f.counters.suspect_cleared, f.counters.times_lost);
+  std::printf("| %s | %ld (%ld, %ld / %ld) | %.1f | %ld | %.2f | %.4f | %ld | %ld (%ld) / %ld | %ld (%ld) |\n", label.c_str(),
+              f.wrong_outputs, f.wrong_after_first_code, f.wrong_before_first_code, f.wrong_before_first_frame,
+              f.tracking_percent, f.untracked_after_jump, f.first_pose_again_s, f.error_at_relocalization_m,
+              f.counters.initializations, f.counters.times_suspect, f.counters.suspect_by_missed_codes,
+              f.counters.suspect_cleared, f.counters.times_lost, f.counters.lost_by_missed_codes);
 }
 
 // Corridor d = 1 m, seed 1, against the map learned from seed 1001's survey: the plain run, the
@@ -574,17 +605,22 @@ Json KidnapStudy() {
   const sim::SimResult run = Simulate("corridor", sets, 1);
   const sim::SimResult misdecoded = Simulate("corridor", {sets[0], "detect.misdecode_fraction=0.1"}, 1);
   std::printf(
-      "\n## Kidnapping (corridor d = 1 m, seed 1; wrong = pose output with error > 0.2 m, in brackets those\n"
-      "from the first frame with a code after the jump on)\n\n"
+      "\n## Kidnapping (corridor d = 1 m, seed 1; wrong = pose output with error > 0.2 m, in brackets: those\n"
+      "from the first frame with a code after the jump on, those between the jump and that frame / of these,\n"
+      "those before any camera frame after the jump; in brackets after suspect and lost: by codes expected\n"
+      "in view but not seen)\n\n"
       "| run | wrong | tracking %% | stamps without pose after the jump | first pose again after (s) | its error (m) | "
       "initializations | suspect / cleared | lost |\n|---|---|---|---|---|---|---|---|---|\n");
   Json out;
-  const KidnapFigures plain = KidnapRun(run.dataset, map, -1.0);
-  PrintKidnapRow("no kidnapping", plain);
-  out["plain"] = KidnapJson(plain);
-  const KidnapFigures misread = KidnapRun(misdecoded.dataset, map, -1.0);
-  PrintKidnapRow("10 % misdecoded ids", misread);
-  out["misdecoded_0.1"] = KidnapJson(misread);
+  for (const bool negative : {true, false}) {
+    const std::string suffix = negative ? "" : " (without negative information)";
+    const KidnapFigures plain = KidnapRun(run.dataset, map, -1.0, negative);
+    PrintKidnapRow("no kidnapping" + suffix, plain);
+    out[negative ? "plain" : "plain_without_negative_information"] = KidnapJson(plain);
+    const KidnapFigures misread = KidnapRun(misdecoded.dataset, map, -1.0, negative);
+    PrintKidnapRow("10 % misdecoded ids" + suffix, misread);
+    out[negative ? "misdecoded_0.1" : "misdecoded_0.1_without_negative_information"] = KidnapJson(misread);
+  }
   const std::vector<std::pair<double, double>> jumps = {{20.0, 30.0}, {45.0, 57.0}, {70.0, 78.0}};
   Json kidnaps = Json::array();
   for (const auto& [t1_s, t2_s] : jumps) {
@@ -594,10 +630,13 @@ Json KidnapStudy() {
     for (size_t k = 1; k < truth.size(); ++k)
       jump_m = std::max(jump_m, (truth[k].T.translation() - truth[k - 1].T.translation()).norm());
     const KidnapFigures f = KidnapRun(kidnapped, map, t1_s);
+    const KidnapFigures without = KidnapRun(kidnapped, map, t1_s, false);
     char label[96];
     std::snprintf(label, sizeof(label), "carried %.2f m at t = %.0f s (to the pose of t = %.0f s)", jump_m, t1_s, t2_s);
     PrintKidnapRow(label, f);
+    PrintKidnapRow(std::string(label) + " (without negative information)", without);
     Json entry = KidnapJson(f);
+    entry["without_negative_information"] = KidnapJson(without);
     entry["t1_s"] = t1_s;
     entry["t2_s"] = t2_s;
     entry["jump_m"] = jump_m;

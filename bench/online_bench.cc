@@ -206,6 +206,9 @@ nlohmann::json ReportCornerUpdates() {
   LocalizerOptions options = w.options;
   options.mode = CorrectionMode::kTightCorners;
   row("tight", options);
+  options.visibility.enabled = false;  // the negative-information test's share (online/visibility.h)
+  row("tight_without_negative_information", options);
+  options.visibility.enabled = true;
   options.tight_iterations = 1;
   row("tight_one_iteration", options);
   options.mode = CorrectionMode::kLoosePose;

@@ -1,6 +1,7 @@
 #include "online/localizer.h"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -10,6 +11,8 @@
 #include "online/marker_measurement.h"
 
 namespace waymark {
+
+LocalizerOptions::~LocalizerOptions() = default;
 
 bool LocalizerOptions::Check(std::string* why) const {
   const auto fail = [why](const std::string& message) {
@@ -40,11 +43,17 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (max_considered_markers < 1) return fail("max_considered_markers must be >= 1");
   std::string marker_pose_why;
   if (!marker_pose.Check(&marker_pose_why)) return fail(marker_pose_why);
+  std::string visibility_why;
+  if (!visibility.Check(&visibility_why)) return fail(visibility_why);
   return true;
 }
 
 Localizer::Localizer(LocalizerOptions options, MarkerMap map, const std::vector<CameraInfo>& cameras)
-    : options_(std::move(options)), map_(std::move(map)), state_(options_.motion) {
+    : options_(std::move(options)),
+      map_(std::move(map)),
+      state_(options_.motion),
+      negative_(options_.visibility),
+      code_index_(map_) {
   std::string why;
   if (!options_.Check(&why)) throw std::invalid_argument(why);
   state_.set_max_considered(static_cast<size_t>(options_.max_considered_markers));
@@ -177,6 +186,12 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   ++counters_.frames;
   const bool had_track = HasTrack();
   const SE3d T_world_robot_predicted = state_.T_world_robot();
+  const std::vector<ExpectedCode> expected =
+      had_track && options_.visibility.enabled
+          ? PredictExpectedCodes(state_, camera_it->second, map_, code_index_, options_.visibility, component_)
+          : std::vector<ExpectedCode>();
+  const bool learn = tracking_ == TrackingStatus::kTracking && negative_.llr() < options_.visibility.learn_below_llr;
+  const long initializations = counters_.initializations;
   gated_.clear();
   int accepted = 0;
   for (const CodeSighting& sighting : frame.sightings) {
@@ -188,31 +203,73 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   }
   if (had_track && accepted > 0)
     predicted_before_correction_.push_back({frame.stamp_s, T_world_robot_predicted});
-  if (HasTrack()) FinishFrame(accepted);
+  if (HasTrack() && counters_.initializations == initializations) {
+    const double llr = options_.visibility.enabled ? TestExpectedCodes(frame, expected, result, learn) : 0.0;
+    FinishFrame(accepted, llr);
+  }
   gated_.clear();
   result.tracking = tracking_;
   return result;
 }
 
-void Localizer::FinishFrame(int accepted) {
-  if (accepted > 0) {
+double Localizer::TestExpectedCodes(const CameraFrame& frame, const std::vector<ExpectedCode>& expected,
+                                    const FrameResult& result, bool learn) {
+  std::vector<ExpectedOutcome> outcomes(expected.size(), ExpectedOutcome::kMissed);
+  int unexpected_hits = 0;
+  for (const CorrectionResult& correction : result.corrections) {
+    if (correction.outcome != CorrectionOutcome::kAccepted) continue;
+    const auto it = std::find_if(expected.begin(), expected.end(),
+                                 [&](const ExpectedCode& code) { return code.marker->key == correction.key; });
+    if (it == expected.end())
+      ++unexpected_hits;
+    else
+      outcomes[it - expected.begin()] = ExpectedOutcome::kHit;
+  }
+  for (size_t i = 0; i < expected.size(); ++i) {
+    if (outcomes[i] == ExpectedOutcome::kHit) continue;
+    for (const CodeSighting& sighting : frame.sightings) {
+      if (CoversExpected(expected[i], sighting.observation.corners_px)) outcomes[i] = ExpectedOutcome::kOccupied;
+    }
+    counters_.expected_missed += outcomes[i] == ExpectedOutcome::kMissed;
+  }
+  counters_.expected_codes += static_cast<long>(expected.size());
+  return negative_.AddFrame(frame.stamp_s, frame.camera, expected, outcomes, unexpected_hits,
+                            !frame.sightings.empty(), learn);
+}
+
+void Localizer::FinishFrame(int accepted, double llr) {
+  const VisibilityOptions& visibility = options_.visibility;
+  if (accepted > 0 && llr < visibility.suspect_llr) {
     if (tracking_ == TrackingStatus::kSuspect) ++counters_.suspect_cleared;
     tracking_ = TrackingStatus::kTracking;
     rejected_frames_in_a_row_ = 0;
     hypotheses_.clear();
     return;
   }
-  if (gated_.empty()) return;
-  bool contradicted = false;
-  for (const GatedSighting& g : gated_) contradicted = contradicted || Contradicts(*g.camera, *g.marker, g.sighting);
-  if (contradicted && tracking_ == TrackingStatus::kTracking) {
+  if (accepted == 0 && !gated_.empty()) {
+    bool contradicted = false;
+    for (const GatedSighting& g : gated_)
+      contradicted = contradicted || Contradicts(*g.camera, *g.marker, g.sighting);
+    if (contradicted && tracking_ == TrackingStatus::kTracking) {
+      tracking_ = TrackingStatus::kSuspect;
+      ++counters_.times_suspect;
+    }
+    for (const GatedSighting& g : gated_) {
+      if (OfferHypothesis(*g.camera, *g.marker, g.sighting)) return;  // restarted
+    }
+    if (++rejected_frames_in_a_row_ >= options_.lost_after_rejected_frames) {
+      SetLost();
+      return;
+    }
+  }
+  if (llr >= visibility.lost_llr) {
+    ++counters_.lost_by_missed_codes;
+    SetLost();
+  } else if (llr >= visibility.suspect_llr && tracking_ == TrackingStatus::kTracking) {
     tracking_ = TrackingStatus::kSuspect;
     ++counters_.times_suspect;
+    ++counters_.suspect_by_missed_codes;
   }
-  for (const GatedSighting& g : gated_) {
-    if (OfferHypothesis(*g.camera, *g.marker, g.sighting)) return;  // restarted
-  }
-  if (++rejected_frames_in_a_row_ >= options_.lost_after_rejected_frames) SetLost();
 }
 
 FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
@@ -267,6 +324,7 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
   if (result.outcome == CorrectionOutcome::kGated) {
     gated_.push_back({&camera, marker, Solved(camera, *marker, sighting, &storage)});
   }
+  if (result.outcome == CorrectionOutcome::kAccepted) component_ = marker->component;
   if ((result.outcome == CorrectionOutcome::kAccepted || result.outcome == CorrectionOutcome::kInitialized) &&
       options_.motion == MotionModel::kFree && options_.attitude_source == AttitudeSource::kOdometry)
     UpdateOdometryTilt(camera, *marker, Solved(camera, *marker, sighting, &storage));
@@ -388,6 +446,8 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
   ++counters_.initializations;
   rejected_frames_in_a_row_ = 0;
   hypotheses_.clear();
+  negative_.Restart();
+  component_ = marker.component;
   return true;
 }
 
@@ -425,7 +485,9 @@ bool Localizer::Contradicts(const Camera& camera, const MapMarker& marker, const
 bool Localizer::OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
   if (sighting.T_camera_marker.empty()) return false;
   const bool clear = IsClear(camera, marker, sighting);
-  const int needed = !clear ? options_.relocalize_after_agreeing : tracking_ == TrackingStatus::kLost ? 1 : 2;
+  // Codes expected and not seen already doubt the track: the contradicting code needs no second sighting.
+  const bool doubted = tracking_ == TrackingStatus::kLost || negative_.llr() >= options_.visibility.suspect_llr;
+  const int needed = !clear ? options_.relocalize_after_agreeing : doubted ? 1 : 2;
   const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
   std::vector<Hypothesis> chained;
   size_t best = 0;

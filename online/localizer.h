@@ -22,10 +22,18 @@
 //     agree_rot_rad + 3 sigma_yaw (a gated code that agrees with the track, e.g. a few bad
 //     corner pixels, is not a contradiction). No pose is output while suspect; the filter keeps
 //     predicting and keeps correcting with every code that passes its gate.
+//   kTracking -> kSuspect, negative information (online/visibility.h): codes the predicted
+//     pose puts in view (weighted by P(in view) under P and the detection rate learned on this
+//     run) that are not detected raise S, a decaying CUSUM of log P(frame | pose wrong) /
+//     P(frame | pose right) with a blind-camera state per camera; S >= visibility.suspect_llr
+//     makes the track suspect, S >= visibility.lost_llr makes it lost. This catches a robot
+//     carried away before it sees any code.
 //   kSuspect -> kTracking: a code of a later frame passes the gate (a misdecoded id or a flip
-//     seen once: a false alarm, counted in suspect_cleared).
+//     seen once, a blinded camera: a false alarm, counted in suspect_cleared) and S is below
+//     suspect_llr after it (a code seen where predicted lowers S by about -log q).
 //   kTracking/kSuspect -> kLost: `lost_after_rejected_frames` frames in a row whose every code
-//     was gated out, the position sigma above `max_position_sigma_m`, or a non-finite P.
+//     was gated out, S >= visibility.lost_llr, the position sigma above
+//     `max_position_sigma_m`, or a non-finite P.
 //   Relocalization (kSuspect or kLost -> kTracking, a restart from the latest sighting): the
 //     gated or lost-time codes give single-code robot-pose hypotheses (both IPPE solutions of
 //     an ambiguous code), chained while each agrees with one of the previous sighting's
@@ -34,9 +42,12 @@
 //       1 sighting   when lost and the latest code is "clear": unambiguous (IPPE), reprojection
 //                    RMS <= clear_max_rms_sigmas * sigma_px over its own four corners, and
 //                    nearer than clear_max_range_sizes code sizes;
-//       2 sightings  when suspect and the latest code is clear: the first code seen after a
-//                    kidnapping is confirmed by its next sighting (or another code), so one
-//                    misdecoded id never moves a healthy filter;
+//       1 sighting   when suspect with S >= suspect_llr (codes expected and not seen already
+//                    say the pose is wrong) and the latest code is clear;
+//       2 sightings  when suspect otherwise and the latest code is clear: a first code that
+//                    contradicts a track whose expected codes were seen is confirmed by its
+//                    next sighting (or another code), so one misdecoded id never moves a
+//                    healthy filter;
 //       relocalize_after_agreeing sightings otherwise (ambiguous, poorly fitting or far codes).
 //   Frames whose codes are gated while suspect are decided at the end of the frame: a code that
 //   passes the gate in the same frame keeps the track.
@@ -57,6 +68,7 @@
 #include "online/ekf_state.h"
 #include "online/motion_model.h"
 #include "online/status.h"
+#include "online/visibility.h"
 
 namespace waymark {
 
@@ -91,8 +103,19 @@ struct LocalizerOptions {
   MarkerPoseOptions marker_pose;  // single-image poses computed by AddDetections
   MapUncertainty map_uncertainty = MapUncertainty::kConsider;
   int max_considered_markers = 16;  // kConsider: markers whose correlation is kept (most recent)
+  // Codes the map puts in view but not detected (online/visibility.h; life cycle above).
+  VisibilityOptions visibility;
 
   bool Check(std::string* why) const;
+
+  // Special members out of line (localizer.cc): GCC 12 reports a false -Wuse-after-free on the
+  // inlined destruction of loose_noise in callers that build options by value.
+  LocalizerOptions() = default;
+  LocalizerOptions(const LocalizerOptions&) = default;
+  LocalizerOptions(LocalizerOptions&&) = default;
+  LocalizerOptions& operator=(const LocalizerOptions&) = default;
+  LocalizerOptions& operator=(LocalizerOptions&&) = default;
+  ~LocalizerOptions();
 };
 
 // Everything one camera saw at one instant.
@@ -145,6 +168,10 @@ struct LocalizerCounters {
   long times_lost = 0;
   long times_suspect = 0;    // kTracking -> kSuspect
   long suspect_cleared = 0;  // kSuspect -> kTracking without a restart (false alarms)
+  long suspect_by_missed_codes = 0;  // of times_suspect: by the negative-evidence test
+  long lost_by_missed_codes = 0;     // of times_lost: likewise
+  long expected_codes = 0;           // codes predicted in view (online/visibility.h)
+  long expected_missed = 0;          // of those, not detected
   long rejected_inputs = 0;  // time going backwards, invalid input, unknown camera
 };
 
@@ -168,6 +195,8 @@ class Localizer {
   TrackingStatus tracking() const { return tracking_; }
   const EkfState& state() const { return state_; }
   const LocalizerCounters& counters() const { return counters_; }
+  // S of the negative-evidence test after the last frame (online/visibility.h).
+  double missed_codes_llr() const { return negative_.llr(); }
   // Free model: the odometry frame's estimated tilt (online/motion_model.h).
   const OdometryTilt& odometry_tilt() const { return odometry_tilt_; }
   // The pose predicted just before each frame that corrected the state (seed 000's PE/TE):
@@ -201,8 +230,12 @@ class Localizer {
   std::pair<double, double> Distance(const SE3d& a, const SE3d& b) const;
   // Adds a (solved) sighting to the relocalization chain; true if it restarted the filter.
   bool OfferHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
-  // End of a frame while tracking or suspect: the state change its outcomes call for.
-  void FinishFrame(int accepted);
+  // End of a frame while tracking or suspect: the state change its outcomes and S (the
+  // negative-evidence test after the frame) call for.
+  void FinishFrame(int accepted, double llr);
+  // Feeds the frame's expected codes and their outcomes to the negative-evidence test; S after.
+  double TestExpectedCodes(const CameraFrame& frame, const std::vector<ExpectedCode>& expected,
+                           const FrameResult& result, bool learn);
   // Restarts from solution i of a sighting (an ambiguous code's second solution borrows the
   // first one's covariance: the two are near each other, which is what makes them ambiguous).
   bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i = 0);
@@ -235,6 +268,9 @@ class Localizer {
   double gate_loose_ = 0.0;  // chi-square quantiles of gate_probability
   OdometryTilt odometry_tilt_;  // free model: the odometry frame's tilt (online/motion_model.h)
   double gate_tight_ = 0.0;
+  NegativeEvidenceTest negative_;
+  CodeIndex code_index_;  // of map_ (indices: a copied Localizer stays valid)
+  std::optional<int> component_;  // the map component the track is in (the last code used)
 };
 
 }  // namespace waymark

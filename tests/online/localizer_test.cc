@@ -255,6 +255,97 @@ TEST(LocalizerTest, KidnappedRobotIsReportedLostThenRelocalized) {
   for (int k = first_untracked; k < relocalized; ++k) EXPECT_EQ(figures.error_m[k], -1.0);
 }
 
+// Carried 1 m forward while a code is squarely in view, into a stretch without codes (codes
+// every 2 m per wall): the odometry does not see it, no code is seen for over a second, and
+// the only evidence is the code the track expects and no longer sees. The filter must stop
+// outputting poses before the next code (without the negative information it outputs wrong
+// ones until then), and relocalize at the next codes.
+TEST(LocalizerTest, CarriedIntoAStretchWithoutCodesStopsOutputtingBeforeTheNextCode) {
+  CorridorConfig config;
+  config.code_spacing_m = 2.0;  // left codes at x = 0.5, 2.5, 4.5, ..., right ones at 1.0, 3.0, ...
+  CorridorSimulator sim(config, 3010);
+  const int teleport_step = 180;  // x = 4.5 m, left code 4.5 in the middle of the left image
+  const std::vector<CorridorStep> steps = sim.Run(teleport_step, SE2d(1.0, 0.0, 0.0));
+  int next_code_step = -1;
+  for (int k = teleport_step; k < static_cast<int>(steps.size()) && next_code_step < 0; ++k) {
+    for (const CameraFrame& frame : steps[k].frames) {
+      if (!frame.sightings.empty()) next_code_step = k;
+    }
+  }
+  ASSERT_GT(next_code_step, teleport_step + 20);  // over a second without any code
+  LocalizerOptions options = CorridorOptions(config, CorrectionMode::kTightCorners);
+  const RunFigures figures = RunLocalizer(steps, sim, options);
+  options.visibility.enabled = false;
+  const RunFigures without = RunLocalizer(steps, sim, options);
+  int first_untracked = -1, relocalized = -1;
+  long wrong_without = 0;
+  for (int k = teleport_step; k < static_cast<int>(steps.size()); ++k) {
+    if (first_untracked < 0 && figures.tracking[k] != TrackingStatus::kTracking) first_untracked = k;
+    if (first_untracked >= 0 && relocalized < 0 && figures.tracking[k] == TrackingStatus::kTracking) relocalized = k;
+    wrong_without += without.error_m[k] > 0.2;
+  }
+  std::printf("carried at step %d, next code at step %d: no pose from step %d (%s), relocalized at step %d; "
+              "without negative information %ld wrong poses\n",
+              teleport_step, next_code_step, first_untracked, TrackingStatusName(figures.tracking[first_untracked]),
+              relocalized, wrong_without);
+  EXPECT_GE(wrong_without, 20);  // the test this feature answers
+  // One camera expects one code: its first miss is a 10 % event, the second one makes the track
+  // suspect (the second camera frame after the carry, 0.1 s).
+  EXPECT_LE(first_untracked, teleport_step + 2);
+  for (int k = first_untracked; k < next_code_step; ++k) EXPECT_EQ(figures.error_m[k], -1.0) << "step " << k;
+  for (int k = 0; k < static_cast<int>(steps.size()); ++k) {
+    if (k < teleport_step || k >= first_untracked) {
+      EXPECT_LT(figures.error_m[k], 0.2) << "step " << k;  // -1: no pose
+    }
+  }
+  EXPECT_GE(figures.counters.suspect_by_missed_codes, 1);
+  EXPECT_EQ(figures.counters.initializations, 2);
+  ASSERT_GT(relocalized, 0);
+  EXPECT_LE(relocalized, next_code_step + 4);
+  EXPECT_LT(figures.error_m.back(), 0.05);
+}
+
+// One camera of a one-camera robot covered for 2 s while it passes codes: the track may turn
+// suspect (no pose) but is neither lost nor restarted, and tracks again at the next code.
+TEST(LocalizerTest, CameraCoveredForTwoSecondsIsNotLost) {
+  const CorridorConfig config;
+  CorridorSimulator sim(config, 3020);
+  std::vector<CorridorStep> steps = sim.Run();
+  const int covered_from = 160, covered_to = 200;  // 8 s to 10 s: x = 4 to 5 m, code 4.5 passes
+  long covered_codes = 0;
+  for (int k = covered_from; k < covered_to; ++k) {
+    for (CameraFrame& frame : steps[k].frames) {
+      if (frame.camera != "left") continue;
+      covered_codes += static_cast<long>(frame.sightings.size());
+      frame.sightings.clear();
+    }
+  }
+  ASSERT_GE(covered_codes, 5);
+  Localizer localizer(CorridorOptions(config, CorrectionMode::kTightCorners), sim.map(), {sim.cameras()[0]});
+  double max_llr = 0.0;
+  for (size_t k = 0; k < steps.size(); ++k) {
+    ASSERT_EQ(localizer.AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot), StepStatus::kOk);
+    for (const CameraFrame& frame : steps[k].frames) {
+      if (frame.camera == "left") {
+        ASSERT_EQ(localizer.AddFrame(frame).status, StepStatus::kOk);
+      }
+    }
+    max_llr = std::max(max_llr, localizer.missed_codes_llr());
+    EXPECT_NE(localizer.tracking(), TrackingStatus::kLost) << "step " << k;
+    const PoseOutput output = localizer.Output();
+    if (output.T_world_robot) {
+      EXPECT_LT((output.T_world_robot->translation() - steps[k].T_world_robot_true.translation()).norm(), 0.2);
+    }
+  }
+  std::printf("%ld codes hidden: max S %.2f (suspect at %.1f, lost at %.1f), suspect %ld times\n", covered_codes,
+              max_llr, VisibilityOptions().suspect_llr, VisibilityOptions().lost_llr,
+              localizer.counters().times_suspect);
+  EXPECT_GE(max_llr, 2.0);  // the misses were counted, until the camera's blindness explained them
+  EXPECT_EQ(localizer.counters().times_lost, 0);
+  EXPECT_EQ(localizer.counters().initializations, 1);
+  EXPECT_EQ(localizer.tracking(), TrackingStatus::kTracking);
+}
+
 // Without codes for 7 m the uncertainty outgrows max_position_sigma_m: lost, then relocalized.
 TEST(LocalizerTest, GrowingUncertaintyIsReportedLost) {
   CorridorConfig config;
