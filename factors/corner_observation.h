@@ -9,13 +9,19 @@
 // project: core/camera.h ProjectPoint with the camera's model, K = [fx fy cx cy], d = distortion.
 // Whitening: the corner noise is isotropic, so the square-root information is I / sigma_px.
 //
-// Behind the camera (a corner with z_camera <= kMinDepth, where the model is undefined) the
-// residual is not defined and Residuals returns false. Ceres then rejects the trial step and
-// shrinks the trust region, so the solution stays where every observed corner is in front. A zero
-// residual with true (COLMAP's choice) would make the cost drop discontinuously when a marker
-// passes behind a camera, rewarding exactly that wrong solution. The price: the initial values
-// must put every observed corner in front of its camera, or Solve fails at the first evaluation
-// (an initialization from each marker's single-view pose satisfies this).
+// Near and behind the camera the pinhole model is undefined (z_camera <= 0) or explodes, and a
+// residual that fails there (Residuals returning false) makes every trial step that moves one
+// corner behind its camera fail to evaluate: on a badly initialized survey Ceres then spends its
+// iterations on failed steps. A zero residual with true (COLMAP's choice) would instead reward the
+// wrong solution. So below the depth z_s = kPenaltyDepthM the normalized coordinates are continued
+// by their first-order expansion in z about z_s (C^1 at z_s, finite everywhere):
+//   z >= z_s:  n = (X, Y) / z
+//   z <  z_s:  n = (X, Y) / z_s * (2 - z / z_s)
+// and projected by the model as the point (n, 1). The pixel error keeps growing the further a
+// corner moves behind the camera, so the cost stays high there and smooth; no real observation
+// lies within 10 cm of its camera's plane (z_s that large also keeps n, and the distortion
+// polynomial evaluated at it, moderate a little behind the camera: the Jacobians stay accurate). Residuals returns false only for a
+// non-finite depth (residuals untouched).
 #pragma once
 
 #include <Eigen/Core>
@@ -32,6 +38,9 @@
 
 namespace waymark {
 
+// Depth below which the projection is continued linearly (header comment).
+inline constexpr double kPenaltyDepthM = 0.1;
+
 class CornerObservation {
  public:
   // Throws std::invalid_argument on a malformed camera, a size_m or sigma_px that is not finite
@@ -46,7 +55,7 @@ class CornerObservation {
         inverse_sigma_px_(InverseSigma(sigma_px, Where(camera))) {}
 
   // Writes the 8 whitened residuals for the marker seen from the camera at T_camera_marker.
-  // Returns false (residuals untouched) when a corner is behind the camera.
+  // Returns false (residuals untouched) only when a corner's depth is not finite.
   template <typename T>
   bool Residuals(const SE3T<T>& T_camera_marker, T* residuals) const {
     T intrinsics[4];
@@ -55,7 +64,11 @@ class CornerObservation {
     for (int i = 0; i < 5; ++i) distortion[i] = T(distortion_[i]);
     T px[4][2];
     for (int i = 0; i < 4; ++i) {
-      const Vector3T<T> corner_camera = T_camera_marker * corners_marker_[i].template cast<T>();
+      Vector3T<T> corner_camera = T_camera_marker * corners_marker_[i].template cast<T>();
+      if (corner_camera.z() < T(kPenaltyDepthM)) {  // the continuation of the header comment
+        const T scale = (T(2.0) - corner_camera.z() / T(kPenaltyDepthM)) / T(kPenaltyDepthM);
+        corner_camera = Vector3T<T>(corner_camera.x() * scale, corner_camera.y() * scale, T(1.0));
+      }
       if (!ProjectPoint<T>(model_, intrinsics, distortion, corner_camera.data(), px[i])) return false;
     }
     for (int i = 0; i < 4; ++i) {

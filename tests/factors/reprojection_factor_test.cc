@@ -1,5 +1,5 @@
 // Tests of the three marker-corner reprojection factors: hand-computed residuals, zero at the
-// truth for both camera models, behaviour behind the camera, bad input, and Jacobians against
+// truth for both camera models, the penalty behind the camera, bad input, and Jacobians against
 // ceres::GradientChecker under SE3Manifold at ten random states per factor and camera model.
 #include <gtest/gtest.h>
 
@@ -190,25 +190,69 @@ TEST_P(ReprojectionByModel, GradientCheckTenRandomStates) {
   }
 }
 
-TEST_P(ReprojectionByModel, BehindTheCameraReturnsFalseAndLeavesResiduals) {
-  const CameraInfo camera = testing::TestCamera(GetParam());
-  const SE3d T_camera_marker(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, -1.0));
+// Squared norm of the factor's residuals with the marker at T_camera_marker (identity robot).
+double SquaredResidual(const ceres::CostFunction& cost, const CameraInfo& camera, const SE3d& T_camera_marker) {
   double robot[7], marker[7];
   SE3ToBlock(SE3d(), robot);
   SE3ToBlock(camera.T_robot_camera * T_camera_marker, marker);
-  const std::array<Eigen::Vector2d, 4> corners_px = ObservedCorners();
-  const std::unique_ptr<ceres::CostFunction> cost(
-      MarkerReprojectionFactor::Create(camera, kSizeM, corners_px, kSigmaPx));
   const double* parameters[] = {robot, marker};
   std::array<double, 8> residuals;
   residuals.fill(kNaN);
-  EXPECT_FALSE(cost->Evaluate(parameters, residuals.data(), nullptr));
-  for (double r : residuals) EXPECT_TRUE(std::isnan(r));
-  // A marker straddling the camera plane (one corner behind) is rejected too.
-  SE3ToBlock(
-      camera.T_robot_camera * SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
-                                   Eigen::Vector3d(0.0, 0.0, 0.05)),
-      marker);
+  EXPECT_TRUE(cost.Evaluate(parameters, residuals.data(), nullptr));
+  double sum = 0.0;
+  for (double r : residuals) {
+    EXPECT_TRUE(std::isfinite(r));
+    sum += r * r;
+  }
+  return sum;
+}
+
+// Behind the camera the projection is continued linearly (factors/corner_observation.h): the
+// residuals stay finite, grow the further the marker moves behind, are continuous across the
+// switch depth, and their Jacobians still match numeric differences there.
+TEST_P(ReprojectionByModel, BehindTheCameraGivesAFiniteGrowingPenalty) {
+  const CameraInfo camera = testing::TestCamera(GetParam());
+  std::array<Eigen::Vector2d, 4> corners_px;  // the marker 2 m ahead, observed exactly
+  ASSERT_TRUE(testing::ProjectCorners(
+      camera, SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05, 0.02, 2.0)), kSizeM, &corners_px));
+  const std::unique_ptr<ceres::CostFunction> cost(
+      MarkerReprojectionFactor::Create(camera, kSizeM, corners_px, kSigmaPx));
+  const auto at_depth = [&](double z_m) {
+    return SquaredResidual(*cost, camera, SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05, 0.02, z_m)));
+  };
+  EXPECT_LT(at_depth(2.0), 1e-12);
+  // Whitened squared error of the marker 0.3 and 0.6 m behind: over 100 px per corner, growing.
+  const double behind_near = at_depth(-0.3), behind_far = at_depth(-0.6);
+  EXPECT_GT(behind_near, 8.0 * std::pow(100.0 / kSigmaPx, 2));
+  EXPECT_GT(behind_far, behind_near);
+  // A marker straddling the camera plane (corners at z = 0.05 -+ 0.1 m) is finite too, and the
+  // residuals are continuous where a fronto-parallel marker's corners cross kPenaltyDepthM.
+  const SE3d tilted_up(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())),
+                       Eigen::Vector3d(0.0, 0.0, 0.05));
+  const double straddling = SquaredResidual(*cost, camera, tilted_up);
+  EXPECT_TRUE(std::isfinite(straddling));
+  const double above = at_depth(kPenaltyDepthM + 1e-9), below = at_depth(kPenaltyDepthM - 1e-9);
+  EXPECT_NEAR(above, below, 1e-6 * above);
+  // Gradients at states with corners behind the camera and straddling it.
+  SE3Manifold se3;
+  // (Generic rotations: at symmetric states some derivatives are exactly zero, where the
+  // checker's relative error compares rounding noise.)
+  const Eigen::Quaterniond generic(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1.0, 2.0, 3.0).normalized()));
+  for (const SE3d& T_camera_marker : {SE3d(generic, Eigen::Vector3d(0.05, 0.02, -0.3)),
+                                      SE3d(generic * tilted_up.rotation(), tilted_up.translation())}) {
+    double robot[7], marker[7];
+    SE3ToBlock(SE3d(), robot);
+    SE3ToBlock(camera.T_robot_camera * T_camera_marker, marker);
+    testing::ExpectGradientsMatch(*cost, {&se3, &se3}, {robot, marker}, 1e-6, "behind the camera");
+  }
+  // A non-finite pose is still refused, residuals untouched.
+  double robot[7], marker[7];
+  SE3ToBlock(SE3d(), robot);
+  SE3ToBlock(camera.T_robot_camera, marker);
+  marker[6] = kNaN;
+  const double* parameters[] = {robot, marker};
+  std::array<double, 8> residuals;
+  residuals.fill(kNaN);
   EXPECT_FALSE(cost->Evaluate(parameters, residuals.data(), nullptr));
 }
 
