@@ -106,6 +106,9 @@ std::vector<CodeResult> MeasureCell(const std::string& family, int cell, double 
       }
       break;
     }
+    if (verbose && r.rms_px < 0.0) {
+      std::printf("    %s %-8s width %5.1f px not read\n", family.c_str(), t.key.id.c_str(), r.width_px);
+    }
     results.push_back(r);
   }
   return results;
