@@ -4,7 +4,8 @@
 //                    640x480 side cameras, seed 3) with precomputed sightings; updates per
 //                    second, from the fastest of several runs per frame (target >= 100 000/s;
 //                    the time of a frame's AddFrame over its codes). Where the time goes: the
-//                    same with one EKF iteration, the loosely coupled update, and the
+//                    same without the test on codes expected but not seen (online/visibility.h),
+//                    with one EKF iteration, the loosely coupled update, and the
 //                    single-image pose (MakeCodeSighting) that AddDetections adds per code.
 //   detect + update  per rendered 1280x960 frame (sim `corridor`, camera.image_scale=2, both
 //                    cameras, sim/render.h) in a tracking run: Detect() with the map's families

@@ -186,10 +186,14 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   ++counters_.frames;
   const bool had_track = HasTrack();
   const SE3d T_world_robot_predicted = state_.T_world_robot();
-  const std::vector<ExpectedCode> expected =
-      had_track && options_.visibility.enabled
-          ? PredictExpectedCodes(state_, camera_it->second, map_, code_index_, options_.visibility, component_)
-          : std::vector<ExpectedCode>();
+  std::vector<ExpectedCode> expected;
+  if (had_track && options_.visibility.enabled) {
+    const Camera& camera = camera_it->second;
+    const Eigen::Vector3d camera_world = (T_world_robot_predicted * camera.info().T_robot_camera).translation();
+    const std::vector<size_t>& near =
+        near_codes_[frame.camera].Around(code_index_, camera, camera_world, options_.visibility);
+    expected = PredictExpectedCodes(state_, camera, map_, code_index_, options_.visibility, component_, &near);
+  }
   const bool learn = tracking_ == TrackingStatus::kTracking && negative_.llr() < options_.visibility.learn_below_llr;
   const long initializations = counters_.initializations;
   gated_.clear();

@@ -270,6 +270,7 @@ class Localizer {
   double gate_tight_ = 0.0;
   NegativeEvidenceTest negative_;
   CodeIndex code_index_;  // of map_ (indices: a copied Localizer stays valid)
+  std::map<std::string, NearCodes> near_codes_;  // per camera
   std::optional<int> component_;  // the map component the track is in (the last code used)
 };
 

@@ -117,19 +117,41 @@ CodeIndex::CodeIndex(const MarkerMap& map) {
     if (!marker.has_pose) continue;
     entries_.push_back({marker.T_world_marker.translation(),
                         marker.T_world_marker.rotation() * Eigen::Vector3d::UnitZ(), marker.size_m, i});
+    max_size_m_ = std::max(max_size_m_, marker.size_m);
   }
 }
 
+std::vector<size_t> CodeIndex::Near(const Eigen::Vector3d& point_world, double radius_m) const {
+  std::vector<size_t> near;
+  for (size_t i = 0; i < entries_.size(); ++i) {
+    if ((entries_[i].centre_world - point_world).squaredNorm() <= radius_m * radius_m) near.push_back(i);
+  }
+  return near;
+}
+
+const std::vector<size_t>& NearCodes::Around(const CodeIndex& codes, const Camera& camera,
+                                             const Eigen::Vector3d& camera_world, const VisibilityOptions& options) {
+  if (!scan_point_world_ || (camera_world - *scan_point_world_).norm() > kRescanM) {
+    const double focal_px = std::max(camera.info().intrinsics[0], camera.info().intrinsics[1]);
+    const double radius_m = std::min(options.max_range_m, codes.max_size_m() * focal_px / options.min_code_px);
+    near_ = codes.Near(camera_world, radius_m + kRescanM);
+    scan_point_world_ = camera_world;
+  }
+  return near_;
+}
+
 std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Camera& camera, const MarkerMap& map,
-                                               const CodeIndex& codes,
-                                               const VisibilityOptions& options, std::optional<int> component) {
+                                               const CodeIndex& codes, const VisibilityOptions& options,
+                                               std::optional<int> component, const std::vector<size_t>* near) {
   std::vector<ExpectedCode> expected;
   const SE3d T_world_camera = state.T_world_robot() * camera.info().T_robot_camera;
   const SE3d T_camera_world = T_world_camera.inverse();
   const double focal_px = std::max(camera.info().intrinsics[0], camera.info().intrinsics[1]);
   const double min_cos_angle = std::cos(options.max_angle_deg * M_PI / 180.0);  // > 0: max_angle_deg < 90
   const Eigen::Vector3d axis_world = T_world_camera.rotation() * Eigen::Vector3d::UnitZ();
-  for (const CodeIndex::Entry& entry : codes.entries()) {
+  const size_t count = near ? near->size() : codes.entries().size();
+  for (size_t k = 0; k < count; ++k) {
+    const CodeIndex::Entry& entry = codes.entries()[near ? (*near)[k] : k];
     const std::optional<double> cos_angle =
         Facing(entry, T_world_camera.translation(), axis_world, options, focal_px, min_cos_angle);
     if (!cos_angle) continue;

@@ -109,18 +109,39 @@ class CodeIndex {
     size_t marker_index = 0;
   };
   const std::vector<Entry>& entries() const { return entries_; }
+  // Indices of the entries whose centre lies within radius_m of point_world.
+  std::vector<size_t> Near(const Eigen::Vector3d& point_world, double radius_m) const;
+  double max_size_m() const { return max_size_m_; }
 
  private:
   std::vector<Entry> entries_;
+  double max_size_m_ = 0.0;
+};
+
+// The codes one camera can possibly expect, kept between frames: every code within
+// R = min(max_range_m, max_size_m f / min_code_px) of the camera (farther ones are smaller than
+// min_code_px) plus kRescanM, rescanned once the camera moved kRescanM from the last scan, so the
+// per-frame test visits a few codes instead of the whole map.
+class NearCodes {
+ public:
+  static constexpr double kRescanM = 1.0;
+  const std::vector<size_t>& Around(const CodeIndex& codes, const Camera& camera, const Eigen::Vector3d& camera_world,
+                                    const VisibilityOptions& options);
+
+ private:
+  std::optional<Eigen::Vector3d> scan_point_world_;
+  std::vector<size_t> near_;
 };
 
 // The codes of `map` (indexed by `codes`, built from it) that `camera` should see from the
 // state's mean (header, step 1), in map order. With `component`, only the codes of that
 // component of the map (each has its own world frame).
+// `near` (optional): only these entries of `codes` (NearCodes::Around).
 std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Camera& camera, const MarkerMap& map,
                                                const CodeIndex& codes,
                                                const VisibilityOptions& options,
-                                               std::optional<int> component = std::nullopt);
+                                               std::optional<int> component = std::nullopt,
+                                               const std::vector<size_t>* near = nullptr);
 
 // True when the detected quad's centre lies on the expected code's predicted quad, grown by
 // half its size (a misread or gated sighting of that code).

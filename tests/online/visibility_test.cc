@@ -76,6 +76,33 @@ TEST(VisibilityTest, UncertainPoseLowersTheInViewProbabilityAtTheEdge) {
   EXPECT_GT(centred->in_view, unsure->in_view + 0.2);
 }
 
+// The kept neighbourhood (rescanned every NearCodes::kRescanM) gives the same expected codes as
+// the scan of the whole map, all along the corridor and both ways.
+TEST(VisibilityTest, NearCodesGiveTheSameExpectedCodesAsTheWholeMap) {
+  CorridorConfig config;
+  config.length_m = 30.0;
+  const MarkerMap map = CorridorMap(config);
+  const CodeIndex index(map);
+  const Camera left(SideCamera("left", true, config.camera_height_m));
+  const VisibilityOptions options;
+  NearCodes near_codes;
+  size_t expected_total = 0, smallest_near = map.markers.size();
+  for (int k = 0; k <= 400; ++k) {
+    const double x_m = k <= 200 ? 0.1 * k : 0.1 * (400 - k);
+    const EkfState state = PlanarState(x_m, 0.05, k <= 200 ? 0.0 : M_PI, 0.02, 0.01);
+    const Eigen::Vector3d camera_world = (state.T_world_robot() * left.info().T_robot_camera).translation();
+    const std::vector<size_t>& near = near_codes.Around(index, left, camera_world, options);
+    smallest_near = std::min(smallest_near, near.size());
+    const std::vector<ExpectedCode> all = PredictExpectedCodes(state, left, map, index, options);
+    const std::vector<ExpectedCode> kept = PredictExpectedCodes(state, left, map, index, options, std::nullopt, &near);
+    ASSERT_EQ(all.size(), kept.size()) << "x " << x_m;
+    for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(all[i].marker, kept[i].marker);
+    expected_total += all.size();
+  }
+  EXPECT_GT(expected_total, 100u);
+  EXPECT_LT(smallest_near, map.markers.size() / 2);  // the neighbourhood is a part of the map
+}
+
 TEST(VisibilityTest, DetectionOnThePredictedQuadCoversIt) {
   ExpectedCode code;
   code.px << 100, 100, 150, 100, 150, 150, 100, 150;
