@@ -242,9 +242,8 @@ std::vector<QrFinderPattern> FindQrFinderPatterns(const cv::Mat& gray, const cv:
   for (size_t o = 0; o < contours.size(); ++o) {
     if (contours[o].size() < 4) continue;
     for (int h = hierarchy[o][2]; h >= 0; h = hierarchy[h][0]) {
-      int k = hierarchy[h][2];
-      for (; k >= 0 && !IsFinder(contours[o], contours[h], contours[k]); k = hierarchy[k][0]) {
-      }
+      int k = hierarchy[h][2];  // the hole's children: the first that completes a finder
+      while (k >= 0 && !IsFinder(contours[o], contours[h], contours[k])) k = hierarchy[k][0];
       if (k < 0) continue;
       QrFinderPattern f;
       f.centre_px = to_full(Centroid(contours[k]));
