@@ -41,10 +41,11 @@ images.csv) and writes:
   --out FILE          tracked poses T_world_robot, one per camera instant while tracking (TUM)
   --predicted FILE    the pose predicted just before each correcting frame (TUM), for
                       `waymark eval --predicted` (seed 000's PE and TE)
-  --poses FILE        one JSON line per camera frame: stamp, camera, status (tracking, lost,
-                      uninitialized), pose and covariance while tracking, the frame's accepted,
-                      gated and unknown codes and its latency (docs/formats.md)
-It prints frames, tracking %, correction counts, relocalizations and the per-frame latency
+  --poses FILE        one JSON line per camera frame: stamp, camera, status (tracking, suspect,
+                      lost, uninitialized), pose and covariance while tracking, the frame's
+                      accepted, gated and unknown codes and its latency (docs/formats.md)
+It prints frames, tracking %, correction counts, relocalizations, how often the track became
+suspect or lost because codes the map puts in view were not seen, and the per-frame latency
 (detection, if any, plus odometry and update): mean, median, p99 and max in ms.
 
 --live reads JSON lines on stdin, in time order (docs/formats.md, "Localization input/output"):
@@ -132,6 +133,9 @@ void PrintSummary(const LocalizeRun& run, std::ostream& out) {
       << ", not usable " << c.not_usable << "\n"
       << "initializations: " << c.initializations << " (relocalizations " << std::max(0L, c.initializations - 1)
       << "), times lost " << c.times_lost << ", rejected inputs " << c.rejected_inputs << "\n"
+      << "suspect: " << c.times_suspect << " times (" << c.suspect_by_missed_codes << " by codes expected in view but "
+      << "not seen, " << c.suspect_cleared << " cleared), lost by missed codes " << c.lost_by_missed_codes
+      << "; codes expected in view " << c.expected_codes << ", not detected " << c.expected_missed << "\n"
       << LatencyLine(run.latency_ms) << "\n";
   for (const std::string& warning : run.warnings) out << "warning: " << warning << "\n";
 }

@@ -18,6 +18,7 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
+#include "cli/dataset_detect.h"
 #include "core/dataset_io.h"
 #include "core/io_util.h"
 #include "core/map_io.h"
@@ -63,6 +64,12 @@ Options (build, merge):
   --no-id-check       keep views whose id disagrees with the code's other views along the
                       odometry (by default they are set aside and reported as misdecoded)
   --max-gap S         odometry gaps longer than S seconds split it (default 1)
+  --detect-images     detect the codes on DATASET's images (images.csv) instead of reading
+                      its detections.jsonl (the same detector as `waymark detect`)
+  --families LIST     with --detect-images: the families to detect (default
+                      qr,datamatrix,apriltag-36h11)
+A dataset with images but no detections.jsonl needs --detect-images; one in which no code
+is detected at all is an error (nothing is written).
 )";
 
 // Progress on a terminal: one line rewritten in place.
@@ -87,9 +94,21 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   return options;
 }
 
-const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report", "threads",
-                                            "min-frames", "outlier-chi2", "max-gap"};
-const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check"};
+const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report",  "threads",
+                                            "min-frames", "outlier-chi2", "max-gap", "families"};
+const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
+
+// DATASET with the detections the build uses (cli/dataset_detect.h).
+Dataset LoadSurvey(const Args& args, const std::string& dir) {
+  if (args.Has("families") && !args.Flag("detect-images")) {
+    throw std::invalid_argument("--families is for --detect-images");
+  }
+  Dataset dataset = LoadDataset(dir);
+  const std::vector<std::string> families =
+      args.Has("families") ? ParseFamilyList(*args.Get("families")) : std::vector<std::string>{};
+  PrepareDetectionsForMapping(args.Flag("detect-images"), families, &dataset);
+  return dataset;
+}
 
 // Path of component c's trajectory: `path` itself for component 0, else
 // <stem>.component<c><ext> beside it.
@@ -167,7 +186,7 @@ int RunBuild(const std::vector<std::string>& argv) {
   args.ExpectPositionals(1, 1, "dataset directory DATASET");
   args.Require("out");
   const MapBuildOptions options = ParseBuildOptions(args);
-  const Dataset dataset = LoadDataset(args.positionals()[0]);
+  const Dataset dataset = LoadSurvey(args, args.positionals()[0]);
   return Finish(args, BuildMap(dataset, options));
 }
 
@@ -181,7 +200,7 @@ int RunMerge(const std::vector<std::string>& argv) {
   args.Require("out");
   const MapBuildOptions options = ParseBuildOptions(args);
   const MarkerMap existing = ReadMap(args.positionals()[0]);
-  const Dataset dataset = LoadDataset(args.positionals()[1]);
+  const Dataset dataset = LoadSurvey(args, args.positionals()[1]);
   return Finish(args, MergeSurveyIntoMap(existing, dataset, options));
 }
 

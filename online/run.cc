@@ -420,7 +420,7 @@ void CheckRunInputs(const Dataset& dataset, const LocalizeRunOptions& options) {
   }
   if (!options.detect_images && dataset.detections.empty() && !dataset.images.empty()) {
     throw std::invalid_argument("dataset " + dataset.dir.string() +
-                                ": no detections.jsonl, only images: detect on them (detect_images)");
+                                ": no detections.jsonl, only images: detect on them (waymark localize --detect-images)");
   }
 }
 

@@ -93,6 +93,44 @@ TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {
   EXPECT_LE(error.position_rmse_m, 0.01);
 }
 
+// The shipped demo survey has images only: map build reads no detections.jsonl there, says
+// so, and with --detect-images detects on the images itself.
+TEST_F(MapCliTest, ImagesOnlySurveyNeedsDetectImagesThenMaps) {
+  const fs::path survey = fs::path(WAYMARK_SOURCE_DIR) / "data/demo/survey";
+  ASSERT_FALSE(fs::exists(survey / "detections.jsonl"));
+  const RunResult plain = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string());
+  EXPECT_NE(plain.exit_code, 0);
+  EXPECT_NE(plain.err.find("--detect-images"), std::string::npos) << plain.err;
+  EXPECT_FALSE(fs::exists(dir_ / "map.json"));
+  const RunResult families = Run("map build " + survey.string() + " --families qr --out " + (dir_ / "map.json").string());
+  EXPECT_NE(families.exit_code, 0);
+  EXPECT_NE(families.err.find("--families is for --detect-images"), std::string::npos) << families.err;
+
+  const RunResult build = Run("map build " + survey.string() + " --detect-images --families qr --out " +
+                              (dir_ / "map.json").string());
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  const MarkerMap map = ReadMap(dir_ / "map.json");
+  EXPECT_GE(map.markers.size(), 25u);
+  const eval::MapEvalResult error = eval::EvaluateMap(map, ReadMap(survey / "groundtruth/markers.json"));
+  EXPECT_LE(error.position_rmse_m, 0.02);
+}
+
+TEST_F(MapCliTest, SurveyWithoutAnyCodeIsAnErrorAndWritesNothing) {
+  const fs::path survey = SmallSurvey();
+  std::istringstream lines(ReadTextFile(survey / "detections.jsonl"));
+  std::string line, emptied;
+  while (std::getline(lines, line)) {
+    const size_t at = line.find("\"markers\"");
+    ASSERT_NE(at, std::string::npos) << line;
+    emptied += line.substr(0, at) + "\"markers\": []}\n";
+  }
+  AtomicWriteFile(survey / "detections.jsonl", emptied);
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string());
+  EXPECT_NE(build.exit_code, 0);
+  EXPECT_NE(build.err.find("hold no code"), std::string::npos) << build.err;
+  EXPECT_FALSE(fs::exists(dir_ / "map.json"));
+}
+
 TEST_F(MapCliTest, UnknownCameraIsAnErrorAndWritesNothing) {
   const fs::path survey = SmallSurvey();
   Edit(survey / "detections.jsonl", "\"camera\":\"left\"", "\"camera\":\"cam9\"");

@@ -1,0 +1,73 @@
+#include "cli/dataset_detect.h"
+
+#include <algorithm>
+#include <iostream>
+#include <stdexcept>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli/command.h"
+
+namespace waymark::cli {
+
+std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDetector* detector,
+                                                const std::function<void(size_t, size_t)>& progress) {
+  const std::string where = "dataset " + dataset.dir.string();
+  if (dataset.images.empty()) throw std::runtime_error(where + ": no images.csv rows to detect on");
+  std::vector<ImageEntry> rows = dataset.images;
+  // detections.jsonl wants stamps that never decrease per camera.
+  std::stable_sort(rows.begin(), rows.end(),
+                   [](const ImageEntry& a, const ImageEntry& b) { return a.stamp_s < b.stamp_s; });
+  std::vector<DetectionFrame> frames;
+  frames.reserve(rows.size());
+  for (const ImageEntry& row : rows) {
+    const std::string file = (dataset.dir / row.path).string();
+    const cv::Mat image = cv::imread(file, cv::IMREAD_UNCHANGED);
+    if (image.empty()) throw std::runtime_error(file + ": cannot read image (missing, corrupt or not an image)");
+    const auto camera = dataset.cameras.find(row.camera);
+    if (camera == dataset.cameras.end()) {
+      throw std::runtime_error(file + ": images.csv names camera '" + row.camera + "', which the dataset does not have");
+    }
+    if (image.cols != camera->second.width || image.rows != camera->second.height) {
+      throw std::runtime_error(file + ": image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                               " but camera " + row.camera + " is " + std::to_string(camera->second.width) + "x" +
+                               std::to_string(camera->second.height));
+    }
+    DetectionFrame frame;
+    frame.stamp_s = row.stamp_s;
+    frame.camera = row.camera;
+    frame.image = row.path;
+    frame.markers = detector->Detect(image);
+    frames.push_back(std::move(frame));
+    if (progress) progress(frames.size(), rows.size());
+  }
+  return frames;
+}
+
+void PrepareDetectionsForMapping(bool detect_images, const std::vector<std::string>& families,
+                                 Dataset* dataset) {
+  const std::string where = "dataset " + dataset->dir.string();
+  if (detect_images) {
+    const std::vector<std::string> used =
+        families.empty() ? std::vector<std::string>{"qr", "datamatrix", "apriltag-36h11"} : families;
+    const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(used, DetectorOptions{});
+    std::function<void(size_t, size_t)> progress;
+    if (StderrIsTerminal()) {
+      progress = [](size_t done, size_t total) { std::cerr << "\r\033[Kdetect: " << done << "/" << total << std::flush; };
+    }
+    dataset->detections = DetectDatasetImages(*dataset, detector.get(), progress);
+    if (progress) std::cerr << "\r\033[K";
+  } else if (dataset->detections.empty() && !dataset->images.empty()) {
+    throw std::runtime_error(where + ": no detections.jsonl, only images: detect on them (--detect-images, or "
+                                     "`waymark detect` first)");
+  }
+  const bool any_code = std::any_of(dataset->detections.begin(), dataset->detections.end(),
+                                    [](const DetectionFrame& f) { return !f.markers.empty(); });
+  if (!any_code) {
+    throw std::runtime_error(where + (detect_images ? ": no code detected on its " +
+                                                          std::to_string(dataset->images.size()) + " images"
+                                                    : ": its detections hold no code"));
+  }
+}
+
+}  // namespace waymark::cli

@@ -1,0 +1,28 @@
+#pragma once
+// Detection on a dataset's own images (images.csv) for the commands that take a dataset
+// (`waymark map build/merge --detect-images`): the same detections `waymark detect DATASET`
+// writes, kept in memory instead of read back from detections.jsonl.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/dataset_io.h"
+#include "core/detector.h"
+
+namespace waymark::cli {
+
+// One DetectionFrame per images.csv row, in stamp order (stable), each with its row's stamp,
+// camera and path. Throws std::runtime_error naming the image when it cannot be read or its
+// size differs from its camera's, and when the dataset has no images.csv rows.
+// `progress(done, total)` is called after every image when set.
+std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDetector* detector,
+                                                const std::function<void(size_t, size_t)>& progress = nullptr);
+
+// The dataset's detections, checked for use by a map build: with `detect_images`, detected on
+// its images (families as given, or every supported family); without, its detections.jsonl.
+// Throws std::runtime_error naming the dataset when there is nothing to map: only images and
+// no `--detect-images`, or not one code detected.
+void PrepareDetectionsForMapping(bool detect_images, const std::vector<std::string>& families,
+                                 Dataset* dataset);
+
+}  // namespace waymark::cli
