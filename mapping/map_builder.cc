@@ -585,9 +585,9 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   const std::vector<int> active = UsableObservations(survey, init, &result);
   std::vector<std::string> gauges;
   const auto start = std::chrono::steady_clock::now();
-  // A corner behind its camera at the current values makes the whole evaluation fail
-  // (factors/corner_observation.h): such observations (a misdecoded id, a wrong placement) are
-  // set aside for the solve that follows.
+  // A corner behind its camera at the current values only gets a finite penalty
+  // (factors/corner_observation.h), which would drag the solve: such observations (a
+  // misdecoded id, a wrong placement) are set aside for the solve that follows.
   const auto in_front = [&](const std::vector<int>& observations) {
     std::vector<int> kept;
     for (int o : observations) {

@@ -243,46 +243,76 @@ std::vector<std::vector<ViewGeometry>> ComputeViewGeometry(const Survey& survey)
   return per_marker;
 }
 
+// One pair of views of a code, with what does not depend on the offset: the distance and the
+// rotation angle between the two robot poses the views put in the code's frame.
+struct ViewPair {
+  int frame_a = 0, frame_b = 0;
+  double views_distance_m = 0.0;
+  double views_angle_rad = -1.0;  // < 0: a view is ambiguous, rotation not compared
+  double sigma_m = 0.0;
+};
+
+// The pairs of ComputeViewGeometry's views: each view with its next kMaxPairsPerView views
+// of the code from other frames at most window_s later.
+std::vector<ViewPair> MakeViewPairs(const Survey& survey, const std::vector<std::vector<ViewGeometry>>& per_marker,
+                                    double window_s) {
+  std::vector<ViewPair> pairs;
+  for (const std::vector<ViewGeometry>& views : per_marker) {
+    for (size_t i = 0; i < views.size(); ++i) {
+      const ViewGeometry& a = views[i];
+      for (size_t j = i + 1; j < views.size() && j <= i + kMaxPairsPerView; ++j) {
+        const ViewGeometry& b = views[j];
+        if (survey.frames[b.frame].stamp_s - survey.frames[a.frame].stamp_s > window_s || b.frame == a.frame) continue;
+        ViewPair pair;
+        pair.frame_a = a.frame;
+        pair.frame_b = b.frame;
+        pair.views_distance_m = (b.p_marker_robot - a.p_marker_robot).norm();
+        if (!a.ambiguous && !b.ambiguous) pair.views_angle_rad = LogSO3(a.q_marker_robot.conjugate() * b.q_marker_robot).norm();
+        pair.sigma_m = kViewSigmaM + kViewSigmaPerRange * 0.5 * (a.range_m + b.range_m);
+        pairs.push_back(pair);
+      }
+    }
+  }
+  return pairs;
+}
+
 // Robust cost of one view pair against the odometry increment M_a_b.
-double PairCost(const ViewGeometry& a, const ViewGeometry& b, const SE3d& M_a_b) {
-  const double s_t = kViewSigmaM + kViewSigmaPerRange * 0.5 * (a.range_m + b.range_m);
-  const double e_t = ((b.p_marker_robot - a.p_marker_robot).norm() - M_a_b.translation().norm()) / s_t;
+double PairCost(const ViewPair& pair, const SE3d& M_a_b) {
+  const double e_t = (pair.views_distance_m - M_a_b.translation().norm()) / pair.sigma_m;
   double cost = std::log1p(e_t * e_t);
-  if (!a.ambiguous && !b.ambiguous) {
-    const double e_r =
-        (LogSO3(a.q_marker_robot.conjugate() * b.q_marker_robot).norm() - LogSO3(M_a_b.rotation()).norm()) /
-        kViewSigmaRad;
+  if (pair.views_angle_rad >= 0.0) {
+    const double e_r = (pair.views_angle_rad - LogSO3(M_a_b.rotation()).norm()) / kViewSigmaRad;
     cost += std::log1p(e_r * e_r);
   }
   return cost;
 }
 
 // Mean pair cost C(delta) over the pairs with odometry at both ends in one segment.
-double MeanOffsetCost(const Survey& survey, const OdometryClock& clock,
-                      const std::vector<std::vector<ViewGeometry>>& per_marker, double window_s,
+double MeanOffsetCost(const Survey& survey, const OdometryClock& clock, const std::vector<ViewPair>& view_pairs,
                       size_t* pairs) {
-  std::map<int, std::optional<SE3d>> pose_cache;
-  const auto pose = [&](int frame) -> const std::optional<SE3d>& {
-    auto it = pose_cache.find(frame);
-    if (it == pose_cache.end())
-      it = pose_cache.emplace(frame, clock.PoseAt(survey.frames[frame].stamp_s)).first;
-    return it->second;
+  struct FrameOdometry {
+    bool done = false;
+    std::optional<SE3d> T_odom_robot;
+    int segment = -1;
+  };
+  std::vector<FrameOdometry> cache(survey.frames.size());
+  const auto at = [&](int frame) -> const FrameOdometry& {
+    FrameOdometry& f = cache[frame];
+    if (!f.done) {
+      f.T_odom_robot = clock.PoseAt(survey.frames[frame].stamp_s);
+      if (f.T_odom_robot) f.segment = clock.SegmentAt(survey.frames[frame].stamp_s);
+      f.done = true;
+    }
+    return f;
   };
   double sum = 0.0;
   *pairs = 0;
-  for (const std::vector<ViewGeometry>& views : per_marker) {
-    for (size_t i = 0; i < views.size(); ++i) {
-      const double t_a = survey.frames[views[i].frame].stamp_s;
-      for (size_t j = i + 1; j < views.size() && j <= i + kMaxPairsPerView; ++j) {
-        const double t_b = survey.frames[views[j].frame].stamp_s;
-        if (t_b - t_a > window_s || views[j].frame == views[i].frame) continue;
-        const std::optional<SE3d>& T_a = pose(views[i].frame);
-        const std::optional<SE3d>& T_b = pose(views[j].frame);
-        if (!T_a || !T_b || clock.SegmentAt(t_a) != clock.SegmentAt(t_b)) continue;
-        sum += PairCost(views[i], views[j], T_a->inverse() * *T_b);
-        ++*pairs;
-      }
-    }
+  for (const ViewPair& pair : view_pairs) {
+    const FrameOdometry& a = at(pair.frame_a);
+    const FrameOdometry& b = at(pair.frame_b);
+    if (!a.T_odom_robot || !b.T_odom_robot || a.segment != b.segment) continue;
+    sum += PairCost(pair, a.T_odom_robot->inverse() * *b.T_odom_robot);
+    ++*pairs;
   }
   return *pairs > 0 ? sum / static_cast<double>(*pairs) : 0.0;
 }
@@ -409,11 +439,12 @@ std::optional<TimeOffsetEstimate> EstimateOdometryTimeOffset(const Survey& surve
   if (odometry.empty()) return std::nullopt;
   std::vector<std::string> ignored;
   const std::vector<int> segment = OdometrySegments(odometry, options.max_odometry_gap_s, &ignored);
-  const std::vector<std::vector<ViewGeometry>> per_marker = ComputeViewGeometry(survey);
+  const std::vector<ViewPair> view_pairs =
+      MakeViewPairs(survey, ComputeViewGeometry(survey), options.offset_window_s);
   size_t pairs = 0;
   const auto cost_at = [&](double offset_s) {
     const OdometryClock clock{odometry, segment, offset_s, options.max_odometry_gap_s};
-    return MeanOffsetCost(survey, clock, per_marker, options.offset_window_s, &pairs);
+    return MeanOffsetCost(survey, clock, view_pairs, &pairs);
   };
   TimeOffsetEstimate estimate;
   estimate.cost_at_zero = cost_at(0.0);
