@@ -172,6 +172,66 @@ SE3d Localizer::CodeHypothesis(const Camera& camera, const MapMarker& marker, co
          camera.info().T_robot_camera.inverse();
 }
 
+std::optional<CodeRobotPose> Localizer::PlanarPoseFromCorners(const Camera& camera, const MapMarker& marker,
+                                                              const CodeSighting& sighting, size_t i) const {
+  if (options_.motion != MotionModel::kPlanar || i >= sighting.T_camera_marker.size()) return std::nullopt;
+  constexpr int kMaxIterations = 20;
+  constexpr double kGateChi2 = 40.0;  // 8 - 3 = 5 dof: far beyond any honest fit
+  EkfState probe(options_.motion);
+  const int dim = probe.dim();
+  const Eigen::MatrixXd unit = Eigen::MatrixXd::Identity(dim, dim);
+  Eigen::VectorXd mean = PoseToStateVector(CodeHypothesis(camera, marker, sighting, i), options_.motion);
+  const Vector8d z = StackCorners(sighting.observation.corners_px);
+  std::optional<CornerPrediction> prediction;
+  bool converged = false;
+  for (int iteration = 0; iteration <= kMaxIterations && !converged; ++iteration) {
+    if (probe.Reset(mean, unit) != StepStatus::kOk) return std::nullopt;
+    prediction = PredictCorners(probe, camera, marker);
+    if (!prediction) return std::nullopt;
+    if (iteration == kMaxIterations) break;
+    const Eigen::LDLT<Eigen::MatrixXd> normal(prediction->H.transpose() * prediction->H);
+    if (normal.info() != Eigen::Success) return std::nullopt;
+    const Eigen::VectorXd step = normal.solve(prediction->H.transpose() * (z - prediction->px));
+    if (!step.allFinite()) return std::nullopt;
+    mean = EkfState::BoxPlus(mean, step, probe.yaw_index());
+    converged = step.head(dim - 1).norm() < 1e-6 && std::abs(step(dim - 1)) < 1e-7;
+  }
+  if (!converged) return std::nullopt;
+  const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
+  const Vector8d residual = z - prediction->px;
+  const Matrix8d R = CornerNoise(sigma_px, *prediction, marker.covariance);
+  if (!(residual.dot(R.ldlt().solve(residual)) <= kGateChi2)) return std::nullopt;
+  const Eigen::MatrixXd A =
+      (prediction->H.transpose() * prediction->H).ldlt().solve(prediction->H.transpose());  // dim x 8
+  CodeRobotPose pose;
+  pose.T_world_robot = probe.T_world_robot();
+  pose.covariance = sigma_px * sigma_px * A * A.transpose();
+  pose.cross_marker = CrossCovariance::Zero(dim, 6);
+  if (marker.covariance) {
+    const Eigen::MatrixXd AJ = A * prediction->J_marker;
+    pose.covariance += AJ * *marker.covariance * AJ.transpose();
+    pose.cross_marker = -AJ * *marker.covariance;
+  }
+  if (!pose.covariance.allFinite()) return std::nullopt;
+  return pose;
+}
+
+SE3d Localizer::RestartPose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                            size_t i) const {
+  const std::optional<CodeRobotPose> fitted = PlanarPoseFromCorners(camera, marker, sighting, i);
+  return fitted ? fitted->T_world_robot : CodeHypothesis(camera, marker, sighting, i);
+}
+
+bool Localizer::PlanarResolvesAmbiguity(const Camera& camera, const MapMarker& marker,
+                                        const CodeSighting& sighting) const {
+  if (options_.motion != MotionModel::kPlanar || sighting.T_camera_marker.size() < 2) return false;
+  const std::optional<CodeRobotPose> a = PlanarPoseFromCorners(camera, marker, sighting, 0);
+  const std::optional<CodeRobotPose> b = PlanarPoseFromCorners(camera, marker, sighting, 1);
+  if (!a || !b) return false;
+  const auto [trans_m, rot_rad] = Distance(a->T_world_robot, b->T_world_robot);
+  return trans_m < 1e-3 && rot_rad < 1e-3;
+}
+
 FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   FrameResult result;
   const auto camera_it = cameras_.find(frame.camera);
@@ -309,8 +369,9 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
   CodeSighting storage;
   if (tracking_ == TrackingStatus::kUninitialized) {
     const CodeSighting& solved = Solved(camera, *marker, sighting, &storage);
-    result.outcome = !solved.ambiguous && Initialize(camera, *marker, solved) ? CorrectionOutcome::kInitialized
-                                                                              : CorrectionOutcome::kNotUsable;
+    const bool usable = !solved.ambiguous || PlanarResolvesAmbiguity(camera, *marker, solved);
+    result.outcome =
+        usable && Initialize(camera, *marker, solved) ? CorrectionOutcome::kInitialized : CorrectionOutcome::kNotUsable;
   } else if (tracking_ == TrackingStatus::kLost) {
     result.outcome = OfferHypothesis(camera, *marker, Solved(camera, *marker, sighting, &storage))
                          ? CorrectionOutcome::kInitialized
@@ -432,8 +493,14 @@ CorrectionResult Localizer::CorrectLoose(const Camera& camera, const MapMarker& 
 bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
                            size_t i) {
   if (i >= sighting.T_camera_marker.size() || !sighting.covariance) return false;
-  const CodeRobotPose code = RobotPoseFromCode(marker, sighting.T_camera_marker[i], *sighting.covariance,
-                                               camera.info().T_robot_camera, options_.motion);
+  std::optional<CodeRobotPose> fitted;
+  if (options_.motion == MotionModel::kPlanar) {
+    fitted = PlanarPoseFromCorners(camera, marker, sighting, i);
+    if (!fitted) return false;  // a corner behind the camera, no convergence, or a bad fit
+  }
+  const CodeRobotPose code = fitted ? *fitted
+                                    : RobotPoseFromCode(marker, sighting.T_camera_marker[i], *sighting.covariance,
+                                                        camera.info().T_robot_camera, options_.motion);
   if (!code.T_world_robot.IsFinite() || !code.covariance.allFinite() ||
       Eigen::LLT<Eigen::MatrixXd>(code.covariance).info() != Eigen::Success) {
     return false;
@@ -479,7 +546,7 @@ bool Localizer::Contradicts(const Camera& camera, const MapMarker& marker, const
   const double sigma_rad = std::sqrt(std::max(0.0, P(yaw_index, yaw_index)));
   const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
   for (size_t i = 0; i < candidates; ++i) {
-    const auto [trans_m, rot_rad] = Distance(state_.T_world_robot(), CodeHypothesis(camera, marker, sighting, i));
+    const auto [trans_m, rot_rad] = Distance(state_.T_world_robot(), RestartPose(camera, marker, sighting, i));
     if (trans_m <= options_.agree_trans_m + 3.0 * sigma_m && rot_rad <= options_.agree_rot_rad + 3.0 * sigma_rad)
       return false;
   }
@@ -496,7 +563,7 @@ bool Localizer::OfferHypothesis(const Camera& camera, const MapMarker& marker, c
   std::vector<Hypothesis> chained;
   size_t best = 0;
   for (size_t i = 0; i < candidates; ++i) {
-    Hypothesis hypothesis{CodeHypothesis(camera, marker, sighting, i), 1};
+    Hypothesis hypothesis{RestartPose(camera, marker, sighting, i), 1};
     for (const Hypothesis& previous : hypotheses_) {
       const auto [trans_m, rot_rad] = Distance(previous.T_world_robot, hypothesis.T_world_robot);
       if (trans_m < options_.agree_trans_m && rot_rad < options_.agree_rot_rad)

@@ -16,6 +16,16 @@
 // Life cycle (TrackingStatus, reported with every output; a pose only while kTracking):
 //   kUninitialized -> kTracking: the first unambiguous code of the map with a single-image pose
 //     initializes the mean (RobotPoseFromCode) and P (single-image covariance + map covariance).
+//     Planar robots start instead from the corner fit (PlanarPoseFromCorners): the state's
+//     (x, y, theta) that best fits the code's four corners with the robot level, by Gauss-Newton
+//     from the single-image pose. The single-image attitude of a small code seen head-on is off
+//     by degrees, and through the range it moves the implied robot position by range x tilt
+//     (ceiling codes 40 px wide at 1.85 m: starts 0.4-0.7 m off); the known level removes that.
+//     With A = (H^T H)^-1 H^T at the fit, P = sigma_px^2 A A^T + A J_m Sigma_m J_m^T A^T and the
+//     cross-covariance with the marker's map error C_m = -A J_m Sigma_m. Both IPPE solutions of
+//     an ambiguous code fit to the same planar pose when the level decides between them: such
+//     a code initializes too. The relocalization hypotheses and the contradiction test use the
+//     same fit (the loose baseline keeps seed 000's single-image pose).
 //   kTracking -> kSuspect: a frame whose codes were all gated out and one of whose codes
 //     contradicts the track: every single-image robot pose of that code (both IPPE solutions
 //     when ambiguous) is farther from the state than agree_trans_m + 3 sigma_position or
@@ -66,6 +76,7 @@
 #include "core/types.h"
 #include "online/code_sighting.h"
 #include "online/ekf_state.h"
+#include "online/marker_measurement.h"
 #include "online/motion_model.h"
 #include "online/status.h"
 #include "online/visibility.h"
@@ -223,6 +234,16 @@ class Localizer {
   // The robot pose implied by solution i of a sighting.
   SE3d CodeHypothesis(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
                       size_t i) const;
+  // Planar motion: the robot pose fitted to the sighting's four corners from solution i (header
+  // comment), with its covariance and C_m; nullopt for free motion, when a corner leaves the
+  // camera's front, the fit does not converge, or its residual fails the gate.
+  std::optional<CodeRobotPose> PlanarPoseFromCorners(const Camera& camera, const MapMarker& marker,
+                                                     const CodeSighting& sighting, size_t i) const;
+  // The robot pose solution i implies for initialization and relocalization: the planar corner
+  // fit when there is one, else CodeHypothesis.
+  SE3d RestartPose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i) const;
+  // Planar: the sighting is ambiguous but its solutions fit to one pose (header comment).
+  bool PlanarResolvesAmbiguity(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
   bool IsClear(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
   // True when every solution of the (solved) sighting is far from the track (header comment).
   bool Contradicts(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;

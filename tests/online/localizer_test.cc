@@ -622,6 +622,77 @@ TEST(LocalizerTest, AddDetectionsTracksFromRawCorners) {
   EXPECT_LT(worst_m, 0.05);
 }
 
+// A planar robot whose upward camera sees one small ceiling code head-on (40 px at 1.85 m, as
+// in sim ceiling-grid). The code's single-image attitude is off by degrees, which moves the
+// robot pose it implies by decimetres; the start from the corner fit with the robot level
+// (Localizer header, PlanarPoseFromCorners) is within millimetres, also when IPPE calls the
+// sighting ambiguous, and its covariance covers its error.
+TEST(LocalizerTest, PlanarStartFromOneSmallCeilingCodeIsAccurate) {
+  CameraInfo camera;
+  camera.name = "up";
+  camera.model = CameraModel::kPinholeRadtan;
+  camera.width = 640;
+  camera.height = 480;
+  camera.intrinsics = {620.0, 620.0, 320.0, 240.0};
+  camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  camera.pixel_sigma = 0.5;
+  camera.T_robot_camera = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.6));
+  Eigen::Matrix3d R_world_marker;  // facing down, x along world x
+  R_world_marker << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  MapMarker code;
+  code.key = {kFamilyQr, "0/0.7/0.7"};
+  code.size_m = 0.12;
+  code.T_world_marker = SE3d(Eigen::Quaterniond(R_world_marker), Eigen::Vector3d(0.7, 0.7, 2.45));
+  MarkerMap map;
+  map.markers.push_back(code);
+  const Camera projector(camera);
+  std::mt19937 rng(77);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  double worst_start_m = 0.0, worst_single_image_m = 0.0, worst_nees = 0.0;
+  int started = 0, ambiguous = 0;
+  const int trials = 40;
+  for (int trial = 0; trial < trials; ++trial) {
+    const SE3d T_world_robot = SE2d(0.85 + 0.002 * trial, 0.68, 0.3 + 0.01 * trial).ToSE3();
+    const SE3d T_camera_marker = (T_world_robot * camera.T_robot_camera).inverse() * code.T_world_marker;
+    DetectionFrame frame;
+    frame.camera = "up";
+    MarkerObservation observation;
+    observation.key = code.key;
+    const std::array<Eigen::Vector3d, 4> corners = MarkerCorners(code.size_m);
+    for (int j = 0; j < 4; ++j) {
+      const auto px = projector.Project(T_camera_marker * corners[j]);
+      ASSERT_TRUE(px.has_value());
+      observation.corners_px[j] = *px + Eigen::Vector2d(noise(rng), noise(rng));
+    }
+    frame.markers.push_back(observation);
+    const CodeSighting sighting = MakeCodeSighting(projector, observation, code.size_m);
+    ASSERT_FALSE(sighting.T_camera_marker.empty());
+    ambiguous += sighting.ambiguous;
+    const SE3d single_image = code.T_world_marker * sighting.T_camera_marker[0].inverse() *
+                              camera.T_robot_camera.inverse();
+    worst_single_image_m = std::max(
+        worst_single_image_m, (single_image.translation() - T_world_robot.translation()).head<2>().norm());
+
+    LocalizerOptions options;
+    Localizer localizer(options, map, {camera});
+    ASSERT_EQ(localizer.AddOdometry(0.0, SE3d()), StepStatus::kOk);
+    ASSERT_EQ(localizer.AddDetections(frame).status, StepStatus::kOk);
+    const PoseOutput output = localizer.Output();
+    if (!output.T_world_robot) continue;
+    ++started;
+    const Eigen::Vector2d error = (output.T_world_robot->translation() - T_world_robot.translation()).head<2>();
+    worst_start_m = std::max(worst_start_m, error.norm());
+    worst_nees = std::max(worst_nees, error.dot(output.covariance->topLeftCorner<2, 2>().ldlt().solve(error)));
+  }
+  std::printf("single-image pose worst %.3f m; corner-fit start worst %.4f m, %d/%d started (%d ambiguous), "
+              "worst position NEES %.2f\n",
+              worst_single_image_m, worst_start_m, started, trials, ambiguous, worst_nees);
+  EXPECT_GT(worst_single_image_m, 0.1);  // what the start used to inherit
+  EXPECT_EQ(started, trials);
+  EXPECT_LT(worst_start_m, 0.01);
+  EXPECT_LT(worst_nees, 13.8);  // chi-square 2 dof, 0.999
+}
+
 TEST(LocalizerTest, InvalidOptionsAreRejected) {
   const CorridorConfig config;
   CorridorSimulator sim(config, 1);
