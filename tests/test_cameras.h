@@ -3,6 +3,8 @@
 // need a mount set their own.
 #pragma once
 
+#include <string>
+
 #include "core/types.h"
 
 namespace waymark::testing {
@@ -30,6 +32,18 @@ inline CameraInfo TagslamFisheyeInfo() {
   info.height = 800;
   info.intrinsics = {283.943, 284.986, 421.079, 400.527};
   info.distortion = {0.00132, 0.03049, -0.02875, 0.0034};
+  return info;
+}
+
+// An ideal pinhole camera (no distortion), principal point at the image centre.
+inline CameraInfo IdealPinholeInfo(const std::string& name, int width, int height, double focal_px) {
+  CameraInfo info;
+  info.name = name;
+  info.model = CameraModel::kPinholeRadtan;
+  info.width = width;
+  info.height = height;
+  info.intrinsics = {focal_px, focal_px, 0.5 * width, 0.5 * height};
+  info.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
   return info;
 }
 

@@ -10,6 +10,7 @@
 
 #include "online/chi_square.h"
 #include "tests/online/synthetic_corridor.h"
+#include "tests/test_cameras.h"
 
 namespace waymark {
 namespace {
@@ -628,13 +629,7 @@ TEST(LocalizerTest, AddDetectionsTracksFromRawCorners) {
 // (Localizer header, PlanarPoseFromCorners) is within millimetres, also when IPPE calls the
 // sighting ambiguous, and its covariance covers its error.
 TEST(LocalizerTest, PlanarStartFromOneSmallCeilingCodeIsAccurate) {
-  CameraInfo camera;
-  camera.name = "up";
-  camera.model = CameraModel::kPinholeRadtan;
-  camera.width = 640;
-  camera.height = 480;
-  camera.intrinsics = {620.0, 620.0, 320.0, 240.0};
-  camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  CameraInfo camera = testing::IdealPinholeInfo("up", 640, 480, 620.0);
   camera.pixel_sigma = 0.5;
   camera.T_robot_camera = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.6));
   Eigen::Matrix3d R_world_marker;  // facing down, x along world x
