@@ -25,6 +25,7 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
+#include "cli/dataset_detect.h"
 #include "core/camera_io.h"
 #include "core/dataset_io.h"
 #include "core/detect_common.h"
@@ -179,15 +180,6 @@ class Annotator {
   std::vector<std::string> names_;
 };
 
-void CheckCameraSize(const cv::Mat& image, const std::optional<CameraInfo>& camera, const std::string& what) {
-  if (!camera) return;
-  if (image.cols != camera->width || image.rows != camera->height) {
-    throw std::runtime_error(what + ": image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
-                             " but camera " + camera->name + " is " + std::to_string(camera->width) + "x" +
-                             std::to_string(camera->height));
-  }
-}
-
 DetectionFrame DetectOne(MarkerDetector* detector, const cv::Mat& image, Timing* timing) {
   const auto start = std::chrono::steady_clock::now();
   DetectionFrame frame;
@@ -207,8 +199,7 @@ std::vector<DetectionFrame> RunImages(const std::vector<ImageJob>& jobs, MarkerD
     const cv::Mat image = cv::imread(job.file.string(), cv::IMREAD_UNCHANGED);
     if (image.empty()) throw std::runtime_error(job.file.string() + ": cannot read image (missing, corrupt or not an image)");
     const auto camera = cameras.find(job.camera);
-    CheckCameraSize(image, camera == cameras.end() ? std::nullopt : std::optional<CameraInfo>(camera->second),
-                    job.file.string());
+    if (camera != cameras.end()) CheckImageMatchesCamera(image, camera->second, job.file.string());
     DetectionFrame frame = DetectOne(detector, image, timing);
     frame.stamp_s = job.stamp_s;
     frame.camera = job.camera;
@@ -229,7 +220,7 @@ std::vector<DetectionFrame> RunVideo(const fs::path& path, const std::string& as
   cv::Mat image;
   for (long n = 0; video.read(image); ++n) {
     if (image.empty()) break;
-    CheckCameraSize(image, run.camera, as_given + " frame " + std::to_string(n));
+    if (run.camera) CheckImageMatchesCamera(image, *run.camera, as_given + " frame " + std::to_string(n));
     DetectionFrame frame = DetectOne(detector, image, timing);
     frame.stamp_s = video.get(cv::CAP_PROP_POS_MSEC) * 1e-3;
     if (!frames.empty()) frame.stamp_s = std::max(frame.stamp_s, frames.back().stamp_s);
@@ -260,9 +251,9 @@ std::vector<ImageJob> ListImageDir(const fs::path& dir, const std::string& as_gi
 std::vector<ImageJob> ListDataset(const Dataset& dataset, const std::string& as_given) {
   if (dataset.images.empty()) throw std::runtime_error(as_given + ": dataset has no images.csv rows to detect on");
   std::vector<ImageJob> jobs;
-  for (const ImageEntry& row : dataset.images) jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
-  // The file format wants stamps that never decrease per camera.
-  std::stable_sort(jobs.begin(), jobs.end(), [](const ImageJob& a, const ImageJob& b) { return a.stamp_s < b.stamp_s; });
+  for (const ImageEntry& row : ImageRowsInStampOrder(dataset)) {
+    jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
+  }
   return jobs;
 }
 
@@ -270,7 +261,7 @@ std::unique_ptr<MarkerDetector> MakeDetector(const Args& args) {
   DetectorOptions options;
   if (const auto budget = args.GetDouble("budget-ms")) options.time_budget_ms = *budget;
   if (const auto decimate = args.GetDouble("apriltag-decimate")) options.apriltag_decimate = *decimate;
-  return CreateMultiDetector(ParseFamilyList(args.GetOr("families", "qr,datamatrix,apriltag-36h11")), options);
+  return CreateMultiDetector(ParseFamilyList(args.GetOr("families", kDefaultDetectFamilies)), options);
 }
 
 std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* detector, const RunOptions& run,

@@ -10,29 +10,35 @@
 
 namespace waymark::cli {
 
-std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDetector* detector,
-                                                const std::function<void(size_t, size_t)>& progress) {
-  const std::string where = "dataset " + dataset.dir.string();
-  if (dataset.images.empty()) throw std::runtime_error(where + ": no images.csv rows to detect on");
+void CheckImageMatchesCamera(const cv::Mat& image, const CameraInfo& camera, const std::string& what) {
+  if (image.cols != camera.width || image.rows != camera.height) {
+    throw std::runtime_error(what + ": image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                             " but camera " + camera.name + " is " + std::to_string(camera.width) + "x" +
+                             std::to_string(camera.height));
+  }
+}
+
+std::vector<ImageEntry> ImageRowsInStampOrder(const Dataset& dataset) {
   std::vector<ImageEntry> rows = dataset.images;
-  // detections.jsonl wants stamps that never decrease per camera.
   std::stable_sort(rows.begin(), rows.end(),
                    [](const ImageEntry& a, const ImageEntry& b) { return a.stamp_s < b.stamp_s; });
+  return rows;
+}
+
+std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDetector* detector,
+                                                const std::function<void(size_t, size_t)>& progress) {
+  if (dataset.images.empty()) {
+    throw std::runtime_error("dataset " + dataset.dir.string() + ": no images.csv rows to detect on");
+  }
+  const std::vector<ImageEntry> rows = ImageRowsInStampOrder(dataset);
   std::vector<DetectionFrame> frames;
   frames.reserve(rows.size());
   for (const ImageEntry& row : rows) {
     const std::string file = (dataset.dir / row.path).string();
     const cv::Mat image = cv::imread(file, cv::IMREAD_UNCHANGED);
     if (image.empty()) throw std::runtime_error(file + ": cannot read image (missing, corrupt or not an image)");
-    const auto camera = dataset.cameras.find(row.camera);
-    if (camera == dataset.cameras.end()) {
-      throw std::runtime_error(file + ": images.csv names camera '" + row.camera + "', which the dataset does not have");
-    }
-    if (image.cols != camera->second.width || image.rows != camera->second.height) {
-      throw std::runtime_error(file + ": image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
-                               " but camera " + row.camera + " is " + std::to_string(camera->second.width) + "x" +
-                               std::to_string(camera->second.height));
-    }
+    // The dataset reader checked that images.csv names only cameras of dataset.yaml.
+    CheckImageMatchesCamera(image, dataset.cameras.at(row.camera), file);
     DetectionFrame frame;
     frame.stamp_s = row.stamp_s;
     frame.camera = row.camera;
@@ -48,8 +54,7 @@ void PrepareDetectionsForMapping(bool detect_images, const std::vector<std::stri
                                  Dataset* dataset) {
   const std::string where = "dataset " + dataset->dir.string();
   if (detect_images) {
-    const std::vector<std::string> used =
-        families.empty() ? std::vector<std::string>{"qr", "datamatrix", "apriltag-36h11"} : families;
+    const std::vector<std::string> used = families.empty() ? ParseFamilyList(kDefaultDetectFamilies) : families;
     const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(used, DetectorOptions{});
     std::function<void(size_t, size_t)> progress;
     if (StderrIsTerminal()) {

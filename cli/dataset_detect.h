@@ -6,14 +6,27 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/core/mat.hpp>
+
 #include "core/dataset_io.h"
 #include "core/detector.h"
 
 namespace waymark::cli {
 
+// The families `waymark detect` and `--detect-images` detect unless told otherwise.
+inline constexpr const char* kDefaultDetectFamilies = "qr,datamatrix,apriltag-36h11";
+
+// Throws std::runtime_error naming `what` when the image's size differs from the camera's.
+void CheckImageMatchesCamera(const cv::Mat& image, const CameraInfo& camera, const std::string& what);
+
+// The dataset's images.csv rows in stamp order (stable): detections.jsonl wants stamps that
+// never decrease per camera.
+std::vector<ImageEntry> ImageRowsInStampOrder(const Dataset& dataset);
+
 // One DetectionFrame per images.csv row, in stamp order (stable), each with its row's stamp,
 // camera and path. Throws std::runtime_error naming the image when it cannot be read or its
-// size differs from its camera's, and when the dataset has no images.csv rows.
+// size differs from its camera's (CheckImageMatchesCamera), and when the dataset has no
+// images.csv rows.
 // `progress(done, total)` is called after every image when set.
 std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDetector* detector,
                                                 const std::function<void(size_t, size_t)>& progress = nullptr);
