@@ -182,27 +182,28 @@ std::optional<CodeRobotPose> Localizer::PlanarPoseFromCorners(const Camera& came
   const Eigen::MatrixXd unit = Eigen::MatrixXd::Identity(dim, dim);
   Eigen::VectorXd mean = PoseToStateVector(CodeHypothesis(camera, marker, sighting, i), options_.motion);
   const Vector8d z = StackCorners(sighting.observation.corners_px);
+  // Stops when the step is negligible, keeping the linearization (probe, prediction, normal)
+  // at the mean it was taken at: the pose, P and C_m below all come from that one point.
   std::optional<CornerPrediction> prediction;
+  Eigen::LDLT<Eigen::MatrixXd> normal;
   bool converged = false;
-  for (int iteration = 0; iteration <= kMaxIterations && !converged; ++iteration) {
+  for (int iteration = 0; iteration < kMaxIterations && !converged; ++iteration) {
     if (probe.Reset(mean, unit) != StepStatus::kOk) return std::nullopt;
     prediction = PredictCorners(probe, camera, marker);
     if (!prediction) return std::nullopt;
-    if (iteration == kMaxIterations) break;
-    const Eigen::LDLT<Eigen::MatrixXd> normal(prediction->H.transpose() * prediction->H);
+    normal.compute(prediction->H.transpose() * prediction->H);
     if (normal.info() != Eigen::Success) return std::nullopt;
     const Eigen::VectorXd step = normal.solve(prediction->H.transpose() * (z - prediction->px));
     if (!step.allFinite()) return std::nullopt;
-    mean = EkfState::BoxPlus(mean, step, probe.yaw_index());
     converged = step.head(dim - 1).norm() < 1e-6 && std::abs(step(dim - 1)) < 1e-7;
+    if (!converged) mean = EkfState::BoxPlus(mean, step, probe.yaw_index());
   }
   if (!converged) return std::nullopt;
   const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
   const Vector8d residual = z - prediction->px;
   const Matrix8d R = CornerNoise(sigma_px, *prediction, marker.covariance);
   if (!(residual.dot(R.ldlt().solve(residual)) <= kGateChi2)) return std::nullopt;
-  const Eigen::MatrixXd A =
-      (prediction->H.transpose() * prediction->H).ldlt().solve(prediction->H.transpose());  // dim x 8
+  const Eigen::MatrixXd A = normal.solve(prediction->H.transpose());  // (H^T H)^-1 H^T, dim x 8
   CodeRobotPose pose;
   pose.T_world_robot = probe.T_world_robot();
   pose.covariance = sigma_px * sigma_px * A * A.transpose();

@@ -9,6 +9,7 @@
 #include "online/localizer.h"
 #include "online/marker_measurement.h"
 #include "tests/online/jacobian_check.h"
+#include "tests/test_cameras.h"
 
 namespace waymark {
 namespace {
@@ -205,13 +206,7 @@ TEST(OdometryTiltTest, GatesAFlippedAttitudeAndPropagatesTheRotationNoise) {
 // tilted (it started at the identity while the drone was pitched 2 deg and rolled -1 deg): with
 // the true map, the localizer's position must not inherit the tilt (h tan(2 deg) = 4 cm).
 TEST(OdometryTiltTest, LocalizerOverFloorCodesIsNotTiltedByTheOdometryFrame) {
-  CameraInfo down;
-  down.name = "down";
-  down.model = CameraModel::kPinholeRadtan;
-  down.width = 640;
-  down.height = 480;
-  down.intrinsics = {380.0, 380.0, 320.0, 240.0};
-  down.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  CameraInfo down = testing::IdealPinholeInfo("down", 640, 480, 380.0);
   down.pixel_sigma = 0.5;
   Eigen::Matrix3d R_robot_camera;  // camera z down (robot -z), camera x along robot -y
   R_robot_camera << 0, -1, 0, -1, 0, 0, 0, 0, -1;
