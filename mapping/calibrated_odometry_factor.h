@@ -33,6 +33,17 @@ namespace waymark {
 
 inline constexpr int kOdometryCalibrationSize = 3;
 
+// A usable c: finite, and both scales above -1 (the corrections divide by 1 + scale).
+inline constexpr const char* kOdometryCalibrationRule =
+    "the odometry calibration must be three finite numbers k_rad_per_m, turn_scale, distance_scale with both "
+    "scales above -1";
+inline bool OdometryCalibrationValid(const Eigen::Vector3d& c) {
+  return c.allFinite() && c[1] > -1.0 && c[2] > -1.0;
+}
+inline bool OdometryCalibrationSigmaValid(const Eigen::Vector3d& sigma) {
+  return sigma.allFinite() && (sigma.array() > 0.0).all();
+}
+
 class CalibratedOdometrySE2Factor {
  public:
   CalibratedOdometrySE2Factor(const SE2d& T_a_b_measured, const Eigen::Matrix3d& covariance)
@@ -115,18 +126,22 @@ class CalibratedOdometrySE3Factor {
   const Matrix6d sqrt_information_;
 };
 
-// r = c / sigma: a weak prior holding the calibration at 0 where the survey says nothing.
+// r = (c - mean) / sigma: by default a weak prior holding the calibration at 0 where the survey
+// says nothing; with an earlier survey's estimate as mean and sigma, that survey's knowledge.
 struct OdometryCalibrationPrior {
-  explicit OdometryCalibrationPrior(const Eigen::Vector3d& sigma) : inverse_sigma(sigma.cwiseInverse()) {}
+  OdometryCalibrationPrior(const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma)
+      : mean(mean), inverse_sigma(sigma.cwiseInverse()) {}
   template <typename T>
   bool operator()(const T* const c, T* residuals) const {
-    for (int i = 0; i < 3; ++i) residuals[i] = c[i] * T(inverse_sigma[i]);
+    for (int i = 0; i < 3; ++i) residuals[i] = (c[i] - T(mean[i])) * T(inverse_sigma[i]);
     return true;
   }
-  static ceres::CostFunction* Create(const Eigen::Vector3d& sigma) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& sigma) { return Create(Eigen::Vector3d::Zero(), sigma); }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma) {
     return new ceres::AutoDiffCostFunction<OdometryCalibrationPrior, 3, kOdometryCalibrationSize>(
-        new OdometryCalibrationPrior(sigma));
+        new OdometryCalibrationPrior(mean, sigma));
   }
+  const Eigen::Vector3d mean;
   const Eigen::Vector3d inverse_sigma;
 };
 

@@ -100,11 +100,14 @@ void FindInstances(const std::vector<LocalMap>& maps, double near_path_m, std::v
 class Graph {
  public:
   Graph(const std::vector<SE3d>& T_world_ref, const std::vector<SE3d>& T_world_code,
-        const Eigen::Vector3d& calibration, double calibration_sigma)
-      : maps_(T_world_ref.size()), codes_(T_world_code.size()), calibration_sigma_(calibration_sigma) {
-    ceres::Problem::Options options;
-    options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    problem_ = std::make_unique<ceres::Problem>(options);
+        const Eigen::Vector3d& calibration, const LocalMapGraphOptions& options)
+      : maps_(T_world_ref.size()),
+        codes_(T_world_code.size()),
+        prior_mean_(options.given_calibration_sigma ? *options.given_calibration : Eigen::Vector3d::Zero()),
+        prior_sigma_(options.given_calibration_sigma.value_or(Eigen::Vector3d::Constant(options.calibration_sigma))) {
+    ceres::Problem::Options problem_options;
+    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    problem_ = std::make_unique<ceres::Problem>(problem_options);
     for (size_t i = 0; i < maps_.size(); ++i) {
       SE3ToBlock(T_world_ref[i], maps_[i].data());
       problem_->AddParameterBlock(maps_[i].data(), kSE3BlockSize, &manifold_);
@@ -119,8 +122,8 @@ class Graph {
   void AddOdometry(const LocalMapLink& link, const LocalMapGraphOptions& options) {
     if (!calibration_added_) {
       problem_->AddParameterBlock(calibration_.data(), kOdometryCalibrationSize);
-      problem_->AddResidualBlock(OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(calibration_sigma_)),
-                                 nullptr, calibration_.data());
+      problem_->AddResidualBlock(OdometryCalibrationPrior::Create(prior_mean_, prior_sigma_), nullptr,
+                                 calibration_.data());
       calibration_added_ = true;
     }
     Matrix6d covariance = link.odometry_covariance;
@@ -166,7 +169,7 @@ class Graph {
  private:
   std::vector<Block> maps_, codes_;
   std::array<double, kOdometryCalibrationSize> calibration_{};
-  const double calibration_sigma_;
+  const Eigen::Vector3d prior_mean_, prior_sigma_;
   bool calibration_added_ = false;
   SE3Manifold manifold_;  // outlives problem_ (declared before it)
   std::unique_ptr<ceres::Problem> problem_;
@@ -217,8 +220,10 @@ Stage SolveInstancesApart(const std::vector<LocalMap>& maps, const std::vector<L
     const Sighting& best = (*sightings)[instance.best];
     stage.T_world_code.push_back(stage.T_world_ref[best.map] * best.fused->T_frame_marker);
   }
-  Graph graph(stage.T_world_ref, stage.T_world_code, Eigen::Vector3d::Zero(), options.calibration_sigma);
+  Graph graph(stage.T_world_ref, stage.T_world_code, options.given_calibration.value_or(Eigen::Vector3d::Zero()),
+              options);
   for (const LocalMapLink& link : odometry) graph.AddOdometry(link, options);
+  if (options.CalibrationHeld()) graph.HoldCalibrationConstant();
   for (const Sighting& s : *sightings) graph.AddSighting(s, s.instance, true);
   for (int i = 0; i < num_maps; ++i) {
     if (stage.group[i] == i) graph.HoldMapConstant(i);
@@ -414,6 +419,14 @@ bool LocalMapGraphOptions::Check(std::string* why) const {
     *why = "local map graph: calibration_sigma and the odometry floors must be finite and > 0";
     return false;
   }
+  if (given_calibration && !OdometryCalibrationValid(*given_calibration)) {
+    *why = "local map graph: " + std::string(kOdometryCalibrationRule);
+    return false;
+  }
+  if (given_calibration_sigma && (!given_calibration || !OdometryCalibrationSigmaValid(*given_calibration_sigma))) {
+    *why = "local map graph: given_calibration_sigma needs given_calibration, and must be three finite numbers > 0";
+    return false;
+  }
   if (max_iterations < 1) {
     *why = "local map graph: max_iterations must be >= 1";
     return false;
@@ -434,7 +447,7 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
   std::vector<Instance> instances;
   FindInstances(maps, options.near_path_m, &sightings, &instances);
   Stage stage = SolveInstancesApart(maps, odometry, &sightings, instances, planar, options);
-  const double dk = SearchHeadingDrift(maps, sightings, instances, options, &stage);
+  const double dk = options.CalibrationHeld() ? 0.0 : SearchHeadingDrift(maps, sightings, instances, options, &stage);
 
   stage.calibration[0] += dk;
   const Placement placement = PlaceAndMerge(maps, stage, instances, planar, options);
@@ -446,7 +459,7 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
   for (const Sighting& s : sightings) result.outlying_sightings += s.inlier ? 0 : 1;
   result.closures_accepted = placement.accepted;
   result.closures_rejected = placement.rejected;
-  Graph graph(placement.T_world_ref, placement.T_world_code, stage.calibration, options.calibration_sigma);
+  Graph graph(placement.T_world_ref, placement.T_world_code, stage.calibration, options);
   LowestRoot components(num_maps);
   for (const LocalMapLink& link : odometry) {
     graph.AddOdometry(link, options);

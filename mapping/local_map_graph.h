@@ -59,8 +59,14 @@
 // c (stage 1's, with the search's dk): a closure or two give three equations, which c's three
 // entries would fit exactly whatever the truth (1 km corridor: turn scale 0.08 against a true
 // 0.005, codes 7.3 m RMS off; held: 1.9 m). The global solve estimates c again from every corner.
+//
+// A known c (LocalMapGraphOptions::given_calibration, e.g. an earlier survey's estimate for the
+// same robot) is held at its value in both stages, and the heading-drift search is skipped; with
+// given_calibration_sigma it is the mean of the prior instead (sigma per entry), and the search
+// runs as usual.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -83,9 +89,12 @@ struct LocalMapGraphOptions {
   double gate_rad = 0.2;
   double gate_rad_per_m = 0.002;
   double calibration_sigma = 0.05;  // prior on every entry of c
+  std::optional<Eigen::Vector3d> given_calibration;        // c held at this (header comment),
+  std::optional<Eigen::Vector3d> given_calibration_sigma;  // or its prior's mean with this sigma
   double odometry_floor_m = 1e-3;
   double odometry_floor_rad = 1e-4;
   int max_iterations = 50;
+  bool CalibrationHeld() const { return given_calibration && !given_calibration_sigma; }
   bool Check(std::string* why) const;
 };
 

@@ -65,6 +65,8 @@ class GlobalProblem {
     for (size_t m = 0; m < marker_.size(); ++m) {
       if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
     }
+    const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
+    for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
   }
 
   // One solve over the observations in `active` (indices), with or without the robust loss.
@@ -74,8 +76,18 @@ class GlobalProblem {
   // Marker covariances in map.json's convention and, with factor_rank > 0, the markers' rows of
   // the joint covariance factor (mapping/map_covariance.h), both from one factorization of H
   // (mapping/marginal_covariance.h); false when H is not positive definite (a free gauge).
+  // With the odometry calibration estimated, its covariance goes to *calibration_covariance.
   bool Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
-                   std::vector<std::optional<CovarianceFactor>>* factors) const;
+                   std::vector<std::optional<CovarianceFactor>>* factors,
+                   std::optional<Eigen::Matrix3d>* calibration_covariance) const;
+  // The odometry calibration of the problem, nullopt when it has no calibrated odometry link.
+  std::optional<Eigen::Vector3d> Calibration() const {
+    if (!problem_->HasParameterBlock(calibration_.data())) return std::nullopt;
+    return Eigen::Vector3d(calibration_[0], calibration_[1], calibration_[2]);
+  }
+  bool CalibrationEstimated() const {
+    return problem_->HasParameterBlock(calibration_.data()) && !problem_->IsParameterBlockConstant(calibration_.data());
+  }
 
   // Re-places the codes with an observation above the outlier gate by consensus over their
   // views at the current frame poses (mapping/initializer.h), and moves the codes whose other
@@ -217,8 +229,14 @@ void GlobalProblem::AddOdometry() {
 void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
   if (!problem_->HasParameterBlock(calibration_.data())) {
     problem_->AddParameterBlock(calibration_.data(), kOdometryCalibrationSize);
-    problem_->AddResidualBlock(OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(options_.calibration_sigma)),
-                               nullptr, calibration_.data());
+    problem_->AddResidualBlock(
+        OdometryCalibrationPrior::Create(options_.odometry_calibration.value_or(Eigen::Vector3d::Zero()),
+                                         options_.odometry_calibration_sigma.value_or(
+                                             Eigen::Vector3d::Constant(options_.calibration_sigma))),
+        nullptr, calibration_.data());
+    if (options_.odometry_calibration && !options_.odometry_calibration_sigma) {
+      problem_->SetParameterBlockConstant(calibration_.data());
+    }
   }
   ceres::CostFunction* cost =
       survey_.motion == MotionModel::kPlanar
@@ -309,15 +327,20 @@ double GlobalProblem::SquaredError(int o) const {
 }
 
 bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
-                                std::vector<std::optional<CovarianceFactor>>* factors) const {
+                                std::vector<std::optional<CovarianceFactor>>* factors,
+                                std::optional<Eigen::Matrix3d>* calibration_covariance) const {
   covariance->assign(survey_.markers.size(), std::nullopt);
   factors->assign(survey_.markers.size(), std::nullopt);
+  calibration_covariance->reset();
   MarginalCovarianceOptions marginal_options;
   marginal_options.num_threads = options_.num_threads;
-  const InformationFactor information(problem_.get(), covariance_markers_, marginal_options);
+  std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, then c
+  if (CalibrationEstimated()) marginal_blocks.push_back(calibration_.data());
+  const InformationFactor information(problem_.get(), marginal_blocks, marginal_options);
   if (information.size() == 0) return covariance_markers_.empty();
   if (!information.positive_definite()) return false;
-  const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // covariance_markers_ order
+  const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // marginal_blocks order
+  if (CalibrationEstimated()) *calibration_covariance = Eigen::Matrix3d(manifold.back());
   std::map<const double*, size_t> index_of;
   for (size_t i = 0; i < covariance_markers_.size(); ++i) index_of[covariance_markers_[i]] = i;
   const size_t count = covariance_markers_.size();
@@ -529,6 +552,18 @@ bool MapBuildOptions::Check(std::string* why) const {
     *why = "cauchy_scale, outlier_chi2, payload_sigma_m and payload_yaw_sigma_rad must be finite and > 0";
     return false;
   }
+  if (odometry_calibration && !calibrate_odometry) {
+    *why = "a given odometry calibration needs calibrate_odometry";
+    return false;
+  }
+  if (odometry_calibration && !OdometryCalibrationValid(*odometry_calibration)) {
+    *why = kOdometryCalibrationRule;
+    return false;
+  }
+  if (odometry_calibration_sigma && (!odometry_calibration || !OdometryCalibrationSigmaValid(*odometry_calibration_sigma))) {
+    *why = "odometry_calibration_sigma needs odometry_calibration, and must be three finite numbers > 0";
+    return false;
+  }
   if (replace_rounds < 0) {
     *why = "replace_rounds must be >= 0";
     return false;
@@ -570,7 +605,12 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
                                "id inconsistent with the code's other views along the odometry (misdecoded?)"});
   }
   const Survey checked = WithoutObservations(survey, inconsistent);
-  const Initialization init = Initialize(checked, options.initializer);
+  InitializerOptions initializer = options.initializer;
+  if (options.calibrate_odometry && options.odometry_calibration) {
+    initializer.graph.given_calibration = options.odometry_calibration;
+    initializer.graph.given_calibration_sigma = options.odometry_calibration_sigma;
+  }
+  const Initialization init = Initialize(checked, initializer);
   result.notes.insert(result.notes.end(), init.notes.begin(), init.notes.end());  // local maps, links
   result.init_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return OptimizeSurvey(checked, init, options, std::move(result));
@@ -625,6 +665,8 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   result.observations = kept.size();
   result.initial_cost = robust.initial_cost;
   result.final_cost = final_summary.final_cost;
+  result.odometry_calibration = problem.Calibration();
+  result.odometry_calibration_given = result.odometry_calibration && !problem.CalibrationEstimated();
   FillReprojection(survey, problem, kept, &result);
   FillOutputs(survey, init, problem, kept, gauges, &result);
   if (options.compute_covariance) {
@@ -632,7 +674,8 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     const auto covariance_start = std::chrono::steady_clock::now();
     std::vector<std::optional<Matrix6d>> covariance;
     std::vector<std::optional<CovarianceFactor>> factors;
-    result.covariance_computed = problem.Covariances(options.covariance_factor_rank, &covariance, &factors);
+    result.covariance_computed = problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
+                                                     &result.odometry_calibration_covariance);
     if (result.covariance_computed) {
       for (MapMarker& marker : result.map.markers) {
         const int m = survey.FindMarker(marker.key);
@@ -677,6 +720,29 @@ void AppendOutlierTallies(const std::vector<RejectedObservation>& outliers, std:
 
 }  // namespace
 
+std::string FormatOdometryCalibration(const MapBuildResult& result) {
+  if (!result.odometry_calibration) return "";
+  const Eigen::Vector3d& c = *result.odometry_calibration;
+  const std::optional<Eigen::Matrix3d>& covariance = result.odometry_calibration_covariance;
+  const auto sigma = [&](int i, double scale) {
+    return covariance ? " +- " + Num(scale * std::sqrt(std::max(0.0, (*covariance)(i, i))), 2) : std::string();
+  };
+  std::ostringstream out;
+  out << "odometry calibration (" << (result.odometry_calibration_given ? "given" : "estimated")
+      << "): heading drift " << Num(c[0] * 180.0 / M_PI, 3) << sigma(0, 180.0 / M_PI) << " deg/m, turn scale "
+      << Num(100.0 * c[1], 3) << sigma(1, 100.0) << " %, distance scale " << Num(100.0 * c[2], 3) << sigma(2, 100.0)
+      << " %";
+  if (!result.odometry_calibration_given) {
+    out << " (reuse for this robot: --odometry-calibration " << Num(c[0], 6) << "," << Num(c[1], 6) << ","
+        << Num(c[2], 6);
+    if (covariance) {
+      for (int i = 0; i < 3; ++i) out << "," << Num(std::sqrt(std::max(0.0, (*covariance)(i, i))), 3);
+    }
+    out << ")";
+  }
+  return out.str();
+}
+
 std::string FormatBuildSummary(const MapBuildResult& result) {
   std::ostringstream out;
   out << "map: " << result.map.markers.size() << " markers in " << result.components.size() << " component(s), "
@@ -707,6 +773,7 @@ std::string FormatBuildSummary(const MapBuildResult& result) {
       << Num(result.initial_cost, 8) << " -> " << Num(result.final_cost, 8) << ", "
       << result.termination << "\n";
   out << "covariance: " << (result.covariance_computed ? "computed" : "not computed") << "\n";
+  if (result.odometry_calibration) out << FormatOdometryCalibration(result) << "\n";
   for (const std::string& note : result.notes) out << "note: " << note << "\n";
   return out.str();
 }

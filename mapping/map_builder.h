@@ -25,8 +25,11 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "core/types.h"
 #include "mapping/id_consistency.h"
@@ -54,6 +57,12 @@ struct MapBuildOptions {
   // held near 0 by a prior of this sigma.
   bool calibrate_odometry = true;
   double calibration_sigma = 0.05;
+  // The calibration known already (e.g. MapBuildResult::odometry_calibration of an earlier survey
+  // by the same robot): held at this value, in the initialization too, instead of estimated;
+  // with odometry_calibration_sigma, the mean of its prior instead (the survey refines it).
+  // Needs calibrate_odometry.
+  std::optional<Eigen::Vector3d> odometry_calibration;
+  std::optional<Eigen::Vector3d> odometry_calibration_sigma;
   int max_iterations = 200;
   int num_threads = 1;           // Jacobian evaluation, linear solver, covariance Jacobian
   bool compute_covariance = true;
@@ -119,6 +128,14 @@ struct MapBuildResult {
   std::vector<SolveStageSummary> solves;  // in the order they ran
   std::string termination;               // Ceres' final termination type and message
   bool covariance_computed = false;
+  // The odometry's systematic errors c = [k_rad_per_m, turn_scale, distance_scale]
+  // (mapping/calibrated_odometry_factor.h) of the final solve: estimated (from a given prior or
+  // the default one), or held as given (odometry_calibration_given); nullopt when
+  // calibrate_odometry is off or no odometry link entered the problem. The covariance of an
+  // estimate, when the covariances were computed.
+  std::optional<Eigen::Vector3d> odometry_calibration;
+  bool odometry_calibration_given = false;
+  std::optional<Eigen::Matrix3d> odometry_calibration_covariance;
   std::vector<std::string> notes;
 };
 
@@ -131,7 +148,12 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
 MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
                               MapBuildResult result = {});
 
-// The human summary: markers and components, reprojection RMS per camera, outliers, solver.
+// The human summary: markers and components, reprojection RMS per camera, outliers, solver, the
+// odometry calibration.
 std::string FormatBuildSummary(const MapBuildResult& result);
+
+// One line: the odometry calibration in deg/m and percent (with its sigmas when known) and, when
+// estimated, the --odometry-calibration argument that reuses it; "" without one.
+std::string FormatOdometryCalibration(const MapBuildResult& result);
 
 }  // namespace waymark
