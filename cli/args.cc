@@ -75,6 +75,27 @@ std::optional<double> Args::GetDouble(const std::string& name) const {
   return x;
 }
 
+std::optional<std::vector<double>> Args::GetDoubleList(const std::string& name) const {
+  const auto value = Get(name);
+  if (!value) return std::nullopt;
+  std::vector<double> numbers;
+  size_t begin = 0;
+  while (true) {
+    const size_t comma = value->find(',', begin);
+    const std::string item = value->substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
+    char* end = nullptr;
+    errno = 0;
+    const double x = std::strtod(item.c_str(), &end);
+    if (item.empty() || *end != '\0' || errno != 0 || !std::isfinite(x)) {
+      throw std::invalid_argument("option --" + name + ": expected comma-separated finite numbers, got '" + *value +
+                                  "'");
+    }
+    numbers.push_back(x);
+    if (comma == std::string::npos) return numbers;
+    begin = comma + 1;
+  }
+}
+
 std::optional<long> Args::GetInt(const std::string& name) const {
   const auto value = Get(name);
   if (!value) return std::nullopt;

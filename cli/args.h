@@ -26,6 +26,8 @@ class Args {
   std::string GetOr(const std::string& name, const std::string& fallback) const;
   std::string Require(const std::string& name) const;  // throws if absent
   std::optional<double> GetDouble(const std::string& name) const;
+  // Comma-separated finite numbers ("1.5,-2,0"); throws on anything else.
+  std::optional<std::vector<double>> GetDoubleList(const std::string& name) const;
   std::optional<long> GetInt(const std::string& name) const;
   const std::vector<std::string>& positionals() const { return positionals_; }
   // Throws unless the number of positionals is within [min_count, max_count].

@@ -23,6 +23,7 @@
 #include "core/io_util.h"
 #include "core/map_io.h"
 #include "core/tum_io.h"
+#include "mapping/calibrated_odometry_factor.h"
 #include "mapping/map_builder.h"
 #include "mapping/map_merge.h"
 
@@ -61,6 +62,12 @@ Options (build, merge):
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
   --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
   --no-calibration    do not estimate the odometry's systematic errors
+  --odometry-calibration K,TURN,DIST[,SK,ST,SD]
+                      the odometry's systematic errors known from an earlier build of this
+                      robot (its summary's "odometry calibration" line prints this argument):
+                      heading drift K (rad/m), turn scale and distance scale (fractions); held
+                      at these values, or with the sigmas SK,ST,SD a prior that this survey
+                      refines. For surveys that barely excite them (rooms joined by doors)
   --no-id-check       keep views whose id disagrees with the code's other views along the
                       odometry (by default they are set aside and reported as misdecoded)
   --max-gap S         odometry gaps longer than S seconds split it (default 1)
@@ -87,6 +94,17 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   if (const auto x = args.GetDouble("max-gap")) options.ingest.max_odometry_gap_s = *x;
   options.compute_covariance = !args.Flag("no-covariance");
   options.calibrate_odometry = !args.Flag("no-calibration");
+  if (const auto c = args.GetDoubleList("odometry-calibration")) {
+    if (c->size() != 3 && c->size() != 6) {
+      throw std::invalid_argument("option --odometry-calibration: expected K,TURN,DIST or K,TURN,DIST,SK,ST,SD (3 or 6 "
+                                  "numbers), got " + std::to_string(c->size()));
+    }
+    if (args.Flag("no-calibration")) {
+      throw std::invalid_argument("--odometry-calibration and --no-calibration exclude each other");
+    }
+    options.odometry_calibration = Eigen::Vector3d((*c)[0], (*c)[1], (*c)[2]);
+    if (c->size() == 6) options.odometry_calibration_sigma = Eigen::Vector3d((*c)[3], (*c)[4], (*c)[5]);
+  }
   options.check_ids = !args.Flag("no-id-check");
   options.progress = TerminalProgress();
   std::string why;
@@ -94,8 +112,9 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   return options;
 }
 
-const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report",  "threads",
-                                            "min-frames", "outlier-chi2", "max-gap", "families"};
+const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report",   "threads",
+                                            "min-frames", "outlier-chi2", "max-gap",  "families",
+                                            "odometry-calibration"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
 
 // DATASET with the detections the build uses (cli/dataset_detect.h).
@@ -141,6 +160,18 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
   for (const RejectedObservation& o : result.outliers) {
     report["outliers"].push_back({{"family", o.key.family}, {"id", o.key.id}, {"t", o.stamp_s},
                                   {"camera", o.camera}, {"rms_px", o.rms_px}, {"reason", o.reason}});
+  }
+  if (result.odometry_calibration) {
+    const Eigen::Vector3d& c = *result.odometry_calibration;
+    nlohmann::json calibration = {{"k_rad_per_m", c[0]},
+                                  {"turn_scale", c[1]},
+                                  {"distance_scale", c[2]},
+                                  {"given", result.odometry_calibration_given}};
+    if (const auto& covariance = result.odometry_calibration_covariance) {
+      calibration["sigma"] = {std::sqrt((*covariance)(0, 0)), std::sqrt((*covariance)(1, 1)),
+                              std::sqrt((*covariance)(2, 2))};
+    }
+    report["odometry_calibration"] = calibration;
   }
   report["unmapped"] = nlohmann::json::array();
   for (const UnmappedMarker& u : result.unmapped) {

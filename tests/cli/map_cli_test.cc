@@ -12,6 +12,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "tests/cli/cli_test_util.h"
 
@@ -171,6 +172,42 @@ TEST_F(MapCliTest, OdometryGapIsReported) {
   const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string());
   ASSERT_EQ(build.exit_code, 0) << build.err;
   EXPECT_NE(build.out.find("odometry: gap of"), std::string::npos) << build.out;
+}
+
+TEST_F(MapCliTest, OdometryCalibrationIsReportedAndCanBeGiven) {
+  const fs::path survey = SmallSurvey();
+  const RunResult estimated = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
+                                  " --report " + (dir_ / "report.json").string());
+  ASSERT_EQ(estimated.exit_code, 0) << estimated.err;
+  EXPECT_NE(estimated.out.find("odometry calibration (estimated): heading drift"), std::string::npos)
+      << estimated.out;
+  const nlohmann::json report = nlohmann::json::parse(ReadTextFile(dir_ / "report.json"));
+  ASSERT_TRUE(report.contains("odometry_calibration")) << report.dump();
+  EXPECT_FALSE(report["odometry_calibration"]["given"].get<bool>());
+  EXPECT_EQ(report["odometry_calibration"]["sigma"].size(), 3u);
+
+  const RunResult given = Run("map build " + survey.string() + " --out " + (dir_ / "map2.json").string() +
+                              " --report " + (dir_ / "report2.json").string() +
+                              " --odometry-calibration 0.003,-0.005,0");
+  ASSERT_EQ(given.exit_code, 0) << given.err;
+  EXPECT_NE(given.out.find("odometry calibration (given)"), std::string::npos) << given.out;
+  const nlohmann::json report2 = nlohmann::json::parse(ReadTextFile(dir_ / "report2.json"));
+  EXPECT_TRUE(report2["odometry_calibration"]["given"].get<bool>());
+  EXPECT_DOUBLE_EQ(report2["odometry_calibration"]["k_rad_per_m"].get<double>(), 0.003);
+  EXPECT_DOUBLE_EQ(report2["odometry_calibration"]["turn_scale"].get<double>(), -0.005);
+
+  for (const char* bad : {"0.003,-0.005", "0.003,x,0", "0,-1,0", "0,0,0,0.1,0,0.1"}) {
+    const RunResult run = Run("map build " + survey.string() + " --out " + (dir_ / "bad.json").string() +
+                              " --odometry-calibration " + bad);
+    EXPECT_NE(run.exit_code, 0) << bad;
+    EXPECT_NE(run.err.find("calibration"), std::string::npos) << bad << ": " << run.err;
+    EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+    EXPECT_FALSE(fs::exists(dir_ / "bad.json")) << bad;
+  }
+  const RunResult both = Run("map build " + survey.string() + " --out " + (dir_ / "bad.json").string() +
+                             " --odometry-calibration 0,0,0 --no-calibration");
+  EXPECT_NE(both.exit_code, 0);
+  EXPECT_NE(both.err.find("exclude each other"), std::string::npos) << both.err;
 }
 
 TEST_F(MapCliTest, MissingOutputAndBadVerbAreErrors) {
