@@ -23,6 +23,7 @@
 #include "core/io_util.h"
 #include "core/map_io.h"
 #include "core/tum_io.h"
+#include "eval/map_metrics.h"
 #include "mapping/calibrated_odometry_factor.h"
 #include "mapping/map_builder.h"
 #include "mapping/map_merge.h"
@@ -195,10 +196,30 @@ void WriteOutputs(const Args& args, const MapBuildResult& result) {
   for (const auto& [path, text] : files) AtomicWriteFile(path, text);
 }
 
+std::string Fixed(double value, int digits) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(digits) << value;
+  return out.str();
+}
+
+// What `waymark eval` would measure against the truth, predicted from the map's covariances
+// (eval::PredictMapError): one line per component that has a prediction.
+void PrintPredictedError(const MarkerMap& map) {
+  const std::vector<eval::PredictedComponentError> predictions = eval::PredictMapError(map);
+  if (predictions.empty()) return;
+  std::cout << "expected marker position error (from the covariance; what `waymark eval` would measure):\n";
+  for (const eval::PredictedComponentError& p : predictions) {
+    std::cout << "  component " << p.component << ": " << Fixed(1e3 * p.aligned_rms_m, 1)
+              << " mm RMS after alignment, " << Fixed(1e3 * p.rms_m, 1) << " mm in the map's frame"
+              << (p.joint ? "" : " (markers taken as independent: no covariance factor)") << "\n";
+  }
+}
+
 int Finish(const Args& args, const MapBuildResult& result) {
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
   WriteOutputs(args, result);
   std::cout << FormatBuildSummary(result);
+  PrintPredictedError(result.map);
   if (const auto path = args.Get("trajectory")) {
     for (size_t c = 0; c < result.trajectories.size(); ++c) {
       std::cout << "trajectory of component " << c << ": " << ComponentTrajectoryPath(*path, static_cast<int>(c))
@@ -235,12 +256,6 @@ int RunMerge(const std::vector<std::string>& argv) {
   return Finish(args, MergeSurveyIntoMap(existing, dataset, options));
 }
 
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << value;
-  return out.str();
-}
-
 int RunInfo(const std::vector<std::string>& argv) {
   const Args args(argv, {}, {});
   if (args.Help()) {
@@ -271,6 +286,7 @@ int RunInfo(const std::vector<std::string>& argv) {
               << " mm, max " << Fixed(sigma_mm.back(), 2) << " mm";
   }
   std::cout << "\n";
+  PrintPredictedError(map);
   return 0;
 }
 

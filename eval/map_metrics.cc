@@ -1,11 +1,13 @@
 #include "eval/map_metrics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <regex>
 #include <set>
 #include <stdexcept>
 
+#include <Eigen/Cholesky>
 #include <Eigen/SVD>
 
 namespace waymark::eval {
@@ -187,6 +189,62 @@ GroupResult EvaluateGroup(const MapEvalResult& result, const std::string& id_pat
   group.other_position_rmse_m = Rms(out_m);
   group.other_orientation_rmse_deg = Rms(out_deg);
   return group;
+}
+
+std::vector<PredictedComponentError> PredictMapError(const MarkerMap& map) {
+  std::map<int, std::vector<const MapMarker*>> components;
+  for (const MapMarker& marker : map.markers) components[marker.component.value_or(0)].push_back(&marker);
+  std::vector<PredictedComponentError> predictions;
+  for (const auto& [component, markers] : components) {
+    bool complete = true, joint = true;
+    Eigen::Index rank = -1;
+    std::vector<Eigen::Vector3d> centres;
+    for (const MapMarker* m : markers) {
+      centres.push_back(m->T_world_marker.translation());
+      if (m->fixed) continue;
+      complete = complete && m->covariance.has_value();
+      const bool has_factor = m->covariance_factor.has_value() && m->covariance_factor->cols() > 0 &&
+                              (rank < 0 || m->covariance_factor->cols() == rank);
+      if (has_factor) rank = m->covariance_factor->cols();
+      joint = joint && has_factor;
+    }
+    if (!complete || markers.size() < 3 || NearlyCollinear(centres)) continue;
+    if (rank < 0) joint = false;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : centres) mean += p / static_cast<double>(centres.size());
+    Matrix6d AtA = Matrix6d::Zero(), AtSA = Matrix6d::Zero();
+    Eigen::MatrixXd AtG = Eigen::MatrixXd::Zero(6, joint ? rank : 0);
+    double trace = 0.0;
+    for (size_t i = 0; i < markers.size(); ++i) {
+      Eigen::Matrix<double, 3, 6> A;
+      A << Eigen::Matrix3d::Identity(), -Hat(Eigen::Vector3d(centres[i] - mean));
+      AtA += A.transpose() * A;
+      const MapMarker& m = *markers[i];
+      if (m.fixed) continue;
+      // Body-frame right perturbation [r t]: the world position moves by R t.
+      const Eigen::Matrix3d R = m.T_world_marker.rotation().toRotationMatrix();
+      const Eigen::Matrix3d P = R * m.covariance->bottomRightCorner<3, 3>() * R.transpose();
+      trace += P.trace();
+      Eigen::Matrix3d D = P;
+      if (joint) {
+        const Eigen::MatrixXd G = R * m.covariance_factor->bottomRows<3>();
+        D -= G * G.transpose();
+        AtG += A.transpose() * G;
+      }
+      AtSA += A.transpose() * D * A;
+    }
+    if (joint) AtSA += AtG * AtG.transpose();
+    const double n = static_cast<double>(markers.size());
+    const double removed = AtA.ldlt().solve(AtSA).trace();
+    PredictedComponentError prediction;
+    prediction.component = component;
+    prediction.markers = markers.size();
+    prediction.joint = joint;
+    prediction.rms_m = std::sqrt(trace / n);
+    prediction.aligned_rms_m = std::sqrt(std::max(0.0, trace - removed) / n);
+    predictions.push_back(prediction);
+  }
+  return predictions;
 }
 
 }  // namespace waymark::eval

@@ -79,6 +79,26 @@ GroupResult EvaluateGroup(const MapEvalResult& result, const std::string& id_pat
 // no marker is in both maps.
 MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt);
 
+// What EvaluateMap would measure, predicted from an estimated map's own covariances, without
+// ground truth: per component, the expected marker position RMS in the map's frame and after the
+// rigid alignment ("positions" above). With p_i the centres, c their mean, S the joint covariance
+// of the world position errors (from each marker's `covariance` and, when every free marker has
+// one, the shared low-rank `covariance_factor`, mapping/map_covariance.h; without it the markers
+// count as independent) and A_i = [I3, -[p_i - c]x] (3 x 6, the first-order effect of the
+// alignment's translation and rotation on marker i), the alignment removes the projection of the
+// errors on the span of A = [A_1; ...; A_N]:
+//   E[RMS^2 aligned] = (trace(S) - trace((A^T A)^-1 A^T S A)) / N,   E[RMS^2] = trace(S) / N.
+// Fixed markers (anchors) have no error. A component gets no prediction when a free marker has no
+// covariance or its centres are nearly collinear (EvaluateMap then aligns by poses).
+struct PredictedComponentError {
+  int component = 0;
+  size_t markers = 0;
+  bool joint = false;         // the covariance factor was used (else independent markers)
+  double rms_m = 0.0;         // in the map's frame (its gauge: anchors, priors or first frame)
+  double aligned_rms_m = 0.0;  // after the rigid alignment
+};
+std::vector<PredictedComponentError> PredictMapError(const MarkerMap& map);
+
 // The pose-based fit of the header comment; exposed for tests. Sizes equal and >= 1.
 Sim3Alignment AlignByPoses(const std::vector<SE3d>& T_est_marker, const std::vector<SE3d>& T_gt_marker);
 

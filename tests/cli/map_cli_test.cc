@@ -70,6 +70,10 @@ TEST_F(MapCliTest, BuildWritesMapAndTrajectoryAndSummary) {
   ASSERT_EQ(info.exit_code, 0) << info.err;
   EXPECT_NE(info.out.find("markers: " + std::to_string(map.markers.size())), std::string::npos) << info.out;
   EXPECT_NE(info.out.find("components: 1"), std::string::npos) << info.out;
+  // The error the covariances predict after alignment, in the build's summary and from map info.
+  EXPECT_NE(info.out.find("component 0: "), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("mm RMS after alignment"), std::string::npos) << info.out;
+  EXPECT_NE(build.out.find("mm RMS after alignment"), std::string::npos) << build.out;
 }
 
 TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {

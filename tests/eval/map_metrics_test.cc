@@ -152,6 +152,88 @@ TEST(MapMetricsTest, CodesAlongOneWallAreAlignedByTheirPoses) {
   for (size_t i = 0; i < 5; ++i) EXPECT_NEAR(r.per_marker[i].position_error_m, noise[i].norm(), 1e-9);
 }
 
+// A 4 x 3 grid of codes on walls of several headings, 1 m apart in x and y at two heights (not
+// collinear), for the predicted errors.
+MarkerMap Grid(int component) {
+  MarkerMap map;
+  for (int i = 0; i < 12; ++i) {
+    map.markers.push_back(Marker(std::to_string(component) + "-" + std::to_string(i),
+                                 Wall(i % 4, i / 4, 1.0 + 0.5 * (i % 2), 30.0 * i), component));
+  }
+  return map;
+}
+
+// Independent isotropic errors sigma^2 I3 per code: the alignment's six parameters take six of
+// the 3 N degrees of freedom, E[RMS^2] = sigma^2 (3 N - 6) / N; in the map's frame 3 sigma^2.
+TEST(MapMetricsTest, PredictedErrorOfIndependentMarkers) {
+  const double sigma = 0.004;
+  MarkerMap map = Grid(0);
+  for (MapMarker& m : map.markers) {
+    m.covariance = Matrix6d::Identity() * 1e-6;
+    m.covariance->bottomRightCorner<3, 3>() = sigma * sigma * Eigen::Matrix3d::Identity();
+  }
+  const std::vector<PredictedComponentError> p = PredictMapError(map);
+  ASSERT_EQ(p.size(), 1u);
+  EXPECT_FALSE(p[0].joint);
+  EXPECT_EQ(p[0].markers, 12u);
+  EXPECT_NEAR(p[0].rms_m, std::sqrt(3.0) * sigma, 1e-12);
+  EXPECT_NEAR(p[0].aligned_rms_m, sigma * std::sqrt((3.0 * 12 - 6) / 12), 1e-12);
+}
+
+// A shared error (the covariance factor) that is a rigid motion of the whole map: the alignment
+// takes it out whole; a shared error that is not rigid (one code's) stays.
+TEST(MapMetricsTest, PredictedErrorRemovesSharedRigidMotion) {
+  MarkerMap map = Grid(3);
+  const Eigen::Vector3d omega(0.0, 0.0, 0.01);  // rad, about the grid's centre
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const MapMarker& m : map.markers) centre += m.T_world_marker.translation() / 12.0;
+  for (MapMarker& m : map.markers) {
+    // Factor columns (body tangent [r t]): a world translation of 5 mm along x, and the rotation
+    // omega about the centre, whose world position effect is omega x (p - centre).
+    const Eigen::Matrix3d R = m.T_world_marker.rotation().toRotationMatrix();
+    CovarianceFactor F = CovarianceFactor::Zero(6, 2);
+    F.block<3, 1>(3, 0) = R.transpose() * Eigen::Vector3d(0.005, 0.0, 0.0);
+    F.block<3, 1>(3, 1) = R.transpose() * omega.cross(m.T_world_marker.translation() - centre);
+    m.covariance_factor = F;
+    m.covariance = Matrix6d(F * F.transpose()) + 1e-14 * Matrix6d::Identity();
+  }
+  std::vector<PredictedComponentError> p = PredictMapError(map);
+  ASSERT_EQ(p.size(), 1u);
+  EXPECT_TRUE(p[0].joint);
+  EXPECT_GT(p[0].rms_m, 0.005);
+  EXPECT_LT(p[0].aligned_rms_m, 1e-6);
+
+  // Code 0 alone moves 6 mm along y on top (a second, independent term of its marginal): the
+  // alignment removes its mean and moments over the 12 codes, E = 36e-6 (1 - a) / 12 with a the
+  // leverage A_0 (A^T A)^-1 A_0^T's (y, y) entry, between 0 and 1.
+  map.markers[0].covariance->bottomRightCorner<3, 3>() +=
+      map.markers[0].T_world_marker.rotation().toRotationMatrix().transpose() *
+      Eigen::Vector3d(0.0, 0.006 * 0.006, 0.0).asDiagonal() * map.markers[0].T_world_marker.rotation().toRotationMatrix();
+  p = PredictMapError(map);
+  ASSERT_EQ(p.size(), 1u);
+  EXPECT_GT(p[0].aligned_rms_m, 0.006 * std::sqrt(0.5 / 12));
+  EXPECT_LT(p[0].aligned_rms_m, 0.006 * std::sqrt(1.0 / 12));
+}
+
+// No prediction for a component with a free code without covariance, or with collinear codes;
+// fixed codes (anchors) count with no error.
+TEST(MapMetricsTest, PredictedErrorNeedsCovariancesAndSpread) {
+  MarkerMap map = Grid(0);
+  for (MapMarker& m : map.markers) m.covariance = Matrix6d::Identity() * 1e-6;
+  map.markers[0].covariance.reset();
+  EXPECT_TRUE(PredictMapError(map).empty());
+  map.markers[0].fixed = true;
+  std::vector<PredictedComponentError> p = PredictMapError(map);
+  ASSERT_EQ(p.size(), 1u);
+  EXPECT_NEAR(p[0].rms_m, std::sqrt(11.0 * 3e-6 / 12), 1e-12);
+  MarkerMap line;
+  for (int i = 0; i < 5; ++i) {
+    line.markers.push_back(Marker("L" + std::to_string(i), Wall(i, 0.0, 1.0, 0.0)));
+    line.markers.back().covariance = Matrix6d::Identity() * 1e-6;
+  }
+  EXPECT_TRUE(PredictMapError(line).empty());
+}
+
 TEST(MapMetricsTest, BadInput) {
   MapCase c = MakeMapCase();
   MarkerMap duplicated = c.estimate;
