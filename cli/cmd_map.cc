@@ -45,7 +45,8 @@ build   learns the poses of the codes seen in the dataset directory DATASET (its
         codes become separate components, each in its own frame.
 merge   the same with the codes of MAP.json as priors (their covariance, or held fixed when
         they have none); codes of MAP.json the survey does not see are kept as they were.
-info    markers, components, families, anchors and position uncertainty of a map.
+info    markers, components, families, anchors and position uncertainty of a map, and the
+        marker error `waymark eval` would measure, predicted per component from the covariances.
 
 Progress goes to stderr on a terminal; the summary (markers and components, reprojection
 RMS per camera, outliers, solver time and termination) to stdout. Outputs are written
