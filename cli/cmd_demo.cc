@@ -348,10 +348,22 @@ std::string DetectionLine(const DemoResult& r) {
          std::to_string(all.Gross()) + " codes off by > " + Fixed(kCheckGrossPx, 0) + " px\n";
 }
 
+// The map's error against the truth, and what its covariances predicted for it without the truth
+// (eval::PredictMapError; pooled over the components by their code counts).
 std::string MapLine(const DemoResult& r) {
+  double predicted_sq = 0.0;
+  size_t predicted_codes = 0;
+  for (const eval::PredictedComponentError& p : eval::PredictMapError(r.map.map)) {
+    predicted_sq += static_cast<double>(p.markers) * p.aligned_rms_m * p.aligned_rms_m;
+    predicted_codes += p.markers;
+  }
+  const std::string predicted =
+      predicted_codes > 0 ? " (the map's covariances predicted " +
+                                Mm(std::sqrt(predicted_sq / static_cast<double>(predicted_codes))) + ")"
+                          : "";
   return "map against the true code poses: " + std::to_string(r.map_eval.markers) + " codes, position RMSE " +
-         Mm(r.map_eval.position_rmse_m) + ", orientation RMSE " + Fixed(r.map_eval.orientation_rmse_deg, 2) +
-         " deg\n";
+         Mm(r.map_eval.position_rmse_m) + predicted + ", orientation RMSE " +
+         Fixed(r.map_eval.orientation_rmse_deg, 2) + " deg\n";
 }
 
 std::string FormatTable(const DemoResult& r, const std::string& out_dir) {

@@ -54,7 +54,7 @@ TEST_F(DemoCliTest, ShippedDataGivesTheTableWithOursBest) {
   const RunResult demo = Run("demo --data " + DemoData().string() + " --out " + out.string());
   ASSERT_EQ(demo.exit_code, 0) << demo.err;
   for (const char* text : {"odometry alone", "loosely coupled EKF", "ours (tight, corners)", "ATE RMSE",
-                           "map against the true code poses", "detection ("}) {
+                           "map against the true code poses", "the map's covariances predicted", "detection ("}) {
     EXPECT_NE(demo.out.find(text), std::string::npos) << text << " missing from\n" << demo.out;
   }
   EXPECT_NE(demo.err.find("demo: done"), std::string::npos) << demo.err;
