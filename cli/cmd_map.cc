@@ -70,6 +70,8 @@ Options (build, merge):
                       heading drift K (rad/m), turn scale and distance scale (fractions); held
                       at these values, or with the sigmas SK,ST,SD a prior that this survey
                       refines. For surveys that barely excite them (rooms joined by doors)
+  --payload-sigma M   how far coordinates printed in the codes may be from the truth, per axis
+                      (default 0.01 m): their position priors' sigma
   --no-id-check       keep views whose id disagrees with the code's other views along the
                       odometry (by default they are set aside and reported as misdecoded)
   --max-gap S         odometry gaps longer than S seconds split it (default 1)
@@ -94,6 +96,7 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   if (const auto n = args.GetInt("min-frames")) options.min_frames = static_cast<int>(*n);
   if (const auto x = args.GetDouble("outlier-chi2")) options.outlier_chi2 = *x;
   if (const auto x = args.GetDouble("max-gap")) options.ingest.max_odometry_gap_s = *x;
+  if (const auto x = args.GetDouble("payload-sigma")) options.payload_sigma_m = *x;
   options.compute_covariance = !args.Flag("no-covariance");
   options.calibrate_odometry = !args.Flag("no-calibration");
   if (const auto c = args.GetDoubleList("odometry-calibration")) {
@@ -116,7 +119,7 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
 
 const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report",   "threads",
                                             "min-frames", "outlier-chi2", "max-gap",  "families",
-                                            "odometry-calibration"};
+                                            "odometry-calibration", "payload-sigma"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
 
 // DATASET with the detections the build uses (cli/dataset_detect.h).

@@ -214,6 +214,20 @@ TEST_F(MapCliTest, OdometryCalibrationIsReportedAndCanBeGiven) {
   EXPECT_NE(both.err.find("exclude each other"), std::string::npos) << both.err;
 }
 
+TEST_F(MapCliTest, PayloadSigmaMustBePositive) {
+  const fs::path survey = SmallSurvey();
+  for (const char* bad : {"0", "-0.01", "x"}) {
+    const RunResult run = Run("map build " + survey.string() + " --out " + (dir_ / "bad.json").string() +
+                              " --payload-sigma " + bad);
+    EXPECT_NE(run.exit_code, 0) << bad;
+    EXPECT_NE(run.err.find("payload"), std::string::npos) << bad << ": " << run.err;
+    EXPECT_FALSE(fs::exists(dir_ / "bad.json")) << bad;
+  }
+  const RunResult good = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
+                             " --payload-sigma 0.002");
+  EXPECT_EQ(good.exit_code, 0) << good.err;
+}
+
 TEST_F(MapCliTest, MissingOutputAndBadVerbAreErrors) {
   EXPECT_NE(Run("map build " + dir_.string()).exit_code, 0);
   const RunResult verb = Run("map frobnicate");
