@@ -63,15 +63,24 @@ std::string Args::Require(const std::string& name) const {
   return *value;
 }
 
+namespace {
+
+// The whole of `text` as a finite number (strtod), or nullopt.
+std::optional<double> ParseFinite(const std::string& text) {
+  char* end = nullptr;
+  errno = 0;
+  const double x = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || errno != 0 || !std::isfinite(x)) return std::nullopt;
+  return x;
+}
+
+}  // namespace
+
 std::optional<double> Args::GetDouble(const std::string& name) const {
   const auto value = Get(name);
   if (!value) return std::nullopt;
-  char* end = nullptr;
-  errno = 0;
-  const double x = std::strtod(value->c_str(), &end);
-  if (value->empty() || *end != '\0' || errno != 0 || !std::isfinite(x)) {
-    throw std::invalid_argument("option --" + name + ": expected a finite number, got '" + *value + "'");
-  }
+  const std::optional<double> x = ParseFinite(*value);
+  if (!x) throw std::invalid_argument("option --" + name + ": expected a finite number, got '" + *value + "'");
   return x;
 }
 
@@ -82,15 +91,13 @@ std::optional<std::vector<double>> Args::GetDoubleList(const std::string& name) 
   size_t begin = 0;
   while (true) {
     const size_t comma = value->find(',', begin);
-    const std::string item = value->substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
-    char* end = nullptr;
-    errno = 0;
-    const double x = std::strtod(item.c_str(), &end);
-    if (item.empty() || *end != '\0' || errno != 0 || !std::isfinite(x)) {
+    const std::optional<double> x =
+        ParseFinite(value->substr(begin, comma == std::string::npos ? std::string::npos : comma - begin));
+    if (!x) {
       throw std::invalid_argument("option --" + name + ": expected comma-separated finite numbers, got '" + *value +
                                   "'");
     }
-    numbers.push_back(x);
+    numbers.push_back(*x);
     if (comma == std::string::npos) return numbers;
     begin = comma + 1;
   }
