@@ -1,9 +1,7 @@
 // `waymark dataset info DIR`: validates a dataset directory (core/dataset_io.h) and prints a
 // summary to stdout. Warnings counted while reading are summarized on stdout; their first
 // messages go to stderr. Bad input: one line on stderr naming the file (and line), exit 1.
-#include <iomanip>
 #include <iostream>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -32,12 +30,6 @@ Options:
   --strict   also exit 1 when warnings were counted (rejected detections, unknown keys,
              missing images, markers without a size)
 )";
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << value;
-  return out.str();
-}
 
 // "297 poses over 29.599 s, 1 markers", or "absent".
 std::string TruthText(const std::optional<Trajectory>& trajectory, const std::optional<MarkerMap>& map) {

@@ -138,12 +138,6 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-std::string Fixed(double value, int digits) {
-  char text[64];
-  std::snprintf(text, sizeof(text), "%.*f", digits, value);
-  return text;
-}
-
 // Detects the codes of every image of `dataset` and makes them its detections.
 long DetectImages(Dataset* dataset, const std::vector<std::string>& families) {
   const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(families);

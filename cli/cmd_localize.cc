@@ -4,12 +4,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <iomanip>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -77,12 +75,6 @@ Options:
 const std::set<std::string> kValues = {"map",      "out",          "mode", "predicted", "poses", "families",
                                        "odometry-time-offset", "late-frame-window"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << value;
-  return out.str();
-}
 
 LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
   LocalizeRunOptions options;

@@ -5,11 +5,9 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
-#include <iomanip>
 #include <iostream>
 #include <map>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -198,12 +196,6 @@ void WriteOutputs(const Args& args, const MapBuildResult& result) {
   }
   if (const auto path = args.Get("report")) files.emplace_back(*path, ReportJson(result).dump(1) + "\n");
   for (const auto& [path, text] : files) AtomicWriteFile(path, text);
-}
-
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << value;
-  return out.str();
 }
 
 // What `waymark eval` would measure against the truth, predicted from the map's covariances

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <exception>
 #include <iostream>
 #include <string>
@@ -45,6 +46,12 @@ const Command* FindCommand(const std::string& name) {
 CommandRegistrar::CommandRegistrar(Command command) { Registry().push_back(std::move(command)); }
 
 bool StderrIsTerminal() { return isatty(STDERR_FILENO) == 1; }
+
+std::string Fixed(double value, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.*f", digits, value);
+  return text;
+}
 
 }  // namespace waymark::cli
 
