@@ -63,10 +63,8 @@ Initialization AtTruth(const sim::SimResult& sim, const Survey& survey, Initiali
     }
   }
   for (size_t m = 0; m < survey.markers.size(); ++m) {
-    if (!init.T_world_marker[m]) continue;
-    for (const MapMarker& truth : sim.dataset.groundtruth_markers->markers) {
-      if (truth.key == survey.markers[m].key) init.T_world_marker[m] = truth.T_world_marker;
-    }
+    const MapMarker* truth = sim.dataset.groundtruth_markers->Find(survey.markers[m].key);
+    if (init.T_world_marker[m] && truth != nullptr) init.T_world_marker[m] = truth->T_world_marker;
   }
   return init;
 }
@@ -112,14 +110,13 @@ nlohmann::json AnchoredErrors(const MarkerMap& map, const MarkerMap& truth) {
   double sum_sq = 0.0, sum_trace = 0.0;
   size_t n = 0, with_covariance = 0;
   for (const MapMarker& m : map.markers) {
-    for (const MapMarker& t : truth.markers) {
-      if (t.key != m.key) continue;
-      sum_sq += (m.T_world_marker.translation() - t.T_world_marker.translation()).squaredNorm();
-      ++n;
-      if (m.covariance) {
-        sum_trace += m.covariance->bottomRightCorner<3, 3>().trace();
-        ++with_covariance;
-      }
+    const MapMarker* t = truth.Find(m.key);
+    if (t == nullptr) continue;
+    sum_sq += (m.T_world_marker.translation() - t->T_world_marker.translation()).squaredNorm();
+    ++n;
+    if (m.covariance) {
+      sum_trace += m.covariance->bottomRightCorner<3, 3>().trace();
+      ++with_covariance;
     }
   }
   const double rms = n ? std::sqrt(sum_sq / n) : 0.0;
