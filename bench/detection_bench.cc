@@ -28,11 +28,11 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/detect_common.h"
-#include "core/detect_synthetic.h"
-#include "core/detect_zxing.h"
-#include "core/detector.h"
-#include "core/io_util.h"
+#include "detect/common.h"
+#include "detect/synthetic.h"
+#include "detect/zxing.h"
+#include "detect/detector.h"
+#include "io/util.h"
 
 namespace waymark {
 namespace {

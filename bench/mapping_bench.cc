@@ -8,7 +8,7 @@
 //   bench_mapping_bench [--quick] [--seeds N] [--max-path M] [--out bench/results/mapping.json]
 // Quick: 6 seeds, loop paths of 10, 40 and 160 m. Full: 24 seeds, loop paths 10 m .. 1 km
 // (the 1 km loop: about 2000 codes and 150 000 corner observations); --max-path M skips longer loops.
-// Prints a table and writes the JSON atomically (core/io_util.h).
+// Prints a table and writes the JSON atomically (io/util.h).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -20,7 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/io_util.h"
+#include "io/util.h"
 #include "eval/map_metrics.h"
 #include "mapping/map_builder.h"
 #include "mapping/survey.h"

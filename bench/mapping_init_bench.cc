@@ -12,7 +12,7 @@
 // the truth's frame): a build that lands on the same map from both starts is at the optimum of
 // its cost, and what error remains is the survey's information, not the initialization.
 // Default: the 1 km loop (about 2000 codes, 33 000 frames), 1 thread. Prints the figures and,
-// with --out, writes them as JSON atomically (core/io_util.h).
+// with --out, writes them as JSON atomically (io/util.h).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -23,7 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/io_util.h"
+#include "io/util.h"
 #include "eval/map_metrics.h"
 #include "mapping/id_consistency.h"
 #include "mapping/map_builder.h"
@@ -59,7 +59,7 @@ sim::SimResult SimulateLoop(const Settings& s) {
 Initialization AtTruth(const sim::SimResult& sim, const Survey& survey, Initialization init) {
   for (size_t f = 0; f < survey.frames.size(); ++f) {
     if (init.T_world_robot[f]) {
-      init.T_world_robot[f] = InterpolatePose(*sim.dataset.groundtruth_trajectory, survey.frames[f].stamp_s, 1.0);
+      init.T_world_robot[f] = InterpolateTrajectory(*sim.dataset.groundtruth_trajectory, survey.frames[f].stamp_s, 1.0);
     }
   }
   for (size_t m = 0; m < survey.markers.size(); ++m) {

@@ -3,10 +3,10 @@
 //   Localizer on the run against that learned map (so the map covariance is real) -> eval.
 //
 // Studies:
-//   table1    seed 000's Table 1 on sim `corridor` at d = 1, 2, 4 m (place.spacing_m): PE and TE
+//   table1    [Bach]'s Table 1 on sim `corridor` at d = 1, 2, 4 m (place.spacing_m): PE and TE
 //             (eq. 15: the pose just before each correction, against the truth) and the ATE, for
 //             odometry alone (first pose on the truth, evo's --align origin), the loosely coupled
-//             EKF (seed 000), ours (tight corners) and offline smoothing (BuildMap's trajectory of
+//             EKF ([Bach]), ours (tight corners) and offline smoothing (BuildMap's trajectory of
 //             the run itself). For odometry and smoothing, PE/TE are their errors at the camera
 //             frames that saw a code. Filters and smoothing are not aligned (map frame = world).
 //             Control rows: both filters against the true map (no covariance), which shows the
@@ -21,7 +21,7 @@
 // Usage: bench_online_accuracy_bench [--quick] [--seeds N] [--table-runs N] [--only STUDY] [--out FILE]
 //   ablations: [--set KEY=VALUE]... (sim keys) [--heading-walk K] [--map-uncertainty consider|noise|ignore]
 //              [--attitude odometry|marker] [--spacing D] (Table 1 at one spacing)
-//   default (full): 20 NEES seeds, 5 runs per Table-1 cell (seed 000's N = 5), 5 runs of each of
+//   default (full): 20 NEES seeds, 5 runs per Table-1 cell ([Bach]'s N = 5), 5 runs of each of
 //   the other scenarios; --quick: 4, 2 and 1. Prints the tables and writes
 //   bench/results/online_accuracy.json (or --out).
 #include <Eigen/Cholesky>
@@ -38,7 +38,7 @@
 #include <string>
 #include <vector>
 
-#include "core/io_util.h"
+#include "io/util.h"
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"
 #include "eval/trajectory_metrics.h"
@@ -260,7 +260,7 @@ MethodFigures Figures(const Trajectory& truth, const Trajectory& est, const eval
           evaluation.ate.translation_m.mean};
 }
 
-const char* kMethods[] = {"odometry",         "loose (seed 000)",          "ours (tight)",
+const char* kMethods[] = {"odometry",         "loose ([Bach])",          "ours (tight)",
                           "smoothing (offline)", "loose, true map (control)", "ours, true map (control)"};
 constexpr size_t kMethodCount = sizeof(kMethods) / sizeof(kMethods[0]);
 
@@ -336,7 +336,7 @@ NeesFigures MonteCarloNees(const std::vector<LocalizedRun>& runs, int dim) {
 
 Json Table1(const BenchOptions& options) {
   Json rows = Json::array();
-  std::printf("\n## Table 1 (seed 000) on sim corridor, %d runs per cell, map from another seed's survey\n\n",
+  std::printf("\n## Table 1 ([Bach]) on sim corridor, %d runs per cell, map from another seed's survey\n\n",
               options.table_runs);
   std::printf("| d (m) | method | PE (m) | TE (deg) | ATE RMSE (m) | ATE mean (m) |\n|---|---|---|---|---|---|\n");
   for (double spacing_m : {1.0, 2.0, 4.0}) {

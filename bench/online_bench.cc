@@ -29,11 +29,11 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/detector.h"
-#include "core/io_util.h"
+#include "geometry/camera.h"
+#include "detect/detector.h"
+#include "io/util.h"
 #include "online/localizer.h"
-#include "online/run.h"
+#include "runner/run.h"
 #include "sim/render.h"
 #include "sim/simulator.h"
 

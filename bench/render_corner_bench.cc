@@ -30,9 +30,9 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/detector.h"
-#include "core/io_util.h"
+#include "geometry/camera.h"
+#include "detect/detector.h"
+#include "io/util.h"
 #include "sim/render.h"
 #include "sim/test_scenes.h"
 #include "sim/world.h"

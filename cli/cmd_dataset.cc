@@ -1,4 +1,4 @@
-// `waymark dataset info DIR`: validates a dataset directory (core/dataset_io.h) and prints a
+// `waymark dataset info DIR`: validates a dataset directory (io/dataset_io.h) and prints a
 // summary to stdout. Warnings counted while reading are summarized on stdout; their first
 // messages go to stderr. Bad input: one line on stderr naming the file (and line), exit 1.
 #include <iostream>
@@ -7,9 +7,10 @@
 #include <vector>
 
 #include "cli/args.h"
+#include "util/format.h"
 #include "cli/command.h"
-#include "core/dataset_io.h"
-#include "core/types.h"
+#include "io/dataset_io.h"
+#include "geometry/types.h"
 
 namespace waymark::cli {
 namespace {
@@ -38,7 +39,7 @@ std::string TruthText(const std::optional<Trajectory>& trajectory, const std::op
   if (trajectory) {
     text += std::to_string(trajectory->size()) + " poses";
     if (trajectory->size() > 1)
-      text += " over " + Fixed(trajectory->back().stamp_s - trajectory->front().stamp_s, 3) + " s";
+      text += " over " + FormatFixed(trajectory->back().stamp_s - trajectory->front().stamp_s, 3) + " s";
   } else {
     text += "absent";
   }
@@ -73,8 +74,8 @@ void PrintSummary(const Dataset& dataset, std::ostream& out) {
                                 : "none")
       << "\n";
   if (dataset.has_odometry_file) {
-    out << "odometry: " << summary.odometry_poses << " poses, " << Fixed(summary.odometry_span_s, 3)
-        << " s, path " << Fixed(summary.odometry_path_length_m, 3) << " m (" << config.odometry_file << ")\n";
+    out << "odometry: " << summary.odometry_poses << " poses, " << FormatFixed(summary.odometry_span_s, 3)
+        << " s, path " << FormatFixed(summary.odometry_path_length_m, 3) << " m (" << config.odometry_file << ")\n";
   } else {
     out << "odometry: none\n";
   }

@@ -1,8 +1,8 @@
 // `waymark demo`: the whole pipeline on the small dataset shipped in data/demo/ (a rendered
 // survey and a separate run through the same place; scripts/make-demo-data.sh makes it):
-//   detect the survey's images (core/detector.h) -> learn the map (mapping/map_builder.h)
-//   -> detect the run's images -> localize the run twice on the same detections (online/run.h):
-//      seed 000's loosely coupled EKF and ours (the tight corner update)
+//   detect the survey's images (detect/detector.h) -> learn the map (mapping/map_builder.h)
+//   -> detect the run's images -> localize the run twice on the same detections (runner/run.h):
+//      [Bach]'s loosely coupled EKF and ours (the tight corner update)
 //   -> evaluate against the ground truth (eval/): the run's ATE for odometry alone, loose and
 //      ours; PE / TE of the poses predicted before each correction; the map's marker errors.
 // The table goes to stdout, a few progress lines to stderr; --out receives report.json,
@@ -24,20 +24,23 @@
 #include <vector>
 
 #include "cli/args.h"
+#include "util/format.h"
 #include "cli/command.h"
-#include "core/dataset_io.h"
-#include "core/detections_io.h"
-#include "core/detector.h"
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/dataset_io.h"
+#include "io/detections_io.h"
+#include "detect/detector.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 #include "eval/association.h"
+#include "eval/detection_check.h"
 #include "eval/map_metrics.h"
 #include "eval/report.h"
 #include "eval/svg_plot.h"
 #include "eval/trajectory_eval.h"
+#include "mapping/build_report.h"
 #include "mapping/map_builder.h"
-#include "online/run.h"
+#include "runner/run.h"
 
 namespace waymark::cli {
 namespace {
@@ -52,11 +55,11 @@ corridor loop and a separate run through the same place, both with ground truth)
   1. detect the codes in the survey's images
   2. learn the map of the codes (one Ceres optimization, as `waymark map build`)
   3. detect the codes in the run's images
-  4. localize the run against the map twice: seed 000's loosely coupled EKF, and ours (the
+  4. localize the run against the map twice: [Bach]'s loosely coupled EKF, and ours (the
      tightly coupled corner update), as `waymark localize --mode loose|tight`
   5. evaluate against the ground truth: the run's ATE (no alignment: the map's frame is the
      world's, through its anchor codes; odometry alone starts at the true pose), PE / TE of the
-     poses predicted just before each correction (seed 000), and the map's marker errors.
+     poses predicted just before each correction ([Bach]), and the map's marker errors.
 Prints the accuracy table on stdout and progress on stderr.
 
 Options:
@@ -163,61 +166,12 @@ long DetectImages(Dataset* dataset, const std::vector<std::string>& families) {
   return codes;
 }
 
-// Detections against the exact corners of groundtruth/corners.jsonl (when the dataset has it):
-// of the codes whose shortest side is at least kCheckMinSidePx, how many were read with their
-// id in the same image; of those, the median corner error (the largest of a code's four) and
-// how many are off by more than kCheckGrossPx (a corner refinement gone wrong).
-constexpr double kCheckMinSidePx = 20.0;
-constexpr double kCheckGrossPx = 2.0;
-
-struct DetectionCheck {
-  long codes_in_view = 0;
-  long read = 0;
-  std::vector<double> worst_corner_px;  // per code read
-  long Gross() const {
-    return std::count_if(worst_corner_px.begin(), worst_corner_px.end(),
-                         [](double e) { return e > kCheckGrossPx; });
-  }
-  double Median() const {
-    std::vector<double> sorted = worst_corner_px;
-    std::sort(sorted.begin(), sorted.end());
-    return sorted.empty() ? 0.0 : sorted[sorted.size() / 2];
-  }
-};
-
-double ShortestSide(const std::array<Eigen::Vector2d, 4>& corners) {
-  double side = (corners[0] - corners[3]).norm();
-  for (int i = 0; i < 3; ++i) side = std::min(side, (corners[i + 1] - corners[i]).norm());
-  return side;
-}
-
-double WorstCornerError(const MarkerObservation& found, const MarkerObservation& truth) {
-  double worst = 0.0;
-  for (int i = 0; i < 4; ++i) worst = std::max(worst, (found.corners_px[i] - truth.corners_px[i]).norm());
-  return worst;
-}
-
-std::optional<DetectionCheck> CheckDetections(const Dataset& dataset) {
+// The detections of a rendered dataset against its exact corners (groundtruth/corners.jsonl);
+// nullopt when the dataset has none.
+std::optional<eval::DetectionCheck> CheckDetections(const Dataset& dataset) {
   const fs::path path = dataset.dir / "groundtruth" / "corners.jsonl";
   if (!fs::exists(path)) return std::nullopt;
-  std::map<std::pair<double, std::string>, const DetectionFrame*> detected;
-  for (const DetectionFrame& frame : dataset.detections) detected[{frame.stamp_s, frame.camera}] = &frame;
-  DetectionCheck check;
-  for (const DetectionFrame& truth : ReadDetections(path, nullptr, &dataset.cameras)) {
-    const auto it = detected.find({truth.stamp_s, truth.camera});
-    for (const MarkerObservation& code : truth.markers) {
-      if (ShortestSide(code.corners_px) < kCheckMinSidePx) continue;
-      ++check.codes_in_view;
-      if (it == detected.end()) continue;
-      const auto& found = it->second->markers;
-      const auto match = std::find_if(found.begin(), found.end(),
-                                      [&](const MarkerObservation& m) { return m.key == code.key; });
-      if (match == found.end()) continue;
-      ++check.read;
-      check.worst_corner_px.push_back(WorstCornerError(*match, code));
-    }
-  }
-  return check;
+  return eval::CheckDetections(dataset.detections, ReadDetections(path, nullptr, &dataset.cameras));
 }
 
 LocalizeRun Localize(const Dataset& run, const MarkerMap& map, CorrectionMode mode) {
@@ -298,7 +252,7 @@ struct DemoResult {
   std::vector<std::string> families;
   Dataset survey, run;
   long survey_codes = 0, run_codes = 0;
-  std::optional<DetectionCheck> survey_check, run_check;
+  std::optional<eval::DetectionCheck> survey_check, run_check;
   MapBuildResult map;
   eval::MapEvalResult map_eval;
   LocalizeRun loose, ours;
@@ -306,7 +260,7 @@ struct DemoResult {
   double seconds = 0.0;
 };
 
-std::string Mm(double metres) { return Fixed(1e3 * metres, 1) + " mm"; }
+std::string Mm(double metres) { return FormatFixed(1e3 * metres, 1) + " mm"; }
 
 // Text of the table cells of one method: ATE RMSE, ATE max, aligned ATE RMSE, PE mean, TE mean,
 // tracked.
@@ -315,8 +269,8 @@ std::vector<std::string> Cells(const Method& m) {
   std::vector<std::string> cells = {Mm(e.ate.translation_m.rmse), Mm(e.ate.translation_m.max),
                                     m.aligned ? Mm(m.aligned->ate.translation_m.rmse) : "-"};
   cells.push_back(e.pe_te ? Mm(e.pe_te->position_m.mean) : "-");
-  cells.push_back(e.pe_te ? Fixed(e.pe_te->heading_deg.mean, 2) + " deg" : "-");
-  cells.push_back(Fixed(100.0 * m.tracked_fraction, 1) + " %");
+  cells.push_back(e.pe_te ? FormatFixed(e.pe_te->heading_deg.mean, 2) + " deg" : "-");
+  cells.push_back(FormatFixed(100.0 * m.tracked_fraction, 1) + " %");
   return cells;
 }
 
@@ -327,37 +281,25 @@ std::string Pad(const std::string& text, size_t width, bool left = false) {
 }
 
 std::string DetectionLine(const DemoResult& r) {
-  DetectionCheck all;
+  eval::DetectionCheck all;
   for (const auto& check : {r.survey_check, r.run_check}) {
-    if (!check) continue;
-    all.codes_in_view += check->codes_in_view;
-    all.read += check->read;
-    all.worst_corner_px.insert(all.worst_corner_px.end(), check->worst_corner_px.begin(),
-                               check->worst_corner_px.end());
+    if (check) all.Add(*check);
   }
   if (all.codes_in_view == 0) return "";
   return "detection (survey and run images): " + std::to_string(all.read) + " of " +
-         std::to_string(all.codes_in_view) + " codes wider than " + Fixed(kCheckMinSidePx, 0) +
-         " px read; worst corner error median " + Fixed(all.Median(), 2) + " px, " +
-         std::to_string(all.Gross()) + " codes off by > " + Fixed(kCheckGrossPx, 0) + " px\n";
+         std::to_string(all.codes_in_view) + " codes wider than " + FormatFixed(all.options.min_side_px, 0) +
+         " px read; worst corner error median " + FormatFixed(all.MedianWorstCornerPx(), 2) + " px, " +
+         std::to_string(all.Gross()) + " codes off by > " + FormatFixed(all.options.gross_px, 0) + " px\n";
 }
 
 // The map's error against the truth, and what its covariances predicted for it without the truth
 // (eval::PredictMapError; pooled over the components by their code counts).
 std::string MapLine(const DemoResult& r) {
-  double predicted_sq = 0.0;
-  size_t predicted_codes = 0;
-  for (const eval::PredictedComponentError& p : eval::PredictMapError(r.map.map)) {
-    predicted_sq += static_cast<double>(p.markers) * p.aligned_rms_m * p.aligned_rms_m;
-    predicted_codes += p.markers;
-  }
-  const std::string predicted =
-      predicted_codes > 0 ? " (the map's covariances predicted " +
-                                Mm(std::sqrt(predicted_sq / static_cast<double>(predicted_codes))) + ")"
-                          : "";
+  const std::optional<double> predicted_m = eval::PooledAlignedRms(eval::PredictMapError(r.map.map));
+  const std::string predicted = predicted_m ? " (the map's covariances predicted " + Mm(*predicted_m) + ")" : "";
   return "map against the true code poses: " + std::to_string(r.map_eval.markers) + " codes, position RMSE " +
          Mm(r.map_eval.position_rmse_m) + predicted + ", orientation RMSE " +
-         Fixed(r.map_eval.orientation_rmse_deg, 2) + " deg\n";
+         FormatFixed(r.map_eval.orientation_rmse_deg, 2) + " deg\n";
 }
 
 std::string FormatTable(const DemoResult& r, const std::string& out_dir) {
@@ -365,7 +307,7 @@ std::string FormatTable(const DemoResult& r, const std::string& out_dir) {
   const Trajectory& gt = *r.run.groundtruth_trajectory;
   out << "waymark demo: survey " << r.survey.images.size() << " images, " << r.map.map.markers.size()
       << " codes mapped; run " << r.run.images.size() << " images, "
-      << Fixed(gt.back().stamp_s - gt.front().stamp_s, 1) << " s\n\n";
+      << FormatFixed(gt.back().stamp_s - gt.front().stamp_s, 1) << " s\n\n";
   const std::vector<std::string> header = {"ATE RMSE", "ATE max", "aligned", "PE mean", "TE mean", "tracked"};
   out << Pad("run against the true path", 30, true);
   for (const std::string& h : header) out << Pad(h, 11);
@@ -379,7 +321,7 @@ std::string FormatTable(const DemoResult& r, const std::string& out_dir) {
       << "ATE without alignment (the map's frame is the world's, through its anchor codes); odometry\n"
          "alone starts at the true pose. aligned: ATE RMSE after the best rotation about z and\n"
          "translation (se2), the path's shape alone. PE / TE: the pose predicted just before each\n"
-         "correction of ours (seed 000). Reports and plots: "
+         "correction of ours ([Bach]). Reports and plots: "
       << out_dir << "\n";
   return out.str();
 }
@@ -397,17 +339,17 @@ std::string FormatMarkdownTable(const DemoResult& r) {
   return out.str();
 }
 
-Json CheckToJson(const std::optional<DetectionCheck>& check) {
+Json CheckToJson(const std::optional<eval::DetectionCheck>& check) {
   if (!check) return nullptr;
-  return Json{{"min_side_px", kCheckMinSidePx},
+  return Json{{"min_side_px", check->options.min_side_px},
               {"codes_in_view", check->codes_in_view},
               {"read", check->read},
-              {"worst_corner_error_median_px", check->Median()},
-              {"gross_px", kCheckGrossPx},
+              {"worst_corner_error_median_px", check->MedianWorstCornerPx()},
+              {"gross_px", check->options.gross_px},
               {"gross", check->Gross()}};
 }
 
-Json DatasetToJson(const Dataset& dataset, long codes, const std::optional<DetectionCheck>& check) {
+Json DatasetToJson(const Dataset& dataset, long codes, const std::optional<eval::DetectionCheck>& check) {
   const Trajectory& gt = *dataset.groundtruth_trajectory;
   return Json{{"dir", dataset.dir.string()},
               {"images", dataset.images.size()},
@@ -528,7 +470,7 @@ void DetectAndMap(DemoResult* r) {
   Log("detecting the codes in " + std::to_string(r->survey.images.size()) + " survey images");
   r->survey_codes = DetectImages(&r->survey, r->families);
   r->survey_check = CheckDetections(r->survey);
-  Log(std::to_string(r->survey_codes) + " codes detected in " + Fixed(SecondsSince(start), 1) + " s");
+  Log(std::to_string(r->survey_codes) + " codes detected in " + FormatFixed(SecondsSince(start), 1) + " s");
   start = std::chrono::steady_clock::now();
   Log("learning the map (Ceres)");
   MapBuildOptions options;
@@ -536,7 +478,7 @@ void DetectAndMap(DemoResult* r) {
   r->map = BuildMap(r->survey, options);
   EndProgress();
   r->map_eval = eval::EvaluateMap(r->map.map, *r->survey.groundtruth_markers);
-  Log(std::to_string(r->map.map.markers.size()) + " codes mapped in " + Fixed(SecondsSince(start), 1) + " s");
+  Log(std::to_string(r->map.map.markers.size()) + " codes mapped in " + FormatFixed(SecondsSince(start), 1) + " s");
 }
 
 void DetectAndLocalize(DemoResult* r) {
@@ -544,12 +486,12 @@ void DetectAndLocalize(DemoResult* r) {
   Log("detecting the codes in " + std::to_string(r->run.images.size()) + " run images");
   r->run_codes = DetectImages(&r->run, r->families);
   r->run_check = CheckDetections(r->run);
-  Log(std::to_string(r->run_codes) + " codes detected in " + Fixed(SecondsSince(start), 1) + " s");
+  Log(std::to_string(r->run_codes) + " codes detected in " + FormatFixed(SecondsSince(start), 1) + " s");
   start = std::chrono::steady_clock::now();
   Log("localizing the run against the map: loosely coupled EKF, then ours (tight)");
   r->loose = Localize(r->run, r->map.map, CorrectionMode::kLoosePose);
   r->ours = Localize(r->run, r->map.map, CorrectionMode::kTightCorners);
-  Log("localized twice in " + Fixed(SecondsSince(start), 1) + " s");
+  Log("localized twice in " + FormatFixed(SecondsSince(start), 1) + " s");
   const Trajectory& gt = *r->run.groundtruth_trajectory;
   r->methods.push_back(EvaluateOdometry(gt, r->run.odometry, r->ours.predicted));
   r->methods.push_back(EvaluateLocalizer("loose", "loosely coupled EKF", gt, r->loose));
@@ -580,7 +522,7 @@ int RunDemo(const std::vector<std::string>& argv) {
   const auto files = RenderOutputs(r, table);
   for (const auto& [name, contents] : files) AtomicWriteFile(fs::path(out_dir) / name, contents);
   std::cout << table;
-  Log("done in " + Fixed(r.seconds, 1) + " s; " + std::to_string(files.size()) + " files in " + out_dir);
+  Log("done in " + FormatFixed(r.seconds, 1) + " s; " + std::to_string(files.size()) + " files in " + out_dir);
   return 0;
 }
 

@@ -1,6 +1,6 @@
-// `waymark detect INPUT --out detections.jsonl`: runs the code detectors (core/detector.h)
+// `waymark detect INPUT --out detections.jsonl`: runs the code detectors (detect/detector.h)
 // on an image, a directory of images, a dataset directory (its images.csv) or a video,
-// and writes detections.jsonl (core/detections_io.h) atomically: one line per image or
+// and writes detections.jsonl (io/detections_io.h) atomically: one line per image or
 // frame. Progress goes to stderr on a terminal; a per-frame timing summary at the end.
 #include <algorithm>
 #include <chrono>
@@ -24,14 +24,15 @@
 #include <opencv2/videoio.hpp>
 
 #include "cli/args.h"
+#include "util/stats.h"
 #include "cli/command.h"
 #include "cli/dataset_detect.h"
-#include "core/camera_io.h"
-#include "core/dataset_io.h"
-#include "core/detect_common.h"
-#include "core/detections_io.h"
-#include "core/detector.h"
-#include "core/io_util.h"
+#include "io/camera_io.h"
+#include "io/dataset_io.h"
+#include "detect/common.h"
+#include "io/detections_io.h"
+#include "detect/detector.h"
+#include "io/util.h"
 
 namespace waymark::cli {
 namespace {
@@ -43,7 +44,7 @@ constexpr const char* kUsage = R"(Usage:
                  [--families qr,datamatrix,apriltag-36h11] [--annotate DIR]
                  [--budget-ms 8] [--apriltag-decimate 4]
 
-Detects printed codes and writes one JSON line per image or video frame (DESIGN.md
+Detects printed codes and writes one JSON line per image or video frame (docs/design.md
 detections.jsonl; frames without codes get a line too). INPUT is
   - an image file: one line with "image": INPUT;
   - a directory of images (.png .jpg .jpeg .bmp .tif .tiff .webp .pgm .ppm), by name;
@@ -102,12 +103,10 @@ struct Timing {
     std::vector<double> sorted = frame_ms;
     std::sort(sorted.begin(), sorted.end());
     const double mean = std::accumulate(sorted.begin(), sorted.end(), 0.0) / std::max<size_t>(sorted.size(), 1);
-    const double median = sorted.empty() ? 0.0 : sorted[sorted.size() / 2];
-    std::ostringstream out;
-    out << std::fixed << std::setprecision(1) << "detect: " << sorted.size() << " frames, " << markers
-        << " markers; detection time per frame: mean " << mean << " ms, median " << median << " ms, max "
-        << (sorted.empty() ? 0.0 : sorted.back()) << " ms";
-    return out.str();
+    const double median = sorted.empty() ? 0.0 : QuantileOfSorted(sorted, 0.5);
+    return "detect: " + std::to_string(sorted.size()) + " frames, " + std::to_string(markers) +
+           " markers; detection time per frame: mean " + FormatFixed(mean, 1) + " ms, median " + FormatFixed(median, 1) +
+           " ms, max " + FormatFixed(sorted.empty() ? 0.0 : sorted.back(), 1) + " ms";
   }
 };
 

@@ -1,5 +1,5 @@
 // `waymark eval`: trajectory and map accuracy against ground truth. Parses arguments, reads
-// the files (core/tum_io.h, core/map_io.h), calls eval/ and writes the reports atomically.
+// the files (io/tum_io.h, io/map_io.h), calls eval/ and writes the reports atomically.
 // The math and its definitions are in eval/ and docs/evaluation.md.
 #include <cstdio>
 #include <filesystem>
@@ -10,9 +10,9 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 #include "eval/map_metrics.h"
 #include "eval/report.h"
 #include "eval/svg_plot.h"
@@ -40,7 +40,7 @@ Trajectory options:
   --rpe-delta N      also compute the RPE over N frames or N metres (evo's consecutive pairs)
   --rpe-unit U       frames (default) or m
   --predicted FILE   poses predicted just before each marker correction (TUM): PE / TE of
-                     seed 000, not aligned (map frame = world frame) unless --align-predicted
+                     [Bach], not aligned (map frame = world frame) unless --align-predicted
   --align-predicted  move the predicted poses by the estimate's alignment first
   --markers FILE     estimated markers to draw in the plot (moved by the trajectory alignment)
 Map options:

@@ -1,5 +1,5 @@
-// `waymark localize`: the online localizer on a dataset (online/run.h's RunLocalizer) or, with
-// --live, on JSON lines read from stdin (online/run.h's LocalizeStream). This file parses
+// `waymark localize`: the online localizer on a dataset (runner/run.h's RunLocalizer) or, with
+// --live, on JSON lines read from stdin (runner/run.h's LocalizeStream). This file parses
 // arguments and input lines, writes the outputs and prints the summary; no math.
 #include <algorithm>
 #include <chrono>
@@ -13,13 +13,16 @@
 #include <vector>
 
 #include "cli/args.h"
+#include "util/stats.h"
+#include "util/format.h"
 #include "cli/command.h"
-#include "core/dataset_io.h"
-#include "core/detections_io.h"
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
-#include "online/run.h"
+#include "io/dataset_io.h"
+#include "io/detections_io.h"
+#include "io/util.h"
+#include "io/json_util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
+#include "runner/run.h"
 
 namespace waymark::cli {
 namespace {
@@ -38,7 +41,7 @@ Dataset mode reads DATASET's odometry.tum and detections.jsonl (or, with --detec
 images.csv) and writes:
   --out FILE          tracked poses T_world_robot, one per camera instant while tracking (TUM)
   --predicted FILE    the pose predicted just before each correcting frame (TUM), for
-                      `waymark eval --predicted` (seed 000's PE and TE)
+                      `waymark eval --predicted` ([Bach]'s PE and TE)
   --poses FILE        one JSON line per camera frame: stamp, camera, status (tracking, suspect,
                       lost, uninitialized), pose and covariance while tracking, the frame's
                       accepted, gated and unknown codes and its latency (docs/formats.md)
@@ -59,7 +62,7 @@ stderr with its line number, counted and skipped; the counts go to stderr at the
 
 Options:
   --map FILE          the map (map.json format), required
-  --mode MODE         tight (the four corners, default) or loose (seed 000's single-code pose)
+  --mode MODE         tight (the four corners, default) or loose ([Bach]'s single-code pose)
   --detect-images     detect the codes on DATASET's images (images.csv) instead of reading
                       detections.jsonl; the detection time counts in the latency
   --families LIST     families to detect (default: those of the map's codes), e.g.
@@ -106,11 +109,9 @@ std::string LatencyLine(std::vector<double> latency_ms) {
   std::sort(latency_ms.begin(), latency_ms.end());
   double sum = 0.0;
   for (double ms : latency_ms) sum += ms;
-  const auto quantile = [&](double q) {
-    return latency_ms[std::min(latency_ms.size() - 1, static_cast<size_t>(q * latency_ms.size()))];
-  };
-  return "latency per frame (ms): mean " + Fixed(sum / latency_ms.size(), 3) + ", median " +
-         Fixed(quantile(0.5), 3) + ", p99 " + Fixed(quantile(0.99), 3) + ", max " + Fixed(latency_ms.back(), 3);
+  return "latency per frame (ms): mean " + FormatFixed(sum / latency_ms.size(), 3) + ", median " +
+         FormatFixed(QuantileOfSorted(latency_ms, 0.5), 3) + ", p99 " + FormatFixed(QuantileOfSorted(latency_ms, 0.99), 3) +
+         ", max " + FormatFixed(latency_ms.back(), 3);
 }
 
 void PrintSummary(const LocalizeRun& run, std::ostream& out) {
@@ -119,7 +120,7 @@ void PrintSummary(const LocalizeRun& run, std::ostream& out) {
   const LocalizerCounters& c = run.counters;
   const double percent = run.outputs.empty() ? 0.0 : 100.0 * tracking / run.outputs.size();
   out << "frames: " << run.outputs.size() << " (" << run.frames_with_codes << " with codes, "
-      << run.frames_with_map_codes << " with codes of the map), tracking " << Fixed(percent, 1) << " % ("
+      << run.frames_with_map_codes << " with codes of the map), tracking " << FormatFixed(percent, 1) << " % ("
       << run.trajectory.size() << " poses)\n"
       << "corrections: accepted " << c.accepted << ", gated " << c.gated << ", unknown codes " << c.unknown_markers
       << ", not usable " << c.not_usable << "\n"

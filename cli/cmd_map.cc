@@ -15,14 +15,17 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/args.h"
+#include "util/stats.h"
+#include "util/format.h"
 #include "cli/command.h"
 #include "cli/dataset_detect.h"
-#include "core/dataset_io.h"
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/dataset_io.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 #include "eval/map_metrics.h"
-#include "mapping/calibrated_odometry_factor.h"
+#include "factors/calibrated_odometry_factor.h"
+#include "mapping/build_report.h"
 #include "mapping/map_builder.h"
 #include "mapping/map_merge.h"
 
@@ -205,8 +208,8 @@ void PrintPredictedError(const MarkerMap& map) {
   if (predictions.empty()) return;
   std::cout << "expected marker position error (from the covariance; what `waymark eval` would measure):\n";
   for (const eval::PredictedComponentError& p : predictions) {
-    std::cout << "  component " << p.component << ": " << Fixed(1e3 * p.aligned_rms_m, 1)
-              << " mm RMS after alignment, " << Fixed(1e3 * p.rms_m, 1) << " mm in the map's frame"
+    std::cout << "  component " << p.component << ": " << FormatFixed(1e3 * p.aligned_rms_m, 1)
+              << " mm RMS after alignment, " << FormatFixed(1e3 * p.rms_m, 1) << " mm in the map's frame"
               << (p.joint ? "" : " (markers taken as independent: no covariance factor)") << "\n";
   }
 }
@@ -278,8 +281,8 @@ int RunInfo(const std::vector<std::string>& argv) {
   std::cout << "\ncovariance: " << sigma_mm.size() << " markers";
   if (!sigma_mm.empty()) {
     std::sort(sigma_mm.begin(), sigma_mm.end());
-    std::cout << ", position sigma (sqrt of the trace) median " << Fixed(sigma_mm[sigma_mm.size() / 2], 2)
-              << " mm, max " << Fixed(sigma_mm.back(), 2) << " mm";
+    std::cout << ", position sigma (sqrt of the trace) median " << FormatFixed(QuantileOfSorted(sigma_mm, 0.5), 2)
+              << " mm, max " << FormatFixed(sigma_mm.back(), 2) << " mm";
   }
   std::cout << "\n";
   PrintPredictedError(map);

@@ -1,7 +1,6 @@
 // `waymark map score`: the reprojection error of a solution (a map and, optionally, a
 // trajectory) on a dataset's corner observations, so that two systems are compared on the same
 // observations. The math is in mapping/map_score.h; this file parses arguments and reports.
-#include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -11,11 +10,12 @@
 #include <vector>
 
 #include "cli/args.h"
+#include "util/format.h"
 #include "cli/command.h"
-#include "core/dataset_io.h"
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/dataset_io.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 #include "mapping/map_score.h"
 
 namespace waymark::cli {
@@ -48,11 +48,7 @@ Options:
 const std::set<std::string> kValues = {"map", "trajectory", "stamp-tolerance", "json", "out-map"};
 const std::set<std::string> kFlags = {"solve-missing-markers", "line"};
 
-std::string Mm(double metres) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(2) << 1e3 * metres;
-  return out.str();
-}
+std::string Mm(double metres) { return FormatFixed(1e3 * metres, 2); }
 
 nlohmann::json StatsJson(const ReprojectionStats& s) {
   return {{"name", s.name},

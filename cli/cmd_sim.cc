@@ -37,7 +37,7 @@ std::string Usage() {
          "                   [--render [--render-every N]]\n"
          "       waymark sim SCENARIO --print-config [--config FILE.yaml] [--set key=value ...]\n"
          "       waymark sim list\n\n"
-         "Writes a dataset directory (DESIGN.md) with detections, odometry and exact ground truth.\n"
+         "Writes a dataset directory (docs/design.md) with detections, odometry and exact ground truth.\n"
          "The place (codes, walls, path) is fixed by the scenario and its keys; --seed draws only the\n"
          "noise, so two seeds are two runs through the same place (a survey and a run to localize).\n\n"
          "Options:\n"

@@ -30,7 +30,5 @@ struct CommandRegistrar {
 // True when stderr is a terminal: progress is shown there and nowhere else.
 bool StderrIsTerminal();
 
-// `value` with `digits` decimals ("%.*f"), for the commands' tables and summaries.
-std::string Fixed(double value, int digits);
 
 }  // namespace waymark::cli

@@ -8,8 +8,8 @@
 
 #include <opencv2/core/mat.hpp>
 
-#include "core/dataset_io.h"
-#include "core/detector.h"
+#include "io/dataset_io.h"
+#include "detect/detector.h"
 
 namespace waymark::cli {
 

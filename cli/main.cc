@@ -47,12 +47,6 @@ CommandRegistrar::CommandRegistrar(Command command) { Registry().push_back(std::
 
 bool StderrIsTerminal() { return isatty(STDERR_FILENO) == 1; }
 
-std::string Fixed(double value, int digits) {
-  char text[64];
-  std::snprintf(text, sizeof(text), "%.*f", digits, value);
-  return text;
-}
-
 }  // namespace waymark::cli
 
 int main(int argc, char** argv) {

@@ -34,7 +34,7 @@
 
 #include <Eigen/Core>
 
-#include "core/types.h"
+#include "geometry/types.h"
 
 namespace waymark::eval {
 

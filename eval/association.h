@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "core/types.h"
+#include "geometry/types.h"
 
 namespace waymark::eval {
 

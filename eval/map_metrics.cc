@@ -247,4 +247,15 @@ std::vector<PredictedComponentError> PredictMapError(const MarkerMap& map) {
   return predictions;
 }
 
+std::optional<double> PooledAlignedRms(const std::vector<PredictedComponentError>& components) {
+  double sum_sq = 0.0;
+  size_t markers = 0;
+  for (const PredictedComponentError& c : components) {
+    sum_sq += static_cast<double>(c.markers) * c.aligned_rms_m * c.aligned_rms_m;
+    markers += c.markers;
+  }
+  if (markers == 0) return std::nullopt;
+  return std::sqrt(sum_sq / static_cast<double>(markers));
+}
+
 }  // namespace waymark::eval

@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "eval/alignment.h"
 
 namespace waymark::eval {
@@ -98,6 +98,9 @@ struct PredictedComponentError {
   double aligned_rms_m = 0.0;  // after the rigid alignment
 };
 std::vector<PredictedComponentError> PredictMapError(const MarkerMap& map);
+// The predicted aligned RMS of the whole map: the components' aligned_rms_m pooled by their
+// marker counts, sqrt(sum n_c rms_c^2 / sum n_c); nullopt when no component has a prediction.
+std::optional<double> PooledAlignedRms(const std::vector<PredictedComponentError>& components);
 
 // The pose-based fit of the header comment; exposed for tests. Sizes equal and >= 1.
 Sim3Alignment AlignByPoses(const std::vector<SE3d>& T_est_marker, const std::vector<SE3d>& T_gt_marker);

@@ -1,4 +1,5 @@
 #include "eval/report.h"
+#include "util/format.h"
 
 #include <cstdio>
 #include <sstream>
@@ -7,12 +8,6 @@ namespace waymark::eval {
 namespace {
 
 using json = Json;
-
-std::string Fixed(double value, int digits = 4) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, value);
-  return buffer;
-}
 
 json MatrixToJson(const Eigen::Matrix3d& R) {
   json rows = json::array();
@@ -37,17 +32,17 @@ json AlignmentToJson(const Sim3Alignment& alignment) {
 // "| name | rmse | mean | median | std | min | max | n |" row of a Markdown table.
 std::string MarkdownRow(const std::string& name, const ErrorStats& s, int digits) {
   std::ostringstream row;
-  row << "| " << name << " | " << Fixed(s.rmse, digits) << " | " << Fixed(s.mean, digits) << " | "
-      << Fixed(s.median, digits) << " | " << Fixed(s.std, digits) << " | " << Fixed(s.min, digits) << " | "
-      << Fixed(s.max, digits) << " | " << s.count << " |\n";
+  row << "| " << name << " | " << FormatFixed(s.rmse, digits) << " | " << FormatFixed(s.mean, digits) << " | "
+      << FormatFixed(s.median, digits) << " | " << FormatFixed(s.std, digits) << " | " << FormatFixed(s.min, digits) << " | "
+      << FormatFixed(s.max, digits) << " | " << s.count << " |\n";
   return row.str();
 }
 
 std::string TableLine(const std::string& name, const ErrorStats& s, int digits) {
   char buffer[256];
   std::snprintf(buffer, sizeof(buffer), "%-22s %10s %10s %10s %10s %10s %6zu\n", name.c_str(),
-                Fixed(s.rmse, digits).c_str(), Fixed(s.mean, digits).c_str(), Fixed(s.median, digits).c_str(),
-                Fixed(s.std, digits).c_str(), Fixed(s.max, digits).c_str(), s.count);
+                FormatFixed(s.rmse, digits).c_str(), FormatFixed(s.mean, digits).c_str(), FormatFixed(s.median, digits).c_str(),
+                FormatFixed(s.std, digits).c_str(), FormatFixed(s.max, digits).c_str(), s.count);
   return buffer;
 }
 
@@ -59,7 +54,7 @@ std::string TrajectoryMarkdown(const EvalReportInput& input) {
      << "- ground truth: `" << input.gt_path << "` (" << e.gt_poses << " poses)\n"
      << "- associated pairs: " << e.ate.translation_m.count << " (max-dt " << e.options.max_dt_s << " s)\n"
      << "- alignment: " << AlignmentModeName(e.options.align) << (e.options.scale ? " with scale" : "")
-     << " (scale " << Fixed(e.alignment.scale, 6) << ")\n\n"
+     << " (scale " << FormatFixed(e.alignment.scale, 6) << ")\n\n"
      << "| metric | rmse | mean | median | std | min | max | n |\n|---|---|---|---|---|---|---|---|\n"
      << MarkdownRow("ATE translation (m)", e.ate.translation_m, 4)
      << MarkdownRow("ATE rotation (deg)", e.ate.rotation_deg, 3)
@@ -67,7 +62,7 @@ std::string TrajectoryMarkdown(const EvalReportInput& input) {
      << MarkdownRow("abs. error z (m)", e.ate.axes.z_m, 4)
      << MarkdownRow("abs. error yaw (deg)", e.ate.axes.yaw_deg, 3);
   if (e.rpe) {
-    const std::string delta = Fixed(e.rpe->options.delta, e.rpe->options.unit == RpeUnit::kFrames ? 0 : 3) +
+    const std::string delta = FormatFixed(e.rpe->options.delta, e.rpe->options.unit == RpeUnit::kFrames ? 0 : 3) +
                               " " + RpeUnitName(e.rpe->options.unit);
     md << MarkdownRow("RPE translation (m) / " + delta, e.rpe->translation_m, 4)
        << MarkdownRow("RPE rotation (deg) / " + delta, e.rpe->rotation_deg, 3);
@@ -81,8 +76,8 @@ std::string TrajectoryMarkdown(const EvalReportInput& input) {
     md << "PE/TE: predicted poses from `" << input.predicted_path << "` (" << e.predicted_poses << " poses, "
        << e.pe_te->position_m.count << " correction instants), "
        << (e.options.align_predicted ? "aligned like the estimate" : "not aligned (map frame = world frame)")
-       << "; PE = " << Fixed(e.pe_te->position_m.mean, 4) << " m, TE = " << Fixed(e.pe_te->heading_deg.mean, 3)
-       << " deg (means over the instants, seed 000 eq. 15).\n";
+       << "; PE = " << FormatFixed(e.pe_te->position_m.mean, 4) << " m, TE = " << FormatFixed(e.pe_te->heading_deg.mean, 3)
+       << " deg (means over the instants, [Bach] eq. 15).\n";
   }
   return md.str();
 }
@@ -91,18 +86,18 @@ std::string MapMarkdown(const EvalReportInput& input) {
   const MapEvalResult& m = *input.map;
   std::ostringstream md;
   md << "## Map\n\n- estimate: `" << input.map_path << "`\n- ground truth: `" << input.gt_map_path << "`\n"
-     << "- matched markers: " << m.markers << "; position RMS " << Fixed(m.position_rmse_m, 4)
-     << " m; orientation RMS " << Fixed(m.orientation_rmse_deg, 3) << " deg\n\n"
+     << "- matched markers: " << m.markers << "; position RMS " << FormatFixed(m.position_rmse_m, 4)
+     << " m; orientation RMS " << FormatFixed(m.orientation_rmse_deg, 3) << " deg\n\n"
      << "| component | markers | aligned by | position RMS (m) | orientation RMS (deg) |\n|---|---|---|---|---|\n";
   for (const ComponentResult& c : m.components) {
     md << "| " << c.component << " | " << c.markers << " of " << c.markers_total << " | "
-       << MapAlignmentMethodName(c.method) << " | " << (c.markers > 0 ? Fixed(c.position_rmse_m, 4) : "n/a") << " | "
-       << (c.markers > 0 ? Fixed(c.orientation_rmse_deg, 3) : "n/a") << " |\n";
+       << MapAlignmentMethodName(c.method) << " | " << (c.markers > 0 ? FormatFixed(c.position_rmse_m, 4) : "n/a") << " | "
+       << (c.markers > 0 ? FormatFixed(c.orientation_rmse_deg, 3) : "n/a") << " |\n";
   }
   md << "\n| marker | component | position error (m) | orientation error (deg) |\n|---|---|---|---|\n";
   for (const MarkerError& e : m.per_marker) {
-    md << "| `" << e.key.ToString() << "` | " << e.component << " | " << Fixed(e.position_error_m, 4) << " | "
-       << Fixed(e.orientation_error_deg, 3) << " |\n";
+    md << "| `" << e.key.ToString() << "` | " << e.component << " | " << FormatFixed(e.position_error_m, 4) << " | "
+       << FormatFixed(e.orientation_error_deg, 3) << " |\n";
   }
   const auto list = [&md](const char* title, const std::vector<MarkerKey>& keys) {
     if (keys.empty()) return;
@@ -236,8 +231,8 @@ std::string EvalSummaryTable(const EvalReportInput& input) {
   if (const MapEvalResult* m = input.map) {
     char line[256];
     std::snprintf(line, sizeof(line), "%-22s %10s %50zu\n%-22s %10s %50zu\n", "map position (m)",
-                  Fixed(m->position_rmse_m, 4).c_str(), m->markers, "map orient (deg)",
-                  Fixed(m->orientation_rmse_deg, 3).c_str(), m->markers);
+                  FormatFixed(m->position_rmse_m, 4).c_str(), m->markers, "map orient (deg)",
+                  FormatFixed(m->orientation_rmse_deg, 3).c_str(), m->markers);
     out += line;
     if (!m->missing_in_estimate.empty() || !m->missing_in_groundtruth.empty()) {
       out += "markers missing from the estimate: " + std::to_string(m->missing_in_estimate.size()) +

@@ -1,6 +1,6 @@
 // Reports of an evaluation: JSON (machine-readable, the contract other tools read), a
 // Markdown summary, and the short table printed to stdout. Pure functions returning
-// strings / JSON values; the CLI writes them (atomically, core/io_util.h).
+// strings / JSON values; the CLI writes them (atomically, io/util.h).
 //
 // JSON layout (docs/evaluation.md has every field):
 //   {"ate": {"rmse", "mean", "median", "std", "min", "max", "sse", "pairs", "unit": "m",

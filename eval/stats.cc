@@ -1,4 +1,5 @@
 #include "eval/stats.h"
+#include "util/stats.h"
 
 #include <algorithm>
 #include <cmath>
@@ -27,8 +28,7 @@ ErrorStats ComputeStats(const std::vector<double>& errors) {
   std::sort(sorted.begin(), sorted.end());
   stats.min = sorted.front();
   stats.max = sorted.back();
-  const size_t mid = sorted.size() / 2;
-  stats.median = sorted.size() % 2 == 1 ? sorted[mid] : 0.5 * (sorted[mid - 1] + sorted[mid]);
+  stats.median = QuantileOfSorted(sorted, 0.5);
   return stats;
 }
 

@@ -1,4 +1,5 @@
 #include "eval/svg_plot.h"
+#include "util/format.h"
 
 #include <algorithm>
 #include <cmath>
@@ -17,17 +18,9 @@ constexpr double kTopViewTopPx = 50.0, kTopViewHeightPx = 460.0;
 constexpr double kErrorTopPx = 570.0, kErrorHeightPx = 200.0;
 constexpr size_t kMaxPolylinePoints = 4000;
 
-std::string Num(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.2f", value);
-  return buffer;
-}
+std::string Num(double value) { return FormatFixed(value, 2); }
 
-std::string Label(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%g", std::abs(value) < 1e-12 ? 0.0 : value);
-  return buffer;
-}
+std::string Label(double value) { return FormatSignificant(std::abs(value) < 1e-12 ? 0.0 : value, 6); }
 
 std::string Escape(const std::string& text) {
   std::string out;

@@ -13,7 +13,7 @@
 
 #include <Eigen/Core>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"
 

@@ -1,4 +1,5 @@
 #include "eval/trajectory_eval.h"
+#include "util/check.h"
 
 #include <cmath>
 #include <stdexcept>
@@ -6,11 +7,9 @@
 namespace waymark::eval {
 
 bool TrajectoryEvalOptions::Check(std::string* why) const {
-  if (!std::isfinite(max_dt_s) || max_dt_s < 0.0) {
-    *why = "max-dt must be a finite number >= 0 s";
-    return false;
-  }
-  return !rpe || rpe->Check(why);
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_dt_s, 0.0), "max-dt must be a finite number >= 0 s");
+  WAYMARK_CHECK_OPTION(!rpe || rpe->Check(why), nullptr);
+  return true;
 }
 
 TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,

@@ -10,7 +10,7 @@
 
 #include <optional>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "eval/alignment.h"
 #include "eval/association.h"
 #include "eval/trajectory_metrics.h"

@@ -1,4 +1,5 @@
 #include "eval/trajectory_metrics.h"
+#include "util/check.h"
 
 #include <cmath>
 #include <sstream>
@@ -60,14 +61,8 @@ RpeUnit ParseRpeUnit(const std::string& name) {
 }
 
 bool RpeOptions::Check(std::string* why) const {
-  if (!std::isfinite(delta) || delta <= 0.0) {
-    *why = "RPE delta must be a positive number";
-    return false;
-  }
-  if (unit == RpeUnit::kFrames && delta != std::floor(delta)) {
-    *why = "RPE delta in frames must be an integer";
-    return false;
-  }
+  WAYMARK_CHECK_OPTION(IsFinitePositive(delta), "RPE delta must be a positive number");
+  WAYMARK_CHECK_OPTION(unit != RpeUnit::kFrames || delta == std::floor(delta), "RPE delta in frames must be an integer");
   return true;
 }
 

@@ -13,12 +13,12 @@
 //   pairs by metres (delta d): walking the ESTIMATE, the path length is accumulated and an
 //     index is kept (and the sum reset) each time it reaches >= d; pairs are consecutive kept
 //     indices. As in evo, index 0 itself is never kept (its path is 0 < d).
-// PE / TE (seed 000, Bach et al., eq. 15), at each correction instant k, of the pose
+// PE / TE ([Bach], eq. 15), at each correction instant k, of the pose
 //   PREDICTED just before the correction (x^-_k, y^-_k, theta^-_k) against the truth:
 //   PE_k = sqrt((x^-_k - x_k)^2 + (y^-_k - y_k)^2)  (m),   TE_k = |wrap(theta^-_k - theta_k)| (deg)
 //   theta = yaw of the robot x axis about world z. Reported: their mean over the instants
 //   (the paper's PE/TE for one run) with the other statistics; the 3-D position error too.
-// Per-axis errors (seed 004's table), on the same pairs as the ATE, in the ground truth's world
+// Per-axis errors ([Kang]'s table), on the same pairs as the ATE, in the ground truth's world
 //   frame: |x_est - x_gt|, |y_est - y_gt|, |z_est - z_gt| (m), |wrap(yaw_est - yaw_gt)| (deg),
 //   yaw = atan2(R10, R00) (the heading of the robot x axis, as for TE). Reported: the mean
 //   absolute error per axis with the other statistics.
@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "eval/stats.h"
 
 namespace waymark::eval {

@@ -3,10 +3,10 @@
 //
 //   r = (1 / sigma_px) [ project(K, d, T_camera_marker * c_i) - z_i ]_{i = 0..3}   (8 residuals)
 //
-// c_i: the four corners in the marker frame, DESIGN.md order (top-left, top-right, bottom-right,
+// c_i: the four corners in the marker frame, docs/design.md order (top-left, top-right, bottom-right,
 //      bottom-left), from MarkerCorners(size_m);
 // z_i: the detected corners in pixels, same order; residual layout [u0 v0 u1 v1 u2 v2 u3 v3];
-// project: core/camera.h ProjectPoint with the camera's model, K = [fx fy cx cy], d = distortion.
+// project: geometry/camera.h ProjectPoint with the camera's model, K = [fx fy cx cy], d = distortion.
 // Whitening: the corner noise is isotropic, so the square-root information is I / sigma_px.
 //
 // Near and behind the camera the pinhole model is undefined (z_camera <= 0) or explodes, and a
@@ -31,8 +31,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/camera.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/types.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
 
@@ -109,7 +109,7 @@ class CornerObservation {
   static double CheckedSize(const CameraInfo& camera, double size_m) {
     if (!(std::isfinite(size_m) && size_m > 0.0)) {
       throw std::invalid_argument(Where(camera) + ": size_m must be finite and > 0, got " +
-                                  FormatNumber(size_m));
+                                  FormatDouble(size_m));
     }
     return size_m;
   }

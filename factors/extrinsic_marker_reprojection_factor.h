@@ -14,7 +14,9 @@
 //   T_world_robot  [qx qy qz qw tx ty tz]
 //   T_robot_camera [qx qy qz qw tx ty tz]
 //   T_world_marker [qx qy qz qw tx ty tz]
-// Behind the camera: returns false (see factors/corner_observation.h for why).
+// Near and behind the camera (depth < 10 cm): a finite penalty that grows as the corner moves
+// behind, continuous with the pinhole residual; false only for a non-finite depth (see
+// factors/corner_observation.h for why).
 #pragma once
 
 #include <ceres/autodiff_cost_function.h>
@@ -22,7 +24,7 @@
 #include <Eigen/Core>
 #include <array>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "factors/corner_observation.h"
 #include "factors/pose_block.h"
 

@@ -5,13 +5,15 @@
 //
 // Frames: world (z up), robot (x forward, z up), camera (OpenCV: x right, y down, z forward),
 // marker (origin at the symbol centre, z out of the face). c_i are the corners in the marker frame,
-// z_i the detected corners in pixels, both in DESIGN.md order; residual layout [u0 v0 ... u3 v3].
+// z_i the detected corners in pixels, both in docs/design.md order; residual layout [u0 v0 ... u3 v3].
 // T_robot_camera comes from the camera's yaml and is held constant here.
 //
 // Parameter blocks (factors/pose_block.h, manifold SE3Manifold for both):
 //   T_world_robot  [qx qy qz qw tx ty tz]
 //   T_world_marker [qx qy qz qw tx ty tz]
-// Behind the camera: returns false (see factors/corner_observation.h for why).
+// Near and behind the camera (depth < 10 cm): a finite penalty that grows as the corner moves
+// behind, continuous with the pinhole residual; false only for a non-finite depth (see
+// factors/corner_observation.h for why).
 #pragma once
 
 #include <ceres/autodiff_cost_function.h>
@@ -19,7 +21,7 @@
 #include <Eigen/Core>
 #include <array>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "factors/corner_observation.h"
 #include "factors/pose_block.h"
 

@@ -23,8 +23,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "factors/sqrt_information.h"
 
 namespace waymark {
@@ -41,7 +41,7 @@ inline void Check(const OdometrySigma& sigma, const OdometryNoiseFloor& floor) {
   const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!non_negative(sigma.trans_per_m) || !non_negative(sigma.rot_per_rad)) {
     throw std::invalid_argument("odometry_sigma: trans_per_m and rot_per_rad must be finite and >= 0, got " +
-                                FormatNumber(sigma.trans_per_m) + " and " + FormatNumber(sigma.rot_per_rad));
+                                FormatDouble(sigma.trans_per_m) + " and " + FormatDouble(sigma.rot_per_rad));
   }
   if (!positive(floor.sigma_m) || !positive(floor.sigma_rad)) {
     throw std::invalid_argument("odometry noise floor: sigma_m and sigma_rad must be finite and > 0");

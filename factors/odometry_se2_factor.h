@@ -1,7 +1,7 @@
 // Odometry between-factor in SE(2), for planar datasets.
 //
 //   T_a_b = T_world_robot_a^-1 * T_world_robot_b = (R(th_b - th_a), R(th_a)^T (t_b - t_a))
-//   delta = BoxMinus(M, T_a_b) = [R(th_M)^T (t_a_b - t_M), wrap(th_b - th_a - th_M)]  (core/geometry.h)
+//   delta = BoxMinus(M, T_a_b) = [R(th_M)^T (t_a_b - t_M), wrap(th_b - th_a - th_M)]  (geometry/pose.h)
 //   r     = S delta,   S = C^-1 with Sigma = C C^T        (3 residuals, order [x, y, theta])
 //
 // M = (t_M, th_M) is the measured increment T_odom_robot_a^-1 * T_odom_robot_b projected to the
@@ -19,7 +19,7 @@
 #include <Eigen/Core>
 #include <cmath>
 
-#include "core/geometry.h"
+#include "geometry/pose.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
 

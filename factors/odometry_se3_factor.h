@@ -1,7 +1,7 @@
 // Odometry between-factor in SE(3), for free (6-DoF) datasets.
 //
 //   T_a_b   = T_world_robot_a^-1 * T_world_robot_b            (the estimated increment)
-//   delta   = BoxMinus(M, T_a_b) = [Log(q_M^-1 q_a_b), R_M^T (t_a_b - t_M)]   (core/geometry.h)
+//   delta   = BoxMinus(M, T_a_b) = [Log(q_M^-1 q_a_b), R_M^T (t_a_b - t_M)]   (geometry/pose.h)
 //   r       = S delta,   S = C^-1 with Sigma = C C^T           (6 residuals, order [r, t])
 //
 // M = T_odom_robot_a^-1 * T_odom_robot_b is the measured increment (only increments of the
@@ -18,7 +18,7 @@
 
 #include <Eigen/Core>
 
-#include "core/geometry.h"
+#include "geometry/pose.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
 

@@ -9,7 +9,9 @@
 // Parameter blocks (factors/pose_block.h):
 //   T_world_robot  [x y theta]                  (Euclidean; theta enters only through cos/sin)
 //   T_world_marker [qx qy qz qw tx ty tz]       (SE3Manifold)
-// Behind the camera: returns false (see factors/corner_observation.h for why).
+// Near and behind the camera (depth < 10 cm): a finite penalty that grows as the corner moves
+// behind, continuous with the pinhole residual; false only for a non-finite depth (see
+// factors/corner_observation.h for why).
 #pragma once
 
 #include <ceres/autodiff_cost_function.h>
@@ -17,7 +19,7 @@
 #include <Eigen/Core>
 #include <array>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "factors/corner_observation.h"
 #include "factors/pose_block.h"
 

@@ -3,7 +3,7 @@
 //
 // SE(3) pose block, kSE3BlockSize = 7 doubles, one block per pose:
 //   [qx qy qz qw tx ty tz]  holding T_a_b (p_a = R(q) p_b + t),
-// quaternion in Eigen's storage order (x, y, z, w) as DESIGN.md requires; never ceres/rotation.h's
+// quaternion in Eigen's storage order (x, y, z, w) as docs/design.md requires; never ceres/rotation.h's
 // (w, x, y, z) helpers. Its manifold is SE3Manifold = ProductManifold<EigenQuaternionManifold,
 // EuclideanManifold<3>>. Blocks must hold unit quaternions (the manifold keeps them unit).
 //
@@ -12,7 +12,7 @@
 // It is lifted to 3-D at z = 0: T_world_robot = (Rz(theta), [x, y, 0]); the camera extrinsic
 // T_robot_camera carries the camera's fixed height and tilt.
 //
-// Residuals and covariances given to factors follow core/geometry.h: tangent order [r, t], right
+// Residuals and covariances given to factors follow geometry/pose.h: tangent order [r, t], right
 // perturbation in the body frame, T = T_hat * Exp(delta). Ceres' manifold steps differently
 // (left, half-angle rotation, world-frame translation):
 //   Plus([q, t], [m_r, m_t]) = ([cos|m_r|, sin|m_r| m_r/|m_r|] (x) q,  t + m_t),
@@ -28,7 +28,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-#include "core/geometry.h"
+#include "geometry/pose.h"
 
 namespace waymark {
 
@@ -122,7 +122,7 @@ T WrapAngleT(const T& angle_rad) {
 }
 
 // SO(3) logarithm (rotation vector, angle in [0, pi]) of a quaternion, as LogSO3 in
-// core/geometry.h. Invariant to the quaternion's scale. Below |v| = 1e-8 it uses the series
+// geometry/pose.h. Invariant to the quaternion's scale. Below |v| = 1e-8 it uses the series
 // 2 atan2(|v|, w) / |v| = 2 / w + O(|v|^2), so Jets stay finite at the identity.
 template <typename T>
 Vector3T<T> LogSO3T(const Eigen::Quaternion<T>& q_in) {
@@ -139,7 +139,7 @@ Vector3T<T> LogSO3T(const Eigen::Quaternion<T>& q_in) {
   return v * (T(2) / q.w());
 }
 
-// core/geometry.h's SE3d::BoxMinus on any scalar: the delta with T_a * Exp(delta) = T_b,
+// geometry/pose.h's SE3d::BoxMinus on any scalar: the delta with T_a * Exp(delta) = T_b,
 //   delta = [Log(q_a^-1 q_b), R_a^T (t_b - t_a)].
 template <typename T>
 Eigen::Matrix<T, 6, 1> BoxMinusT(const SE3T<T>& T_a, const SE3T<T>& T_b) {

@@ -1,7 +1,7 @@
 // SE(2) pose prior on a planar robot (e.g. the start pose that fixes the gauge of a survey
 // without anchors).
 //
-//   delta = BoxMinus(P, T) = [R(th_P)^T (t - t_P), wrap(th - th_P)]   (core/geometry.h)
+//   delta = BoxMinus(P, T) = [R(th_P)^T (t - t_P), wrap(th - th_P)]   (geometry/pose.h)
 //   r     = S delta,   S = C^-1 with Sigma = C C^T                    (3 residuals, order [x y theta])
 //
 // P = T_world_robot prior, T = the block's T_world_robot. Noise model: T = P * Exp(delta),
@@ -16,7 +16,7 @@
 #include <Eigen/Core>
 #include <cmath>
 
-#include "core/geometry.h"
+#include "geometry/pose.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
 

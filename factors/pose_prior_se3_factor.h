@@ -1,6 +1,6 @@
 // Full SE(3) pose prior, e.g. an anchor marker from markers.json held softly instead of fixed.
 //
-//   delta = BoxMinus(P, T) = [Log(q_P^-1 q), R_P^T (t - t_P)]        (core/geometry.h)
+//   delta = BoxMinus(P, T) = [Log(q_P^-1 q), R_P^T (t - t_P)]        (geometry/pose.h)
 //   r     = S delta,   S = C^-1 with Sigma = C C^T                   (6 residuals, order [r, t])
 //
 // P = T_world_x prior (x: the marker or robot frame), T = the block's T_world_x. Noise model:
@@ -15,7 +15,7 @@
 
 #include <Eigen/Core>
 
-#include "core/geometry.h"
+#include "geometry/pose.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
 

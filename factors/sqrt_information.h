@@ -7,6 +7,8 @@
 // information, Info = L L^T, as L r; that equals r^T Info r only when Info is diagonal.)
 #pragma once
 
+#include "util/format.h"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <cmath>
@@ -36,18 +38,11 @@ Eigen::Matrix<double, N, N> SqrtInformation(const Eigen::Matrix<double, N, N>& c
   return llt.matrixL().solve(identity);
 }
 
-// A number for an error message, 6 significant digits ("0.001", "1e-09", "nan").
-inline std::string FormatNumber(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
-
 // 1 / sigma for an isotropic noise; throws std::invalid_argument naming `what` unless sigma is
 // finite and positive.
 inline double InverseSigma(double sigma, const std::string& what) {
   if (!(std::isfinite(sigma) && sigma > 0.0)) {
-    throw std::invalid_argument(what + ": sigma must be finite and > 0, got " + FormatNumber(sigma));
+    throw std::invalid_argument(what + ": sigma must be finite and > 0, got " + FormatDouble(sigma));
   }
   return 1.0 / sigma;
 }

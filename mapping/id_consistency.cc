@@ -1,10 +1,11 @@
 #include "mapping/id_consistency.h"
+#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
 #include <optional>
 
-#include "core/marker_pose.h"
+#include "geometry/marker_pose.h"
 #include "mapping/residuals.h"
 
 namespace waymark {
@@ -97,15 +98,10 @@ int JudgeViews(const std::vector<OdomView>& views, const IdCheckOptions& options
 }  // namespace
 
 bool IdCheckOptions::Check(std::string* why) const {
-  const auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (!non_negative(base_gate_m) || !non_negative(drift_per_m) || !non_negative(range_fraction)) {
-    *why = "id check: base_gate_m, drift_per_m and range_fraction must be finite and >= 0";
-    return false;
-  }
-  if (max_reference_views < 1) {
-    *why = "id check: max_reference_views must be >= 1";
-    return false;
-  }
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(base_gate_m, 0.0) && IsFiniteAtLeast(drift_per_m, 0.0) &&
+                           IsFiniteAtLeast(range_fraction, 0.0),
+                       "id check: base_gate_m, drift_per_m and range_fraction must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(max_reference_views >= 1, "id check: max_reference_views must be >= 1");
   return true;
 }
 

@@ -5,7 +5,7 @@
 // trusted to within a distance that grows with the path travelled between them. Each usable
 // view o of a code gives the code's centre in the odometry frame,
 //   p_o = T_odom_robot(frame_o) * T_robot_camera * t_camera_marker,   r_o = |t_camera_marker|,
-// from the single-code pose (core/marker_pose.h; both IPPE solutions give nearly the same
+// from the single-code pose (geometry/marker_pose.h; both IPPE solutions give nearly the same
 // centre). Two views i, j of one code in one segment are consistent when
 //   |p_i - p_j| <= base_gate_m + drift_per_m * |L_i - L_j| + range_fraction * (r_i + r_j),
 // L = odometry path length from the segment's start to the view's frame. For each code and
@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
+#include "geometry/camera.h"
 #include "mapping/survey.h"
 
 namespace waymark {

@@ -1,6 +1,6 @@
 // Components and initial values for the global optimization.
 //
-// Single views. Every observation gets its single-code pose (core/marker_pose.h, IPPE with
+// Single views. Every observation gets its single-code pose (geometry/marker_pose.h, IPPE with
 // both solutions of the planar ambiguity): T_robot_marker = T_robot_camera * T_camera_marker.
 // Observations whose single view fails (degenerate quad, corner outside the field of view)
 // are rejected and counted.
@@ -37,8 +37,8 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/marker_pose.h"
+#include "geometry/camera.h"
+#include "geometry/marker_pose.h"
 #include "mapping/local_map_graph.h"
 #include "mapping/local_maps.h"
 #include "mapping/survey.h"
@@ -79,7 +79,7 @@ struct Initialization {
   std::vector<int> tree;                            // indices into `links`: the spanning forest
   std::vector<double> marker_link_quality;          // per marker: best quality of a link through it, 0 if none
   // The odometry's systematic errors estimated with the placement (mapping/local_map_graph.h):
-  // [k_rad_per_m, turn_scale, distance_scale] of mapping/calibrated_odometry_factor.h.
+  // [k_rad_per_m, turn_scale, distance_scale] of factors/calibrated_odometry_factor.h.
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   std::vector<std::string> notes;                   // facts for the build summary
 };

@@ -1,4 +1,6 @@
 #include "mapping/local_map_graph.h"
+#include "util/check.h"
+#include "util/format.h"
 
 #include <algorithm>
 #include <array>
@@ -14,7 +16,7 @@
 
 #include "factors/odometry_se3_factor.h"
 #include "factors/pose_block.h"
-#include "mapping/calibrated_odometry_factor.h"
+#include "factors/calibrated_odometry_factor.h"
 
 namespace waymark {
 namespace {
@@ -239,7 +241,7 @@ Stage SolveInstancesApart(const std::vector<LocalMap>& maps, const std::vector<L
 }
 
 // A chain's maps re-composed from their stage-1 increments with an extra heading drift dk
-// (rad/m), as the calibrated odometry bends an increment (mapping/calibrated_odometry_factor.h):
+// (rad/m), as the calibrated odometry bends an increment (factors/calibrated_odometry_factor.h):
 //   T_a_b' = (Rz(-dk d) R_a_b, Rz(-dk d / 2) t_a_b),  d = path_b - path_a.
 std::vector<SE3d> BendChain(const std::vector<LocalMap>& maps, const std::vector<int>& chain,
                             const std::vector<SE3d>& T_world_ref, double dk) {
@@ -403,34 +405,21 @@ Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage, c
 }  // namespace
 
 bool LocalMapGraphOptions::Check(std::string* why) const {
-  const auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (!(std::isfinite(inlier_chi2) && inlier_chi2 > 0.0)) {
-    *why = "local map graph: inlier_chi2 must be finite and > 0";
-    return false;
-  }
-  if (!non_negative(near_path_m) || !non_negative(gate_m) || !non_negative(gate_per_m) || !non_negative(gate_rad) ||
-      !non_negative(gate_rad_per_m)) {
-    *why = "local map graph: near_path_m and the gates must be finite and >= 0";
-    return false;
-  }
-  if (!(std::isfinite(calibration_sigma) && calibration_sigma > 0.0) ||
-      !(std::isfinite(odometry_floor_m) && odometry_floor_m > 0.0) ||
-      !(std::isfinite(odometry_floor_rad) && odometry_floor_rad > 0.0)) {
-    *why = "local map graph: calibration_sigma and the odometry floors must be finite and > 0";
-    return false;
-  }
-  if (given_calibration && !OdometryCalibrationValid(*given_calibration)) {
-    *why = "local map graph: " + std::string(kOdometryCalibrationRule);
-    return false;
-  }
-  if (given_calibration_sigma && (!given_calibration || !OdometryCalibrationSigmaValid(*given_calibration_sigma))) {
-    *why = "local map graph: given_calibration_sigma needs given_calibration, and must be three finite numbers > 0";
-    return false;
-  }
-  if (max_iterations < 1) {
-    *why = "local map graph: max_iterations must be >= 1";
-    return false;
-  }
+  WAYMARK_CHECK_OPTION(IsFinitePositive(inlier_chi2), "local map graph: inlier_chi2 must be finite and > 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(near_path_m, 0.0) && IsFiniteAtLeast(gate_m, 0.0) &&
+                           IsFiniteAtLeast(gate_per_m, 0.0) && IsFiniteAtLeast(gate_rad, 0.0) &&
+                           IsFiniteAtLeast(gate_rad_per_m, 0.0),
+                       "local map graph: near_path_m and the gates must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_sigma) && IsFinitePositive(odometry_floor_m) &&
+                           IsFinitePositive(odometry_floor_rad),
+                       "local map graph: calibration_sigma and the odometry floors must be finite and > 0");
+  WAYMARK_CHECK_OPTION(!given_calibration || OdometryCalibrationValid(*given_calibration),
+                       "local map graph: " + std::string(kOdometryCalibrationRule));
+  WAYMARK_CHECK_OPTION(!given_calibration_sigma ||
+                           (given_calibration && OdometryCalibrationSigmaValid(*given_calibration_sigma)),
+                       "local map graph: given_calibration_sigma needs given_calibration, and must be three finite "
+                       "numbers > 0");
+  WAYMARK_CHECK_OPTION(max_iterations >= 1, "local map graph: max_iterations must be >= 1");
   return true;
 }
 
@@ -486,15 +475,14 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
 }
 
 std::string DescribeLocalMapGraph(const LocalMapGraph& graph) {
-  std::ostringstream line;
-  line.precision(3);
-  line << "local map graph: " << graph.groups << " group(s) joined by odometry, " << graph.instances
-       << " code instances from " << graph.sightings << " sightings (" << graph.outlying_sightings
-       << " outlying), loop closures " << graph.closures_accepted << " accepted / " << graph.closures_rejected
-       << " rejected by the gate; odometry calibration k " << graph.odometry_calibration[0] * 180.0 / M_PI
-       << " deg/m, turn scale " << graph.odometry_calibration[1] << ", distance scale "
-       << graph.odometry_calibration[2];
-  return line.str();
+  const auto num = [](double value) { return FormatSignificant(value, 3); };
+  return "local map graph: " + std::to_string(graph.groups) + " group(s) joined by odometry, " +
+         std::to_string(graph.instances) + " code instances from " + std::to_string(graph.sightings) +
+         " sightings (" + std::to_string(graph.outlying_sightings) + " outlying), loop closures " +
+         std::to_string(graph.closures_accepted) + " accepted / " + std::to_string(graph.closures_rejected) +
+         " rejected by the gate; odometry calibration k " + num(graph.odometry_calibration[0] * 180.0 / M_PI) +
+         " deg/m, turn scale " + num(graph.odometry_calibration[1]) + ", distance scale " +
+         num(graph.odometry_calibration[2]);
 }
 
 }  // namespace waymark

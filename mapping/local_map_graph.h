@@ -20,7 +20,7 @@
 // pitch and height), c = [k_rad_per_m, turn_scale, distance_scale] shared by the odometry.
 // Factors:
 //   odometry links: r = S BoxMinus(C(M, c), T_world_refA^-1 T_world_refB)
-//                   (mapping/calibrated_odometry_factor.h; the links' summed odometry covariance,
+//                   (factors/calibrated_odometry_factor.h; the links' summed odometry covariance,
 //                   floored at odometry_floor_m / _rad);
 //   sightings:      r = S BoxMinus(T_ref_code, T_world_ref^-1 T_world_code)
 //                   (factors/odometry_se3_factor.h with the code as frame b; T_ref_code and its
@@ -72,7 +72,7 @@
 
 #include <Eigen/Core>
 
-#include "core/geometry.h"
+#include "geometry/pose.h"
 #include "mapping/local_maps.h"
 
 namespace waymark {

@@ -1,4 +1,5 @@
 #include "mapping/local_maps.h"
+#include "util/check.h"
 
 #include <algorithm>
 #include <array>
@@ -192,17 +193,12 @@ SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool 
 }
 
 bool LocalMapOptions::Check(std::string* why) const {
-  const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  if (!positive(max_travel_m) || !positive(max_turn_rad) || !positive(ambiguity_ratio) || !positive(flip_chi2) ||
-      !positive(cauchy_scale) || !positive(max_rms_sigma) || !positive(max_position_sigma_m) ||
-      !(std::isfinite(odometry_systematic) && odometry_systematic >= 0.0)) {
-    *why = "local map options must be finite and > 0 (odometry_systematic >= 0)";
-    return false;
-  }
-  if (max_frames < 1 || max_iterations < 1) {
-    *why = "local map max_frames and max_iterations must be >= 1";
-    return false;
-  }
+  WAYMARK_CHECK_OPTION(IsFinitePositive(max_travel_m) && IsFinitePositive(max_turn_rad) &&
+                           IsFinitePositive(ambiguity_ratio) && IsFinitePositive(flip_chi2) &&
+                           IsFinitePositive(cauchy_scale) && IsFinitePositive(max_rms_sigma) &&
+                           IsFinitePositive(max_position_sigma_m) && IsFiniteAtLeast(odometry_systematic, 0.0),
+                       "local map options must be finite and > 0 (odometry_systematic >= 0)");
+  WAYMARK_CHECK_OPTION(max_frames >= 1 && max_iterations >= 1, "local map max_frames and max_iterations must be >= 1");
   return true;
 }
 

@@ -1,4 +1,4 @@
-// Local maps (seed 003) and the links that stitch them.
+// Local maps ([George]) and the links that stitch them.
 //
 // Local map. A run of consecutive frames of one component, all joined by odometry, ending when
 // the odometry since its first frame (the reference, `ref`) has travelled more than
@@ -22,7 +22,7 @@
 // which ignores the frame poses; on sim rooms seeds 1..5 it left more codes flipped.)
 //   covariance = (sum_v w_v J_v^T J_v)^-1 * max(1, chi2 / (8 n - 6)), tangent [rx ry rz tx ty tz]
 // (w_v the Cauchy weights at the solution).
-// Variance-based rejection (seed 003 ignores codes whose corners vary too much): a code is
+// Variance-based rejection ([George] ignores codes whose corners vary too much): a code is
 // unstable in a map when its residual RMS per coordinate, sqrt(chi2 / (8 n)),
 // exceeds max_rms_sigma sigmas (views that disagree:
 // a moving or misread code) or when the predicted position sigma of the fused pose exceeds
@@ -55,8 +55,8 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/geometry.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
 #include "mapping/survey.h"
 
 namespace waymark {
@@ -71,7 +71,7 @@ struct LocalMapOptions {
   double max_travel_m = 0.5;
   double max_turn_rad = 1.6;       // about 90 degrees
   int max_frames = 60;
-  double ambiguity_ratio = 3.0;    // single-view gate (core/marker_pose.h)
+  double ambiguity_ratio = 3.0;    // single-view gate (geometry/marker_pose.h)
   double flip_chi2 = 9.0;          // fused gate: alt_chi2 - chi2 for a resolved flip
   double cauchy_scale = 3.0;       // whitened units
   double max_rms_sigma = 3.0;      // residual RMS per coordinate, in sigmas, above which a code is unstable

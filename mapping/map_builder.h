@@ -6,7 +6,7 @@
 //          planar_marker_reprojection_factor.h), whitened by the camera's pixel_sigma;
 // r_odo:   odometry between consecutive frames (factors/odometry_se2_factor.h / _se3_factor.h)
 //          with the covariance of mapping/survey.h, by default with the odometry's systematic
-//          errors estimated alongside (mapping/calibrated_odometry_factor.h);
+//          errors estimated alongside (factors/calibrated_odometry_factor.h);
 // r_prior: anchors of markers.json held fixed (`fixed`) or by a pose prior (a `covariance`);
 //          payload coordinates as position priors (payload_sigma_m) and yaw priors.
 // Gauge, per component: anchors, else payload priors (>= 2 positions for planar surveys;
@@ -31,7 +31,7 @@
 
 #include <Eigen/Core>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "mapping/id_consistency.h"
 #include "mapping/initializer.h"
 #include "mapping/survey.h"
@@ -53,7 +53,7 @@ struct MapBuildOptions {
   int min_frames = 2;            // codes seen in fewer frames are reported, not mapped
   double payload_sigma_m = 0.01;
   double payload_yaw_sigma_rad = 0.02;
-  // Estimate the odometry's systematic errors with the map (mapping/calibrated_odometry_factor.h),
+  // Estimate the odometry's systematic errors with the map (factors/calibrated_odometry_factor.h),
   // held near 0 by a prior of this sigma.
   bool calibrate_odometry = true;
   double calibration_sigma = 0.05;
@@ -129,7 +129,7 @@ struct MapBuildResult {
   std::string termination;               // Ceres' final termination type and message
   bool covariance_computed = false;
   // The odometry's systematic errors c = [k_rad_per_m, turn_scale, distance_scale]
-  // (mapping/calibrated_odometry_factor.h) of the final solve: estimated (from a given prior or
+  // (factors/calibrated_odometry_factor.h) of the final solve: estimated (from a given prior or
   // the default one), or held as given (odometry_calibration_given); nullopt when
   // calibrate_odometry is off or no odometry link entered the problem. The covariance of an
   // estimate, when the covariances were computed.
@@ -147,13 +147,5 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
 // carries what earlier stages reported.
 MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
                               MapBuildResult result = {});
-
-// The human summary: markers and components, reprojection RMS per camera, outliers, solver, the
-// odometry calibration.
-std::string FormatBuildSummary(const MapBuildResult& result);
-
-// One line: the odometry calibration in deg/m and percent (with its sigmas when known) and, when
-// estimated, the --odometry-calibration argument that reuses it; "" without one.
-std::string FormatOdometryCalibration(const MapBuildResult& result);
 
 }  // namespace waymark

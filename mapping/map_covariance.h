@@ -4,7 +4,7 @@
 // between markers. Neighbouring markers share the survey's drift, so their errors are strongly
 // correlated; a filter that takes them as independent averages the shared error away and grows
 // overconfident (docs/online.md, consistency). With n = 6 N marker tangent coordinates (right
-// perturbation, [r, t] per marker, core/geometry.h) the joint covariance is approximated as
+// perturbation, [r, t] per marker, geometry/pose.h) the joint covariance is approximated as
 //   Sigma ~ F F^T + blockdiag(D_i),   F = V_k Lambda_k^(1/2)   (n x k),   D_i = Sigma_ii - F_i F_i^T,
 // V_k, Lambda_k the k largest eigenpairs of Sigma (the long-wavelength drift modes), F_i the six
 // rows of marker i (map.json `covariance_factor`, docs/formats.md). Equivalently the marker error
@@ -33,8 +33,8 @@
 #include <optional>
 #include <vector>
 
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "mapping/marginal_covariance.h"
 
 namespace waymark {

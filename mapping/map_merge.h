@@ -11,7 +11,7 @@
 // number; other components get numbers after the map's largest.
 #pragma once
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "mapping/map_builder.h"
 
 namespace waymark {

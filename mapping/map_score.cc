@@ -1,4 +1,7 @@
 #include "mapping/map_score.h"
+#include "util/check.h"
+#include "util/stats.h"
+#include "util/format.h"
 
 #include <ceres/problem.h>
 #include <ceres/solver.h>
@@ -12,7 +15,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "core/camera.h"
+#include "geometry/camera.h"
 #include "factors/marker_reprojection_factor.h"
 #include "factors/pose_block.h"
 #include "mapping/initializer.h"
@@ -196,8 +199,7 @@ struct StatsAccumulator {
     if (rms.empty()) return stats;
     stats.rms_px = std::sqrt(sum_sq / (4.0 * static_cast<double>(rms.size())));
     std::sort(rms.begin(), rms.end());
-    const size_t n = rms.size();
-    stats.median_px = n % 2 == 1 ? rms[n / 2] : 0.5 * (rms[n / 2 - 1] + rms[n / 2]);
+    stats.median_px = QuantileOfSorted(rms, 0.5);
     stats.max_px = rms.back();
     return stats;
   }
@@ -249,28 +251,16 @@ MarkerMap MapWithSolved(const Survey& survey, const MarkerMap& map, const Poses&
   return out;
 }
 
-std::string Fixed(double value, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << value;
-  return out.str();
-}
-
 std::string StatsLine(const std::string& label, const ReprojectionStats& s) {
-  return "  " + label + ": RMS " + Fixed(s.rms_px, 3) + " px, median " + Fixed(s.median_px, 3) + " px, max " +
-         Fixed(s.max_px, 3) + " px over " + std::to_string(s.observations) + " observations\n";
+  return "  " + label + ": RMS " + FormatFixed(s.rms_px, 3) + " px, median " + FormatFixed(s.median_px, 3) + " px, max " +
+         FormatFixed(s.max_px, 3) + " px over " + std::to_string(s.observations) + " observations\n";
 }
 
 }  // namespace
 
 bool MapScoreOptions::Check(std::string* why) const {
-  if (!(stamp_tolerance_s >= 0.0) || !std::isfinite(stamp_tolerance_s)) {
-    *why = "stamp_tolerance_s must be finite and >= 0";
-    return false;
-  }
-  if (max_iterations < 1) {
-    *why = "max_iterations must be >= 1";
-    return false;
-  }
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(stamp_tolerance_s, 0.0), "stamp_tolerance_s must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(max_iterations >= 1, "max_iterations must be >= 1");
   return true;
 }
 

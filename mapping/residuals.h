@@ -11,7 +11,7 @@
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "factors/marker_reprojection_factor.h"
 #include "factors/planar_marker_reprojection_factor.h"
 #include "factors/pose_block.h"

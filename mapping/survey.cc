@@ -1,4 +1,5 @@
 #include "mapping/survey.h"
+#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,26 +8,15 @@
 #include <stdexcept>
 #include <utility>
 
-#include "core/camera.h"
-#include "core/marker_pose.h"
+#include "geometry/camera.h"
+#include "geometry/marker_pose.h"
 #include "factors/odometry_covariance.h"
+#include "util/format.h"
 
 namespace waymark {
 namespace {
 
-std::string Num(double value) {
-  std::ostringstream out;
-  out.precision(10);
-  out << value;
-  return out.str();
-}
-
-// Index of the last sample with stamp <= t, or -1.
-long SampleAtOrBefore(const Trajectory& trajectory, double t) {
-  const auto it = std::upper_bound(trajectory.begin(), trajectory.end(), t,
-                                   [](double s, const StampedSE3& p) { return s < p.stamp_s; });
-  return static_cast<long>(it - trajectory.begin()) - 1;
-}
+std::string Num(double value) { return FormatSignificant(value, 10); }
 
 // Segment number of every odometry sample: a new segment starts after each long gap.
 std::vector<int> OdometrySegments(const Trajectory& odometry, double max_gap_s,
@@ -144,7 +134,7 @@ struct OdometryClock {
   double offset_s = 0.0;
   double max_gap_s = 1.0;
 
-  std::optional<SE3d> PoseAt(double t) const { return InterpolatePose(odometry, t + offset_s, max_gap_s); }
+  std::optional<SE3d> PoseAt(double t) const { return InterpolateTrajectory(odometry, t + offset_s, max_gap_s); }
   int SegmentAt(double t) const {
     return sample_segment[std::max(0L, SampleAtOrBefore(odometry, t + offset_s))];
   }
@@ -390,27 +380,18 @@ void AttachOdometry(const Dataset& dataset, const IngestOptions& options, Survey
 }  // namespace
 
 bool IngestOptions::Check(std::string* why) const {
-  const auto finite_at_least = [](double v, double low) { return std::isfinite(v) && v >= low; };
-  const std::pair<bool, const char*> checks[] = {
-      {finite_at_least(stamp_merge_s, 0.0), "stamp_merge_s must be finite and >= 0"},
-      {max_odometry_gap_s > 0.0, "max_odometry_gap_s must be > 0"},
-      {finite_at_least(model_rot_per_m, 0.0), "model_rot_per_m must be finite and >= 0"},
-      {default_odometry_sigma.trans_per_m >= 0.0 && default_odometry_sigma.rot_per_rad >= 0.0,
-       "default odometry sigma must be >= 0"},
-      {finite_at_least(stamp_sigma_s, 0.0) && finite_at_least(unsynced_stamp_sigma_s, 0.0),
-       "stamp_sigma_s and unsynced_stamp_sigma_s must be finite and >= 0"},
-      {!odometry_time_offset_s || std::isfinite(*odometry_time_offset_s),
-       "odometry_time_offset_s must be finite"},
-      {finite_at_least(max_time_offset_s, 0.0), "max_time_offset_s must be finite and >= 0"},
-      {std::isfinite(offset_window_s) && offset_window_s > 0.0, "offset_window_s must be finite and > 0"},
-      {time_offset_min_gain >= 0.0 && time_offset_min_gain < 1.0, "time_offset_min_gain must be in [0, 1)"},
-  };
-  for (const auto& [ok, message] : checks) {
-    if (!ok) {
-      *why = message;
-      return false;
-    }
-  }
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(stamp_merge_s, 0.0), "stamp_merge_s must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(max_odometry_gap_s > 0.0, "max_odometry_gap_s must be > 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(model_rot_per_m, 0.0), "model_rot_per_m must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(default_odometry_sigma.trans_per_m >= 0.0 && default_odometry_sigma.rot_per_rad >= 0.0,
+                       "default odometry sigma must be >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(stamp_sigma_s, 0.0) && IsFiniteAtLeast(unsynced_stamp_sigma_s, 0.0),
+                       "stamp_sigma_s and unsynced_stamp_sigma_s must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(!odometry_time_offset_s || std::isfinite(*odometry_time_offset_s),
+                       "odometry_time_offset_s must be finite");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_time_offset_s, 0.0), "max_time_offset_s must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(offset_window_s), "offset_window_s must be finite and > 0");
+  WAYMARK_CHECK_OPTION(time_offset_min_gain >= 0.0 && time_offset_min_gain < 1.0, "time_offset_min_gain must be in [0, 1)");
   return true;
 }
 
@@ -419,19 +400,6 @@ int Survey::FindMarker(const MarkerKey& key) const {
     if (markers[i].key == key) return static_cast<int>(i);
   }
   return -1;
-}
-
-std::optional<SE3d> InterpolatePose(const Trajectory& trajectory, double stamp_s, double max_gap_s) {
-  const long i = SampleAtOrBefore(trajectory, stamp_s);
-  if (i < 0) return std::nullopt;
-  if (trajectory[i].stamp_s == stamp_s) return trajectory[i].T;
-  if (i + 1 >= static_cast<long>(trajectory.size())) return std::nullopt;
-  const StampedSE3& a = trajectory[i];
-  const StampedSE3& b = trajectory[i + 1];
-  if (b.stamp_s - a.stamp_s > max_gap_s) return std::nullopt;
-  const double s = (stamp_s - a.stamp_s) / (b.stamp_s - a.stamp_s);
-  const Eigen::Quaterniond q = a.T.rotation().slerp(s, b.T.rotation());
-  return SE3d(q, (1.0 - s) * a.T.translation() + s * b.T.translation());
 }
 
 std::optional<TimeOffsetEstimate> EstimateOdometryTimeOffset(const Survey& survey, const Trajectory& odometry,

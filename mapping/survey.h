@@ -1,4 +1,4 @@
-// Survey ingest: a Dataset (DESIGN.md) turned into the indexed problem mapping works on.
+// Survey ingest: a Dataset (docs/design.md) turned into the indexed problem mapping works on.
 //
 // Frames. One robot pose per distinct detection stamp: the cameras of one stamp share it
 // (stamps closer than IngestOptions::stamp_merge_s are one stamp). Every detection line
@@ -33,7 +33,7 @@
 // Time offset delta (odometry clock minus image clock). Given (IngestOptions::
 // odometry_time_offset_s), or estimated from the survey itself (estimate_time_offset): every
 // code seen in two frames a, b at most offset_window_s apart gives, from its single views
-// (core/marker_pose.h), the robot's displacement |p_b - p_a| in the code's frame and, when both
+// (geometry/marker_pose.h), the robot's displacement |p_b - p_a| in the code's frame and, when both
 // views are unambiguous, the rotation angle between the two robot poses; the odometry gives the
 // same two figures for M_a_b(delta). With the robust cost
 //   C(delta) = mean over the pairs of log(1 + (e_t / s_t)^2) + log(1 + (e_r / s_r)^2),
@@ -57,8 +57,8 @@
 #include <string>
 #include <vector>
 
-#include "core/payload.h"
-#include "core/types.h"
+#include "geometry/payload.h"
+#include "geometry/types.h"
 
 namespace waymark {
 
@@ -138,10 +138,6 @@ struct Survey {
 
 // Throws std::runtime_error on the errors of the header comment and on bad options.
 Survey IngestDataset(const Dataset& dataset, const IngestOptions& options = {});
-
-// T_odom_robot at `stamp_s`, interpolated between the samples around it; nullopt outside the
-// trajectory's span or when the samples around it are more than max_gap_s apart.
-std::optional<SE3d> InterpolatePose(const Trajectory& trajectory, double stamp_s, double max_gap_s);
 
 // The time offset estimate of the header comment.
 struct TimeOffsetEstimate {

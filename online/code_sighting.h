@@ -1,5 +1,5 @@
 // One code seen in one image, as the localizer consumes it: the detected corners plus the
-// code's single-image pose solutions (core/marker_pose.h), which initialization, the loosely
+// code's single-image pose solutions (geometry/marker_pose.h), which initialization, the loosely
 // coupled update and relocalization need. The tightly coupled update uses only the corners, so
 // Localizer::AddDetections leaves the pose unsolved (`solved` false) and the localizer solves
 // it only when one of those needs it.
@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/marker_pose.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/marker_pose.h"
+#include "geometry/types.h"
 
 namespace waymark {
 

@@ -52,8 +52,8 @@
 #include <optional>
 #include <vector>
 
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "online/status.h"
 
 namespace waymark {

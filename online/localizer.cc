@@ -1,4 +1,5 @@
 #include "online/localizer.h"
+#include "util/check.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -15,36 +16,27 @@ namespace waymark {
 LocalizerOptions::~LocalizerOptions() = default;
 
 bool LocalizerOptions::Check(std::string* why) const {
-  const auto fail = [why](const std::string& message) {
-    if (why) *why = "localizer options: " + message;
-    return false;
-  };
-  if (!odometry.Check(why)) return false;
-  if (!(gate_probability > 0.0 && gate_probability < 1.0)) return fail("gate_probability must be in (0, 1)");
-  if (!(default_pixel_sigma_px > 0.0) || !std::isfinite(default_pixel_sigma_px)) {
-    return fail("default_pixel_sigma_px must be finite and > 0");
-  }
-  if (loose_noise.size() != StateDim(motion)) {
-    return fail("loose_noise must have " + std::to_string(StateDim(motion)) +
-                " variances for this motion model");
-  }
-  if (!loose_noise.allFinite() || (loose_noise.array() <= 0.0).any())
-    return fail("loose_noise must be finite and > 0");
-  if (lost_after_rejected_frames < 1 || relocalize_after_agreeing < 1) {
-    return fail("lost_after_rejected_frames and relocalize_after_agreeing must be >= 1");
-  }
-  if (!(agree_trans_m > 0.0) || !(agree_rot_rad > 0.0) || !(max_position_sigma_m > 0.0)) {
-    return fail("agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
-  }
-  if (!(clear_max_rms_sigmas > 0.0) || !(clear_max_range_sizes > 0.0)) {
-    return fail("clear_max_rms_sigmas and clear_max_range_sizes must be > 0");
-  }
-  if (tight_iterations < 1) return fail("tight_iterations must be >= 1");
-  if (max_considered_markers < 1) return fail("max_considered_markers must be >= 1");
-  std::string marker_pose_why;
-  if (!marker_pose.Check(&marker_pose_why)) return fail(marker_pose_why);
-  std::string visibility_why;
-  if (!visibility.Check(&visibility_why)) return fail(visibility_why);
+  WAYMARK_CHECK_OPTION(odometry.Check(why), nullptr);
+  WAYMARK_CHECK_OPTION(gate_probability > 0.0 && gate_probability < 1.0,
+                       "localizer options: gate_probability must be in (0, 1)");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(default_pixel_sigma_px),
+                       "localizer options: default_pixel_sigma_px must be finite and > 0");
+  WAYMARK_CHECK_OPTION(loose_noise.size() == StateDim(motion),
+                       "localizer options: loose_noise must have " + std::to_string(StateDim(motion)) +
+                           " variances for this motion model");
+  WAYMARK_CHECK_OPTION(loose_noise.allFinite() && (loose_noise.array() > 0.0).all(),
+                       "localizer options: loose_noise must be finite and > 0");
+  WAYMARK_CHECK_OPTION(lost_after_rejected_frames >= 1 && relocalize_after_agreeing >= 1,
+                       "localizer options: lost_after_rejected_frames and relocalize_after_agreeing must be >= 1");
+  WAYMARK_CHECK_OPTION(agree_trans_m > 0.0 && agree_rot_rad > 0.0 && max_position_sigma_m > 0.0,
+                       "localizer options: agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
+  WAYMARK_CHECK_OPTION(clear_max_rms_sigmas > 0.0 && clear_max_range_sizes > 0.0,
+                       "localizer options: clear_max_rms_sigmas and clear_max_range_sizes must be > 0");
+  WAYMARK_CHECK_OPTION(tight_iterations >= 1, "localizer options: tight_iterations must be >= 1");
+  WAYMARK_CHECK_OPTION(max_considered_markers >= 1, "localizer options: max_considered_markers must be >= 1");
+  std::string nested_why;
+  WAYMARK_CHECK_OPTION(marker_pose.Check(&nested_why), "localizer options: " + nested_why);
+  WAYMARK_CHECK_OPTION(visibility.Check(&nested_why), "localizer options: " + nested_why);
   return true;
 }
 

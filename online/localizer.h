@@ -4,7 +4,7 @@
 // online/marker_measurement.h (H, R of both corrections).
 //
 // Corrections, each gated by NIS <= ChiSquareQuantile(gate_probability, dof):
-//   kLoosePose     seed 000's baseline: the code's single-image pose composed with the map is
+//   kLoosePose     [Bach]'s baseline: the code's single-image pose composed with the map is
 //                  the measurement, H = I, fixed noise `loose_noise` (dof 3 planar, 4 free).
 //   kTightCorners  ours: the four corners' pixels, H through the camera Jacobian, noise
 //                  sigma_px^2 I8, the marker's map error considered (Schmidt, ekf_state.h;
@@ -25,7 +25,7 @@
 //     cross-covariance with the marker's map error C_m = -A J_m Sigma_m. Both IPPE solutions of
 //     an ambiguous code fit to the same planar pose when the level decides between them: such
 //     a code initializes too. The relocalization hypotheses and the contradiction test use the
-//     same fit (the loose baseline keeps seed 000's single-image pose).
+//     same fit (the loose baseline keeps [Bach]'s single-image pose).
 //   kTracking -> kSuspect: a frame whose codes were all gated out and one of whose codes
 //     contradicts the track: every single-image robot pose of that code (both IPPE solutions
 //     when ambiguous) is farther from the state than agree_trans_m + 3 sigma_position or
@@ -71,9 +71,9 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "online/code_sighting.h"
 #include "online/ekf_state.h"
 #include "online/marker_measurement.h"
@@ -102,7 +102,7 @@ struct LocalizerOptions {
   double gate_probability = 0.997;      // chi-square gate of every correction
   int tight_iterations = 5;             // iterated EKF steps of the corner update (1: plain EKF)
   double default_pixel_sigma_px = 1.0;  // when CameraInfo::pixel_sigma is absent
-  // Seed 000's fixed G: variances of [x y theta] (planar) or [x y z yaw] (free).
+  // [Bach]'s fixed G: variances of [x y theta] (planar) or [x y z yaw] (free).
   Eigen::VectorXd loose_noise = Eigen::Vector3d::Constant(0.001);
   int lost_after_rejected_frames = 3;
   int relocalize_after_agreeing = 3;
@@ -193,7 +193,7 @@ class Localizer {
 
   // Odometry pose T_odom_robot at stamp_s; only increments between calls are used.
   StepStatus AddOdometry(double stamp_s, const SE3d& T_odom_robot);
-  // Planar only: the robot moved with (v, omega) since the previous input (seed 000, eq. 5).
+  // Planar only: the robot moved with (v, omega) since the previous input ([Bach], eq. 5).
   StepStatus AddVelocity(double stamp_s, double v_mps, double omega_radps);
   // Corrects with every code of the frame, in order.
   FrameResult AddFrame(const CameraFrame& frame);
@@ -210,7 +210,7 @@ class Localizer {
   double missed_codes_llr() const { return negative_.llr(); }
   // Free model: the odometry frame's estimated tilt (online/motion_model.h).
   const OdometryTilt& odometry_tilt() const { return odometry_tilt_; }
-  // The pose predicted just before each frame that corrected the state (seed 000's PE/TE):
+  // The pose predicted just before each frame that corrected the state ([Bach]'s PE/TE):
   // one entry per such frame, stamped with the frame.
   const Trajectory& predicted_before_correction() const { return predicted_before_correction_; }
 

@@ -1,18 +1,18 @@
 // Measurement models of the localizer: one code seen by one camera corrects the robot pose.
 // State conventions: online/ekf_state.h. Map marker covariance: right perturbation of
-// T_world_marker, tangent [rx ry rz tx ty tz] (DESIGN.md, core/geometry.h).
+// T_world_marker, tangent [rx ry rz tx ty tz] (docs/design.md, geometry/pose.h).
 //
-// (a) Loosely coupled, seed 000's baseline (eqs. 9-13). The code's single-image pose
+// (a) Loosely coupled, [Bach]'s baseline (eqs. 9-13). The code's single-image pose
 //     T_camera_marker gives a robot pose through the map,
 //       T_world_robot_code = T_world_marker * T_camera_marker^-1 * T_robot_camera^-1,
 //     z = PoseToStateVector(T_world_robot_code),  h(x) = x,  H = I,  y = z [-] x,
-//     R = fixed (seed 000: G = diag(0.001)).
+//     R = fixed ([Bach]: G = diag(0.001)).
 //
-// (b) Tightly coupled on the four corners (ours). For corner j (object point c_m, DESIGN.md order):
+// (b) Tightly coupled on the four corners (ours). For corner j (object point c_m, docs/design.md order):
 //       c_w = T_world_marker * c_m
 //       c_r = R_world_robot^T (c_w - t_world_robot)          (robot frame)
 //       c_c = T_camera_robot * c_r                            (camera frame, T_camera_robot =
-//       T_robot_camera^-1) h_j = project(c_c)                                    (core/camera.h, 2x3 Jacobian
+//       T_robot_camera^-1) h_j = project(c_c)                                    (geometry/camera.h, 2x3 Jacobian
 //       J_p)
 //     with R_world_robot = Rz(yaw) R_level and t_world_robot = [x, y, 0] (planar) or [x, y, z]:
 //       d c_r / d t_world_robot = -R_world_robot^T
@@ -29,9 +29,9 @@
 #include <Eigen/Core>
 #include <optional>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "online/ekf_state.h"
 
 namespace waymark {
@@ -49,7 +49,7 @@ struct CodeRobotPose {
 
 // T_world_robot = T_world_marker * T_camera_marker^-1 * T_robot_camera^-1 and its covariance
 //   J_code Sigma_code J_code^T + J_map Sigma_map J_map^T,
-// Sigma_code the 6x6 covariance of T_camera_marker (right perturbation, core/marker_pose.h),
+// Sigma_code the 6x6 covariance of T_camera_marker (right perturbation, geometry/marker_pose.h),
 // Sigma_map the marker's map covariance (zero when absent). With T_marker_robot = T_mc T_cr:
 //   d t_wr / d dr = R_wm Hat(t_mr),   d t_wr / d dt = -R_wm,   d phi_wr / d dr = -R_wm
 //   d t_wr / d er = -R_wm Hat(t_mr),  d t_wr / d et = R_wm,    d phi_wr / d er = R_wm
@@ -88,7 +88,7 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
 Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance,
                      const std::optional<Eigen::Matrix3d>& attitude_covariance = std::nullopt);
 
-// The 8-vector of detected corners, DESIGN.md order.
+// The 8-vector of detected corners, docs/design.md order.
 Vector8d StackCorners(const std::array<Eigen::Vector2d, 4>& corners_px);
 
 }  // namespace waymark

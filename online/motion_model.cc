@@ -1,4 +1,5 @@
 #include "online/motion_model.h"
+#include "util/check.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -17,23 +18,13 @@ double HeadingWalkVariance(const OdometryNoise& noise, double distance_m) {
 }  // namespace
 
 bool OdometryNoise::Check(std::string* why) const {
-  const auto fail = [why](const std::string& message) {
-    if (why) *why = message;
-    return false;
-  };
-  if (!(sigma.trans_per_m >= 0.0) || !std::isfinite(sigma.trans_per_m)) {
-    return fail("odometry noise: trans_per_m must be a finite number >= 0");
-  }
-  if (!(sigma.rot_per_rad >= 0.0) || !std::isfinite(sigma.rot_per_rad)) {
-    return fail("odometry noise: rot_per_rad must be a finite number >= 0");
-  }
-  if (!(heading_per_sqrt_m >= 0.0) || !std::isfinite(heading_per_sqrt_m)) {
-    return fail("odometry noise: heading_per_sqrt_m must be a finite number >= 0");
-  }
-  if (!(floor_trans_m > 0.0) || !(floor_rot_rad > 0.0) || !std::isfinite(floor_trans_m) ||
-      !std::isfinite(floor_rot_rad)) {
-    return fail("odometry noise: floor_trans_m and floor_rot_rad must be finite and > 0");
-  }
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sigma.trans_per_m, 0.0),
+                       "odometry noise: trans_per_m must be a finite number >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sigma.rot_per_rad, 0.0), "odometry noise: rot_per_rad must be a finite number >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(heading_per_sqrt_m, 0.0),
+                       "odometry noise: heading_per_sqrt_m must be a finite number >= 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(floor_trans_m) && IsFinitePositive(floor_rot_rad),
+                       "odometry noise: floor_trans_m and floor_rot_rad must be finite and > 0");
   return true;
 }
 

@@ -5,9 +5,9 @@
 //   x' = x + c dx - s dy,  y' = y + s dx + c dy,  theta' = theta + dtheta   (c, s of theta)
 //   F = [1 0 -s dx - c dy; 0 1 c dx - s dy; 0 0 1],   G = du: [c -s 0; s c 0; 0 0 1]
 //
-// Unicycle (seed 000, eq. 5), velocities (v, omega) held for T seconds, u = [d, a] = [v T, omega T]:
+// Unicycle ([Bach], eq. 5), velocities (v, omega) held for T seconds, u = [d, a] = [v T, omega T]:
 //   x' = x + d cos(theta + a/2),  y' = y + d sin(theta + a/2),  theta' = theta + a
-//   F = [1 0 -d sin(.); 0 1 d cos(.); 0 0 1]            (seed 000, eq. 8)
+//   F = [1 0 -d sin(.); 0 1 d cos(.); 0 0 1]            ([Bach], eq. 8)
 //   G = [cos(.) -d/2 sin(.); sin(.) d/2 cos(.); 0 1]
 //
 // Free odometry increment (6-DoF, state [x y z yaw], R = Rz(yaw) R_level), u = [dt (3), dphi (3)]
@@ -31,8 +31,8 @@
 
 #include <Eigen/Core>
 
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 
 namespace waymark {
 
@@ -61,7 +61,7 @@ struct MotionPrediction {
 MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment,
                                         const OdometryNoise& noise);
 
-// Seed 000's unicycle with velocities v (m/s) and omega (rad/s) over dt_s seconds.
+// [Bach]'s unicycle with velocities v (m/s) and omega (rad/s) over dt_s seconds.
 MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double omega_radps, double dt_s,
                                  const OdometryNoise& noise);
 

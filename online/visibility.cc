@@ -1,4 +1,5 @@
 #include "online/visibility.h"
+#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,23 +9,20 @@
 namespace waymark {
 
 bool VisibilityOptions::Check(std::string* why) const {
-  const auto fail = [why](const std::string& message) {
-    if (why) *why = "visibility options: " + message;
-    return false;
-  };
   const auto probability = [](double p) { return p > 0.0 && p < 1.0; };
-  if (!(min_code_px > 0.0) || !(max_range_m > 0.0) || !(border_px >= 0.0))
-    return fail("min_code_px and max_range_m must be > 0, border_px >= 0");
-  if (!(max_angle_deg > 0.0 && max_angle_deg < 90.0)) return fail("max_angle_deg must be in (0, 90)");
-  if (!(min_in_view >= 0.0 && min_in_view < 1.0)) return fail("min_in_view must be in [0, 1)");
-  if (!probability(max_detection_probability) || !(min_detection_probability >= 0.0) ||
-      !(min_detection_probability < max_detection_probability) || !probability(blind_onset_probability) ||
-      !probability(blind_stay_probability) || !probability(hit_probability_if_wrong))
-    return fail("probabilities must be in (0, 1)");
-  if (!(forget_trials >= 1.0) || !(code_prior_trials > 0.0) || !(decay_time_s > 0.0))
-    return fail("forget_trials must be >= 1, code_prior_trials and decay_time_s > 0");
-  if (!(suspect_llr > 0.0) || !(lost_llr >= suspect_llr) || !(learn_below_llr >= 0.0))
-    return fail("need 0 < suspect_llr <= lost_llr and learn_below_llr >= 0");
+  WAYMARK_CHECK_OPTION(min_code_px > 0.0 && max_range_m > 0.0 && border_px >= 0.0,
+                       "visibility options: min_code_px and max_range_m must be > 0, border_px >= 0");
+  WAYMARK_CHECK_OPTION(max_angle_deg > 0.0 && max_angle_deg < 90.0, "visibility options: max_angle_deg must be in (0, 90)");
+  WAYMARK_CHECK_OPTION(min_in_view >= 0.0 && min_in_view < 1.0, "visibility options: min_in_view must be in [0, 1)");
+  WAYMARK_CHECK_OPTION(probability(max_detection_probability) && min_detection_probability >= 0.0 &&
+                           min_detection_probability < max_detection_probability &&
+                           probability(blind_onset_probability) && probability(blind_stay_probability) &&
+                           probability(hit_probability_if_wrong),
+                       "visibility options: probabilities must be in (0, 1)");
+  WAYMARK_CHECK_OPTION(forget_trials >= 1.0 && code_prior_trials > 0.0 && decay_time_s > 0.0,
+                       "visibility options: forget_trials must be >= 1, code_prior_trials and decay_time_s > 0");
+  WAYMARK_CHECK_OPTION(suspect_llr > 0.0 && lost_llr >= suspect_llr && learn_below_llr >= 0.0,
+                       "visibility options: need 0 < suspect_llr <= lost_llr and learn_below_llr >= 0");
   return true;
 }
 

@@ -57,8 +57,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/types.h"
 #include "online/ekf_state.h"
 #include "online/marker_measurement.h"
 

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Seed 000's Table 1 end to end through the binary (the in-process twin, with Monte-Carlo runs,
+# [Bach]'s Table 1 end to end through the binary (the in-process twin, with Monte-Carlo runs,
 # is bench/online_accuracy_bench.cc). For each code spacing d = 1, 2, 4 m on sim `corridor`:
 #   survey (seed SEED + 1000) -> waymark map build -> map.json (with its covariance)
 #   run    (seed SEED)        -> odometry alone, waymark localize --mode loose / tight,
 #                                waymark map build --trajectory (offline smoothing of the run)
-#   -> waymark eval: PE and TE (seed 000, eq. 15) and the ATE against the run's ground truth.
+#   -> waymark eval: PE and TE ([Bach], eq. 15) and the ATE against the run's ground truth.
 # PE/TE: the pose just before each correction (`localize --predicted`) for the filters; for
 # odometry (first pose on the truth: --align origin) and smoothing, the pose at the camera
 # instants that saw a code. Filters and smoothing are not aligned: the map's anchors define the
@@ -51,7 +51,7 @@ for d in 1 2 4; do
   for mode in loose tight; do
     "$waymark" localize "$run" --map "$work/map-d$d.json" --mode "$mode" --out "$work/$mode.tum" \
       --predicted "$work/$mode-predicted.tum" >/dev/null 2>&1
-    label=$([[ $mode == loose ]] && echo "loose (seed 000)" || echo "ours (tight)")
+    label=$([[ $mode == loose ]] && echo "loose ([Bach])" || echo "ours (tight)")
     row "$d" "$label" "$work/$mode.tum" "$work/$mode-predicted.tum" none
   done
   at_detections "$work/smoothed-d$d.tum" "$run" >"$work/smoothed-at-codes.tum"

@@ -9,7 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
-scripts/build.sh
+scripts/build.sh --target waymark
 out=${1:-out/demo}
 rm -rf "$out"
 ./build/waymark demo --data data/demo --out "$out"

@@ -10,6 +10,7 @@ packages=(
   libdmtx-dev libzxing-dev libapriltag-dev
   libyaml-cpp-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  clang-format
 )
 
 missing=()

@@ -50,7 +50,7 @@ Made by `scripts/make-demo-data.sh` (read it for every key); do not edit by hand
 - `run/`: a second run through the same place at 0.5 m/s, clockwise from the opposite corner on a
   loop 0.05 m inside the centre line, images at 1 Hz. `waymark demo` localizes it against the map.
 
-Each is a dataset directory (DESIGN.md) with `groundtruth/` (true trajectory, true marker poses,
+Each is a dataset directory (docs/design.md) with `groundtruth/` (true trajectory, true marker poses,
 exact corners of every code in each image) and `sim_config.yaml` (every simulator key used).
 README
 

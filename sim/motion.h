@@ -26,8 +26,8 @@
 #include <random>
 #include <vector>
 
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 
 namespace waymark::sim {
 

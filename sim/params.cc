@@ -11,7 +11,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "core/io_util.h"
+#include "io/util.h"
+#include "io/yaml_util.h"
 
 namespace waymark::sim {
 namespace {
@@ -51,7 +52,7 @@ std::optional<double> ParseValue(ParamType type, const std::string& text) {
 std::string ValueText(const Param& p) {
   if (p.type == ParamType::kBool) return p.value != 0.0 ? "true" : "false";
   if (p.type == ParamType::kInt) return std::to_string(static_cast<long>(p.value));
-  return FormatNumber(p.value);
+  return FormatDouble(p.value);
 }
 
 // Collects every scalar leaf of a YAML map as dotted key -> node.
@@ -73,12 +74,6 @@ void Flatten(const YAML::Node& node, const std::string& prefix, const std::files
 }
 
 }  // namespace
-
-std::string FormatNumber(double value) {
-  char buffer[64];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
 
 void ParamSet::Add(Param param) {
   if (Find(param.key) != nullptr) throw std::logic_error("parameter declared twice: " + param.key);
@@ -139,7 +134,7 @@ void ParamSet::SetFromText(const std::string& key, const std::string& text, cons
   }
   if (p->type != ParamType::kBool && (*value < p->min_value || *value > p->max_value)) {
     throw std::invalid_argument(origin + ": " + key + ": " + text + " is outside [" +
-                                FormatNumber(p->min_value) + ", " + FormatNumber(p->max_value) + "]");
+                                FormatDouble(p->min_value) + ", " + FormatDouble(p->max_value) + "]");
   }
   p->value = *value;
 }

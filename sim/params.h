@@ -9,6 +9,8 @@
 // are errors (FormatError) that name the file, the line and the key.
 #pragma once
 
+#include "util/format.h"
+
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -66,7 +68,5 @@ class ParamSet {
   std::vector<Param> params_;
 };
 
-// Shortest decimal text that reads back to the same double ("0.5", "1e-06", "12").
-std::string FormatNumber(double value);
 
 }  // namespace waymark::sim

@@ -1,4 +1,5 @@
 #include "sim/render.h"
+#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +10,7 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/detect_synthetic.h"
+#include "detect/synthetic.h"
 
 namespace waymark::sim {
 
@@ -296,18 +297,12 @@ float Shade(const Eigen::Vector3d& ray_camera, const std::vector<const Surface*>
 }  // namespace
 
 bool RenderOptions::Check(std::string* why) const {
-  auto fail = [why](const std::string& message) {
-    if (why != nullptr) *why = message;
-    return false;
-  };
-  if (supersample < 1 || supersample > 16) return fail("render.supersample must be in [1, 16]");
-  if (!(blur_sigma_px >= 0.0 && blur_sigma_px <= 20.0)) return fail("render.blur_sigma_px must be in [0, 20]");
-  if (!(noise_sigma >= 0.0 && noise_sigma <= 100.0)) return fail("render.noise_sigma must be in [0, 100]");
-  if (!(gradient >= 0.0 && gradient < 1.0)) return fail("render.gradient must be in [0, 1)");
-  if (!(exposure_sigma >= 0.0 && exposure_sigma <= 2.0)) return fail("render.exposure_sigma must be in [0, 2]");
-  if (!(texture_contrast >= 0.0 && texture_contrast <= 0.5)) {
-    return fail("render.texture_contrast must be in [0, 0.5]");
-  }
+  WAYMARK_CHECK_OPTION(supersample >= 1 && supersample <= 16, "render.supersample must be in [1, 16]");
+  WAYMARK_CHECK_OPTION(blur_sigma_px >= 0.0 && blur_sigma_px <= 20.0, "render.blur_sigma_px must be in [0, 20]");
+  WAYMARK_CHECK_OPTION(noise_sigma >= 0.0 && noise_sigma <= 100.0, "render.noise_sigma must be in [0, 100]");
+  WAYMARK_CHECK_OPTION(gradient >= 0.0 && gradient < 1.0, "render.gradient must be in [0, 1)");
+  WAYMARK_CHECK_OPTION(exposure_sigma >= 0.0 && exposure_sigma <= 2.0, "render.exposure_sigma must be in [0, 2]");
+  WAYMARK_CHECK_OPTION(texture_contrast >= 0.0 && texture_contrast <= 0.5, "render.texture_contrast must be in [0, 0.5]");
   return true;
 }
 

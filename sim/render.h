@@ -3,7 +3,7 @@
 //
 // Geometry (exact, by ray casting). For the centre of a (sub-)pixel u, the ray in the
 // camera frame is r_camera = Camera::Unproject(u) = (x, y, 1) (lens distortion inverted by
-// Newton, core/camera.h). Every scene plane P (a code with its quiet zone, a wall or rack
+// Newton, geometry/camera.h). Every scene plane P (a code with its quiet zone, a wall or rack
 // face, the floor z = 0, the ceiling) is written in the camera frame as n_camera . p = d_camera;
 // the hit is at depth t = d_camera / (n_camera . r_camera), t > 0, and lies on P if its point
 // in the plane frame, p_plane = T_plane_camera * (t r_camera), is inside the plane's extent.
@@ -11,9 +11,9 @@
 // t_code <= t_wall (1 + 1e-5). Codes are seen only from the front (their z axis, out of the
 // printed face, towards the camera).
 //
-// Symbols. The code's payload is encoded by the real encoders (core/detect_synthetic.h:
+// Symbols. The code's payload is encoded by the real encoders (detect/synthetic.h:
 // QR by cv::QRCodeEncoder, DataMatrix by libdmtx, AprilTag from libapriltag's family
-// tables). The symbol's outer edge is size_m (DESIGN.md) and spans [-s/2, s/2]^2 of the
+// tables). The symbol's outer edge is size_m (docs/design.md) and spans [-s/2, s/2]^2 of the
 // marker frame, upright (x right, y up); module (c, r) of the module image covers
 //   x in [-s/2 + (c - c0) m, -s/2 + (c - c0 + 1) m],  y in [s/2 - (r - r0 + 1) m, s/2 - (r - r0) m]
 // with m = s / symbol.width and (c0, r0) the symbol's top-left module; the quiet zone (the
@@ -63,9 +63,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "sim/params.h"
 #include "sim/world.h"
 
@@ -108,7 +108,7 @@ class Renderer {
   // Noise-free albedo image in [0, 1] (CV_32F): the geometry and textures only.
   cv::Mat RenderAlbedo(const Camera& camera, const SE3d& T_world_camera) const;
 
-  // The exact corners (DESIGN.md order) of every code fully visible in the image: in front
+  // The exact corners (docs/design.md order) of every code fully visible in the image: in front
   // of the camera, facing it (within 89 deg), all corners inside the image and no wall
   // between the camera and a corner. Same as the noiseless simulated detections.
   std::vector<MarkerObservation> GroundTruth(const Camera& camera, const SE3d& T_world_camera) const;

@@ -8,9 +8,9 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "core/dataset_io.h"
-#include "core/detections_io.h"
-#include "core/io_util.h"
+#include "io/dataset_io.h"
+#include "io/detections_io.h"
+#include "io/util.h"
 
 namespace waymark::sim {
 namespace {

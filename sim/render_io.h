@@ -1,7 +1,7 @@
 // Rendering a simulated run into a dataset directory (sim/render.h for the images):
 //   images/<camera>/<n>.png      n = the camera frame's number (6 digits, from 000000),
 //                                every `every`-th camera frame of the run, all cameras
-//   images.csv                   t,camera,path (DESIGN.md), one row per image
+//   images.csv                   t,camera,path (docs/design.md), one row per image
 //   groundtruth/corners.jsonl    the exact corners of every code fully visible in each image,
 //                                detections.jsonl format (one line per image, empty or not)
 // Files are written into `dir` as they are made; WriteSimDataset's temporary directory

@@ -19,7 +19,7 @@ struct CommonDefaults {
 
 // Keys every scenario has, after its place.* keys (groups stay contiguous for ToYaml).
 void AddCommonParams(ParamSet* p, OdometryKind kind, const CommonDefaults& d) {
-  p->AddDouble("rate.odometry_hz", 20.0, 1.0, 1000.0, "odometry and ground-truth rate (seed 000: T = 50 ms)");
+  p->AddDouble("rate.odometry_hz", 20.0, 1.0, 1000.0, "odometry and ground-truth rate ([Bach]: T = 50 ms)");
   p->AddDouble("rate.camera_hz", 10.0, 0.1, 1000.0, "camera frame rate; must divide rate.odometry_hz");
   if (kind == OdometryKind::kWheel) {
     p->AddDouble("robot.speed_mps", d.speed_mps, 0.01, 10.0, "forward speed on straight runs");
@@ -111,12 +111,12 @@ struct WallFace {
 const std::vector<ScenarioInfo>& Scenarios() {
   static const std::vector<ScenarioInfo> scenarios = {
       {"corridor",
-       "10 cm QR codes in a row on the walls of a ~40 m corridor loop, two side cameras (seed 000)"},
-      {"ceiling-grid", "12 cm QR codes on a 2.45 m ceiling every 1.4 m, upward camera (seed 001)"},
+       "10 cm QR codes in a row on the walls of a ~40 m corridor loop, two side cameras ([Bach])"},
+      {"ceiling-grid", "12 cm QR codes on a 2.45 m ceiling every 1.4 m, upward camera ([Zhang])"},
       {"rooms",
-       "8 cm DataMatrix codes on the walls of rooms joined by doors, plus one unconnected room (seed 003)"},
+       "8 cm DataMatrix codes on the walls of rooms joined by doors, plus one unconnected room ([George])"},
       {"warehouse-drone",
-       "floor QR codes 0/x/y and load QR codes on racks, drone with down and front cameras (seed 004)"},
+       "floor QR codes 0/x/y and load QR codes on racks, drone with down and front cameras ([Kang])"},
   };
   return scenarios;
 }
@@ -193,7 +193,7 @@ SimTrajectory CorridorPath(const ParamSet& p, double half_w) {
   if (std::abs(inset_m) > half_w - kCorridorCameraOffsetM - 0.05) {
     throw std::invalid_argument(
         "path.inset_m: the cameras would leave the corridor (|inset| must stay below " +
-        FormatNumber(half_w - kCorridorCameraOffsetM - 0.05) + " m)");
+        FormatDouble(half_w - kCorridorCameraOffsetM - 0.05) + " m)");
   }
   const double x0 = inset_m, y0 = inset_m;
   const double x1 = p.Double("place.loop_length_m") - inset_m, y1 = p.Double("place.loop_width_m") - inset_m;
@@ -270,7 +270,7 @@ Scene BuildCeilingGrid(const ParamSet& p) {
       SimMarker m;
       const double xr = RoundMm(x), yr = RoundMm(y);
       m.key = {kFamilyQr,
-               std::to_string(world.markers.size()) + "/" + FormatNumber(xr) + "/" + FormatNumber(yr)};
+               std::to_string(world.markers.size()) + "/" + FormatDouble(xr) + "/" + FormatDouble(yr)};
       m.size_m = size_m;
       // Facing down; symbol x along world -x, y along world +y (all codes alike).
       m.T_world_marker = SE3d(RotationFromZY({0, 0, -1}, {0, 1, 0}), Eigen::Vector3d(xr, yr, ceiling_h));
@@ -454,7 +454,7 @@ void AddFloorCodes(const ParamSet& p, World* world) {
            PositionsAlong(p.Double("place.rack_length_m"), p.Double("place.floor_spacing_m"), size_m)) {
         const double xr = RoundMm(x), yr = RoundMm(y_centre + dy);
         SimMarker m;
-        m.key = {kFamilyQr, "0/" + FormatNumber(xr) + "/" + FormatNumber(yr)};
+        m.key = {kFamilyQr, "0/" + FormatDouble(xr) + "/" + FormatDouble(yr)};
         m.size_m = size_m;
         m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(xr, yr, 0.0));
         m.region = -1 - a;

@@ -3,17 +3,17 @@
 // cameras) and the path are functions of the parameters only: the seed draws only the noise
 // (sim/simulator.h), so two seeds give two runs through the same place.
 //
-//   corridor         seed 000: 10 cm QR codes in a row on both walls of a rectangular corridor
+//   corridor         [Bach]: 10 cm QR codes in a row on both walls of a rectangular corridor
 //                    loop, at camera height, every place.spacing_m; differential drive on the
 //                    centre line; two side cameras; detectable between 0.2 and 0.8 m. The path.*
 //                    keys change only the path (direction, start corner, a loop inset from the
 //                    centre line): a second, different run through the same place.
-//   ceiling-grid     seed 001: 12 cm QR codes on a 2.45 m ceiling every 1.4 m, payload
+//   ceiling-grid     [Zhang]: 12 cm QR codes on a 2.45 m ceiling every 1.4 m, payload
 //                    "i/x/y"; an upward camera 0.6 m above the floor; a lawn-mower path.
-//   rooms            seed 003: 8 cm DataMatrix codes on the walls of rooms joined by doors;
+//   rooms            [George]: 8 cm DataMatrix codes on the walls of rooms joined by doors;
 //                    stops at each room's centre and turns in place; the last room has no
 //                    door and the robot is carried there (odometry restarts).
-//   warehouse-drone  seed 004: floor QR codes "0/x/y" in the aisles, load QR codes on the rack
+//   warehouse-drone  [Kang]: floor QR codes "0/x/y" in the aisles, load QR codes on the rack
 //                    faces; a down-looking and a front-looking camera; 6-DoF flight.
 // docs/sim.md gives every key, the geometry and the noise models.
 #pragma once

@@ -5,8 +5,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "core/dataset_io.h"
-#include "core/io_util.h"
+#include "io/dataset_io.h"
+#include "io/util.h"
 
 namespace waymark::sim {
 namespace {

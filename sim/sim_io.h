@@ -1,5 +1,5 @@
-// Writing a simulated dataset directory (DESIGN.md "Dataset directory") through
-// core/dataset_io.h, plus `sim_config.yaml`: the scenario, the seed and every effective key,
+// Writing a simulated dataset directory (docs/design.md "Dataset directory") through
+// io/dataset_io.h, plus `sim_config.yaml`: the scenario, the seed and every effective key,
 // so that `waymark sim SCENARIO --config sim_config.yaml --seed N` reproduces it.
 #pragma once
 

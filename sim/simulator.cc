@@ -6,7 +6,7 @@
 #include <random>
 #include <stdexcept>
 
-#include "core/camera.h"
+#include "geometry/camera.h"
 
 namespace waymark::sim {
 namespace {
@@ -99,8 +99,8 @@ int CameraStride(const ParamSet& params) {
   const long stride = std::lround(ratio);
   if (stride < 1 || std::abs(ratio - stride) > 1e-9) {
     throw std::invalid_argument("rate.camera_hz must divide rate.odometry_hz (got " +
-                                FormatNumber(params.Double("rate.camera_hz")) + " and " +
-                                FormatNumber(params.Double("rate.odometry_hz")) + ")");
+                                FormatDouble(params.Double("rate.camera_hz")) + " and " +
+                                FormatDouble(params.Double("rate.odometry_hz")) + ")");
   }
   return static_cast<int>(stride);
 }
@@ -158,7 +158,7 @@ void FillPlace(const SimResult& result, const ParamSet& params, Dataset* dataset
 }
 
 // Ground-truth `component` of each observed code: the trajectory segment it was seen in
-// (segments are joined by nothing, DESIGN.md); codes never observed get none.
+// (segments are joined by nothing, docs/design.md); codes never observed get none.
 void SetComponents(SimResult* result, const std::vector<int>& frame_segments) {
   std::map<MarkerKey, int> component;
   for (size_t i = 0; i < result->true_keys.size(); ++i) {

@@ -1,5 +1,5 @@
 // Runs a scenario: builds its place and path (sim/scenarios.h), then draws the noise from
-// `seed`: odometry (sim/motion.h) and detections, and assembles a Dataset (DESIGN.md) with
+// `seed`: odometry (sim/motion.h) and detections, and assembles a Dataset (docs/design.md) with
 // exact ground truth.
 //
 // Detections. Camera frames are taken every (rate.odometry_hz / rate.camera_hz)-th odometry
@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "core/types.h"
+#include "geometry/types.h"
 #include "sim/params.h"
 #include "sim/scenarios.h"
 

@@ -1,12 +1,12 @@
 // The camera and pose that the renderer's accuracy test (tests/sim/render_test.cc) and the
 // corner-accuracy benchmark (bench/render_corner_bench.cc) render their codes with.
-// Frames as in DESIGN.md: world z up; camera x right, y down, z along the optical axis.
+// Frames as in docs/design.md: world z up; camera x right, y down, z along the optical axis.
 #pragma once
 
 #include <Eigen/Core>
 
-#include "core/camera.h"
-#include "core/geometry.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
 #include "sim/world.h"
 
 namespace waymark::sim {

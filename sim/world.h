@@ -4,7 +4,7 @@
 // frame), its size and its true pose T_world_marker; every camera frame has its true pose
 // T_world_camera = T_world_robot * T_robot_camera.
 //
-// Visibility of a marker from a camera (all must hold; DESIGN.md frames):
+// Visibility of a marker from a camera (all must hold; docs/design.md frames):
 //   range      r = |c_world - m_world| in [min_range_m, max_range_m]   (c: camera centre,
 //              m: marker centre)
 //   facing     angle between the marker's z axis (out of the face) and (c_world - m_world)
@@ -20,16 +20,16 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 
 namespace waymark::sim {
 
 struct SimMarker {
   MarkerKey key;
   double size_m = 0.0;
-  SE3d T_world_marker;  // z out of the printed face, y up as read (DESIGN.md)
+  SE3d T_world_marker;  // z out of the printed face, y up as read (docs/design.md)
   bool anchor = false;  // its pose is given as known (markers.json, fixed)
   int region = 0;       // scenario-defined grouping (room, rack face, ...), for tests and docs
 };
@@ -77,7 +77,7 @@ struct World {
 bool SegmentOccluded(const std::vector<Occluder>& occluders, const Eigen::Vector3d& a_world,
                      const Eigen::Vector3d& b_world);
 
-// The true pixels of the four corners (DESIGN.md order) if `marker` is visible from the
+// The true pixels of the four corners (docs/design.md order) if `marker` is visible from the
 // camera at T_world_camera under `limits`; nullopt otherwise.
 std::optional<std::array<Eigen::Vector2d, 4>> VisibleCorners(const Camera& camera, const SE3d& T_world_camera,
                                                              const SimMarker& marker,

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "core/types.h"
+#include "geometry/types.h"
 
 namespace waymark::testing {
 

@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/io_util.h"
+#include "io/util.h"
 
 namespace waymark {
 

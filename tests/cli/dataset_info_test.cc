@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <string>
 
-#include "core/io_util.h"
+#include "io/util.h"
 
 namespace waymark {
 namespace {

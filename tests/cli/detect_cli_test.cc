@@ -13,8 +13,8 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "core/detect_synthetic.h"
-#include "core/detections_io.h"
+#include "detect/synthetic.h"
+#include "io/detections_io.h"
 
 namespace waymark {
 namespace {

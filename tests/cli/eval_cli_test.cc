@@ -17,9 +17,9 @@
 #include "tests/cli/cli_test_util.h"
 #include <nlohmann/json.hpp>
 
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 
 namespace waymark {
 namespace {

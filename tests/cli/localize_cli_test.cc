@@ -18,9 +18,9 @@
 
 #include "tests/cli/cli_test_util.h"
 
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 
 namespace waymark {
 namespace {
@@ -232,7 +232,7 @@ TEST_F(LocalizeCliTest, LiveLateFramesAndOdometryTimeOffset) {
       << no_window.err;
 }
 
-// Seed 000's velocity input: each odometry line replaced by (v, omega) over its interval.
+// [Bach]'s velocity input: each odometry line replaced by (v, omega) over its interval.
 TEST_F(LocalizeCliTest, LiveVelocityLinesPredict) {
   std::vector<std::string> input = LiveLines();
   std::optional<StampedSE3> previous;

@@ -16,9 +16,9 @@
 
 #include "tests/cli/cli_test_util.h"
 
-#include "core/io_util.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/util.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 #include "eval/map_metrics.h"
 
 namespace waymark {

@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "core/dataset_io.h"
+#include "io/dataset_io.h"
 
 namespace {
 

@@ -3,7 +3,7 @@
 // side by side.
 //
 // Measured 2026-11-23 (QR detector with the finder-pattern pass and the dark-module side
-// fit, core/detect_qr_finder.h and core/detect_qr_grid.h):
+// fit, detect/qr_finder.h and detect/qr_grid.h):
 //   corridor         70 images  70/70 wide codes matched, worst corner 0.497 px (C052,
 //                    91 px, whose quiet zone clips at 255)
 //   warehouse-drone  40 images 100/100 matched (was 95/100, 97 read), worst 0.281 px (was 0.70)

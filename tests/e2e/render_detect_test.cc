@@ -12,10 +12,10 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "core/dataset_io.h"
-#include "core/detections_io.h"
-#include "core/detector.h"
-#include "core/io_util.h"
+#include "io/dataset_io.h"
+#include "io/detections_io.h"
+#include "detect/detector.h"
+#include "io/util.h"
 #include "sim/render.h"
 
 namespace waymark {

@@ -22,8 +22,8 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/detector.h"
+#include "geometry/camera.h"
+#include "detect/detector.h"
 #include "sim/render.h"
 #include "sim/scenarios.h"
 

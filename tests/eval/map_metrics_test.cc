@@ -127,7 +127,7 @@ TEST(MapMetricsTest, SingleMarkerAndCollinearComponentsUsePoses) {
 }
 
 TEST(MapMetricsTest, CodesAlongOneWallAreAlignedByTheirPoses) {
-  // Seed 000's layout: codes every metre along one wall at one height, placed with a few
+  // [Bach]'s layout: codes every metre along one wall at one height, placed with a few
   // millimetres of error (`placed`), estimated with millimetre noise (`noise`, zero mean) and
   // exact orientations. On positions alone the rotation about the wall's line would be fitted
   // to those millimetres and tilt every code by degrees; on poses R is exact and each position

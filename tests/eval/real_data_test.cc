@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/tum_io.h"
+#include "io/tum_io.h"
 #include "eval/trajectory_eval.h"
 
 namespace waymark::eval {

@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "factors/pose_block.h"
 #include "tests/test_cameras.h"
 

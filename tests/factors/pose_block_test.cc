@@ -1,5 +1,5 @@
 // Tests of the block layout and the scalar-templated geometry of factors/pose_block.h (against
-// core/geometry.h), of the manifold-to-body tangent conversion, and of SqrtInformation.
+// geometry/pose.h), of the manifold-to-body tangent conversion, and of SqrtInformation.
 #include "factors/pose_block.h"
 
 #include <ceres/jet.h>

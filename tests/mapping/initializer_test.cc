@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/marker_pose.h"
+#include "geometry/marker_pose.h"
 #include "tests/mapping/synthetic_wall.h"
 
 namespace waymark {

@@ -70,7 +70,7 @@ Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
     loop.maps.push_back(map);
   }
   for (int i = 0; i + 1 < kMaps; ++i) {
-    // The measured increment M of a true one C (mapping/calibrated_odometry_factor.h, turn and
+    // The measured increment M of a true one C (factors/calibrated_odometry_factor.h, turn and
     // distance scale 0): theta_M = theta_C + k s, t_M = R(k s / 2) t_C.
     const SE2d C = SE2d::FromSE3(loop.T_world_ref[i].inverse() * loop.T_world_ref[i + 1]);
     const double bend = kDriftRadPerM * C.translation().norm();

@@ -1,4 +1,5 @@
 // Map learning on simulated surveys with exact ground truth (sim/), measured with eval/.
+#include "mapping/build_report.h"
 #include "mapping/map_builder.h"
 
 #include <algorithm>

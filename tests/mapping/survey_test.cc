@@ -97,10 +97,10 @@ TEST(SurveyTest, OdometryGapSplitsAndIsNeverBridged) {
 
 TEST(SurveyTest, InterpolationAndLinkCovarianceAreTheSumOfIncrements) {
   const Dataset dataset = SyntheticSurvey(0.0);
-  const SE3d mid = *InterpolatePose(dataset.odometry, 1.05, 1.0);
+  const SE3d mid = *InterpolateTrajectory(dataset.odometry, 1.05, 1.0);
   const SE3d a = TrueRobotPose(1.0), b = TrueRobotPose(1.1);
   EXPECT_LT((mid.translation() - 0.5 * (a.translation() + b.translation())).norm(), 1e-12);
-  EXPECT_FALSE(InterpolatePose(dataset.odometry, 100.0, 1.0).has_value());
+  EXPECT_FALSE(InterpolateTrajectory(dataset.odometry, 100.0, 1.0).has_value());
 
   IngestOptions options;
   options.estimate_time_offset = false;

@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/types.h"
 
 namespace waymark::testing {
 

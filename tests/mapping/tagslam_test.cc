@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <string>
 
-#include "core/dataset_io.h"
-#include "core/map_io.h"
-#include "core/tum_io.h"
+#include "io/dataset_io.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
 #include "mapping/map_builder.h"
 #include "mapping/map_score.h"
 

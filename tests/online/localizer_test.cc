@@ -114,7 +114,7 @@ NeesFigures MonteCarloNees(const CorridorConfig& config, const LocalizerOptions&
   return figures;
 }
 
-// Codes every 1 m (seed 000's density) and every 3 m (long dead-reckoning stretches).
+// Codes every 1 m ([Bach]'s density) and every 3 m (long dead-reckoning stretches).
 TEST(LocalizerTest, MonteCarloNeesInsideChiSquareBounds) {
   constexpr int kRuns = 25;
   for (double spacing_m : {1.0, 3.0}) {
@@ -221,7 +221,7 @@ TEST(LocalizerTest, MapCovarianceKeepsTheFilterHonest) {
   EXPECT_LT(rmse[0], rmse[2]);
 }
 
-// Seed 003's situation: the robot is carried away mid-run (4 m down the corridor, unseen by
+// [George]'s situation: the robot is carried away mid-run (4 m down the corridor, unseen by
 // odometry). From the first frame whose codes contradict the track the filter outputs no pose
 // (suspect, then lost if it lasts), never a wrong one, and restarts at the next codes. The
 // corridor's codes face the side cameras squarely, so every sighting is IPPE-ambiguous: the
@@ -519,7 +519,7 @@ TEST(LocalizerTest, TimeGoingBackwardsIsRejectedWithAStatus) {
   EXPECT_STREQ(StepStatusName(StepStatus::kTimeWentBackwards), "time went backwards");
 }
 
-// Seed 000's input: velocities (v, omega) instead of odometry poses.
+// [Bach]'s input: velocities (v, omega) instead of odometry poses.
 TEST(LocalizerTest, TracksFromVelocities) {
   const CorridorConfig config;
   CorridorSimulator sim(config, 3500);
@@ -561,7 +561,7 @@ TEST(LocalizerTest, FreeMotionTracks) {
   EXPECT_LT(figures.rmse_m, 0.02);
 }
 
-// Seed 000's PE/TE: the prediction right before each correcting frame is kept, and it is
+// [Bach]'s PE/TE: the prediction right before each correcting frame is kept, and it is
 // worse on average than the filtered pose.
 TEST(LocalizerTest, KeepsThePredictionBeforeEachCorrection) {
   const CorridorConfig config;

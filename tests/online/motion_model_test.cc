@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "core/camera.h"
+#include "geometry/camera.h"
 #include "online/ekf_state.h"
 #include "online/localizer.h"
 #include "online/marker_measurement.h"
@@ -45,7 +45,7 @@ TEST(MotionModelTest, UnicycleMatchesSeed000AndItsJacobians) {
   const Eigen::Vector3d x(0.5, 1.5, -2.0);
   const double v = 0.4, omega = 0.6, dt = 0.05;
   const MotionPrediction p = PredictUnicycle(x, v, omega, dt, noise);
-  // Seed 000, eq. (6).
+  // [Bach], eq. (6).
   EXPECT_NEAR(p.mean(0), x(0) + v * dt * std::cos(x(2) + omega * dt / 2), 1e-15);
   EXPECT_NEAR(p.mean(1), x(1) + v * dt * std::sin(x(2) + omega * dt / 2), 1e-15);
   EXPECT_NEAR(p.mean(2), x(2) + omega * dt, 1e-15);

@@ -1,9 +1,9 @@
-// A synthetic planar robot for the online/ tests (seed 000's setting): a straight corridor
+// A synthetic planar robot for the online/ tests ([Bach]'s setting): a straight corridor
 // with 10 cm codes on both walls every metre at camera height, a robot weaving down its
 // middle with noisy wheel odometry at 20 Hz, and two side cameras (left, right) whose
 // detected corners carry Gaussian pixel noise. Everything is drawn from one seeded engine.
 //
-// The single-image pose of each sighting comes from core/marker_pose (MakeCodeSighting).
+// The single-image pose of each sighting comes from geometry/marker_pose (MakeCodeSighting).
 #pragma once
 
 #include <Eigen/Cholesky>
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/geometry.h"
-#include "core/types.h"
+#include "geometry/camera.h"
+#include "geometry/pose.h"
+#include "geometry/types.h"
 #include "online/code_sighting.h"
 #include "online/localizer.h"
 #include "online/motion_model.h"
@@ -24,12 +24,12 @@ namespace waymark::testing {
 
 struct CorridorConfig {
   double length_m = 12.0;
-  double half_width_m = 0.5;  // codes 0.5 m from the robot's centre line (seed 000: 0.2-0.8 m)
+  double half_width_m = 0.5;  // codes 0.5 m from the robot's centre line ([Bach]: 0.2-0.8 m)
   double code_spacing_m = 1.0;
   double code_size_m = 0.10;
   double camera_height_m = 0.3;
   double speed_mps = 0.5;
-  double odometry_period_s = 0.05;  // seed 000: T = 50 ms
+  double odometry_period_s = 0.05;  // [Bach]: T = 50 ms
   int frame_every = 2;              // a camera frame every 2nd odometry step (10 Hz)
   double pixel_sigma_px = 1.0;
   // White noise only (no systematic wheel error), so no heading random walk either.

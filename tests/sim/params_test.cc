@@ -7,7 +7,7 @@
 #include <fstream>
 #include <string>
 
-#include "core/io_util.h"
+#include "io/util.h"
 #include "sim/scenarios.h"
 
 namespace waymark::sim {

@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "core/camera.h"
-#include "core/detector.h"
+#include "geometry/camera.h"
+#include "detect/detector.h"
 #include "sim/test_scenes.h"
 
 namespace waymark::sim {
@@ -108,7 +108,7 @@ TEST(RenderTest, GroundTruthIsTheProjectionOfTheCorners) {
     const Eigen::Vector2d px = *camera.Project(T_camera_marker * corners_marker[k]);
     EXPECT_LT((px - truth[0].corners_px[k]).norm(), 1e-9);
   }
-  // Top-left is left of top-right and above bottom-left (upright, DESIGN.md order).
+  // Top-left is left of top-right and above bottom-left (upright, docs/design.md order).
   EXPECT_LT(truth[0].corners_px[0].x(), truth[0].corners_px[1].x());
   EXPECT_LT(truth[0].corners_px[0].y(), truth[0].corners_px[3].y());
 }

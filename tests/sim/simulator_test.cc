@@ -11,7 +11,7 @@
 #include <regex>
 #include <set>
 
-#include "core/camera.h"
+#include "geometry/camera.h"
 
 namespace waymark::sim {
 namespace {

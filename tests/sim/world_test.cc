@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "core/camera.h"
+#include "geometry/camera.h"
 
 namespace waymark::sim {
 namespace {

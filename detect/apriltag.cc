@@ -1,0 +1,153 @@
+#include "detect/apriltag.h"
+
+#include <apriltag/apriltag.h>
+#include <apriltag/tag16h5.h>
+#include <apriltag/tag25h9.h>
+#include <apriltag/tag36h10.h>
+#include <apriltag/tag36h11.h>
+#include <apriltag/tagCircle21h7.h>
+#include <apriltag/tagCircle49h12.h>
+#include <apriltag/tagCustom48h12.h>
+#include <apriltag/tagStandard41h12.h>
+#include <apriltag/tagStandard52h13.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "detect/common.h"
+
+namespace waymark {
+namespace {
+
+constexpr int kMinImageSidePx = 32;
+
+struct FamilyEntry {
+  const char* name;  // after "apriltag-"
+  apriltag_family_t* (*create)();
+  void (*destroy)(apriltag_family_t*);
+};
+
+const FamilyEntry kFamilies[] = {
+    {"16h5", tag16h5_create, tag16h5_destroy},
+    {"25h9", tag25h9_create, tag25h9_destroy},
+    {"36h10", tag36h10_create, tag36h10_destroy},
+    {"36h11", tag36h11_create, tag36h11_destroy},
+    {"circle21h7", tagCircle21h7_create, tagCircle21h7_destroy},
+    {"circle49h12", tagCircle49h12_create, tagCircle49h12_destroy},
+    {"custom48h12", tagCustom48h12_create, tagCustom48h12_destroy},
+    {"standard41h12", tagStandard41h12_create, tagStandard41h12_destroy},
+    {"standard52h13", tagStandard52h13_create, tagStandard52h13_destroy},
+};
+
+const FamilyEntry* FindFamily(const std::string& family) {
+  const std::string prefix = kFamilyAprilTagPrefix;
+  if (family.compare(0, prefix.size(), prefix) != 0) return nullptr;
+  const std::string name = family.substr(prefix.size());
+  for (const FamilyEntry& entry : kFamilies) {
+    if (name == entry.name) return &entry;
+  }
+  return nullptr;
+}
+
+class AprilTagDetector : public MarkerDetector {
+ public:
+  AprilTagDetector(const std::string& family, const FamilyEntry& entry, const DetectorOptions& options)
+      : family_(family), entry_(entry), options_(options) {
+    tag_family_ = entry_.create();
+    detector_ = apriltag_detector_create();
+    apriltag_detector_add_family_bits(detector_, tag_family_, options.apriltag_max_bits_corrected);
+    detector_->quad_decimate = static_cast<float>(options.apriltag_decimate);
+    detector_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
+    detector_->nthreads = options.threads;
+    detector_->refine_edges = true;
+  }
+  ~AprilTagDetector() override {
+    apriltag_detector_destroy(detector_);
+    entry_.destroy(tag_family_);
+  }
+  AprilTagDetector(const AprilTagDetector&) = delete;
+  AprilTagDetector& operator=(const AprilTagDetector&) = delete;
+
+  std::vector<std::string> Families() const override { return {family_}; }
+
+  std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
+    const cv::Mat gray = ToGray8(image);
+    // libapriltag 3.3 crashes on images only a few pixels across once decimated (e.g.
+    // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
+    const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * options_.apriltag_decimate);
+    if (gray.cols < min_side_px || gray.rows < min_side_px) return {};
+    image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]), gray.data};
+    zarray_t* detections = apriltag_detector_detect(detector_, &view);
+    std::vector<MarkerObservation> raw;
+    for (int i = 0; i < zarray_size(detections); ++i) {
+      apriltag_detection_t* det = nullptr;
+      zarray_get(detections, i, &det);
+      MarkerObservation obs;
+      obs.key = {family_, std::to_string(det->id)};
+      for (int k = 0; k < 4; ++k) {
+        obs.corners_px[k] = Eigen::Vector2d(det->p[3 - k][0] - 0.5, det->p[3 - k][1] - 0.5);
+      }
+      raw.push_back(obs);
+    }
+    apriltag_detections_destroy(detections);
+    const bool refine = options_.refine_corners && !tag_family_->reversed_border;
+    return FinishObservations(gray, raw, refine, options_.min_side_px);
+  }
+
+ private:
+  std::string family_;
+  FamilyEntry entry_;
+  DetectorOptions options_;
+  apriltag_family_t* tag_family_ = nullptr;
+  apriltag_detector_t* detector_ = nullptr;
+};
+
+}  // namespace
+
+std::vector<std::string> AprilTagFamilyNames() {
+  std::vector<std::string> names;
+  for (const FamilyEntry& entry : kFamilies) names.push_back(entry.name);
+  return names;
+}
+
+cv::Mat AprilTagModuleImage(const std::string& family, int id, cv::Rect* symbol) {
+  const FamilyEntry* entry = FindFamily(family);
+  if (entry == nullptr) throw std::invalid_argument("unknown AprilTag family '" + family + "'");
+  apriltag_family_t* tags = entry->create();
+  if (id < 0 || static_cast<uint32_t>(id) >= tags->ncodes) {
+    entry->destroy(tags);
+    throw std::invalid_argument(family + ": no tag " + std::to_string(id));
+  }
+  const int total = tags->total_width;
+  // As libapriltag draws it: black, a one-module white ring (the quiet zone around the
+  // black border, or for reversed-border families the border itself), white bits.
+  const int white_width = tags->width_at_border + (tags->reversed_border ? 0 : 2);
+  const int white_start = (total - white_width) / 2;
+  const int white_end = white_start + white_width - 1;
+  const int start = (total - tags->width_at_border) / 2;
+  cv::Mat modules(total, total, CV_8U, cv::Scalar(0));
+  for (int k = white_start; k <= white_end; ++k) {
+    modules.at<uint8_t>(white_start, k) = modules.at<uint8_t>(white_end, k) = 255;
+    modules.at<uint8_t>(k, white_start) = modules.at<uint8_t>(k, white_end) = 255;
+  }
+  const uint64_t code = tags->codes[id];
+  for (uint32_t i = 0; i < tags->nbits; ++i) {
+    if (((code >> (tags->nbits - 1 - i)) & 1u) == 0) continue;
+    // Bit positions are relative to the border square and may be negative (stored as
+    // uint32_t) for bits outside a reversed border.
+    const int x = static_cast<int32_t>(tags->bit_x[i]) + start;
+    const int y = static_cast<int32_t>(tags->bit_y[i]) + start;
+    if (x >= 0 && y >= 0 && x < total && y < total) modules.at<uint8_t>(y, x) = 255;
+  }
+  *symbol = cv::Rect(start, start, tags->width_at_border, tags->width_at_border);
+  entry->destroy(tags);
+  return modules;
+}
+
+std::unique_ptr<MarkerDetector> CreateAprilTagDetector(const std::string& family, const DetectorOptions& options) {
+  const FamilyEntry* entry = FindFamily(family);
+  if (entry == nullptr) throw std::invalid_argument("unknown AprilTag family '" + family + "'");
+  return std::make_unique<AprilTagDetector>(family, *entry, options);
+}
+
+}  // namespace waymark

@@ -1,0 +1,237 @@
+#include "detect/common.h"
+
+#include <time.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+#include "detect/refine.h"
+
+namespace waymark {
+
+double FrameClock::ThreadCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+cv::Mat ToGray8(const cv::Mat& image) {
+  if (image.empty()) throw std::invalid_argument("detector: empty image");
+  cv::Mat gray;
+  switch (image.type()) {
+    case CV_8UC1:
+      return image;
+    case CV_8UC3:
+      cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+      return gray;
+    case CV_8UC4:
+      cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+      return gray;
+    case CV_16UC1:
+      image.convertTo(gray, CV_8U, 1.0 / 256.0);
+      return gray;
+    default:
+      throw std::invalid_argument("detector: unsupported pixel type " + std::to_string(image.type()) +
+                                  " (expected 8-bit gray, BGR or BGRA, or 16-bit gray)");
+  }
+}
+
+namespace {
+
+double Cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+bool Fail(std::string* why, const std::string& reason) {
+  if (why != nullptr) *why = reason;
+  return false;
+}
+
+}  // namespace
+
+bool QuadIsValid(const Quad2d& corners_px, const cv::Size& image_size, double min_side_px, std::string* why) {
+  for (const Eigen::Vector2d& c : corners_px) {
+    if (!c.allFinite()) return Fail(why, "non-finite corner");
+    if (c.x() < -0.5 || c.y() < -0.5 || c.x() > image_size.width - 0.5 || c.y() > image_size.height - 0.5) {
+      return Fail(why, "corner outside the image");
+    }
+  }
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d side = corners_px[(i + 1) % 4] - corners_px[i];
+    if (side.norm() < min_side_px) return Fail(why, "side shorter than the minimum");
+    const Eigen::Vector2d next = corners_px[(i + 2) % 4] - corners_px[(i + 1) % 4];
+    // Clockwise on screen (y down) means a positive cross product at every corner;
+    // a small positive bound rejects near-collinear (degenerate) corners.
+    if (Cross(side, next) <= 0.05 * side.norm() * next.norm()) {
+      return Fail(why, "quad not convex and clockwise");
+    }
+  }
+  return true;
+}
+
+Eigen::Vector2d QuadCenter(const Quad2d& corners_px) {
+  return 0.25 * (corners_px[0] + corners_px[1] + corners_px[2] + corners_px[3]);
+}
+
+double QuadMeanSide(const Quad2d& corners_px) {
+  double sum = 0.0;
+  for (int i = 0; i < 4; ++i) sum += (corners_px[(i + 1) % 4] - corners_px[i]).norm();
+  return 0.25 * sum;
+}
+
+Quad2d RotateCorners(const Quad2d& corners_px, int steps) {
+  Quad2d out;
+  const int s = ((steps % 4) + 4) % 4;
+  for (int i = 0; i < 4; ++i) out[i] = corners_px[(i + s) % 4];
+  return out;
+}
+
+bool SameDetection(const MarkerObservation& a, const MarkerObservation& b) {
+  if (a.key != b.key) return false;
+  const double side = std::min(QuadMeanSide(a.corners_px), QuadMeanSide(b.corners_px));
+  return (QuadCenter(a.corners_px) - QuadCenter(b.corners_px)).norm() < 0.5 * side;
+}
+
+void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<MarkerObservation>* all) {
+  for (const MarkerObservation& f : found) {
+    const bool seen =
+        std::any_of(all->begin(), all->end(), [&](const MarkerObservation& a) { return SameDetection(a, f); });
+    if (!seen) all->push_back(f);
+  }
+}
+
+bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect) {
+  const Eigen::Vector2d c = QuadCenter(obs.corners_px);
+  return c.x() >= rect.x && c.y() >= rect.y && c.x() < rect.x + rect.width && c.y() < rect.y + rect.height;
+}
+
+void MapFromCrop(const cv::Point& offset, double scale, std::vector<MarkerObservation>* observations) {
+  for (MarkerObservation& obs : *observations) {
+    for (Eigen::Vector2d& c : obs.corners_px) {
+      c = (c.array() + 0.5) / scale - 0.5;
+      c += Eigen::Vector2d(offset.x, offset.y);
+    }
+  }
+}
+
+namespace {
+
+// Score in (0, 1] of one blob's bounding box at work resolution; 0 rejects it.
+double ScoreBox(const cv::Mat& small, const cv::Mat& edges, const std::vector<cv::Point>& contour,
+                const cv::Rect& box, double scale_to_full, const CandidateOptions& options) {
+  const double short_side = std::min(box.width, box.height);
+  const double long_side = std::max(box.width, box.height);
+  if (short_side / scale_to_full < options.min_side_px) return 0.0;
+  const double aspect = long_side / short_side;
+  if (aspect > options.max_aspect) return 0.0;
+  const double area = static_cast<double>(box.area());
+  const double edge_density = cv::countNonZero(edges(box)) / area;
+  if (edge_density < options.min_edge_density) return 0.0;
+  const double fill = std::min(1.0, cv::contourArea(contour) / area);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(small(box), mean, stddev);
+  const double contrast = std::min(1.0, stddev[0] / 60.0);
+  const double squareness = 1.0 - 0.5 * (aspect - 1.0) / std::max(options.max_aspect - 1.0, 1e-9);
+  // Larger blobs first (text glyphs and small clutter are small); a box cut by the image
+  // border holds at most part of a code.
+  const double size = std::min(1.0, short_side / scale_to_full / options.preferred_side_px);
+  const bool at_border = box.x <= 1 || box.y <= 1 || box.x + box.width >= small.cols - 1 ||
+                         box.y + box.height >= small.rows - 1;
+  return fill * std::min(1.0, edge_density / 0.3) * contrast * squareness * size * (at_border ? 0.5 : 1.0);
+}
+
+}  // namespace
+
+std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const CandidateOptions& options) {
+  const double scale = std::min(1.0, static_cast<double>(options.work_width_px) / gray.cols);
+  cv::Mat small;
+  if (scale < 1.0) {
+    cv::resize(gray, small, cv::Size(), scale, scale, cv::INTER_AREA);
+  } else {
+    small = gray;
+  }
+  cv::Mat edges, blobs;
+  cv::Canny(small, edges, 50, 150);
+  cv::dilate(edges, blobs, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)), cv::Point(-1, -1), 2);
+  std::vector<std::vector<cv::Point>> contours;
+  // Every contour, not only the outermost: a code on a card, or touching clutter, is a blob
+  // nested inside the card's outline.
+  cv::findContours(blobs, contours, cv::RETR_LIST, cv::CHAIN_APPROX_SIMPLE);
+  std::vector<CandidateRegion> regions;
+  const cv::Rect full(0, 0, gray.cols, gray.rows);
+  for (const auto& contour : contours) {
+    const cv::Rect box = cv::boundingRect(contour);
+    const double score = ScoreBox(small, edges, contour, box, scale, options);
+    if (score <= 0.0) continue;
+    const double margin = options.margin_fraction * std::max(box.width, box.height);
+    const int x0 = static_cast<int>(std::floor((box.x - margin) / scale));
+    const int y0 = static_cast<int>(std::floor((box.y - margin) / scale));
+    const int x1 = static_cast<int>(std::ceil((box.x + box.width + margin) / scale));
+    const int y1 = static_cast<int>(std::ceil((box.y + box.height + margin) / scale));
+    regions.push_back({cv::Rect(cv::Point(x0, y0), cv::Point(x1, y1)) & full, score});
+  }
+  std::sort(regions.begin(), regions.end(),
+            [](const CandidateRegion& a, const CandidateRegion& b) { return a.score > b.score; });
+  // Greedy: drop a region overlapping a better one by more than 40 % (intersection over
+  // union): a code's blob and its card's blob are the same candidate.
+  std::vector<CandidateRegion> kept;
+  for (const CandidateRegion& r : regions) {
+    const bool overlaps = std::any_of(kept.begin(), kept.end(), [&](const CandidateRegion& k) {
+      const double inter = (r.rect & k.rect).area();
+      return inter > 0.4 * (r.rect.area() + k.rect.area() - inter);
+    });
+    if (!overlaps) kept.push_back(r);
+    if (static_cast<int>(kept.size()) >= options.max_regions) break;
+  }
+  return kept;
+}
+
+std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates) {
+  CandidateOptions options;
+  options.max_regions = max_candidates;
+  std::vector<cv::Rect> regions;
+  // A close-up first: its code may fill the image and its candidates be parts of it.
+  if (gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
+  for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
+  return regions;
+}
+
+void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
+                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, const FrameBudget& budget,
+                   std::vector<MarkerObservation>* found) {
+  for (const cv::Rect& region : regions) {
+    if (region.width < 8 || region.height < 8) continue;
+    const bool covered = std::any_of(found->begin(), found->end(),
+                                     [&](const MarkerObservation& o) { return ObservationInside(o, region); });
+    if (covered) continue;
+    const cv::Mat crop = gray(region);
+    for (const CropAttempt& attempt : attempts) {
+      if (clock.ElapsedMs() >= budget.For(*found)) return;
+      std::vector<MarkerObservation> decoded = attempt(crop);
+      if (decoded.empty()) continue;
+      MapFromCrop(region.tl(), 1.0, &decoded);
+      AppendUnique(decoded, found);
+      break;
+    }
+  }
+}
+
+std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray, const std::vector<MarkerObservation>& raw,
+                                                  bool refine_corners, double min_side_px) {
+  std::vector<MarkerObservation> out;
+  for (MarkerObservation obs : raw) {
+    if (refine_corners) {
+      obs.quality = 0.0;
+      if (const auto refined = RefineQuadCorners(gray, obs.corners_px)) {
+        obs.corners_px = refined->corners_px;
+        obs.quality = refined->inlier_fraction;
+      }
+    }
+    if (!QuadIsValid(obs.corners_px, gray.size(), min_side_px)) continue;
+    AppendUnique({obs}, &out);
+  }
+  return out;
+}
+
+}  // namespace waymark

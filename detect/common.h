@@ -1,0 +1,113 @@
+// Helpers shared by the code detectors (detect/detector.h): image conversion, the checks
+// every reported quad must pass, candidate regions for second passes, and a frame clock.
+// Pixel convention: the centre of pixel (c, r) is at (c, r) (OpenCV).
+#pragma once
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "geometry/types.h"
+
+namespace waymark {
+
+using Quad2d = std::array<Eigen::Vector2d, 4>;
+
+// An 8-bit single-channel view or copy of `image` (gray, BGR, BGRA; 16-bit is scaled by
+// 1/256). Throws std::invalid_argument for an empty image or another pixel type.
+cv::Mat ToGray8(const cv::Mat& image);
+
+// True if the quad can be reported: finite corners inside [-0.5, w-0.5] x [-0.5, h-0.5],
+// every side at least `min_side_px`, strictly convex, and clockwise on screen (x right,
+// y down), which is docs/design.md's order top-left, top-right, bottom-right, bottom-left seen
+// from the printed side. Otherwise false with the reason in *why (if given).
+bool QuadIsValid(const Quad2d& corners_px, const cv::Size& image_size, double min_side_px,
+                 std::string* why = nullptr);
+
+Eigen::Vector2d QuadCenter(const Quad2d& corners_px);
+double QuadMeanSide(const Quad2d& corners_px);
+
+// Rotates the corner order by `steps` positions: out[i] = in[(i + steps) mod 4].
+Quad2d RotateCorners(const Quad2d& corners_px, int steps);
+
+// True if `a` and `b` are the same code seen twice: same key and centres closer than half
+// the smaller mean side.
+bool SameDetection(const MarkerObservation& a, const MarkerObservation& b);
+
+// Appends the observations of `found` that are not already in `all` (SameDetection).
+void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<MarkerObservation>* all);
+
+// Candidate regions that may hold a 2-D code ([George]: Canny edges, dilation, the
+// bounding box of every blob contour, nested ones included, scored by size, aspect ratio,
+// fill, edge density, contrast and not touching the image border), best first, padded by a quiet-zone margin and clipped to the image. Regions
+// are searched on a copy downscaled to at most `work_width_px` wide.
+struct CandidateOptions {
+  int work_width_px = 640;
+  double min_side_px = 16.0;       // in full-resolution pixels
+  double preferred_side_px = 100.0;  // smaller boxes score proportionally less
+  double max_aspect = 4.0;         // longer / shorter side of the box
+  double min_edge_density = 0.06;  // Canny pixels / box area (at work resolution)
+  double margin_fraction = 0.25;   // padding added on each side, fraction of the box side
+  int max_regions = 16;
+};
+struct CandidateRegion {
+  cv::Rect rect;  // full-resolution pixels
+  double score = 0.0;
+};
+std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const CandidateOptions& options);
+
+// True if the centre of `obs` lies inside `rect`.
+bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect);
+
+// Maps the corners of observations found in a crop (at `scale` times the crop's
+// resolution) back to full-image pixels: p = p_crop / scale + offset, with the pixel-centre
+// convention kept (scaling is about pixel edges: (p + 0.5) / scale - 0.5).
+void MapFromCrop(const cv::Point& offset, double scale, std::vector<MarkerObservation>* observations);
+
+// The regions a second pass tries: the whole image when it has at most 640x480 pixels (a
+// close-up: the code may fill it, leaving no blob boundary), then FindCodeCandidates.
+std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates);
+
+// One way of decoding a crop: returns observations with corners in crop pixels.
+using CropAttempt = std::function<std::vector<MarkerObservation>(const cv::Mat& crop)>;
+
+class FrameClock;
+
+// The CPU budget in force: `empty_ms` while nothing is decoded, `with_codes_ms` after.
+struct FrameBudget {
+  double empty_ms;
+  double with_codes_ms;
+  double For(const std::vector<MarkerObservation>& found) const { return found.empty() ? empty_ms : with_codes_ms; }
+};
+
+// For each region holding no code of `found` yet, runs `attempts` in order on the crop
+// until one decodes something (appended to *found in full-image pixels), while
+// clock.ElapsedMs() < budget.For(*found) (checked before every attempt).
+void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
+                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, const FrameBudget& budget,
+                   std::vector<MarkerObservation>* found);
+
+// The last step of every detector: refines each quad (if options.refine_corners; the
+// quality is the refinement's inlier fraction, 0 when it fails and the decoder's
+// corners are kept), drops invalid quads (QuadIsValid) and duplicates.
+std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray, const std::vector<MarkerObservation>& raw,
+                                                  bool refine_corners, double min_side_px);
+
+// CPU time of the calling thread since construction, in milliseconds. Budgets count the
+// work this thread did on the frame, so that a loaded machine does not change which
+// attempts run (and thus what is found); wall-clock figures are the benchmark's.
+class FrameClock {
+ public:
+  FrameClock() : start_ms_(ThreadCpuMs()) {}
+  double ElapsedMs() const { return ThreadCpuMs() - start_ms_; }
+  static double ThreadCpuMs();
+
+ private:
+  double start_ms_;
+};
+
+}  // namespace waymark

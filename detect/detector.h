@@ -1,0 +1,91 @@
+// Code detectors: one interface for QR (zxing-cpp + OpenCV's WeChat decoder), DataMatrix
+// (zxing-cpp + libdmtx) and AprilTag (libapriltag), and a multi-family detector.
+//
+//   image (cv::Mat, 8-bit gray or BGR/BGRA) -> std::vector<MarkerObservation>
+//
+// Every observation carries its key (family, id: decoded text for QR/DataMatrix, tag
+// number for AprilTag), and its four corners in docs/design.md order: top-left, top-right,
+// bottom-right, bottom-left of the upright symbol, i.e. the images of the object points
+// (-s/2, s/2), (s/2, s/2), (s/2, -s/2), (-s/2, -s/2) of MarkerCorners(size_m).
+// Corners are the outer corners of the symbol (QR: outer edge of the finder patterns;
+// DataMatrix: outer edge of the L finder and of the timing pattern; AprilTag: outer edge
+// of the black border), in pixels with OpenCV's convention: the centre of pixel (c, r) is
+// at (c, r), so the image spans [-0.5, width - 0.5] x [-0.5, height - 0.5].
+// `quality` is in [0, 1]: the fraction of edge samples that agreed with the refined
+// corner lines (see detect/refine.h); 0 when refinement failed and the decoder's
+// corners were kept; absent when refinement is off for that family.
+//
+// Nothing is returned whose corners are non-finite, outside the image, or form a
+// non-convex or degenerate quadrilateral. A detector is not thread-safe (AprilTag keeps
+// state); use one per thread. Detect() throws std::invalid_argument for an empty image or
+// an unsupported pixel type, never crashes on image content.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "geometry/types.h"
+
+namespace waymark {
+
+struct DetectorOptions {
+  // Sub-pixel corner refinement from the symbol's outer edges (detect/refine.h).
+  bool refine_corners = true;
+  // Quads with a side shorter than this are rejected as degenerate.
+  double min_side_px = 6.0;
+
+  // QR and DataMatrix: after the first pass, a second pass (inverted and rescaled crops,
+  // a second decoder) runs on candidate regions that were not decoded, while the CPU
+  // time this thread spent on the frame is below `time_budget_ms` (checked before each
+  // attempt; CPU time, so that machine load does not change what is found).
+  bool second_pass = true;
+  double time_budget_ms = 8.0;
+  // The budget once the frame has a decoded code of the family (a frame with codes in it
+  // is worth more time than an empty one).
+  double time_budget_with_codes_ms = 24.0;
+  int max_candidates = 8;  // candidate regions tried per frame, best score first
+
+  // AprilTag (libapriltag's apriltag_detector_t fields).
+  // quad_decimate: quads are found at 1/decimate resolution (corners are refined at full
+  // resolution). 4 keeps the benchmark's cluttered 1280x960 frame near 10 ms of CPU on one
+  // core (bench/detection_bench.cc); smaller, farther tags need 2, several times slower.
+  double apriltag_decimate = 4.0;
+  double apriltag_blur_sigma = 0.0;   // quad_sigma
+  int apriltag_max_bits_corrected = 1;
+  int threads = 1;                    // libapriltag worker threads
+
+  // True if usable; otherwise false with the reason in *why (when why != nullptr).
+  bool Check(std::string* why) const;
+};
+
+class MarkerDetector {
+ public:
+  virtual ~MarkerDetector() = default;
+  // The families this detector reports, as written in files ("qr", "apriltag-36h11", ...).
+  virtual std::vector<std::string> Families() const = 0;
+  // All codes found in `image`, in no particular order.
+  virtual std::vector<MarkerObservation> Detect(const cv::Mat& image) = 0;
+};
+
+// Family names CreateDetector accepts: qr, datamatrix, and apriltag-<name> for every
+// family libapriltag 3.3 ships (16h5, 25h9, 36h10, 36h11, Circle21h7, Circle49h12,
+// Custom48h12, Standard41h12, Standard52h13).
+std::vector<std::string> SupportedFamilies();
+
+// A detector for one family. Throws std::invalid_argument for an unknown family or
+// options that fail Check().
+std::unique_ptr<MarkerDetector> CreateDetector(const std::string& family, const DetectorOptions& options = {});
+
+// One detector running several families on each image; duplicates (same key, same place)
+// are dropped. Throws like CreateDetector, and for an empty or repeated family list.
+std::unique_ptr<MarkerDetector> CreateMultiDetector(const std::vector<std::string>& families,
+                                                    const DetectorOptions& options = {});
+
+// "qr,datamatrix,apriltag-36h11" -> {"qr", "datamatrix", "apriltag-36h11"}; throws
+// std::invalid_argument naming the first unsupported or empty entry.
+std::vector<std::string> ParseFamilyList(const std::string& comma_separated);
+
+}  // namespace waymark

@@ -1,0 +1,188 @@
+#include "detect/qr.h"
+
+#include <algorithm>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/objdetect.hpp>
+#include <opencv2/wechat_qrcode.hpp>
+#include <optional>
+
+#include "detect/common.h"
+#include "detect/qr_finder.h"
+#include "detect/qr_grid.h"
+#include "detect/refine.h"
+#include "detect/zxing.h"
+
+namespace waymark {
+namespace {
+
+// Crops larger than this (longer side, px) are not upscaled in pass 2.
+constexpr int kMaxUpscaleSidePx = 480;
+
+// First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
+// modules), less in larger versions.
+constexpr double kRefineWindowFraction = 0.035;
+
+// The corners from the symbol's edges: the fourth corner from the finders
+// (QrCornerFromFinderEdges), then every side refined (detect/refine.h) with a first
+// window of at most a module: the outermost row and column of a QR code hold data modules,
+// and where one is light the next dark module inwards makes an edge one module inside,
+// which a wider window would take for the side (a line of them can outvote the true side).
+// Last, with the module grid read off those corners, every side re-fitted on its dark outer
+// modules only (detect/qr_grid.h), when the grid is found.
+void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
+  RefineOptions options;
+  options.search_px = 1.25;
+  options.search_fraction = kRefineWindowFraction;
+  MarkerObservation corrected = *obs;
+  QrCornerFromFinderEdges(gray, &corrected.corners_px);
+  // A light-on-dark code has no light-outside edges: nothing refines, zxing's corners stay.
+  std::optional<RefinedQuad> refined = RefineQuadCorners(gray, corrected.corners_px, options);
+  if (!refined) refined = RefineQuadCorners(gray, obs->corners_px, options);
+  obs->quality = 0.0;
+  if (refined) {
+    obs->corners_px = refined->corners_px;
+    obs->quality = refined->inlier_fraction;
+    if (const std::optional<QrGridEstimate> grid = EstimateQrGrid(gray, obs->corners_px)) {
+      if (const std::optional<Quad2d> fitted = FitQrSidesOnDarkModules(gray, obs->corners_px, *grid)) {
+        obs->corners_px = *fitted;
+      }
+    }
+  }
+}
+
+// True if `region` is mostly one code of `found`: a code's centre inside it, and the code's
+// bounding box at least kCoveredFraction of the region (a candidate region pads its blob by
+// a quarter side, so a lone code covers about 0.44 of it).
+constexpr double kCoveredFraction = 0.3;
+bool RegionIsOneReadCode(const cv::Rect& region, const std::vector<MarkerObservation>& found) {
+  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
+    if (!ObservationInside(obs, region)) return false;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
+    return cv::boundingRect(corners).area() >= kCoveredFraction * region.area();
+  });
+}
+
+// True if the candidate's centre lies within half a side of a code already read.
+bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObservation>& found) {
+  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
+    return (QuadCenter(obs.corners_px) - QuadCenter(candidate.corners_px)).norm() <
+           0.5 * QuadMeanSide(obs.corners_px);
+  });
+}
+
+// Pass 2a: QR candidates from finder patterns (detect/qr_finder.h) in each region
+// (smallest first) that is not one code already read, each candidate not read yet resampled
+// upright and read, while the frame's budget lasts (checked before every region and
+// candidate). Three finders in a code's layout count as a code in the frame: from the first
+// candidate on, the budget is the one for frames with codes. Returns true if a candidate
+// was seen.
+bool ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, const FrameClock& clock,
+                          const FrameBudget& budget, std::vector<MarkerObservation>* found) {
+  // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
+  // many blobs) and small codes are the ones zxing misses on the whole frame.
+  std::stable_sort(regions.begin(), regions.end(),
+                   [](const cv::Rect& a, const cv::Rect& b) { return a.area() < b.area(); });
+  bool seen_candidate = false;
+  const auto within_budget = [&] {
+    return clock.ElapsedMs() < (seen_candidate ? budget.with_codes_ms : budget.For(*found));
+  };
+  for (const cv::Rect& region : regions) {
+    if (!within_budget()) break;
+    if (RegionIsOneReadCode(region, *found)) continue;
+    const std::vector<QrCandidate> candidates =
+        GroupQrFinders(FindQrFinderPatterns(gray, region), gray.size());
+    for (const QrCandidate& candidate : candidates) {
+      if (CandidateIsRead(candidate, *found)) continue;
+      seen_candidate = true;
+      if (!within_budget()) return true;
+      AppendUnique(ReadRectifiedQr(gray, candidate), found);
+    }
+  }
+  return seen_candidate;
+}
+
+class QrDetector : public MarkerDetector {
+ public:
+  explicit QrDetector(const DetectorOptions& options) : options_(options) {}
+
+  std::vector<std::string> Families() const override { return {kFamilyQr}; }
+
+  std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
+    const FrameClock clock;
+    const cv::Mat gray = ToGray8(image);
+    std::vector<MarkerObservation> found = ReadWithZxing(gray, ZxingSymbology::kQrCode, ZxingPass{});
+    if (options_.second_pass) {
+      const std::vector<CropAttempt> attempts = {
+          [](const cv::Mat& crop) { return ReadInverted(crop); },
+          [](const cv::Mat& crop) { return ReadUpscaled(crop); },
+          [](const cv::Mat& crop) { return ReadGlobalHistogram(crop); },
+          // WeChat costs milliseconds per crop: only for close-ups, where the crop is the
+          // whole image (pass 1 and the cheap attempts read codes in larger frames).
+          [this, full = gray.size()](const cv::Mat& crop) {
+            return crop.size() == full ? ReadWeChat(crop) : std::vector<MarkerObservation>{};
+          },
+      };
+      const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
+      const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
+      const bool seen_candidate = ReadFinderCandidates(gray, regions, clock, budget, &found);
+      // An unread finder triple counts as a code in the frame for the other attempts too.
+      const FrameBudget rest{seen_candidate ? budget.with_codes_ms : budget.empty_ms, budget.with_codes_ms};
+      RunSecondPass(gray, regions, attempts, clock, rest, &found);
+    }
+    if (options_.refine_corners) {
+      for (MarkerObservation& obs : found) RefineQrCorners(gray, &obs);
+    }
+    // Refined above (the quality is the refinement's inlier fraction, 0 if it failed).
+    return FinishObservations(gray, found, /*refine_corners=*/false, options_.min_side_px);
+  }
+
+ private:
+  static std::vector<MarkerObservation> ReadInverted(const cv::Mat& crop) {
+    cv::Mat inverted;
+    cv::bitwise_not(crop, inverted);
+    return ReadWithZxing(inverted, ZxingSymbology::kQrCode, ZxingPass{});
+  }
+
+  static std::vector<MarkerObservation> ReadGlobalHistogram(const cv::Mat& crop) {
+    ZxingPass pass;
+    pass.local_average_binarizer = false;
+    return ReadWithZxing(crop, ZxingSymbology::kQrCode, pass);
+  }
+
+  static std::vector<MarkerObservation> ReadUpscaled(const cv::Mat& crop) {
+    if (std::max(crop.cols, crop.rows) > kMaxUpscaleSidePx) return {};
+    cv::Mat big;
+    cv::resize(crop, big, cv::Size(), 2.0, 2.0, cv::INTER_CUBIC);
+    std::vector<MarkerObservation> found = ReadWithZxing(big, ZxingSymbology::kQrCode, ZxingPass{});
+    MapFromCrop(cv::Point(0, 0), 2.0, &found);
+    return found;
+  }
+
+  // WeChat decodes but, without its CNN detector, reports the whole crop as the
+  // position; the corners come from cv::QRCodeDetector, accepted only for a single code.
+  std::vector<MarkerObservation> ReadWeChat(const cv::Mat& crop) {
+    const std::vector<std::string> texts = wechat_.detectAndDecode(crop);
+    if (texts.size() != 1 || texts[0].empty()) return {};
+    std::vector<cv::Point2f> corners;
+    if (!corner_finder_.detect(crop, corners) || corners.size() != 4) return {};
+    MarkerObservation obs;
+    obs.key.family = kFamilyQr;
+    obs.key.id = TextToId(texts[0]);
+    for (int i = 0; i < 4; ++i) obs.corners_px[i] = Eigen::Vector2d(corners[i].x, corners[i].y);
+    return {obs};
+  }
+
+  DetectorOptions options_;
+  cv::wechat_qrcode::WeChatQRCode wechat_;
+  cv::QRCodeDetector corner_finder_;
+};
+
+}  // namespace
+
+std::unique_ptr<MarkerDetector> CreateQrDetector(const DetectorOptions& options) {
+  return std::make_unique<QrDetector>(options);
+}
+
+}  // namespace waymark

@@ -1,0 +1,334 @@
+#include "detect/qr_finder.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+#include <optional>
+
+#include "detect/refine.h"
+#include "detect/zxing.h"
+
+namespace waymark {
+namespace {
+
+// Binarization: dark where the pixel is below the local mean (box of about a quarter of
+// the region's shorter side, so that it spans a finder) by more than kThresholdOffset.
+constexpr double kThresholdOffset = 4.0;
+// Finder checks on contour areas (upscaled pixels). The traced outlines of the 7x7 ring,
+// its 5x5 hole and the 3x3 centre give area ratios near 49 : 25 : 9, shifted by blur and
+// by the binarization threshold.
+constexpr double kMinFinderArea = 60.0;
+constexpr double kMinOuterToCentre = 2.5, kMaxOuterToCentre = 14.0;
+constexpr double kMinHoleToCentre = 1.3, kMaxHoleToCentre = 7.0;
+constexpr double kMinConvexity = 0.85;     // outer area / convex hull area
+constexpr double kMaxCentreOffset = 0.15;  // centroid distance / sqrt(outer area)
+// Triples: finder widths within this ratio, distances A-B and A-C within kMaxArmRatio
+// (an oblique view foreshortens one axis), the angle at A within [kMinAngleDeg,
+// 180 - kMinAngleDeg], and A-B at least kMinArmToWidth finder widths (2 in version 1,
+// about 1.3 foreshortened) and at most kMaxArmToWidth (version 10: 7.1).
+constexpr double kMaxWidthRatio = 1.8;
+constexpr double kMaxArmRatio = 3.0;
+constexpr double kMinAngleDeg = 40.0;
+constexpr double kMinArmToWidth = 1.2, kMaxArmToWidth = 10.0;
+// Each arm of the corner finder within this angle of one of its outline's edges.
+constexpr double kMaxArmToEdgeDeg = 20.0;
+
+// Fraction of a side next to a finder pattern that the finder's outer ring covers in every
+// version up to 3 (7 of 4 v + 17 modules: 0.33 at version 1, 0.24 at version 3); in larger
+// versions the rest of the segment is the separator and format modules, rejected as
+// outliers by the line fit.
+constexpr double kFinderFraction = 0.24;
+// Half window (px) of the edge search along the finders' outer edges: at least this, or
+// a tenth of the side (the fourth corner can be off by a few modules).
+constexpr double kFinderWindowPx = 2.5;
+
+double SignedArea(const std::array<Eigen::Vector2d, 4>& q) {
+  double a = 0.0;
+  for (int i = 0; i < 4; ++i) a += q[i].x() * q[(i + 1) % 4].y() - q[(i + 1) % 4].x() * q[i].y();
+  return 0.5 * a;
+}
+
+// The contour reduced to four corners: its convex hull simplified with a growing tolerance,
+// or its minimum-area rectangle when no tolerance gives four.
+std::array<cv::Point2f, 4> FourCorners(const std::vector<cv::Point>& contour) {
+  std::vector<cv::Point> hull;
+  cv::convexHull(contour, hull);
+  const double perimeter = cv::arcLength(hull, true);
+  for (const double fraction : {0.02, 0.04, 0.06, 0.09, 0.12}) {
+    std::vector<cv::Point> approx;
+    cv::approxPolyDP(hull, approx, fraction * perimeter, true);
+    if (approx.size() == 4) {
+      return {cv::Point2f(approx[0]), cv::Point2f(approx[1]), cv::Point2f(approx[2]), cv::Point2f(approx[3])};
+    }
+    if (approx.size() < 4) break;
+  }
+  std::array<cv::Point2f, 4> box;
+  cv::minAreaRect(contour).points(box.data());
+  return box;
+}
+
+cv::Point2d Centroid(const std::vector<cv::Point>& contour) {
+  const cv::Moments m = cv::moments(contour);
+  if (m.m00 <= 0.0) return cv::Point2d(contour[0]);
+  return {m.m10 / m.m00, m.m01 / m.m00};
+}
+
+// True if outer contour o, hole h (child of o) and centre k (child of h) look like a finder.
+bool IsFinder(const std::vector<cv::Point>& o, const std::vector<cv::Point>& h,
+              const std::vector<cv::Point>& k) {
+  const double area_o = cv::contourArea(o), area_h = cv::contourArea(h), area_k = cv::contourArea(k);
+  if (area_o < kMinFinderArea || area_k <= 0.0) return false;
+  const double outer_ratio = area_o / area_k, hole_ratio = area_h / area_k;
+  if (outer_ratio < kMinOuterToCentre || outer_ratio > kMaxOuterToCentre) return false;
+  if (hole_ratio < kMinHoleToCentre || hole_ratio > kMaxHoleToCentre || area_h >= area_o) return false;
+  const cv::Point2d offset = Centroid(o) - Centroid(k);
+  if (std::hypot(offset.x, offset.y) > kMaxCentreOffset * std::sqrt(area_o)) return false;
+  std::vector<cv::Point> hull;
+  cv::convexHull(o, hull);
+  return area_o >= kMinConvexity * cv::contourArea(hull);
+}
+
+// The region binarized (dark = 255) at `scale` times its resolution.
+cv::Mat BinarizeRegion(const cv::Mat& gray, const cv::Rect& region, double scale) {
+  cv::Mat work;
+  if (scale > 1.0) {
+    cv::resize(gray(region), work, cv::Size(), scale, scale, cv::INTER_LINEAR);
+  } else {
+    work = gray(region);
+  }
+  const int side = std::min(work.cols, work.rows);
+  const int block = std::clamp(side / 8, 9, 101) | 1;
+  cv::Mat binary;
+  cv::adaptiveThreshold(work, binary, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, block,
+                        kThresholdOffset);
+  return binary;
+}
+
+// |sin| of the angle between `direction` and the nearest edge of the finder's outline.
+double EdgeMisalignment(const QrFinderPattern& finder, const Eigen::Vector2d& direction) {
+  const Eigen::Vector2d u = direction.normalized();
+  double best = 1.0;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d e = (finder.outer_px[(i + 1) % 4] - finder.outer_px[i]).normalized();
+    best = std::min(best, std::abs(u.x() * e.y() - u.y() * e.x()));
+  }
+  return best;
+}
+
+// Score of the triple with right-angle corner a (lower is better), or +inf if it cannot
+// be a QR code's three finders.
+double TripleScore(const QrFinderPattern& a, const QrFinderPattern& b, const QrFinderPattern& c) {
+  const double w_max = std::max({a.width_px, b.width_px, c.width_px});
+  const double w_min = std::min({a.width_px, b.width_px, c.width_px});
+  const Eigen::Vector2d ab = b.centre_px - a.centre_px, ac = c.centre_px - a.centre_px;
+  const double d_ab = ab.norm(), d_ac = ac.norm();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (w_max > kMaxWidthRatio * w_min || d_ab <= 0.0 || d_ac <= 0.0) return kInf;
+  const double arm_ratio = std::max(d_ab, d_ac) / std::min(d_ab, d_ac);
+  const double w_mean = (a.width_px + b.width_px + c.width_px) / 3.0;
+  if (arm_ratio > kMaxArmRatio || std::min(d_ab, d_ac) < kMinArmToWidth * w_mean ||
+      std::max(d_ab, d_ac) > kMaxArmToWidth * w_mean) {
+    return kInf;
+  }
+  const double cos_angle = ab.dot(ac) / (d_ab * d_ac);
+  if (std::abs(cos_angle) > std::cos(kMinAngleDeg * M_PI / 180.0)) return kInf;
+  // The arms run along the corner finder's own edges (a wrong corner sees a diagonal).
+  const double misalignment = std::max(EdgeMisalignment(a, ab), EdgeMisalignment(a, ac));
+  if (misalignment > std::sin(kMaxArmToEdgeDeg * M_PI / 180.0)) return kInf;
+  return std::abs(cos_angle) + 0.5 * std::log(arm_ratio) + std::log(w_max / w_min) + 2.0 * misalignment;
+}
+
+// Index of the vertex of `quad` with the largest weight_s * s + weight_t * t, where (s, t)
+// are its affine coordinates in the code's axes: v = origin + s * axis_s + t * axis_t.
+// Affine coordinates keep their order under the shear and foreshortening of an oblique
+// view, where distances do not.
+int Extreme(const std::array<Eigen::Vector2d, 4>& quad, const Eigen::Vector2d& origin,
+            const Eigen::Vector2d& axis_s, const Eigen::Vector2d& axis_t, double weight_s, double weight_t) {
+  Eigen::Matrix2d basis;
+  basis << axis_s, axis_t;
+  const Eigen::Matrix2d inverse = basis.inverse();
+  int best = 0;
+  double best_value = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d st = inverse * (quad[i] - origin);
+    const double value = weight_s * st.x() + weight_t * st.y();
+    if (value > best_value) best_value = value, best = i;
+  }
+  return best;
+}
+
+Line2d LineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
+  Line2d line;
+  line.point = p;
+  line.direction = (q - p).normalized();
+  return line;
+}
+
+// The code's corners from finders a (top-left), b (top-right), c (bottom-left): in the
+// affine frame of the arms a->b (s) and a->c (t), a's vertex of least s + t, b's of
+// greatest s - t, c's of greatest t - s.
+Quad2d CodeCorners(const QrFinderPattern& a, const QrFinderPattern& b, const QrFinderPattern& c) {
+  const Eigen::Vector2d ab = b.centre_px - a.centre_px, ac = c.centre_px - a.centre_px;
+  const int ia = Extreme(a.outer_px, a.centre_px, ab, ac, -1.0, -1.0);
+  const int ib = Extreme(b.outer_px, a.centre_px, ab, ac, 1.0, -1.0);
+  const int ic = Extreme(c.outer_px, a.centre_px, ab, ac, -1.0, 1.0);
+  Quad2d q;
+  q[0] = a.outer_px[ia];
+  q[1] = b.outer_px[ib];
+  q[3] = c.outer_px[ic];
+  q[2] = q[1] + q[3] - q[0];  // the parallelogram, unless the finders' edges do better
+  // Right edge of b: its corner and the next vertex clockwise; bottom edge of c: its corner
+  // and the previous vertex clockwise.
+  const std::optional<Eigen::Vector2d> corner =
+      IntersectLines(LineThrough(b.outer_px[ib], b.outer_px[(ib + 1) % 4]),
+                     LineThrough(c.outer_px[ic], c.outer_px[(ic + 3) % 4]));
+  if (corner && (*corner - q[2]).norm() < 0.3 * QuadMeanSide(q)) q[2] = *corner;
+  return q;
+}
+
+// zxing on the rectified code: as it is, then sharpened (unsharp mask, I + a (I - G_s * I)
+// with s = kSharpenSigmaModules modules and a = kSharpenAmount: a blur of half a module
+// merges the light gaps between dark modules, which zxing's local-average binarizer then
+// misses), then with the global-histogram binarizer.
+constexpr double kSharpenSigmaModules = 0.4;
+constexpr double kSharpenAmount = 1.0;
+std::vector<MarkerObservation> ReadUpright(const cv::Mat& rectified) {
+  std::vector<MarkerObservation> read = ReadWithZxing(rectified, ZxingSymbology::kQrCode, ZxingPass{});
+  if (!read.empty()) return read;
+  cv::Mat blurred, sharpened;
+  cv::GaussianBlur(rectified, blurred, cv::Size(), kSharpenSigmaModules * kRectifiedModulePx);
+  cv::addWeighted(rectified, 1.0 + kSharpenAmount, blurred, -kSharpenAmount, 0.0, sharpened);
+  read = ReadWithZxing(sharpened, ZxingSymbology::kQrCode, ZxingPass{});
+  if (!read.empty()) return read;
+  ZxingPass global;
+  global.local_average_binarizer = false;
+  return ReadWithZxing(rectified, ZxingSymbology::kQrCode, global);
+}
+
+}  // namespace
+
+void QrCornerFromFinderEdges(const cv::Mat& gray, Quad2d* corners_px) {
+  Quad2d& c = *corners_px;
+  double shortest = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 4; ++i) shortest = std::min(shortest, (c[(i + 1) % 4] - c[i]).norm());
+  const double window = std::min(std::max(kFinderWindowPx, 0.1 * shortest), shortest / 6.0);
+  constexpr double kMinStep = 12.0;  // gray levels per px, as RefineOptions::min_step
+  const std::optional<Line2d> right =
+      FitSideSegment(gray, c[1], c[2], 0.02, kFinderFraction, window, kMinStep);
+  const std::optional<Line2d> bottom =
+      FitSideSegment(gray, c[2], c[3], 1.0 - kFinderFraction, 0.98, window, kMinStep);
+  if (!right || !bottom || right->inlier_fraction < 0.5 || bottom->inlier_fraction < 0.5) return;
+  const std::optional<Eigen::Vector2d> corner = IntersectLines(*right, *bottom);
+  if (corner && (*corner - c[2]).norm() < 0.2 * shortest) c[2] = *corner;
+}
+
+std::vector<QrFinderPattern> FindQrFinderPatterns(const cv::Mat& gray, const cv::Rect& region_in,
+                                                  int max_patterns) {
+  const cv::Rect region = region_in & cv::Rect(0, 0, gray.cols, gray.rows);
+  if (gray.empty() || gray.type() != CV_8UC1 || region.width < 16 || region.height < 16) return {};
+  const double scale =
+      std::clamp(kFinderWorkSidePx / std::min(region.width, region.height), 1.0, kMaxFinderUpscale);
+  const cv::Mat binary = BinarizeRegion(gray, region, scale);
+  std::vector<std::vector<cv::Point>> contours;
+  std::vector<cv::Vec4i> hierarchy;  // next, previous, first child, parent
+  cv::findContours(binary, contours, hierarchy, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE);
+  // Up-scaled pixel centres back to the full image: (p + 0.5) / scale - 0.5 + offset.
+  const auto to_full = [&](const cv::Point2d& p) {
+    return Eigen::Vector2d((p.x + 0.5) / scale - 0.5 + region.x, (p.y + 0.5) / scale - 0.5 + region.y);
+  };
+  std::vector<QrFinderPattern> found;
+  for (size_t o = 0; o < contours.size(); ++o) {
+    if (contours[o].size() < 4) continue;
+    for (int h = hierarchy[o][2]; h >= 0; h = hierarchy[h][0]) {
+      int k = hierarchy[h][2];  // the hole's children: the first that completes a finder
+      while (k >= 0 && !IsFinder(contours[o], contours[h], contours[k])) k = hierarchy[k][0];
+      if (k < 0) continue;
+      QrFinderPattern f;
+      f.centre_px = to_full(Centroid(contours[k]));
+      f.width_px = std::sqrt(cv::contourArea(contours[o])) / scale;
+      const std::array<cv::Point2f, 4> corners = FourCorners(contours[o]);
+      for (int i = 0; i < 4; ++i) f.outer_px[i] = to_full(cv::Point2d(corners[i]));
+      if (SignedArea(f.outer_px) < 0.0) std::reverse(f.outer_px.begin(), f.outer_px.end());
+      found.push_back(f);
+      break;
+    }
+  }
+  std::sort(found.begin(), found.end(),
+            [](const QrFinderPattern& x, const QrFinderPattern& y) { return x.width_px > y.width_px; });
+  if (static_cast<int>(found.size()) > max_patterns) found.resize(max_patterns);
+  return found;
+}
+
+std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& finders,
+                                        const cv::Size& image_size) {
+  struct Triple {
+    double score;
+    int a, b, c;
+  };
+  std::vector<Triple> triples;
+  const int n = static_cast<int>(finders.size());
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      for (int c = b + 1; c < n; ++c) {
+        if (a == b || a == c) continue;
+        const double score = TripleScore(finders[a], finders[b], finders[c]);
+        if (!std::isfinite(score)) continue;
+        const Eigen::Vector2d ab = finders[b].centre_px - finders[a].centre_px;
+        const Eigen::Vector2d ac = finders[c].centre_px - finders[a].centre_px;
+        // Clockwise on screen (y down): top-right then bottom-left.
+        const bool clockwise = ab.x() * ac.y() - ab.y() * ac.x() > 0.0;
+        triples.push_back({score, a, clockwise ? b : c, clockwise ? c : b});
+      }
+    }
+  }
+  std::sort(triples.begin(), triples.end(),
+            [](const Triple& x, const Triple& y) { return x.score < y.score; });
+  std::vector<bool> used(finders.size(), false);
+  std::vector<QrCandidate> out;
+  for (const Triple& t : triples) {
+    if (used[t.a] || used[t.b] || used[t.c]) continue;
+    QrCandidate candidate;
+    candidate.corners_px = CodeCorners(finders[t.a], finders[t.b], finders[t.c]);
+    candidate.module_px = (finders[t.a].width_px + finders[t.b].width_px + finders[t.c].width_px) / 21.0;
+    if (!QuadIsValid(candidate.corners_px, image_size, 10.0)) continue;
+    used[t.a] = used[t.b] = used[t.c] = true;
+    out.push_back(candidate);
+  }
+  return out;
+}
+
+std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate) {
+  if (gray.empty() || gray.type() != CV_8UC1 || !(candidate.module_px > 0.0)) return {};
+  const double modules = std::clamp(QuadMeanSide(candidate.corners_px) / candidate.module_px, 21.0, 97.0);
+  const double side = std::round(modules * kRectifiedModulePx);
+  const double quiet = kRectifiedQuietModules * kRectifiedModulePx;
+  const int canvas = static_cast<int>(side + 2.0 * quiet);
+  // Symbol edges at quiet .. quiet + side (pixel edges), i.e. centres 0.5 px less.
+  const double lo = quiet - 0.5, hi = quiet + side - 0.5;
+  std::vector<cv::Point2f> src,
+      dst = {{float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
+  Quad2d quad = candidate.corners_px;
+  QrCornerFromFinderEdges(gray, &quad);
+  for (const Eigen::Vector2d& c : quad) src.emplace_back(c.x(), c.y());
+  const cv::Mat H_rect_image = cv::getPerspectiveTransform(src, dst);
+  cv::Mat rectified;
+  cv::warpPerspective(gray, rectified, H_rect_image, cv::Size(canvas, canvas), cv::INTER_CUBIC,
+                      cv::BORDER_REPLICATE);
+  const std::vector<MarkerObservation> read = ReadUpright(rectified);
+  const Eigen::Vector2d middle(0.5 * (canvas - 1), 0.5 * (canvas - 1));
+  const auto nearest = std::min_element(read.begin(), read.end(), [&](const auto& x, const auto& y) {
+    return (QuadCenter(x.corners_px) - middle).norm() < (QuadCenter(y.corners_px) - middle).norm();
+  });
+  if (nearest == read.end() || (QuadCenter(nearest->corners_px) - middle).norm() > 0.25 * side) return {};
+  MarkerObservation obs = *nearest;
+  cv::Mat H_image_rect = H_rect_image.inv();
+  for (Eigen::Vector2d& c : obs.corners_px) {
+    const cv::Vec3d p = cv::Matx33d(H_image_rect) * cv::Vec3d(c.x(), c.y(), 1.0);
+    c = Eigen::Vector2d(p[0] / p[2], p[1] / p[2]);
+  }
+  return {obs};
+}
+
+}  // namespace waymark

@@ -1,0 +1,81 @@
+// QR candidates without decoding, and reading them rectified (detect/qr.cc, pass 2).
+//
+// zxing-cpp 1.4 misses QR codes of under ~2 px per module and oblique version-1 codes
+// (its sampling grid is the finders' parallelogram). Here a candidate region is searched
+// for finder patterns on its own, the code's quadrilateral is built from them, and the
+// code is resampled upright at kRectifiedModulePx pixels per module for zxing:
+//   1. finder patterns (FindQrFinderPatterns): the region, upscaled to at least
+//      ~kFinderWorkSidePx, binarized with a local mean threshold; a finder is a dark
+//      contour whose hole holds one dark blob (the 7x7 ring, the 5x5 light ring and the
+//      3x3 centre: areas 49 : 25 : 9), checked by area ratios, concentricity and
+//      convexity; its outer contour is reduced to a quadrilateral;
+//   2. triples (GroupQrFinders): three finders of similar size where one (the top-left)
+//      sees the two others at similar distances, at 40-140 deg, each along one of its own
+//      outline's edges (within 20 deg; a wrong corner sees a diagonal), ordered clockwise on
+//      screen (top-right, then bottom-left: cross(B - A, C - A) > 0 with y down); the
+//      code's corners are the outermost corners of the three finders (extreme in the
+//      affine frame of the arms B - A and C - A) and, for the
+//      bottom-right, the intersection of the top-right finder's right edge and the
+//      bottom-left finder's bottom edge;
+//   3. rectification (ReadRectifiedQr): the bottom-right corner re-found on the image's
+//      edges (QrCornerFromFinderEdges), the homography H maps the quad onto a square of
+//      n * kRectifiedModulePx pixels (n = the module count estimated from the finder
+//      width, 7 modules) inside a kRectifiedQuietModules-module quiet zone, the image is
+//      resampled through H^-1 (bicubic), zxing reads it (as it is, sharpened, or with its
+//      global-histogram binarizer), and its corners are mapped back with H^-1. Corners stay approximate (the
+//      caller refines them in the original image).
+// All coordinates are OpenCV pixel centres of the full image (detect/common.h).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "detect/common.h"
+#include "geometry/types.h"
+
+namespace waymark {
+
+inline constexpr double kFinderWorkSidePx = 240.0;  // shorter side of the upscaled region
+inline constexpr double kMaxFinderUpscale = 4.0;
+inline constexpr double kRectifiedModulePx = 4.0;
+inline constexpr int kRectifiedQuietModules = 4;
+
+struct QrFinderPattern {
+  Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();
+  double width_px = 0.0;  // square root of the outer contour's area: 7 modules
+  // Outer contour reduced to four corners, clockwise on screen (x right, y down).
+  std::array<Eigen::Vector2d, 4> outer_px;
+};
+
+// Finder patterns inside `region` of `gray` (8-bit, one channel), in full-image pixels.
+// At most `max_patterns`, largest first. Empty for a region under 16 px.
+std::vector<QrFinderPattern> FindQrFinderPatterns(const cv::Mat& gray, const cv::Rect& region,
+                                                  int max_patterns = 12);
+
+struct QrCandidate {
+  Quad2d corners_px;       // docs/design.md order (top-left, top-right, bottom-right, bottom-left)
+  double module_px = 0.0;  // mean finder width / 7
+};
+
+// Codes made of three finders each, best-shaped triple first, each finder used once.
+// Candidates whose quad is not valid (QuadIsValid, sides >= 10 px) are dropped.
+std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& finders,
+                                        const cv::Size& image_size);
+
+// The bottom-right corner from the symbol's own edges: the intersection of the outer edge
+// of the top-right finder (right side, next to the top-right corner) and of the
+// bottom-left finder (bottom side, next to the bottom-left corner), found in `gray` within
+// max(2.5 px, a tenth of the shortest side) of the quad's sides. zxing places that corner
+// from the alignment pattern, or, in version 1 (no alignment pattern), by completing the
+// parallelogram of the three finders, a few pixels off under perspective; GroupQrFinders
+// from the finders' own (coarse) outlines. Keeps the corner when an edge is not found or
+// the corner would move more than a fifth of the shortest side.
+void QrCornerFromFinderEdges(const cv::Mat& gray, Quad2d* corners_px);
+
+// The code of `candidate` read from `gray` resampled upright (see above); at most one
+// observation (the one nearest the rectified centre), corners mapped back to `gray`.
+std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate);
+
+}  // namespace waymark

@@ -1,0 +1,195 @@
+// The plain data types every part of Waymark exchanges: marker keys, detections,
+// trajectories, maps and datasets. Pure data, no I/O (readers and writers are in *_io.h).
+// Conventions (frames, corner order, units) are those of docs/design.md.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "geometry/pose.h"
+
+namespace waymark {
+
+// Marker families as written in files.
+inline constexpr const char* kFamilyQr = "qr";
+inline constexpr const char* kFamilyDataMatrix = "datamatrix";
+inline constexpr const char* kFamilySquare = "square";
+inline constexpr const char* kFamilyAprilTagPrefix = "apriltag-";  // e.g. apriltag-36h11
+
+// True for qr, datamatrix, square and apriltag-<name> with a non-empty name.
+bool IsKnownFamily(const std::string& family);
+
+// A marker's identity: (family, id). `id` is the decoded text for QR and DataMatrix
+// and the tag number, as a string, for AprilTag.
+struct MarkerKey {
+  std::string family;
+  std::string id;
+
+  bool operator<(const MarkerKey& o) const { return std::tie(family, id) < std::tie(o.family, o.id); }
+  bool operator==(const MarkerKey& o) const { return family == o.family && id == o.id; }
+  bool operator!=(const MarkerKey& o) const { return !(*this == o); }
+  std::string ToString() const { return family + ":" + id; }
+};
+
+// Object points of the four corners in the marker frame, docs/design.md order:
+// top-left, top-right, bottom-right, bottom-left of the upright symbol.
+inline std::array<Eigen::Vector3d, 4> MarkerCorners(double size_m) {
+  const double h = 0.5 * size_m;
+  return {Eigen::Vector3d(-h, h, 0.0), Eigen::Vector3d(h, h, 0.0), Eigen::Vector3d(h, -h, 0.0),
+          Eigen::Vector3d(-h, -h, 0.0)};
+}
+
+// One marker seen in one image.
+struct MarkerObservation {
+  MarkerKey key;
+  std::array<Eigen::Vector2d, 4> corners_px;  // docs/design.md corner order
+  std::optional<double> quality;              // detector's quality figure, if any
+};
+
+// Everything detected in one image of one camera (one line of detections.jsonl).
+struct DetectionFrame {
+  double stamp_s = 0.0;
+  std::string camera;
+  std::vector<MarkerObservation> markers;
+  std::optional<std::string> image;  // image path as given, for image inputs
+  std::optional<long> frame;         // frame number, for video inputs
+};
+
+// A timestamped transform; in a trajectory it is T_world_robot (or T_odom_robot).
+struct StampedSE3 {
+  double stamp_s = 0.0;
+  SE3d T;
+};
+using Trajectory = std::vector<StampedSE3>;  // sorted by stamp_s
+
+// The index of the last sample at or before `stamp_s` (-1 when all are later); binary search.
+long SampleAtOrBefore(const Trajectory& trajectory, double stamp_s);
+
+// The pose at `stamp_s`, interpolated between the samples around it (InterpolateProduct);
+// nullopt outside the trajectory's span or when those samples are more than max_gap_s apart.
+std::optional<SE3d> InterpolateTrajectory(const Trajectory& trajectory, double stamp_s, double max_gap_s);
+
+// Rows F_i of a map's low-rank joint marker covariance (6 x k; mapping/map_covariance.h).
+using CovarianceFactor = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+
+// A marker in a map (map.json; also ground-truth and known markers).
+struct MapMarker {
+  MarkerKey key;
+  double size_m = 0.0;
+  SE3d T_world_marker;                 // meaningful only when has_pose
+  std::optional<Matrix6d> covariance;  // right perturbation, tangent order [rx ry rz tx ty tz]
+  bool fixed = false;                  // an anchor: held constant by mapping
+  std::optional<int> component;        // disconnected maps are numbered 0, 1, ...
+  bool has_pose = true;                // false: a size-only entry of a known-markers file
+  // Optional rows F_i (6 x k) of the map's low-rank joint covariance, Sigma ~ F F^T + blockdiag(D_i)
+  // with D_i = covariance - F_i F_i^T (mapping/map_covariance.h); k is the same for every marker.
+  std::optional<CovarianceFactor> covariance_factor = std::nullopt;
+};
+
+struct MarkerMap {
+  std::vector<MapMarker> markers;
+
+  // nullptr when absent.
+  const MapMarker* Find(const MarkerKey& key) const;
+  MapMarker* Find(const MarkerKey& key);
+};
+
+enum class CameraModel { kPinholeRadtan, kPinholeEquidistant };
+
+// "pinhole-radtan" / "pinhole-equidistant"; ParseCameraModel returns nullopt otherwise.
+const char* CameraModelName(CameraModel model);
+std::optional<CameraModel> ParseCameraModel(const std::string& name);
+
+// A camera's calibration and mounting (cameras/<name>.yaml). The math is in geometry/camera.h.
+struct CameraInfo {
+  std::string name;
+  CameraModel model = CameraModel::kPinholeRadtan;
+  int width = 0;
+  int height = 0;
+  std::array<double, 4> intrinsics{};  // fx, fy, cx, cy
+  std::vector<double> distortion;      // radtan: k1 k2 p1 p2 k3; equidistant: k1 k2 k3 k4
+  SE3d T_robot_camera;
+  std::optional<double> pixel_sigma;   // corner noise, px
+
+  // Number of distortion coefficients the model takes (5 or 4).
+  static size_t DistortionSize(CameraModel model) { return model == CameraModel::kPinholeRadtan ? 5 : 4; }
+  bool InImage(const Eigen::Vector2d& px) const {
+    return px.x() >= 0.0 && px.y() >= 0.0 && px.x() <= width && px.y() <= height;
+  }
+};
+
+enum class MotionModel { kPlanar, kFree };
+
+struct OdometrySigma {
+  double trans_per_m = 0.0;   // translation noise per metre travelled
+  double rot_per_rad = 0.0;   // rotation noise per radian turned
+};
+
+// Coordinates printed inside a code's payload (dataset.yaml `payload`).
+struct PayloadSpec {
+  std::string pattern;              // ECMAScript regular expression over the decoded text
+  std::vector<std::string> fields;  // one name per capture group; x, y, z, yaw_deg are special
+  // dataset.yaml `payload.default_z_m`: the height of a code whose text gives x and y but no z
+  // (e.g. [Kang]'s floor codes "0/x/y", printed on the floor at z = 0). Unset: z stays unknown.
+  std::optional<double> default_z_m = std::nullopt;
+};
+
+// One row of images.csv.
+struct ImageEntry {
+  double stamp_s = 0.0;
+  std::string camera;
+  std::string path;  // relative to the dataset directory, as written
+};
+
+// dataset.yaml, with the paths of its files resolved against the dataset directory.
+struct DatasetConfig {
+  std::string name;
+  MotionModel motion = MotionModel::kPlanar;
+  std::vector<std::string> cameras;
+  std::optional<double> default_marker_size_m;
+  std::optional<OdometrySigma> odometry_sigma;
+  std::optional<PayloadSpec> payload;
+  std::string odometry_file = "odometry.tum";
+  std::string detections_file = "detections.jsonl";
+  std::string images_file = "images.csv";
+  std::string markers_file = "markers.json";
+};
+
+// Warnings counted while reading (docs/design.md: rejected, never silently used).
+struct ReadWarnings {
+  std::map<std::string, long> counts;  // reason -> count
+  std::vector<std::string> first_messages;  // the first few, with file and line
+  void Add(const std::string& reason, const std::string& message);
+  long Total() const;
+};
+
+// A dataset directory in memory. Optional parts are empty when their file is absent.
+struct Dataset {
+  std::filesystem::path dir;
+  DatasetConfig config;
+  std::map<std::string, CameraInfo> cameras;  // by name
+  Trajectory odometry;                         // T_odom_robot
+  std::vector<DetectionFrame> detections;
+  std::vector<ImageEntry> images;
+  std::optional<MarkerMap> known_markers;
+  std::optional<Trajectory> groundtruth_trajectory;  // T_world_robot
+  std::optional<MarkerMap> groundtruth_markers;
+  std::optional<Trajectory> reference_trajectory;
+  std::optional<MarkerMap> reference_markers;
+  ReadWarnings warnings;
+  bool has_odometry_file = false;
+  bool has_detections_file = false;
+  bool has_images_file = false;
+
+  // Size of a marker: known_markers, then default_marker_size_m; nullopt if neither.
+  std::optional<double> MarkerSize(const MarkerKey& key) const;
+};
+
+}  // namespace waymark

@@ -1,0 +1,132 @@
+#include "io/camera_io.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "io/util.h"
+#include "io/yaml_util.h"
+
+namespace waymark {
+namespace {
+
+CameraModel ReadModel(const std::filesystem::path& path, const YAML::Node& root) {
+  const YAML::Node node = YamlRequire(path, root, "model");
+  const std::string name = YamlString(path, node, "model");
+  const std::optional<CameraModel> model = ParseCameraModel(name);
+  if (!model) {
+    ThrowYamlError(path, node,
+                   "model: unknown camera model '" + name + "' (expected " +
+                       CameraModelName(CameraModel::kPinholeRadtan) + " or " +
+                       CameraModelName(CameraModel::kPinholeEquidistant) + ")");
+  }
+  return *model;
+}
+
+int ReadSize(const std::filesystem::path& path, const YAML::Node& root, const std::string& key) {
+  const YAML::Node node = YamlRequire(path, root, key);
+  const long value = YamlInteger(path, node, key);
+  if (value <= 0 || value > 1000000) {
+    ThrowYamlError(path, node, key + ": expected a positive number of pixels, got " + std::to_string(value));
+  }
+  return static_cast<int>(value);
+}
+
+}  // namespace
+
+CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path& path,
+                           const std::string& name, ReadWarnings* warnings) {
+  const YAML::Node root = YamlLoadMap(path, text);
+  CameraInfo camera;
+  camera.name = name;
+  camera.model = ReadModel(path, root);
+  camera.width = ReadSize(path, root, "width");
+  camera.height = ReadSize(path, root, "height");
+
+  const YAML::Node intrinsics_node = YamlRequire(path, root, "intrinsics");
+  const std::vector<double> intrinsics = YamlNumbers(path, intrinsics_node, "intrinsics", 4);
+  if (!(intrinsics[0] > 0.0 && intrinsics[1] > 0.0)) {
+    ThrowYamlError(path, intrinsics_node, "intrinsics: expected positive focal lengths fx, fy");
+  }
+  for (int i = 0; i < 4; ++i) camera.intrinsics[i] = intrinsics[i];
+
+  const size_t distortion_size = CameraInfo::DistortionSize(camera.model);
+  camera.distortion =
+      YamlNumbers(path, YamlRequire(path, root, "distortion"),
+                  std::string("distortion (") + CameraModelName(camera.model) + ")", distortion_size);
+  camera.T_robot_camera = YamlPose(path, YamlRequire(path, root, "T_robot_camera"), "T_robot_camera");
+
+  if (const YAML::Node sigma = root["pixel_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
+    camera.pixel_sigma = YamlNumber(path, sigma, "pixel_sigma");
+    if (!(*camera.pixel_sigma > 0.0))
+      ThrowYamlError(path, sigma, "pixel_sigma: expected a positive number of pixels");
+  }
+  YamlWarnUnknownKeys(
+      path, root, {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera", "pixel_sigma"},
+      "", warnings);
+  return camera;
+}
+
+CameraInfo ReadCameraYaml(const std::filesystem::path& path, ReadWarnings* warnings) {
+  return ParseCameraYaml(ReadTextFile(path), path, path.stem().string(), warnings);
+}
+
+namespace {
+
+std::string NumberList(const double* values, size_t count) {
+  std::string text = "[";
+  for (size_t i = 0; i < count; ++i) text += (i ? ", " : "") + FormatDouble(values[i]);
+  return text + "]";
+}
+
+void CheckWritable(const CameraInfo& camera) {
+  const std::string name = "camera writer: " + camera.name + ": ";
+  if (camera.width <= 0 || camera.height <= 0)
+    throw std::invalid_argument(name + "width and height must be positive");
+  if (!(camera.intrinsics[0] > 0.0 && camera.intrinsics[1] > 0.0) || !std::isfinite(camera.intrinsics[0]) ||
+      !std::isfinite(camera.intrinsics[1]) || !std::isfinite(camera.intrinsics[2]) ||
+      !std::isfinite(camera.intrinsics[3])) {
+    throw std::invalid_argument(name + "intrinsics must be finite with positive fx, fy");
+  }
+  if (camera.distortion.size() != CameraInfo::DistortionSize(camera.model)) {
+    throw std::invalid_argument(name + "distortion needs " +
+                                std::to_string(CameraInfo::DistortionSize(camera.model)) +
+                                " coefficients for " + CameraModelName(camera.model));
+  }
+  for (const double k : camera.distortion) {
+    if (!std::isfinite(k)) throw std::invalid_argument(name + "distortion not finite");
+  }
+  if (!camera.T_robot_camera.IsFinite()) throw std::invalid_argument(name + "T_robot_camera not finite");
+  if (camera.pixel_sigma && !(*camera.pixel_sigma > 0.0 && std::isfinite(*camera.pixel_sigma))) {
+    throw std::invalid_argument(name + "pixel_sigma must be positive");
+  }
+}
+
+}  // namespace
+
+std::string FormatCameraYaml(const CameraInfo& camera) {
+  CheckWritable(camera);
+  std::ostringstream out;
+  out << "model: " << CameraModelName(camera.model) << "\n"
+      << "width: " << camera.width << "\n"
+      << "height: " << camera.height << "\n"
+      << "intrinsics: " << NumberList(camera.intrinsics.data(), 4) << "\n"
+      << "distortion: " << NumberList(camera.distortion.data(), camera.distortion.size()) << "\n"
+      << "T_robot_camera: " << FormatPoseYaml(camera.T_robot_camera) << "\n";
+  if (camera.pixel_sigma) out << "pixel_sigma: " << FormatDouble(*camera.pixel_sigma) << "\n";
+  return out.str();
+}
+
+void WriteCameraYaml(const std::filesystem::path& path, const CameraInfo& camera) {
+  std::string text;
+  try {
+    text = FormatCameraYaml(camera);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  AtomicWriteFile(path, text);
+}
+
+}  // namespace waymark

@@ -1,0 +1,235 @@
+#include "io/map_io.h"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <stdexcept>
+
+#include "io/util.h"
+#include "io/json_util.h"
+
+namespace waymark {
+namespace {
+
+constexpr const char* kMapFormat = "waymark-map";
+constexpr long kMapVersion = 1;
+
+Matrix6d ParseCovariance(const JsonSource& source, const nlohmann::json& value, const std::string& field) {
+  const std::vector<double> numbers = JsonNumbers(source, value, field, 36);
+  Matrix6d covariance;
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) covariance(r, c) = numbers[6 * r + c];
+  }
+  const double scale = std::max(1.0, covariance.cwiseAbs().maxCoeff());
+  if ((covariance - covariance.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
+    ThrowJsonError(source, field, "expected a symmetric 6x6 matrix (row-major)");
+  }
+  if ((covariance.diagonal().array() < 0.0).any()) {
+    ThrowJsonError(source, field, "expected a non-negative diagonal (variances)");
+  }
+  return covariance;
+}
+
+// covariance_factor: 6 k numbers, row-major 6 x k, with covariance - F F^T PSD (within 1e-6 of
+// the largest variance).
+CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                                       const std::optional<Matrix6d>& covariance) {
+  if (!value.is_array() || value.empty() || value.size() % 6 != 0) {
+    ThrowJsonError(source, field, "expected a non-empty array of 6 k numbers (row-major 6 x k)");
+  }
+  const std::vector<double> numbers = JsonNumbers(source, value, field, value.size());
+  const int k = static_cast<int>(numbers.size() / 6);
+  CovarianceFactor factor(6, k);
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < k; ++c) factor(r, c) = numbers[k * r + c];
+  }
+  if (!covariance) ThrowJsonError(source, field, "expected a covariance with the covariance_factor");
+  const Matrix6d residual = *covariance - factor * factor.transpose();
+  const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Matrix6d>(residual).eigenvalues().minCoeff();
+  if (min_eigenvalue < -1e-6 * covariance->diagonal().maxCoeff()) {
+    ThrowJsonError(source, field, "expected covariance - F F^T positive semi-definite (F F^T exceeds the covariance)");
+  }
+  return factor;
+}
+
+MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                      ReadWarnings* warnings, MapPoses poses) {
+  MapMarker marker;
+  marker.key.family =
+      JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
+  if (!IsKnownFamily(marker.key.family)) {
+    ThrowJsonError(
+        source, JsonField(field, "family"),
+        "unknown family \"" + marker.key.family + "\" (expected qr, datamatrix, square or apriltag-<name>)");
+  }
+  marker.key.id = JsonString(source, *JsonMember(source, value, field, "id", true), JsonField(field, "id"));
+  if (marker.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
+  marker.size_m =
+      JsonNumber(source, *JsonMember(source, value, field, "size_m", true), JsonField(field, "size_m"));
+  if (!(marker.size_m > 0.0)) {
+    ThrowJsonError(source, JsonField(field, "size_m"),
+                   "expected a positive size, got " + FormatDouble(marker.size_m));
+  }
+  const nlohmann::json* pose =
+      JsonMember(source, value, field, "T_world_marker", poses == MapPoses::kRequired);
+  if (pose != nullptr) {
+    marker.T_world_marker = JsonPose(source, *pose, JsonField(field, "T_world_marker"));
+  } else {
+    marker.has_pose = false;
+  }
+  if (const nlohmann::json* covariance = JsonMember(source, value, field, "covariance", false)) {
+    marker.covariance = ParseCovariance(source, *covariance, JsonField(field, "covariance"));
+  }
+  if (const nlohmann::json* factor = JsonMember(source, value, field, "covariance_factor", false)) {
+    marker.covariance_factor =
+        ParseCovarianceFactor(source, *factor, JsonField(field, "covariance_factor"), marker.covariance);
+  }
+  if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
+    marker.fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
+  }
+  if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
+    const long number = JsonInteger(source, *component, JsonField(field, "component"));
+    if (number < 0 || number > std::numeric_limits<int>::max()) {
+      ThrowJsonError(source, JsonField(field, "component"),
+                     "expected a non-negative integer, got " + component->dump());
+    }
+    marker.component = static_cast<int>(number);
+  }
+  if (!marker.has_pose && (marker.fixed || marker.covariance)) {
+    ThrowJsonError(source, JsonField(field, "T_world_marker"),
+                   "expected a pose for a fixed marker or one with a covariance");
+  }
+  JsonWarnUnknownKeys(source, value, field,
+                      {"family", "id", "size_m", "T_world_marker", "covariance", "covariance_factor", "fixed",
+                       "component"},
+                      warnings);
+  return marker;
+}
+
+void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
+  const std::string format = JsonString(source, *JsonMember(source, root, "", "format", true), "format");
+  if (format != kMapFormat) {
+    ThrowJsonError(source, "format", std::string("expected \"") + kMapFormat + "\", got \"" + format + "\"");
+  }
+  const long version = JsonInteger(source, *JsonMember(source, root, "", "version", true), "version");
+  if (version != kMapVersion) {
+    ThrowJsonError(source, "version",
+                   "expected " + std::to_string(kMapVersion) + ", got " + std::to_string(version));
+  }
+}
+
+}  // namespace
+
+MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, ReadWarnings* warnings,
+                   MapPoses poses) {
+  std::map<std::string, long> lines;
+  const nlohmann::json root = ParseJsonDocument(text, path, &lines);
+  const JsonSource source = JsonSourceWithLines(path, std::move(lines));
+  CheckHeader(source, root);
+  const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
+  if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array of markers");
+  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers"}, warnings);
+
+  MarkerMap map;
+  std::set<MarkerKey> seen;
+  std::optional<long> factor_columns;  // k, the same for every marker
+  for (size_t i = 0; i < markers.size(); ++i) {
+    const std::string field = JsonField("markers", i);
+    MapMarker marker = ParseMarker(source, markers[i], field, warnings, poses);
+    if (!seen.insert(marker.key).second) {
+      ThrowJsonError(source, field, "duplicate marker " + marker.key.ToString());
+    }
+    if (marker.covariance_factor) {
+      const long k = marker.covariance_factor->cols();
+      if (factor_columns && *factor_columns != k) {
+        ThrowJsonError(source, JsonField(field, "covariance_factor"),
+                       "expected 6 x " + std::to_string(*factor_columns) + " like the markers before, got 6 x " +
+                           std::to_string(k));
+      }
+      factor_columns = k;
+    }
+    map.markers.push_back(std::move(marker));
+  }
+  return map;
+}
+
+MarkerMap ReadMap(const std::filesystem::path& path, ReadWarnings* warnings, MapPoses poses) {
+  return ParseMap(ReadTextFile(path), path, warnings, poses);
+}
+
+namespace {
+
+// nlohmann's dump writes doubles with the shortest round-trip representation.
+nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
+  const Eigen::Vector3d& t = marker.T_world_marker.translation();
+  const Eigen::Quaterniond& q = marker.T_world_marker.rotation();
+  nlohmann::ordered_json json;
+  json["family"] = marker.key.family;
+  json["id"] = marker.key.id;
+  json["size_m"] = marker.size_m;
+  if (marker.has_pose) {
+    json["T_world_marker"] = {{"t", {t.x(), t.y(), t.z()}}, {"q_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+  }
+  if (marker.covariance) {
+    nlohmann::ordered_json covariance = nlohmann::ordered_json::array();
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) covariance.push_back((*marker.covariance)(r, c));
+    }
+    json["covariance"] = covariance;
+  }
+  if (marker.covariance_factor) {
+    nlohmann::ordered_json factor = nlohmann::ordered_json::array();
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < marker.covariance_factor->cols(); ++c) factor.push_back((*marker.covariance_factor)(r, c));
+    }
+    json["covariance_factor"] = factor;
+  }
+  json["fixed"] = marker.fixed;
+  if (marker.component) json["component"] = *marker.component;
+  return json;
+}
+
+void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
+  const std::string name = "map writer: marker " + marker.key.ToString() + ": ";
+  if (!IsKnownFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family");
+  if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
+  if (!(marker.size_m > 0.0) || !std::isfinite(marker.size_m))
+    throw std::invalid_argument(name + "size_m not positive");
+  if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "T_world_marker not finite");
+  if (!marker.has_pose && (marker.fixed || marker.covariance))
+    throw std::invalid_argument(name + "fixed or with a covariance but without a pose");
+  if (marker.covariance && !marker.covariance->allFinite())
+    throw std::invalid_argument(name + "covariance not finite");
+  if (marker.covariance_factor &&
+      (!marker.covariance || marker.covariance_factor->cols() == 0 || !marker.covariance_factor->allFinite()))
+    throw std::invalid_argument(name + "covariance_factor empty, not finite or without a covariance");
+  if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");
+  if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
+}
+
+}  // namespace
+
+std::string FormatMap(const MarkerMap& map) {
+  std::set<MarkerKey> seen;
+  std::string text = std::string("{\"format\": \"") + kMapFormat +
+                     "\", \"version\": " + std::to_string(kMapVersion) + ",\n \"markers\": [";
+  for (size_t i = 0; i < map.markers.size(); ++i) {
+    CheckWritable(map.markers[i], &seen);
+    text += (i == 0 ? "\n  " : ",\n  ") + MarkerJson(map.markers[i]).dump();
+  }
+  text += map.markers.empty() ? "]}\n" : "\n ]}\n";
+  return text;
+}
+
+void WriteMap(const std::filesystem::path& path, const MarkerMap& map) {
+  std::string text;
+  try {
+    text = FormatMap(map);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  AtomicWriteFile(path, text);
+}
+
+}  // namespace waymark

@@ -1,0 +1,20 @@
+// The build report of `waymark map build`: the human summary printed on stdout (markers and
+// components, reprojection per camera, outliers by reason and by code, time, solver, the odometry
+// calibration). `--report`'s JSON is written by cli/cmd_map.cc from the same MapBuildResult.
+#pragma once
+
+#include <string>
+
+#include "mapping/map_builder.h"
+
+namespace waymark {
+
+// The human summary: markers and components, reprojection RMS per camera, outliers, solver, the
+// odometry calibration.
+std::string FormatBuildSummary(const MapBuildResult& result);
+
+// One line: the odometry calibration in deg/m and percent (with its sigmas when known) and, when
+// estimated, the --odometry-calibration argument that reuses it; "" without one.
+std::string FormatOdometryCalibration(const MapBuildResult& result);
+
+}  // namespace waymark

@@ -1,0 +1,296 @@
+#include "mapping/global_problem.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <ceres/covariance.h>
+
+#include "factors/odometry_se2_factor.h"
+#include "factors/odometry_se3_factor.h"
+#include "factors/pose_prior_se3_factor.h"
+#include "factors/position_prior_factor.h"
+#include "factors/yaw_prior_factor.h"
+#include "mapping/marginal_covariance.h"
+#include "mapping/residuals.h"
+#include "util/format.h"
+
+namespace waymark {
+namespace {
+
+// Levenberg-Marquardt's first trust region (see GlobalProblem::Solve).
+constexpr double kInitialTrustRegionRadius = 1e12;
+
+// Forwards Ceres iterations to the progress callback.
+class ProgressCallback : public ceres::IterationCallback {
+ public:
+  ProgressCallback(const std::function<void(const std::string&)>& progress, std::string stage)
+      : progress_(progress), stage_(std::move(stage)) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    progress_(stage_ + ": iteration " + std::to_string(s.iteration) + ", cost " + FormatSignificant(s.cost, 8));
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const std::function<void(const std::string&)>& progress_;
+  std::string stage_;
+};
+
+}  // namespace
+
+ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool robust,
+                                            std::vector<std::string>* gauges) {
+  problem_ = std::make_unique<ceres::Problem>();
+  std::set<int> markers_used;
+  ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
+  for (int o : active) {
+    const SurveyObservation& obs = survey_.observations[o];
+    if (problem_->HasParameterBlock(robot_[obs.frame].data()) == false) {
+      AddRobotBlock(problem_.get(), survey_.motion, &robot_[obs.frame]);
+    }
+    if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
+    AddCornerResidual(problem_.get(), survey_.motion, survey_.cameras.at(obs.camera),
+                      survey_.markers[obs.marker].size_m, obs.corners_px, &robot_[obs.frame], &marker_[obs.marker],
+                      loss);
+  }
+  if (loss != nullptr && active.empty()) delete loss;
+  AddOdometry();
+  AddPriorsAndGauge(markers_used, gauges);
+  covariance_markers_.clear();
+  for (int m : markers_used) {
+    if (!problem_->IsParameterBlockConstant(marker_[m].data())) covariance_markers_.push_back(marker_[m].data());
+  }
+  // Measured on corridor loops (docs/mapping.md, speed): Cholesky of the normal equations with
+  // SuiteSparse (CHOLMOD, AMD) is on par with EIGEN_SPARSE and beats SPARSE_SCHUR with the codes
+  // eliminated first (the reduced system is still every frame: 640 m loop, linear solver 6x
+  // slower); ITERATIVE_SCHUR + SCHUR_JACOBI crawls on the long odometry chains; Jacobi scaling and
+  // non-monotonic steps change nothing. Levenberg-Marquardt starts at a trust region of 1e12
+  // (Ceres' default is 1e4), i.e. at Gauss-Newton steps, and shrinks it only when a step fails:
+  // Ceres damps the normal equations by diag(J^T J) / radius, and with the default every solve
+  // crept along the loop's weakly constrained drift modes: each step was accepted with a model
+  // fit of 1.00, the radius tripled, and the iteration count grew with the loop (640 m: 40 + 20
+  // iterations -> 8 + 3, maps equal within 11 um on the accuracy scenarios). A relative cost change of 1e-6 ends the
+  // robust solves, which only decide the outliers. The final solve runs to 1e-10: stopping it at
+  // 1e-6 moves the maps by up to 0.08 mm now for one iteration, and left sparse-code maps up to
+  // 50 % worse with the default radius (corridor d = 4 m seed 3: 45 -> 69 mm).
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  solver_options.initial_trust_region_radius = kInitialTrustRegionRadius;
+  solver_options.max_num_iterations = options_.max_iterations;
+  solver_options.num_threads = options_.num_threads;
+  solver_options.function_tolerance = robust ? 1e-6 : 1e-10;
+  solver_options.parameter_tolerance = robust ? 1e-8 : 1e-10;
+  std::unique_ptr<ProgressCallback> callback;
+  if (options_.progress) {
+    callback = std::make_unique<ProgressCallback>(options_.progress, robust ? "robust solve" : "final solve");
+    solver_options.callbacks.push_back(callback.get());
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, problem_.get(), &summary);
+  return summary;
+}
+
+size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
+                                             const std::map<std::string, Camera>& cameras) {
+  std::set<int> outlying;
+  for (int o : active) {
+    if (SquaredError(o) > options_.outlier_chi2) outlying.insert(survey_.observations[o].marker);
+  }
+  std::vector<std::optional<SE3d>> T_world_robot(survey_.frames.size());
+  for (size_t f = 0; f < survey_.frames.size(); ++f) {
+    if (FramePlaced(static_cast<int>(f))) T_world_robot[f] = Robot(static_cast<int>(f));
+  }
+  size_t moved = 0;
+  for (int m : outlying) {
+    const SurveyMarker& marker = survey_.markers[m];
+    if (marker.known && marker.known->fixed) continue;
+    const std::optional<SE3d> T = MarkerByConsensus(survey_, cameras, init_.views, T_world_robot, m,
+                                                    options_.initializer.cauchy_scale);
+    if (!T) continue;
+    const SE3d before = Marker(m);
+    if ((T->translation() - before.translation()).norm() > 1e-3 || RotationAngleBetween(*T, before) > 1e-3) {
+      SE3ToBlock(*T, marker_[m].data());
+      ++moved;
+    }
+  }
+  // Codes left on the wrong branch of the planar ambiguity (mapping/initializer.h, OtherFlipBranch).
+  LocalMapOptions fusion = options_.initializer.local_maps;
+  fusion.cauchy_scale = options_.initializer.cauchy_scale;
+  for (size_t m = 0; m < marker_.size(); ++m) {
+    const SurveyMarker& marker = survey_.markers[m];
+    const bool fixed = marker.known && marker.known->fixed;
+    const int code = static_cast<int>(m);
+    if (!init_.T_world_marker[m] || outlying.count(code) > 0 || fixed) continue;
+    const std::optional<SE3d> T =
+        OtherFlipBranch(survey_, cameras, init_.views, T_world_robot, code, Marker(code), fusion);
+    if (T) {
+      SE3ToBlock(*T, marker_[m].data());
+      ++moved;
+    }
+  }
+  return moved;
+}
+
+// Odometry between placed frames that are both in the problem; frames seen by no code but
+// placed (odometry only) are added too, so the smoothed trajectory covers them.
+void GlobalProblem::AddOdometry() {
+  for (const OdometryLink& link : survey_.odometry_links) {
+    if (!FramePlaced(link.frame_a) || !FramePlaced(link.frame_b)) continue;
+    for (int f : {link.frame_a, link.frame_b}) {
+      if (!problem_->HasParameterBlock(robot_[f].data())) AddRobotBlock(problem_.get(), survey_.motion, &robot_[f]);
+    }
+    if (options_.calibrate_odometry) {
+      AddCalibratedOdometry(link);
+    } else if (survey_.motion == MotionModel::kPlanar) {
+      problem_->AddResidualBlock(OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2), nullptr,
+                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+    } else {
+      problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, link.covariance_se3), nullptr,
+                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+    }
+  }
+}
+
+void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
+  if (!problem_->HasParameterBlock(calibration_.data())) {
+    problem_->AddParameterBlock(calibration_.data(), kOdometryCalibrationSize);
+    problem_->AddResidualBlock(
+        OdometryCalibrationPrior::Create(options_.odometry_calibration.value_or(Eigen::Vector3d::Zero()),
+                                         options_.odometry_calibration_sigma.value_or(
+                                             Eigen::Vector3d::Constant(options_.calibration_sigma))),
+        nullptr, calibration_.data());
+    if (options_.odometry_calibration && !options_.odometry_calibration_sigma) {
+      problem_->SetParameterBlockConstant(calibration_.data());
+    }
+  }
+  ceres::CostFunction* cost =
+      survey_.motion == MotionModel::kPlanar
+          ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2)
+          : CalibratedOdometrySE3Factor::Create(link.T_a_b, link.covariance_se3);
+  problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data(),
+                             calibration_.data());
+}
+
+void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {
+  gauges->assign(init_.components, "");
+  std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0), payloads_z(init_.components, 0);
+  for (int m : markers_used) {
+    const SurveyMarker& marker = survey_.markers[m];
+    const int c = init_.marker_component[m];
+    if (marker.known && marker.known->fixed) {
+      SE3ToBlock(marker.known->T_world_marker, marker_[m].data());
+      problem_->SetParameterBlockConstant(marker_[m].data());
+      ++anchors[c];
+    } else if (marker.known && marker.known->covariance) {
+      problem_->AddResidualBlock(PosePriorSE3Factor::Create(marker.known->T_world_marker, *marker.known->covariance),
+                                 nullptr, marker_[m].data());
+      ++anchors[c];
+    }
+  }
+  const bool planar = survey_.motion == MotionModel::kPlanar;
+  for (int m : markers_used) {
+    const SurveyMarker& marker = survey_.markers[m];
+    const int c = init_.marker_component[m];
+    if (!marker.payload || anchors[c] > 0) continue;
+    const PayloadData& p = *marker.payload;
+    if (p.z_m && !planar) {
+      problem_->AddResidualBlock(
+          PositionPriorFactor<3>::Create(Eigen::Vector3d(*p.x_m, *p.y_m, *p.z_m), options_.payload_sigma_m), nullptr,
+          marker_[m].data());
+      ++payloads_z[c];
+    } else {
+      problem_->AddResidualBlock(PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m),
+                                 nullptr, marker_[m].data());
+    }
+    if (p.yaw_rad) {
+      problem_->AddResidualBlock(YawPriorFactor::Create(*p.yaw_rad, options_.payload_yaw_sigma_rad), nullptr,
+                                 marker_[m].data());
+    }
+    ++payloads[c];
+  }
+  for (int c = 0; c < init_.components; ++c) {
+    int first = -1;
+    for (size_t f = 0; f < survey_.frames.size() && first < 0; ++f) {
+      if (init_.frame_component[f] == c && problem_->HasParameterBlock(robot_[f].data())) first = static_cast<int>(f);
+    }
+    if (anchors[c] > 0) {
+      (*gauges)[c] = std::to_string(anchors[c]) + " anchor(s) from markers.json";
+    } else if (payloads[c] >= (planar ? 2 : 3)) {
+      (*gauges)[c] = std::to_string(payloads[c]) + " payload position prior(s)";
+      if (!planar && first >= 0 && payloads_z[c] < 3) {
+        // Positions printed without z leave the height free: a weak prior on the first frame's
+        // pose, tight only in z (body frame), fixes it (the map's height origin is then the
+        // first frame's, and its tilt is held only weakly). Three or more codes with a z
+        // (printed, or payload.default_z_m) fix height and tilt themselves.
+        Vector6d variances;
+        variances << 1.0, 1.0, 1.0, 1e4, 1e4, 1e-6;
+        problem_->AddResidualBlock(PosePriorSE3Factor::Create(Robot(first), Matrix6d(variances.asDiagonal())), nullptr,
+                                   robot_[first].data());
+      }
+    } else if (first >= 0) {
+      problem_->SetParameterBlockConstant(robot_[first].data());
+      (*gauges)[c] = "first frame held fixed";
+    }
+  }
+}
+
+double GlobalProblem::SquaredError(int o) const {
+  const SurveyObservation& obs = survey_.observations[o];
+  const CameraInfo& camera = survey_.cameras.at(obs.camera);
+  std::unique_ptr<ceres::CostFunction> cost(
+      survey_.motion == MotionModel::kPlanar
+          ? PlanarMarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
+                                                   CornerSigmaPx(camera))
+          : MarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
+                                             CornerSigmaPx(camera)));
+  const double* blocks[2] = {robot_[obs.frame].data(), marker_[obs.marker].data()};
+  double residuals[8];
+  if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+  double s = 0.0;
+  for (double r : residuals) s += r * r;
+  return s;
+}
+
+bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
+                                std::vector<std::optional<CovarianceFactor>>* factors,
+                                std::optional<Eigen::Matrix3d>* calibration_covariance) const {
+  covariance->assign(survey_.markers.size(), std::nullopt);
+  factors->assign(survey_.markers.size(), std::nullopt);
+  calibration_covariance->reset();
+  MarginalCovarianceOptions marginal_options;
+  marginal_options.num_threads = options_.num_threads;
+  std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, then c
+  if (CalibrationEstimated()) marginal_blocks.push_back(calibration_.data());
+  const InformationFactor information(problem_.get(), marginal_blocks, marginal_options);
+  if (information.size() == 0) return covariance_markers_.empty();
+  if (!information.positive_definite()) return false;
+  const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // marginal_blocks order
+  if (CalibrationEstimated()) *calibration_covariance = Eigen::Matrix3d(manifold.back());
+  std::map<const double*, size_t> index_of;
+  for (size_t i = 0; i < covariance_markers_.size(); ++i) index_of[covariance_markers_[i]] = i;
+  const size_t count = covariance_markers_.size();
+  std::vector<size_t> markers(count);  // in covariance_markers_ order
+  std::vector<SE3d> poses(count);
+  std::vector<Matrix6d> marginals(count);
+  for (size_t m = 0; m < survey_.markers.size(); ++m) {
+    const auto it = index_of.find(marker_[m].data());
+    if (it == index_of.end()) continue;
+    const SE3d T_world_marker = Marker(static_cast<int>(m));
+    const Matrix6d J = ManifoldToBodyTangentJacobian(T_world_marker);
+    const Matrix6d body = J * Matrix6d(manifold[it->second]) * J.transpose();
+    (*covariance)[m] = 0.5 * (body + body.transpose());
+    markers[it->second] = m;
+    poses[it->second] = T_world_marker;
+    marginals[it->second] = *(*covariance)[m];
+  }
+  if (factor_rank <= 0) return true;
+  CovarianceFactorOptions factor_options;
+  factor_options.rank = factor_rank;
+  const auto rows = MarkerCovarianceFactors(information, covariance_markers_, poses, marginals, factor_options);
+  for (size_t i = 0; rows && i < markers.size(); ++i) (*factors)[markers[i]] = (*rows)[i];
+  return true;
+}
+
+}  // namespace waymark

@@ -1,0 +1,88 @@
+// The global problem of a map build (mapping/map_builder.h, stage 3): every placed frame and
+// marker of a survey as Ceres parameter blocks, the corner observations (factors/), odometry
+// (plain or calibrated), priors and the gauge; one solve, per-observation errors, the
+// re-placement of outlying markers, and the covariances from one factorization of H.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include "factors/calibrated_odometry_factor.h"
+#include "factors/pose_block.h"
+#include "mapping/initializer.h"
+#include "mapping/map_builder.h"
+#include "mapping/map_covariance.h"
+#include "mapping/residuals.h"
+#include "mapping/survey.h"
+
+namespace waymark {
+
+// The global problem over the placed frames and markers of a survey.
+class GlobalProblem {
+ public:
+  GlobalProblem(const Survey& survey, const Initialization& init, const MapBuildOptions& options)
+      : survey_(survey), init_(init), options_(options) {
+    robot_.resize(survey.frames.size());
+    marker_.resize(survey.markers.size());
+    for (size_t f = 0; f < robot_.size(); ++f) {
+      if (init.T_world_robot[f]) RobotToBlock(survey.motion, *init.T_world_robot[f], &robot_[f]);
+    }
+    for (size_t m = 0; m < marker_.size(); ++m) {
+      if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
+    }
+    const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
+    for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
+  }
+
+  // One solve over the observations in `active` (indices), with or without the robust loss.
+  ceres::Solver::Summary Solve(const std::vector<int>& active, bool robust, std::vector<std::string>* gauges);
+  // Whitened squared norm of an observation at the current values (+inf behind the camera).
+  double SquaredError(int o) const;
+  // Marker covariances in map.json's convention and, with factor_rank > 0, the markers' rows of
+  // the joint covariance factor (mapping/map_covariance.h), both from one factorization of H
+  // (mapping/marginal_covariance.h); false when H is not positive definite (a free gauge).
+  // With the odometry calibration estimated, its covariance goes to *calibration_covariance.
+  bool Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
+                   std::vector<std::optional<CovarianceFactor>>* factors,
+                   std::optional<Eigen::Matrix3d>* calibration_covariance) const;
+  // The odometry calibration of the problem, nullopt when it has no calibrated odometry link.
+  std::optional<Eigen::Vector3d> Calibration() const {
+    if (!problem_->HasParameterBlock(calibration_.data())) return std::nullopt;
+    return Eigen::Vector3d(calibration_[0], calibration_[1], calibration_[2]);
+  }
+  bool CalibrationEstimated() const {
+    return problem_->HasParameterBlock(calibration_.data()) && !problem_->IsParameterBlockConstant(calibration_.data());
+  }
+
+  // Re-places the codes with an observation above the outlier gate by consensus over their
+  // views at the current frame poses (mapping/initializer.h), and moves the codes whose other
+  // planar-flip branch fits better there (OtherFlipBranch); returns how many moved.
+  size_t ReplaceOutlyingMarkers(const std::vector<int>& active, const std::map<std::string, Camera>& cameras);
+
+  bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
+  SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
+  SE3d Marker(int m) const { return SE3FromBlock(marker_[m].data()); }
+
+ private:
+  void AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges);
+  void AddOdometry();
+  void AddCalibratedOdometry(const OdometryLink& link);
+
+  const Survey& survey_;
+  const Initialization& init_;
+  const MapBuildOptions& options_;
+  std::vector<PoseBlock> robot_, marker_;
+  std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
+  std::unique_ptr<ceres::Problem> problem_;
+  std::vector<const double*> covariance_markers_;
+};
+
+}  // namespace waymark

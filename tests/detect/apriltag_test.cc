@@ -1,0 +1,106 @@
+// AprilTag detector on tags drawn from libapriltag's own code tables through known
+// homographies: ids exact, libapriltag's corner order and pixel offset converted to
+// docs/design.md order and OpenCV pixel centres in all four rotations, several families.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "detect/apriltag.h"
+#include "detect/synthetic.h"
+#include "detect/detector.h"
+
+namespace waymark {
+namespace {
+
+cv::Mat Canvas(int width = 640, int height = 480) { return cv::Mat(height, width, CV_8U, cv::Scalar(200)); }
+
+double MaxCornerError(const Quad2d& corners, const Quad2d& truth) {
+  double worst = 0.0;
+  for (int i = 0; i < 4; ++i) worst = std::max(worst, (corners[i] - truth[i]).norm());
+  return worst;
+}
+
+TEST(DetectAprilTag, ModuleImageMatchesTheFamilyLayout) {
+  cv::Rect symbol;
+  const cv::Mat modules = AprilTagModuleImage("apriltag-36h11", 0, &symbol);
+  ASSERT_EQ(modules.rows, 10);
+  EXPECT_EQ(symbol, cv::Rect(1, 1, 8, 8));
+  // White quiet ring outside, black border ring inside it.
+  EXPECT_EQ(modules.at<uint8_t>(0, 0), 255);
+  EXPECT_EQ(modules.at<uint8_t>(1, 1), 0);
+  EXPECT_EQ(modules.at<uint8_t>(8, 5), 0);
+  EXPECT_THROW(AprilTagModuleImage("apriltag-36h11", 587, &symbol), std::invalid_argument);
+  EXPECT_THROW(AprilTagModuleImage("apriltag-99h1", 0, &symbol), std::invalid_argument);
+}
+
+TEST(DetectAprilTag, FourRotationsGiveDesignOrderCorners) {
+  auto detector = CreateDetector("apriltag-36h11");
+  const SymbolImage tag = AprilTagSymbol("apriltag-36h11", 17);
+  for (int r = 0; r < 4; ++r) {
+    cv::Mat image = Canvas();
+    const Quad2d truth = MakeQuad({318.4, 244.9}, 160.0, r * M_PI / 2 + 0.12, 0.9);
+    DrawSymbol(tag, truth, &image);
+    const auto found = detector->Detect(image);
+    ASSERT_EQ(found.size(), 1u) << "rotation " << r;
+    EXPECT_EQ(found[0].key.family, "apriltag-36h11");
+    EXPECT_EQ(found[0].key.id, "17");
+    EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.1) << "rotation " << r;
+  }
+}
+
+TEST(DetectAprilTag, UnrefinedCornersAreWithinHalfAPixel) {
+  // libapriltag's own corners after the order and 0.5 px conversion, without our
+  // refinement: checks the convention, not just the refinement.
+  DetectorOptions options;
+  options.refine_corners = false;
+  auto detector = CreateDetector("apriltag-36h11", options);
+  cv::Mat image = Canvas();
+  const Quad2d truth = MakeQuad({300.0, 250.0}, 200.0, 0.3);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", 5), truth, &image);
+  const auto found = detector->Detect(image);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.5);
+}
+
+TEST(DetectAprilTag, SeveralTagsAndOtherFamilies) {
+  cv::Mat image = Canvas(1280, 960);
+  const std::vector<std::string> families = {"apriltag-36h11", "apriltag-25h9", "apriltag-standard41h12"};
+  std::vector<Quad2d> truths;
+  for (size_t i = 0; i < families.size(); ++i) {
+    truths.push_back(MakeQuad({250.0 + 400 * i, 300.0 + 200 * (i % 2)}, 180.0, 0.3 * i + 0.1));
+    DrawSymbol(AprilTagSymbol(families[i], 3 + static_cast<int>(i)), truths.back(), &image);
+  }
+  auto detector = CreateMultiDetector(families);
+  const auto found = detector->Detect(image);
+  ASSERT_EQ(found.size(), 3u);
+  for (const MarkerObservation& obs : found) {
+    const size_t i = std::find(families.begin(), families.end(), obs.key.family) - families.begin();
+    ASSERT_LT(i, families.size()) << obs.key.family;
+    EXPECT_EQ(obs.key.id, std::to_string(3 + i));
+    // Reversed-border families keep libapriltag's corners (no outer edge to refine on).
+    EXPECT_LT(MaxCornerError(obs.corners_px, truths[i]), i == 2 ? 0.5 : 0.1) << obs.key.family;
+  }
+}
+
+TEST(DetectAprilTag, BlankNoiseAndBadInput) {
+  auto detector = CreateDetector("apriltag-36h11");
+  EXPECT_TRUE(detector->Detect(Canvas()).empty());
+  cv::Mat noise(480, 640, CV_8U);
+  cv::RNG rng(5);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  EXPECT_TRUE(detector->Detect(noise).empty());
+  EXPECT_THROW(detector->Detect(cv::Mat()), std::invalid_argument);
+  // Sizes that crash libapriltag 3.3 itself when passed through.
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(8, 8), cv::Size(2000, 3), cv::Size(40, 33)}) {
+    EXPECT_TRUE(detector->Detect(cv::Mat(size, CV_8U, cv::Scalar(0))).empty()) << size;
+  }
+  DetectorOptions coarse;
+  coarse.apriltag_decimate = 4.0;
+  EXPECT_TRUE(CreateDetector("apriltag-36h11", coarse)->Detect(cv::Mat(20, 20, CV_8U, cv::Scalar(0))).empty());
+  EXPECT_THROW(CreateDetector("apriltag-36h12"), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace waymark

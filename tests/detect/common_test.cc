@@ -1,0 +1,130 @@
+// Shared detector pieces: quad validation, the family factory and its errors, options
+// checks, candidate regions, the edge-based corner refinement, and the multi-family detector.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include <opencv2/imgproc.hpp>
+
+#include "detect/common.h"
+#include "detect/refine.h"
+#include "detect/synthetic.h"
+#include "detect/zxing.h"
+#include "detect/detector.h"
+
+namespace waymark {
+namespace {
+
+Quad2d Square(double x0, double y0, double side) {
+  return {Eigen::Vector2d(x0, y0), Eigen::Vector2d(x0 + side, y0), Eigen::Vector2d(x0 + side, y0 + side),
+          Eigen::Vector2d(x0, y0 + side)};
+}
+
+TEST(DetectCommon, QuadIsValidRejectsEachBadCase) {
+  const cv::Size size(100, 80);
+  std::string why;
+  EXPECT_TRUE(QuadIsValid(Square(10, 10, 50), size, 6.0, &why)) << why;
+  Quad2d nan_quad = Square(10, 10, 50);
+  nan_quad[2].x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(QuadIsValid(nan_quad, size, 6.0, &why));
+  EXPECT_EQ(why, "non-finite corner");
+  EXPECT_FALSE(QuadIsValid(Square(60, 10, 50), size, 6.0, &why));
+  EXPECT_EQ(why, "corner outside the image");
+  EXPECT_FALSE(QuadIsValid(Square(10, 10, 3), size, 6.0, &why));
+  EXPECT_EQ(why, "side shorter than the minimum");
+  const Quad2d square = Square(10, 10, 50);
+  const Quad2d mirrored = {square[1], square[0], square[3], square[2]};  // counter-clockwise
+  EXPECT_FALSE(QuadIsValid(mirrored, size, 6.0, &why));
+  EXPECT_EQ(why, "quad not convex and clockwise");
+  Quad2d dart = Square(10, 10, 50);
+  dart[2] = Eigen::Vector2d(20, 20);  // reflex corner
+  EXPECT_FALSE(QuadIsValid(dart, size, 6.0, &why));
+  Quad2d flat = Square(10, 10, 50);
+  flat[2] = Eigen::Vector2d(35, 10.5);  // three corners nearly on one line
+  EXPECT_FALSE(QuadIsValid(flat, size, 6.0, &why));
+}
+
+TEST(DetectCommon, RefinementRecoversCornersOfADarkSquare) {
+  cv::Mat image(200, 200, CV_8U, cv::Scalar(220));
+  const Quad2d truth = MakeQuad({101.3, 98.6}, 90.0, 0.3, 0.9);
+  SymbolImage black;
+  black.modules = cv::Mat(3, 3, CV_8U, cv::Scalar(255));
+  black.modules.at<uint8_t>(1, 1) = 0;
+  black.symbol = cv::Rect(1, 1, 1, 1);
+  DrawSymbol(black, truth, &image);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 1.0);
+  Quad2d start = truth;
+  const double offsets[4][2] = {{1.5, -1.0}, {-1.2, 1.4}, {0.8, 1.5}, {-1.5, -0.7}};
+  for (int i = 0; i < 4; ++i) start[i] += Eigen::Vector2d(offsets[i][0], offsets[i][1]);
+  const auto refined = RefineQuadCorners(image, start);
+  ASSERT_TRUE(refined.has_value());
+  for (int i = 0; i < 4; ++i) EXPECT_LT((refined->corners_px[i] - truth[i]).norm(), 0.05) << i;
+  EXPECT_GT(refined->inlier_fraction, 0.9);
+  // Nothing to refine on a blank image, and a wrong-handed quad finds no light-outside edge.
+  EXPECT_FALSE(RefineQuadCorners(cv::Mat(200, 200, CV_8U, cv::Scalar(128)), start).has_value());
+  const Quad2d reversed = {start[0], start[3], start[2], start[1]};
+  EXPECT_FALSE(RefineQuadCorners(image, reversed).has_value());
+}
+
+TEST(DetectCommon, CandidatesCoverACodeAndIgnoreABlankFrame) {
+  cv::Mat image(960, 1280, CV_8U, cv::Scalar(170));
+  EXPECT_TRUE(FindCodeCandidates(image, CandidateOptions{}).empty());
+  const Quad2d quad = MakeQuad({900.0, 300.0}, 150.0, 0.2);
+  DrawSymbol(DataMatrixSymbol("candidate"), quad, &image);
+  const auto regions = FindCodeCandidates(image, CandidateOptions{});
+  ASSERT_FALSE(regions.empty());
+  const cv::Rect& best = regions.front().rect;
+  for (const auto& c : quad) EXPECT_TRUE(best.contains(cv::Point(int(c.x()), int(c.y())))) << best;
+}
+
+TEST(DetectCommon, FactoryFamiliesAndOptions) {
+  const auto families = SupportedFamilies();
+  EXPECT_NE(std::find(families.begin(), families.end(), "apriltag-36h11"), families.end());
+  EXPECT_NE(std::find(families.begin(), families.end(), "qr"), families.end());
+  for (const std::string& f : families) EXPECT_EQ(CreateDetector(f)->Families(), std::vector<std::string>{f});
+  EXPECT_THROW(CreateDetector("aztec"), std::invalid_argument);
+  EXPECT_THROW(CreateMultiDetector({}), std::invalid_argument);
+  EXPECT_THROW(CreateMultiDetector({"qr", "qr"}), std::invalid_argument);
+  EXPECT_EQ(ParseFamilyList("qr,datamatrix,apriltag-36h11"),
+            (std::vector<std::string>{"qr", "datamatrix", "apriltag-36h11"}));
+  EXPECT_THROW(ParseFamilyList(""), std::invalid_argument);
+  EXPECT_THROW(ParseFamilyList("qr,"), std::invalid_argument);
+  EXPECT_THROW(ParseFamilyList("qr,,datamatrix"), std::invalid_argument);
+  EXPECT_THROW(ParseFamilyList("qr,ean13"), std::invalid_argument);
+  DetectorOptions options;
+  std::string why;
+  EXPECT_TRUE(options.Check(&why));
+  options.apriltag_decimate = 0.5;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_EQ(why, "apriltag_decimate must be >= 1");
+  EXPECT_THROW(CreateDetector("qr", options), std::invalid_argument);
+  options = DetectorOptions{};
+  options.threads = 0;
+  EXPECT_FALSE(options.Check(&why));
+}
+
+TEST(DetectCommon, MultiDetectorReadsEveryFamilyInOneImage) {
+  cv::Mat image(480, 1280, CV_8U, cv::Scalar(190));
+  DrawSymbol(QrSymbol("q-1"), MakeQuad({220.0, 240.0}, 170.0, 0.1), &image);
+  DrawSymbol(DataMatrixSymbol("d-2"), MakeQuad({640.0, 240.0}, 150.0, -0.1), &image);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", 3), MakeQuad({1060.0, 240.0}, 170.0, 0.2), &image);
+  DetectorOptions options;
+  options.time_budget_ms = 1000.0;
+  auto detector = CreateMultiDetector({"qr", "datamatrix", "apriltag-36h11"}, options);
+  const auto found = detector->Detect(image);
+  std::set<std::string> keys;
+  for (const auto& obs : found) keys.insert(obs.key.ToString());
+  EXPECT_EQ(keys, (std::set<std::string>{"qr:q-1", "datamatrix:d-2", "apriltag-36h11:3"}));
+}
+
+TEST(DetectCommon, IdsAreAlwaysValidUtf8) {
+  EXPECT_EQ(TextToId("plain"), "plain");
+  EXPECT_EQ(TextToId("caf\xc3\xa9"), "caf\xc3\xa9");
+  EXPECT_EQ(TextToId(std::string("\xe9t\xe9")), "\xc3\xa9t\xc3\xa9");  // ISO-8859-1 bytes
+  EXPECT_FALSE(IsValidUtf8("\xc3"));
+  EXPECT_TRUE(IsValidUtf8(TextToId(std::string("\xff\x00\x80", 3))));
+}
+
+}  // namespace
+}  // namespace waymark

@@ -1,0 +1,161 @@
+// QR candidates from finder patterns and their rectified reading (detect/qr_finder.h),
+// on synthetic codes drawn through known homographies (detect/synthetic.h): finder
+// centres and code corners where the symbol puts them, docs/design.md order in every rotation,
+// small and oblique codes that zxing-cpp misses on the whole frame read after
+// rectification, and nothing from images without codes or from bad input.
+#include "detect/qr_finder.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgproc.hpp>
+
+#include "detect/synthetic.h"
+#include "detect/zxing.h"
+#include "detect/detector.h"
+
+namespace waymark {
+namespace {
+
+cv::Mat Canvas(int width = 640, int height = 480) { return cv::Mat(height, width, CV_8U, cv::Scalar(170)); }
+
+// Where the module coordinates (u, v) of an n-module symbol (0..n across, pixel edges of
+// the symbol) land when its outer corners are `corners_px`.
+Eigen::Vector2d SymbolPoint(const Quad2d& corners_px, int n, double u, double v) {
+  const std::vector<cv::Point2f> src = {{0.f, 0.f}, {float(n), 0.f}, {float(n), float(n)}, {0.f, float(n)}};
+  std::vector<cv::Point2f> dst;
+  for (const Eigen::Vector2d& c : corners_px) dst.emplace_back(c.x(), c.y());
+  const cv::Matx33d H(cv::getPerspectiveTransform(src, dst));
+  const cv::Vec3d p = H * cv::Vec3d(u, v, 1.0);
+  return {p[0] / p[2], p[1] / p[2]};
+}
+
+double MaxCornerError(const Quad2d& a, const Quad2d& b) {
+  double worst = 0.0;
+  for (int i = 0; i < 4; ++i) worst = std::max(worst, (a[i] - b[i]).norm());
+  return worst;
+}
+
+const cv::Rect kWhole(0, 0, 640, 480);
+
+// Pass 2 runs within a CPU budget per frame: a loaded test machine must not decide the
+// outcome (zxing alone takes 5-7 ms of the default 8 ms on a 1280x960 frame here).
+DetectorOptions Generous() {
+  DetectorOptions options;
+  options.time_budget_ms = 1000.0;
+  return options;
+}
+
+TEST(DetectQrFinder, ThreeFindersAtTheSymbolsFinderCentres) {
+  const SymbolImage symbol = QrSymbol("0/2/10");
+  const int n = symbol.symbol.width;  // 21 modules
+  cv::Mat image = Canvas();
+  const Quad2d truth = MakeQuad({320.3, 241.7}, 150.0, 0.3);
+  DrawSymbol(symbol, truth, &image);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(image, kWhole);
+  ASSERT_EQ(finders.size(), 3u);
+  const Eigen::Vector2d expected[3] = {SymbolPoint(truth, n, 3.5, 3.5), SymbolPoint(truth, n, n - 3.5, 3.5),
+                                       SymbolPoint(truth, n, 3.5, n - 3.5)};
+  for (const Eigen::Vector2d& e : expected) {
+    double nearest = 1e9;
+    for (const QrFinderPattern& f : finders) nearest = std::min(nearest, (f.centre_px - e).norm());
+    EXPECT_LT(nearest, 0.5);
+  }
+  const double module_px = 150.0 / n;
+  for (const QrFinderPattern& f : finders) EXPECT_NEAR(f.width_px, 7.0 * module_px, 1.5 * module_px);
+}
+
+TEST(DetectQrFinder, CandidateCornersInDesignOrderInEveryRotation) {
+  const SymbolImage symbol = QrSymbol("waymark:A01");
+  for (int r = 0; r < 4; ++r) {
+    cv::Mat image = Canvas();
+    const Quad2d truth = MakeQuad({310.0, 250.0}, 140.0, r * M_PI / 2 + 0.2, 0.85);
+    DrawSymbol(symbol, truth, &image);
+    const std::vector<QrCandidate> candidates =
+        GroupQrFinders(FindQrFinderPatterns(image, kWhole), image.size());
+    ASSERT_EQ(candidates.size(), 1u) << "rotation " << r;
+    // Coarse (contour corners; the fourth from the finders' edges): well within a module.
+    EXPECT_LT(MaxCornerError(candidates[0].corners_px, truth), 0.5 * 140.0 / 21.0) << "rotation " << r;
+    EXPECT_GT(candidates[0].module_px, 0.5 * 140.0 / 21.0);
+  }
+}
+
+// A version-2 code of 1.7 px per module under a 0.7 px blur (the ceiling codes of the
+// ceiling-grid scenario): zxing-cpp does not read it on the frame, nor in a crop upscaled 2x
+// with its global binarizer; resampled upright at 4 px per module and sharpened, it does.
+TEST(DetectQrFinder, SmallBlurredCodeIsReadRectified) {
+  const SymbolImage symbol = QrSymbol("waymark-ceiling/12/0.7/3.5");
+  ASSERT_EQ(symbol.symbol.width, 25);
+  cv::Mat image = Canvas();
+  const Quad2d truth = MakeQuad({301.4, 180.6}, 42.5, 0.06);
+  DrawSymbol(symbol, truth, &image, 90, 200);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  std::printf("zxing on the whole frame: %zu codes\n",
+              ReadWithZxing(image, ZxingSymbology::kQrCode, ZxingPass{}).size());
+  const cv::Rect region(265, 145, 72, 72);
+  const std::vector<QrCandidate> candidates =
+      GroupQrFinders(FindQrFinderPatterns(image, region), image.size());
+  ASSERT_EQ(candidates.size(), 1u);
+  const std::vector<MarkerObservation> read = ReadRectifiedQr(image, candidates[0]);
+  ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0].key.id, "waymark-ceiling/12/0.7/3.5");
+  EXPECT_LT(MaxCornerError(read[0].corners_px, truth), 1.0);
+  // The detector finds it too, with refined corners.
+  const std::vector<MarkerObservation> found = CreateDetector("qr", Generous())->Detect(image);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].key.id, "waymark-ceiling/12/0.7/3.5");
+  EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.5);
+}
+
+// Version 1 turned 45-60 degrees away (the corner bench's 65 px codes at 45 deg): zxing's
+// grid from the finders' parallelogram misses the data; the rectified code is read.
+TEST(DetectQrFinder, ObliqueVersionOneCodeIsRead) {
+  const SymbolImage symbol = QrSymbol("0/5/2.5");
+  ASSERT_EQ(symbol.symbol.width, 21);
+  cv::Mat image = Canvas(1280, 960);
+  const Quad2d truth = {Eigen::Vector2d(600.2, 400.7), Eigen::Vector2d(641.9, 392.3),
+                        Eigen::Vector2d(642.4, 470.1), Eigen::Vector2d(600.8, 467.5)};
+  DrawSymbol(symbol, truth, &image);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  std::printf("zxing on the whole frame: %zu codes\n",
+              ReadWithZxing(image, ZxingSymbology::kQrCode, ZxingPass{}).size());
+  const std::vector<MarkerObservation> found = CreateDetector("qr", Generous())->Detect(image);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].key.id, "0/5/2.5");
+  EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.5);
+}
+
+TEST(DetectQrFinder, NoCandidateWithoutThreeFinders) {
+  // Blank, noise, and two finder-like squares (a code needs three).
+  EXPECT_TRUE(FindQrFinderPatterns(Canvas(), kWhole).empty());
+  cv::Mat noise(480, 640, CV_8U);
+  cv::RNG rng(3);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  EXPECT_TRUE(GroupQrFinders(FindQrFinderPatterns(noise, kWhole), noise.size()).empty());
+  cv::Mat two = Canvas();
+  for (const int x : {200, 400}) {
+    cv::rectangle(two, cv::Rect(x, 200, 70, 70), cv::Scalar(20), cv::FILLED);
+    cv::rectangle(two, cv::Rect(x + 10, 210, 50, 50), cv::Scalar(230), cv::FILLED);
+    cv::rectangle(two, cv::Rect(x + 20, 220, 30, 30), cv::Scalar(20), cv::FILLED);
+  }
+  EXPECT_EQ(FindQrFinderPatterns(two, kWhole).size(), 2u);
+  EXPECT_TRUE(GroupQrFinders(FindQrFinderPatterns(two, kWhole), two.size()).empty());
+}
+
+TEST(DetectQrFinder, BadInputGivesNothing) {
+  EXPECT_TRUE(FindQrFinderPatterns(cv::Mat(), kWhole).empty());
+  EXPECT_TRUE(FindQrFinderPatterns(cv::Mat(480, 640, CV_32F, cv::Scalar(0.5)), kWhole).empty());
+  EXPECT_TRUE(FindQrFinderPatterns(Canvas(), cv::Rect(700, 500, 50, 50)).empty());  // outside
+  EXPECT_TRUE(FindQrFinderPatterns(Canvas(), cv::Rect(10, 10, 8, 8)).empty());      // tiny
+  QrCandidate degenerate;
+  degenerate.corners_px = MakeQuad({320.0, 240.0}, 60.0, 0.0);
+  EXPECT_TRUE(ReadRectifiedQr(Canvas(), degenerate).empty());  // module_px = 0
+  degenerate.module_px = 2.0;
+  EXPECT_TRUE(ReadRectifiedQr(cv::Mat(), degenerate).empty());
+  EXPECT_TRUE(ReadRectifiedQr(Canvas(), degenerate).empty());  // nothing there
+}
+
+}  // namespace
+}  // namespace waymark

@@ -1,0 +1,279 @@
+#include "io/map_io.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include "io/util.h"
+
+namespace waymark {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+const char* const kGoodMap = R"({"format": "waymark-map", "version": 1,
+ "markers": [
+  {"family": "datamatrix", "id": "A01", "size_m": 0.08,
+   "T_world_marker": {"t": [1, 2, 3], "q_xyzw": [0, 0, 0, 1]},
+   "fixed": true, "component": 2},
+  {"family": "apriltag-36h11", "id": "7", "size_m": 0.16,
+   "T_world_marker": {"t": [0, 0, 1.5],
+                      "q_xyzw": [0.0, 0.70710808, 0.0, -0.707105483]}}
+ ]}
+)";
+
+// Replaces the first occurrence of `from` in kGoodMap.
+std::string GoodMapWith(const std::string& from, const std::string& to) {
+  std::string text = kGoodMap;
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+std::string ParseError(const std::string& text) {
+  try {
+    ParseMap(text, "map.json");
+  } catch (const FormatError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected a FormatError for:\n" << text;
+  return "";
+}
+
+TEST(MapIoTest, ParsesGoodMap) {
+  ReadWarnings warnings;
+  const MarkerMap map = ParseMap(kGoodMap, "map.json", &warnings);
+  ASSERT_EQ(map.markers.size(), 2u);
+  EXPECT_EQ(map.markers[0].key, (MarkerKey{"datamatrix", "A01"}));
+  EXPECT_EQ(map.markers[0].size_m, 0.08);
+  EXPECT_TRUE(map.markers[0].fixed);
+  EXPECT_EQ(map.markers[0].component, 2);
+  EXPECT_EQ(map.markers[0].T_world_marker.translation(), Eigen::Vector3d(1, 2, 3));
+  EXPECT_FALSE(map.markers[1].fixed);
+  EXPECT_FALSE(map.markers[1].component.has_value());
+  EXPECT_FALSE(map.markers[1].covariance.has_value());
+  EXPECT_NEAR(map.markers[1].T_world_marker.rotation().norm(), 1.0, 1e-15);
+  EXPECT_EQ(warnings.Total(), 0);
+}
+
+TEST(MapIoTest, ErrorsNameFileLineAndField) {
+  EXPECT_THAT(ParseError(GoodMapWith("[0, 0, 0, 1]", "[0, 0, 1]")),
+              HasSubstr("map.json:4: markers[0].T_world_marker.q_xyzw: expected 4 numbers, got 3"));
+  EXPECT_THAT(ParseError(GoodMapWith("-0.707105483", "-0.5")),
+              HasSubstr("map.json:8: markers[1].T_world_marker.q_xyzw: expected unit norm within 0.001"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"datamatrix\"", "\"aztec\"")),
+              HasSubstr("map.json:3: markers[0].family: unknown family \"aztec\""));
+  EXPECT_THAT(ParseError(GoodMapWith("\"size_m\": 0.16", "\"size_m\": \"big\"")),
+              HasSubstr("map.json:6: markers[1].size_m: expected a number, got a string"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"size_m\": 0.16", "\"size_m\": -1")),
+              HasSubstr("map.json:6: markers[1].size_m: expected a positive size"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"t\": [1, 2, 3]", "\"t\": [1, 2, 1e999]")),
+              HasSubstr("map.json:4: invalid JSON: number overflow parsing '1e999'"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"id\": \"7\"", "\"id\": 7")),
+              HasSubstr("map.json:6: markers[1].id: expected a string, got a number"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true", "\"fixed\": 1")),
+              HasSubstr("map.json:5: markers[0].fixed: expected true or false"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"component\": 2", "\"component\": 1.5")),
+              HasSubstr("map.json:5: markers[0].component: expected an integer, got 1.5"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", "\"covariance\": [1, 2],")),
+              HasSubstr("map.json:5: markers[0].covariance: expected 36 numbers, got 2"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"id\": \"7\"", "\"id\": \"A01\", \"family\": \"datamatrix\"")),
+              HasSubstr("markers[1]: duplicate marker datamatrix:A01"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"size_m\": 0.08,", "")),
+              HasSubstr("map.json:3: markers[0]: missing key \"size_m\""));
+}
+
+TEST(MapIoTest, HeaderAndSyntaxErrors) {
+  EXPECT_THAT(ParseError(GoodMapWith("waymark-map", "other")),
+              HasSubstr("map.json:1: format: expected \"waymark-map\""));
+  EXPECT_THAT(ParseError(GoodMapWith("\"version\": 1", "\"version\": 2")),
+              HasSubstr("map.json:1: version: expected 1, got 2"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"version\": 1", "\"version\": \"1\"")),
+              HasSubstr("version: expected an integer"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", "\"fixed\": true")),
+              HasSubstr("map.json:5: invalid JSON"));
+  EXPECT_THAT(ParseError(GoodMapWith("0.08", "NaN")), HasSubstr("map.json:3: invalid JSON"));
+  EXPECT_THAT(ParseError("[]"), HasSubstr("map.json:1: expected an object, got an array"));
+  EXPECT_THAT(ParseError(""), HasSubstr("map.json:1: invalid JSON"));
+}
+
+TEST(MapIoTest, UnknownKeysAreCountedWarnings) {
+  ReadWarnings warnings;
+  const MarkerMap map = ParseMap(
+      GoodMapWith("\"fixed\": true", "\"fixed\": true, \"colour\": \"red\"").replace(1, 0, "\"note\": 1, "),
+      "map.json", &warnings);
+  EXPECT_EQ(map.markers.size(), 2u);
+  EXPECT_EQ(warnings.counts["unknown key"], 2);
+  ASSERT_EQ(warnings.first_messages.size(), 2u);
+  EXPECT_THAT(warnings.first_messages[0] + warnings.first_messages[1],
+              HasSubstr("map.json:5: unknown key \"markers[0].colour\""));
+}
+
+TEST(MapIoTest, MissingFileIsNamed) {
+  EXPECT_THROW(
+      {
+        try {
+          ReadMap("/nonexistent/markers.json");
+        } catch (const FormatError& e) {
+          EXPECT_THAT(e.what(), HasSubstr("/nonexistent/markers.json: cannot open"));
+          throw;
+        }
+      },
+      FormatError);
+}
+
+TEST(MapIoTest, RoundTripIsExact) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> normal(0.0, 3.0);
+  MarkerMap map;
+  for (int i = 0; i < 50; ++i) {
+    MapMarker marker;
+    marker.key = {i % 2 ? "qr" : "apriltag-36h11", "id \"" + std::to_string(i) + "\"\\/é"};
+    marker.size_m = 0.05 + std::abs(normal(rng));
+    marker.T_world_marker = SE3d(Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)),
+                                 Eigen::Vector3d(normal(rng), normal(rng), normal(rng)));
+    if (i % 3 == 0) {
+      Matrix6d A = Matrix6d::Random();
+      marker.covariance = A * A.transpose() * 1e-3;
+    }
+    marker.fixed = i % 5 == 0;
+    if (i % 4 == 0) marker.component = i / 4;
+    map.markers.push_back(marker);
+  }
+  const fs::path path =
+      fs::temp_directory_path() / ("waymark_map_io_test_" + std::to_string(::getpid())) / "map.json";
+  WriteMap(path, map);
+  ReadWarnings warnings;
+  const MarkerMap read = ReadMap(path, &warnings);
+  EXPECT_EQ(warnings.Total(), 0);
+  ASSERT_EQ(read.markers.size(), map.markers.size());
+  for (size_t i = 0; i < read.markers.size(); ++i) {
+    const MapMarker& a = map.markers[i];
+    const MapMarker& b = read.markers[i];
+    EXPECT_EQ(a.key, b.key);
+    EXPECT_EQ(a.size_m, b.size_m);
+    EXPECT_EQ(a.T_world_marker.translation(), b.T_world_marker.translation());
+    EXPECT_EQ(a.T_world_marker.rotation().coeffs(), b.T_world_marker.rotation().coeffs());
+    ASSERT_EQ(a.covariance.has_value(), b.covariance.has_value());
+    if (a.covariance) {
+      EXPECT_EQ(*a.covariance, *b.covariance);
+    }
+    EXPECT_EQ(a.fixed, b.fixed);
+    EXPECT_EQ(a.component, b.component);
+  }
+  EXPECT_EQ(FormatMap(read), FormatMap(map));
+  fs::remove_all(path.parent_path());
+
+  map.markers.push_back(map.markers[0]);
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);  // duplicate key
+}
+
+// covariance_factor: 6 x k row-major, the same k for every marker, within the covariance.
+TEST(MapIoTest, CovarianceFactorRoundTripAndErrors) {
+  MarkerMap map;
+  for (int i = 0; i < 3; ++i) {
+    MapMarker marker;
+    marker.key = {"qr", "F" + std::to_string(i)};
+    marker.size_m = 0.1;
+    CovarianceFactor F = CovarianceFactor::Random(6, 2) * 1e-2;
+    const Matrix6d B = Matrix6d::Random() * 1e-2;
+    marker.covariance = F * F.transpose() + B * B.transpose();
+    if (i != 1) marker.covariance_factor = F;  // markers without one are allowed
+    map.markers.push_back(marker);
+  }
+  const MarkerMap read = ParseMap(FormatMap(map), "map.json");
+  ASSERT_EQ(read.markers.size(), 3u);
+  ASSERT_TRUE(read.markers[0].covariance_factor.has_value());
+  EXPECT_EQ(*read.markers[0].covariance_factor, *map.markers[0].covariance_factor);
+  EXPECT_EQ(read.markers[0].covariance_factor->cols(), 2);
+  EXPECT_FALSE(read.markers[1].covariance_factor.has_value());
+  EXPECT_EQ(FormatMap(read), FormatMap(map));
+
+  const std::string covariance =
+      "\"covariance\": [1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, "
+      "0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4], ";
+  const std::string factor_k1 = "\"covariance_factor\": [0.005, 0, 0, 0, 0, 0.001], ";
+  EXPECT_NO_THROW(ParseMap(GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,"), "m"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", covariance + "\"covariance_factor\": [1, 2, 3], \"fixed\": false,")),
+              HasSubstr("markers[0].covariance_factor: expected a non-empty array of 6 k numbers"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", factor_k1 + "\"fixed\": false,")),
+              HasSubstr("markers[0].covariance_factor: expected a covariance with the covariance_factor"));
+  EXPECT_THAT(
+      ParseError(GoodMapWith("\"fixed\": true,", covariance + "\"covariance_factor\": [0.02, 0, 0, 0, 0, 0], \"fixed\": false,")),
+      HasSubstr("markers[0].covariance_factor: expected covariance - F F^T positive semi-definite"));
+  std::string two = GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,");
+  two.replace(two.find("\"size_m\": 0.16"), 14,
+              "\"size_m\": 0.16, " + covariance + "\"covariance_factor\": [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]");
+  EXPECT_THAT(ParseError(two), HasSubstr("markers[1].covariance_factor: expected 6 x 1 like the markers before, got 6 x 2"));
+
+  map.markers[1].covariance_factor = CovarianceFactor(6, 0);
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+  map.markers[1].covariance_factor.reset();
+  map.markers[0].covariance.reset();
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+}
+
+TEST(MapIoTest, ReadsTagslamMaps) {
+  const fs::path root = fs::path(WAYMARK_SHARED_DATA) / "tagslam";
+  if (!fs::exists(root)) GTEST_SKIP() << "shared data absent: " << root << " (tagslam maps not checked)";
+  for (const char* set : {"tagslam-test16", "tagslam-test17", "tagslam-test22"}) {
+    ReadWarnings warnings;
+    const MarkerMap known = ReadMap(root / set / "markers.json", &warnings);
+    ASSERT_EQ(known.markers.size(), 1u) << set;
+    EXPECT_TRUE(known.markers[0].fixed);
+    EXPECT_EQ(known.markers[0].key.family, "apriltag-36h11");
+    EXPECT_FALSE(ReadMap(root / set / "reference" / "markers.json", &warnings).markers.empty());
+    EXPECT_EQ(warnings.Total(), 0) << set;
+  }
+}
+
+}  // namespace
+}  // namespace waymark
+
+namespace waymark {
+namespace {
+
+// A dataset's known markers may give a code's size without its pose (MapPoses::kOptional);
+// every other map needs the pose, and a fixed or covariance-carrying entry always does.
+TEST(MapIoTest, SizeOnlyEntriesOnlyWhereAllowed) {
+  const std::string text = R"({"format": "waymark-map", "version": 1, "markers": [
+  {"family": "qr", "id": "load-7", "size_m": 0.05},
+  {"family": "qr", "id": "0/1/2", "size_m": 0.15, "T_world_marker": {"t": [1, 2, 0], "q_xyzw": [0, 0, 0, 1]},
+   "fixed": true}]}
+)";
+  const MarkerMap known = ParseMap(text, "markers.json", nullptr, MapPoses::kOptional);
+  ASSERT_EQ(known.markers.size(), 2u);
+  EXPECT_FALSE(known.markers[0].has_pose);
+  EXPECT_DOUBLE_EQ(known.markers[0].size_m, 0.05);
+  EXPECT_TRUE(known.markers[1].has_pose);
+  // Round trip keeps the entry size-only.
+  const MarkerMap again = ParseMap(FormatMap(known), "again.json", nullptr, MapPoses::kOptional);
+  EXPECT_FALSE(again.markers[0].has_pose);
+  EXPECT_EQ(FormatMap(again), FormatMap(known));
+
+  try {
+    ParseMap(text, "map.json");
+    FAIL() << "a size-only entry must be refused where poses are required";
+  } catch (const FormatError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("map.json:2"));
+    EXPECT_THAT(e.what(), HasSubstr("T_world_marker"));
+  }
+  const std::string fixed_without_pose = R"({"format": "waymark-map", "version": 1, "markers": [
+  {"family": "qr", "id": "a", "size_m": 0.05, "fixed": true}]}
+)";
+  try {
+    ParseMap(fixed_without_pose, "markers.json", nullptr, MapPoses::kOptional);
+    FAIL() << "a fixed marker needs a pose";
+  } catch (const FormatError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("markers.json:2"));
+    EXPECT_THAT(e.what(), HasSubstr("expected a pose"));
+  }
+}
+
+}  // namespace
+}  // namespace waymark
