@@ -96,7 +96,7 @@ TEST(DatasetInfoCliTest, SummarizesTagslamSets) {
 
   const RunResult r22 = RunWaymark("dataset info '" + TagslamSet("tagslam-test22").string() + "'");
   EXPECT_EQ(r22.exit_code, 0) << r22.err;
-  EXPECT_THAT(r22.out, HasSubstr("  cam0: pinhole-equidistant 800x848\n"));
+  EXPECT_THAT(r22.out, HasSubstr("  cam0: pinhole-equidistant 848x800\n"));
   EXPECT_THAT(r22.out, HasSubstr("odometry: 115 poses, "));
   EXPECT_THAT(r22.out, HasSubstr(" m (odometry.tum)\n"));
 }

@@ -3,11 +3,13 @@
 # dependencies as the table states them, and no code reader (libdmtx, zxing-cpp, libapriltag,
 # OpenCV's wechat_qrcode, waymark_detect) anywhere below factors/ or mapping/.
 # Run by ctest as cmake/library_graph_test with -DGRAPH=... -DDESIGN=...
+cmake_minimum_required(VERSION 3.25)
 file(STRINGS ${GRAPH} _graph_lines)
 file(STRINGS ${DESIGN} _table REGEX "^\\| `waymark_[a-z]+` \\|")
 set(_documented "")
 foreach(_row ${_table})
-  # | `waymark_x` | holds | public deps | private deps |
+  # | `waymark_x` | holds | public deps | private deps |   (ASCII in the last two columns: CMake's
+  # regular expressions do not match multi-byte characters with [^|])
   string(REGEX MATCH "^\\| `waymark_([a-z]+)` \\|[^|]*\\|([^|]*)\\|([^|]*)\\|$" _m "${_row}")
   if(NOT _m)
     message(FATAL_ERROR "library_graph_test: cannot read the row of docs/design.md: ${_row}")
@@ -31,11 +33,13 @@ endforeach()
 
 set(_errors "")
 foreach(_line ${_graph_lines})
-  string(REPLACE "|" ";" _fields "${_line}|")
-  list(GET _fields 0 _folder)
-  list(GET _fields 1 _public)
-  list(GET _fields 2 _private)
-  list(GET _fields 3 _closure)
+  if(NOT _line MATCHES "^([^|]*)\\|([^|]*)\\|([^|]*)\\|(.*)$")
+    message(FATAL_ERROR "library_graph_test: cannot read the line of ${GRAPH}: ${_line}")
+  endif()
+  set(_folder "${CMAKE_MATCH_1}")
+  set(_public "${CMAKE_MATCH_2}")
+  set(_private "${CMAKE_MATCH_3}")
+  set(_closure "${CMAKE_MATCH_4}")
   if(NOT _folder IN_LIST _documented)
     string(APPEND _errors "  waymark_${_folder} is built but not in docs/design.md's table\n")
     continue()

@@ -3,6 +3,7 @@
 #   examples/map_codes, copied to WORK_DIR/consumer: find_package(Waymark REQUIRED), built, run on a map
 #   the same main.cc compiled and linked with `pkg-config --cflags --libs waymark`, run
 # Run by ctest as install/package_test with -DBUILD_DIR, -DSOURCE_DIR, -DWORK_DIR, -DCXX.
+cmake_minimum_required(VERSION 3.25)
 foreach(_var BUILD_DIR SOURCE_DIR WORK_DIR CXX)
   if(NOT DEFINED ${_var})
     message(FATAL_ERROR "package_test: -D${_var}=... is required")
