@@ -285,6 +285,8 @@ double SearchGrid(const LocalMapGraphOptions& options, double length_m, const Co
   return best.second;
 }
 
+constexpr size_t kMaxClosurePartners = 16;
+
 // The heading-drift search of the header comment, per chain holding loop closures: moves the
 // stage-1 maps and instances of the chain by the best dk on a grid; returns the dk of the
 // longest chain searched (0 when none).
@@ -297,13 +299,20 @@ double SearchHeadingDrift(const std::vector<LocalMap>& maps, const std::vector<S
   for (size_t k = 0; k < instances.size(); ++k) {
     T_map_code[k] = stage->T_world_ref[sightings[instances[k].best].map].inverse() * stage->T_world_code[k];
   }
+  // chain -> marker -> instances whose first map is in the chain, in order.
+  std::map<int, std::map<int, std::vector<int>>> chain_instances;
+  for (size_t k = 0; k < instances.size(); ++k) {
+    chain_instances[maps[instances[k].first_map].chain][instances[k].marker].push_back(static_cast<int>(k));
+  }
   double longest_m = 0.0, result = 0.0;
   for (const auto& [chain, members] : chains) {
-    std::vector<std::pair<int, int>> closures;  // (first instance, later instance) of one code in this chain
-    for (size_t j = 1; j < instances.size(); ++j) {
-      for (int i = static_cast<int>(j) - 1; i >= 0 && instances[i].marker == instances[j].marker; --i) {
-        if (maps[instances[i].first_map].chain == chain && maps[instances[j].first_map].chain == chain) {
-          closures.emplace_back(i, static_cast<int>(j));
+    // (earlier instance, later instance) of one code in this chain: each instance with at most
+    // kMaxClosurePartners earlier ones, so a code revisited n times gives O(n) pairs, not n^2.
+    std::vector<std::pair<int, int>> closures;
+    for (const auto& [marker, list] : chain_instances[chain]) {
+      for (size_t b = 1; b < list.size(); ++b) {
+        for (size_t a = b > kMaxClosurePartners ? b - kMaxClosurePartners : 0; a < b; ++a) {
+          closures.emplace_back(list[a], list[b]);
         }
       }
     }
@@ -346,6 +355,7 @@ struct Placement {
   std::vector<SE3d> T_world_ref, T_world_code;
   std::vector<int> node;
   int accepted = 0, rejected = 0;
+  int candidates = 0;  // instance pairs considered for the forest
 };
 
 Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage, const std::vector<Instance>& instances,
@@ -357,26 +367,49 @@ Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage, c
     if (stage.group[i] == i) group_of_root[i] = num_groups++;
   }
   const auto group = [&](int k) { return group_of_root[stage.group[instances[k].first_map]]; };
+  // Candidate links: per code, the best instance (smallest sigma) of each group, each joined to
+  // the best of the code's best group. The quality 1 / hypot(sigma_i, sigma_j) falls with either
+  // sigma, so this star is a maximum spanning tree of all the code's instance pairs between groups
+  // (every pair (i, j) closes a cycle through the hub whose other links are at least as good),
+  // and the union over codes holds the maximum spanning forest of all pairs: the same forest
+  // as from every pair (up to ties), with links linear in the instances instead of quadratic
+  // (a code seen in n frames without odometry is n instances: test6, 1 546 frames).
   std::vector<LocalMapLink> between;
   std::vector<std::pair<int, int>> pair_of;  // instances of each entry of `between`
   std::vector<int> first(instances.size());  // first instance of each instance's code
-  for (size_t j = 0; j < instances.size(); ++j) {
-    first[j] = j > 0 && instances[j - 1].marker == instances[j].marker ? first[j - 1] : static_cast<int>(j);
-    for (int i = first[j]; i < static_cast<int>(j); ++i) {
-      if (group(i) == group(static_cast<int>(j))) continue;
+  for (size_t begin = 0; begin < instances.size();) {
+    size_t end = begin;
+    while (end < instances.size() && instances[end].marker == instances[begin].marker) ++end;
+    std::map<int, int> best_of_group;  // group -> its instance of least sigma (lowest index on ties)
+    for (size_t k = begin; k < end; ++k) {
+      first[k] = static_cast<int>(begin);
+      const auto it = best_of_group.emplace(group(static_cast<int>(k)), static_cast<int>(k)).first;
+      if (instances[k].sigma < instances[it->second].sigma) it->second = static_cast<int>(k);
+    }
+    int hub = -1;
+    for (const auto& [g, k] : best_of_group) {
+      if (hub < 0 || instances[k].sigma < instances[hub].sigma || (instances[k].sigma == instances[hub].sigma && k < hub)) {
+        hub = k;
+      }
+    }
+    for (const auto& [g, k] : best_of_group) {
+      if (k == hub) continue;
+      const int i = std::min(hub, k), j = std::max(hub, k);
       LocalMapLink link;
       link.map_a = group(i);
-      link.map_b = group(static_cast<int>(j));
+      link.map_b = group(j);
       link.marker = instances[j].marker;
       link.T_a_b = stage.T_world_code[i] * stage.T_world_code[j].inverse();
       link.quality = 1.0 / std::max(1e-9, std::hypot(instances[i].sigma, instances[j].sigma));
       between.push_back(link);
-      pair_of.emplace_back(i, static_cast<int>(j));
+      pair_of.emplace_back(i, j);
     }
+    begin = end;
   }
   const std::vector<int> forest = SpanningForest(num_groups, between);
   const std::vector<SE3d> T_world_group = PlaceLocalMaps(num_groups, between, forest, planar);
   Placement placement;
+  placement.candidates = static_cast<int>(between.size());
   for (int i = 0; i < num_maps; ++i) {
     placement.T_world_ref.push_back(Flatten(planar, T_world_group[group_of_root[stage.group[i]]] * stage.T_world_ref[i]));
   }
@@ -448,6 +481,7 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
   for (const Sighting& s : sightings) result.outlying_sightings += s.inlier ? 0 : 1;
   result.closures_accepted = placement.accepted;
   result.closures_rejected = placement.rejected;
+  result.placement_candidates = placement.candidates;
   Graph graph(placement.T_world_ref, placement.T_world_code, stage.calibration, options);
   LowestRoot components(num_maps);
   for (const LocalMapLink& link : odometry) {

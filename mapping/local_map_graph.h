@@ -107,6 +107,9 @@ struct LocalMapGraph {
   int outlying_sightings = 0;  // above inlier_chi2 after stage 1
   int closures_accepted = 0;   // instances merged into their code's first one
   int closures_rejected = 0;
+  // Instance pairs considered for stage 2's placement forest: per code, the best instance of
+  // each group joined to the code's best one, so at most the number of instances.
+  int placement_candidates = 0;
 };
 
 // The header comment's two stages; `links` as FindLocalMapLinks gives them (only the odometry
