@@ -43,14 +43,16 @@ build   learns the poses of the codes seen in the dataset directory DATASET (its
         frames are initialized from single-code poses and odometry, then one optimization over
         every code and every frame pose (robust loss, outliers rejected and reported) gives the
         map, with a covariance per code, and the smoothed trajectory. Disconnected groups of
-        codes become separate components, each in its own frame.
+        codes become separate components, each in its own frame, except that groups holding
+        anchors or priors (markers.json) are one component in the world frame.
 merge   the same with the codes of MAP.json as priors (their covariance, or held fixed when
         they have none); codes of MAP.json the survey does not see are kept as they were.
 info    markers, components, families, anchors and position uncertainty of a map, and the
         marker error `waymark eval` would measure, predicted per component from the covariances.
 
 Progress goes to stderr on a terminal; the summary (markers and components, reprojection
-RMS per camera, outliers, solver time and termination) to stdout. Outputs are written
+RMS and median per camera, outliers by reason and by code, time and peak memory per phase,
+solver termination) to stdout. Outputs are written
 atomically, and only when the whole build succeeded.
 
 Options (build, merge):
@@ -58,8 +60,9 @@ Options (build, merge):
   --trajectory FILE   the smoothed trajectories T_world_robot (TUM), one file per component:
                       FILE holds component 0, <stem>.component<c><ext> component c >= 1
                       (e.g. smoothed.tum, smoothed.component1.tum), each in its component's frame
-  --report FILE       the summary as JSON: components, reprojection per camera, every
-                      rejected observation (code, stamp, camera, reason), unmapped codes, timings
+  --report FILE       the summary as JSON: components, reprojection per camera (RMS, median),
+                      every rejected observation (code, stamp, camera, reason) and their counts
+                      by reason and by code, unmapped codes, time and peak memory per phase
   --threads N         solver threads (default 2)
   --no-covariance     skip the marker covariances
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
@@ -160,8 +163,30 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
                                     {"trajectory_poses", c.trajectory_poses}, {"gauge", c.gauge}});
   }
   for (const CameraReprojection& r : result.reprojection) {
-    report["reprojection"].push_back({{"camera", r.camera}, {"observations", r.observations}, {"rms_px", r.rms_px}});
+    report["reprojection"].push_back(
+        {{"camera", r.camera}, {"observations", r.observations}, {"rms_px", r.rms_px}, {"median_px", r.median_px}});
   }
+  report["phases"] = nlohmann::json::array();
+  double peak_rss_mb = 0.0;
+  for (const PhaseTime& p : result.phases) {
+    report["phases"].push_back({{"phase", p.phase}, {"seconds", p.seconds}, {"peak_rss_mb", p.peak_rss_mb}});
+    peak_rss_mb = std::max(peak_rss_mb, p.peak_rss_mb);
+  }
+  report["peak_rss_mb"] = peak_rss_mb;
+  report["solves"] = nlohmann::json::array();
+  for (const SolveStageSummary& solve : result.solves) {
+    report["solves"].push_back({{"stage", solve.stage},
+                                {"iterations", solve.iterations},
+                                {"total_s", solve.total_s},
+                                {"linear_solver_s", solve.linear_solver_s},
+                                {"jacobian_s", solve.jacobian_s},
+                                {"residual_s", solve.residual_s}});
+  }
+  const OutlierTally tally = TallyOutliers(result.outliers);
+  report["outliers_by_reason"] = nlohmann::json::object();
+  for (const auto& [reason, n] : tally.by_reason) report["outliers_by_reason"][reason] = n;
+  report["outliers_by_code"] = nlohmann::json::object();
+  for (const auto& [code, n] : tally.by_code) report["outliers_by_code"][code] = n;
   report["outliers"] = nlohmann::json::array();
   for (const RejectedObservation& o : result.outliers) {
     report["outliers"].push_back({{"family", o.key.family}, {"id", o.key.id}, {"t", o.stamp_s},

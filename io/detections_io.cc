@@ -1,5 +1,6 @@
 #include "io/detections_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -107,15 +108,25 @@ std::optional<MarkerObservation> ParseMarker(const JsonSource& source, const nlo
   }
   if (marker.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
   if (camera != nullptr) {
+    // A detector that fits lines to a code's edges (AprilTag) puts the corners of a code cut by
+    // the image border where those lines meet, outside the image: a valid measurement of where
+    // the corner projects. A corner is kept up to half the quad's shorter diagonal outside (a
+    // code mostly in view; a single wild corner cannot widen it, one diagonal avoids it);
+    // farther out the detection is garbage.
+    const std::array<Eigen::Vector2d, 4>& c = marker.corners_px;
+    const double margin_px = 0.5 * std::min((c[2] - c[0]).norm(), (c[3] - c[1]).norm());
     for (const Eigen::Vector2d& corner_px : marker.corners_px) {
-      if (camera->InImage(corner_px)) continue;
+      if (corner_px.x() >= -margin_px && corner_px.y() >= -margin_px && corner_px.x() <= camera->width + margin_px &&
+          corner_px.y() <= camera->height + margin_px) {
+        continue;
+      }
       if (warnings) {
         warnings->Add(
             "corner outside image",
             JsonErrorText(source, JsonField(field, "corners_px"),
                           "corner (" + FormatDouble(corner_px.x()) + ", " + FormatDouble(corner_px.y()) +
                               ") outside the " + std::to_string(camera->width) + "x" +
-                              std::to_string(camera->height) + " image, marker ignored"));
+                              std::to_string(camera->height) + " image by more than half the code's diagonal, marker ignored"));
       }
       return std::nullopt;
     }

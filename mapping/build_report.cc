@@ -18,17 +18,9 @@ namespace {
 // Outliers counted by reason, then by code (the codes with most rejected views first).
 void AppendOutlierTallies(const std::vector<RejectedObservation>& outliers, std::ostream& out) {
   if (outliers.empty()) return;
-  std::map<std::string, size_t> by_reason;
-  std::map<std::string, size_t> by_code;
-  for (const RejectedObservation& o : outliers) {
-    const std::string reason = o.reason.substr(0, o.reason.find(':'));
-    ++by_reason[reason.rfind("id conflicts with ", 0) == 0 ? "id conflicts with a code mapped at the same place"
-                                                            : reason];
-    ++by_code[o.key.ToString()];
-  }
-  for (const auto& [reason, n] : by_reason) out << "  " << n << " x " << reason << "\n";
-  std::vector<std::pair<std::string, size_t>> codes(by_code.begin(), by_code.end());
-  std::stable_sort(codes.begin(), codes.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+  const OutlierTally tally = TallyOutliers(outliers);
+  for (const auto& [reason, n] : tally.by_reason) out << "  " << n << " x " << reason << "\n";
+  const std::vector<std::pair<std::string, size_t>>& codes = tally.by_code;
   out << "  by code:";
   const size_t shown = std::min<size_t>(codes.size(), 12);
   for (size_t i = 0; i < shown; ++i) out << " " << codes[i].first << " (" << codes[i].second << ")";
@@ -37,6 +29,22 @@ void AppendOutlierTallies(const std::vector<RejectedObservation>& outliers, std:
 }
 
 }  // namespace
+
+OutlierTally TallyOutliers(const std::vector<RejectedObservation>& outliers) {
+  OutlierTally tally;
+  std::map<std::string, size_t> by_reason, by_code;
+  for (const RejectedObservation& o : outliers) {
+    const std::string reason = o.reason.substr(0, o.reason.find(':'));
+    ++by_reason[reason.rfind("id conflicts with ", 0) == 0 ? "id conflicts with a code mapped at the same place"
+                                                            : reason];
+    ++by_code[o.key.ToString()];
+  }
+  tally.by_reason.assign(by_reason.begin(), by_reason.end());
+  tally.by_code.assign(by_code.begin(), by_code.end());
+  std::stable_sort(tally.by_code.begin(), tally.by_code.end(),
+                   [](const auto& a, const auto& b) { return a.second > b.second; });
+  return tally;
+}
 
 std::string FormatOdometryCalibration(const MapBuildResult& result) {
   if (!result.odometry_calibration) return "";
@@ -70,7 +78,8 @@ std::string FormatBuildSummary(const MapBuildResult& result) {
         << c.trajectory_poses << " poses in its trajectory), gauge: " << c.gauge << "\n";
   }
   for (const CameraReprojection& r : result.reprojection) {
-    out << "  reprojection " << r.camera << ": RMS " << FormatSignificant(r.rms_px, 4) << " px over " << r.observations
+    out << "  reprojection " << r.camera << ": RMS " << FormatSignificant(r.rms_px, 4) << " px, median "
+        << FormatSignificant(r.median_px, 4) << " px over " << r.observations
         << " observations\n";
   }
   out << "outliers rejected: " << result.outliers.size() << "\n";
@@ -87,6 +96,7 @@ std::string FormatBuildSummary(const MapBuildResult& result) {
   for (const UnmappedMarker& u : result.unmapped) out << "  " << u.key.ToString() << ": " << u.reason << "\n";
   out << "time: init " << FormatSignificant(result.init_time_s, 3) << " s, solve " << FormatSignificant(result.solver_time_s, 3)
       << " s, covariance " << FormatSignificant(result.covariance_time_s, 3) << " s\n";
+  if (!result.phases.empty()) out << "phases: " << FormatPhases(result.phases) << "\n";
   out << "solver: " << FormatSignificant(result.solver_time_s, 4) << " s, " << result.iterations << " iterations, cost "
       << FormatSignificant(result.initial_cost, 8) << " -> " << FormatSignificant(result.final_cost, 8) << ", "
       << result.termination << "\n";

@@ -4,10 +4,20 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "mapping/map_builder.h"
 
 namespace waymark {
+
+// Rejected observations counted by reason (the text before its first ':'; "id conflicts with
+// X" counted as one reason) and by code (most rejected first, then by code).
+struct OutlierTally {
+  std::vector<std::pair<std::string, size_t>> by_reason;
+  std::vector<std::pair<std::string, size_t>> by_code;
+};
+OutlierTally TallyOutliers(const std::vector<RejectedObservation>& outliers);
 
 // The human summary: markers and components, reprojection RMS per camera, outliers, solver, the
 // odometry calibration.

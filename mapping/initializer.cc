@@ -7,6 +7,8 @@
 #include <set>
 #include <sstream>
 
+#include <Eigen/Dense>
+
 #include "mapping/residuals.h"
 
 namespace waymark {
@@ -173,6 +175,103 @@ SE3d Fit2d(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vecto
   return SE2d(t.x(), t.y(), R.theta()).ToSE3();
 }
 
+// Position sigma (m) and rotation sigma (rad) of an anchor: 0 for a fixed one, else the root
+// mean of the diagonal of its covariance's translation and rotation blocks.
+std::pair<double, double> AnchorSigmas(const MapMarker& known) {
+  if (known.fixed || !known.covariance) return {0.0, 0.0};
+  const Matrix6d& c = *known.covariance;
+  return {std::sqrt(std::max(0.0, c.block<3, 3>(3, 3).trace() / 3.0)),
+          std::sqrt(std::max(0.0, c.block<3, 3>(0, 0).trace() / 3.0))};
+}
+
+// How far the anchors are from T * (their initialized poses): sum over anchors of
+// rho(|dp|^2 / s_p^2 + angle^2 / s_r^2), rho the Cauchy loss of scale 3 (a rough survey has some
+// priors far off); fixed anchors weigh as priors of 1 mm / 1 mrad.
+double AnchorMisfit(const Survey& survey, const Initialization& init, const std::vector<int>& anchors, const SE3d& T) {
+  constexpr double kFixedSigmaM = 1e-3, kFixedSigmaRad = 1e-3, kScale2 = 9.0;
+  double cost = 0.0;
+  for (int m : anchors) {
+    const MapMarker& known = *survey.markers[m].known;
+    auto [sp, sr] = AnchorSigmas(known);
+    if (known.fixed || !known.covariance) sp = kFixedSigmaM, sr = kFixedSigmaRad;
+    const SE3d placed = T * *init.T_world_marker[m];
+    const double s = (placed.translation() - known.T_world_marker.translation()).squaredNorm() / (sp * sp) +
+                     std::pow(RotationAngleBetween(placed, known.T_world_marker) / sr, 2);
+    cost += kScale2 * std::log1p(s / kScale2);
+  }
+  return cost;
+}
+
+// The rotation R and translation t minimizing sum w_i |R a_i + t - b_i|^2 (Kabsch with weights);
+// nullopt when the points are (nearly) collinear, which leaves a rotation free.
+std::optional<SE3d> WeightedKabsch(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                                   const std::vector<double>& w) {
+  double w_sum = 0.0;
+  Eigen::Vector3d a_mean = Eigen::Vector3d::Zero(), b_mean = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < a.size(); ++i) {
+    w_sum += w[i];
+    a_mean += w[i] * a[i];
+    b_mean += w[i] * b[i];
+  }
+  if (!(w_sum > 0.0)) return std::nullopt;
+  a_mean /= w_sum;
+  b_mean /= w_sum;
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < a.size(); ++i) H += w[i] * (a[i] - a_mean) * (b[i] - b_mean).transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  if (!(sv[1] > 1e-6 * std::max(1e-12, sv[0]))) return std::nullopt;  // collinear
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0.0) D(2, 2) = -1.0;
+  const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
+  return SE3d(Eigen::Quaterniond(R), b_mean - R * a_mean);
+}
+
+// T_world_init of a component from its anchors. A fixed anchor gives it exactly (the one that
+// agrees best with the other anchors). Anchors that are priors (a rough survey: sigmas of tens
+// of centimetres, some entries farther off) are each a candidate; the one the others agree with
+// best (AnchorMisfit) is refined, when three or more anchors within 3 sigmas of it are not
+// collinear, by a weighted fit of their positions (Kabsch, weights 1 / sigma^2; planar surveys:
+// yaw and x, y, then the mean z offset), which averages the priors' errors instead of trusting
+// one, and kept if it agrees better.
+SE3d AlignToAnchors(const Survey& survey, const Initialization& init, const std::vector<int>& anchors) {
+  const bool planar = survey.motion == MotionModel::kPlanar;
+  const auto flatten = [planar](const SE3d& T) { return planar ? SE2d::FromSE3(T).ToSE3() : T; };
+  bool any_fixed = false;
+  for (int m : anchors) any_fixed = any_fixed || survey.markers[m].known->fixed;
+  std::optional<SE3d> best;
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (int m : anchors) {
+    if (any_fixed && !survey.markers[m].known->fixed) continue;
+    const SE3d T = flatten(survey.markers[m].known->T_world_marker * init.T_world_marker[m]->inverse());
+    const double cost = AnchorMisfit(survey, init, anchors, T);
+    if (cost < best_cost) best = T, best_cost = cost;
+  }
+  if (any_fixed) return *best;
+  std::vector<Eigen::Vector3d> a, b;
+  std::vector<double> w;
+  for (int m : anchors) {
+    const MapMarker& known = *survey.markers[m].known;
+    const double sp = std::max(1e-6, AnchorSigmas(known).first);
+    const Eigen::Vector3d placed = *best * init.T_world_marker[m]->translation();
+    if ((placed - known.T_world_marker.translation()).norm() > 3.0 * sp) continue;
+    a.push_back(init.T_world_marker[m]->translation());
+    b.push_back(known.T_world_marker.translation());
+    w.push_back(1.0 / (sp * sp));
+  }
+  if (a.size() < 3) return *best;
+  std::optional<SE3d> fit;
+  if (planar) {
+    std::vector<Eigen::Vector2d> a2, b2;
+    for (size_t i = 0; i < a.size(); ++i) a2.push_back(a[i].head<2>()), b2.push_back(b[i].head<2>());
+    fit = Fit2d(a2, b2);
+  } else {
+    fit = WeightedKabsch(a, b, w);
+  }
+  if (fit && AnchorMisfit(survey, init, anchors, flatten(*fit)) < best_cost) return flatten(*fit);
+  return *best;
+}
+
 // T_world_init of a component from its priors, or nullopt (then the root frame stays the
 // identity); *how says which.
 std::optional<SE3d> PriorAlignment(const Survey& survey, const Initialization& init, int component,
@@ -186,8 +285,7 @@ std::optional<SE3d> PriorAlignment(const Survey& survey, const Initialization& i
   const bool planar = survey.motion == MotionModel::kPlanar;
   if (!anchors.empty()) {
     *how = std::to_string(anchors.size()) + " anchor marker(s)";
-    const SE3d T = survey.markers[anchors[0]].known->T_world_marker * init.T_world_marker[anchors[0]]->inverse();
-    return planar ? SE2d::FromSE3(T).ToSE3() : T;
+    return AlignToAnchors(survey, init, anchors);
   }
   if (payloads.size() >= 2) {
     *how = std::to_string(payloads.size()) + " payload position prior(s)";
@@ -227,6 +325,44 @@ void AlignComponent(const Survey& survey, int component, Initialization* init) {
       init->T_world_marker[m] = *T_world_init * *init->T_world_marker[m];
     }
   }
+}
+
+// Components holding an anchor (a fixed pose or a prior in markers.json) are, once aligned onto
+// their anchors, in one world frame: they become one component (the number of the first of them);
+// components are renumbered 0, 1, ... in the order of their first frame, their gauges joined.
+void MergeWorldComponents(const Survey& survey, Initialization* init) {
+  std::vector<bool> anchored(init->components, false);
+  for (size_t m = 0; m < survey.markers.size(); ++m) {
+    const int c = init->marker_component[m];
+    if (c >= 0 && init->T_world_marker[m] && IsAnchor(survey.markers[m])) anchored[c] = true;
+  }
+  std::vector<int> target(init->components);
+  int world = -1;
+  for (int c = 0; c < init->components; ++c) {  // components are numbered in order of first frame
+    if (anchored[c] && world < 0) world = c;
+    target[c] = anchored[c] ? world : c;
+  }
+  std::vector<int> number(init->components, -1);
+  int next = 0;
+  for (int c = 0; c < init->components; ++c) {
+    if (number[target[c]] < 0) number[target[c]] = next++;
+  }
+  if (next == init->components) return;
+  std::vector<std::string> gauge(next);
+  std::vector<int> anchor_count(next, 0);
+  for (size_t m = 0; m < survey.markers.size(); ++m) {
+    const int c = init->marker_component[m];
+    if (c >= 0 && init->T_world_marker[m] && IsAnchor(survey.markers[m])) ++anchor_count[number[target[c]]];
+  }
+  for (int c = 0; c < init->components; ++c) {
+    const int n = number[target[c]];
+    gauge[n] = anchored[c] ? std::to_string(anchor_count[n]) + " anchor marker(s)" : init->gauge[c];
+  }
+  for (int& c : init->frame_component) c = c >= 0 ? number[target[c]] : c;
+  for (int& c : init->marker_component) c = c >= 0 ? number[target[c]] : c;
+  for (LocalMap& map : init->local_maps) map.component = map.component >= 0 ? number[target[map.component]] : -1;
+  init->gauge = gauge;
+  init->components = next;
 }
 
 }  // namespace
@@ -339,17 +475,21 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
   const LocalMapOptions local = EffectiveLocalMapOptions(options);
   Initialization init;
+  PhaseClock clock(&init.phases);
   init.views = ComputeSingleViews(survey, cameras, options.ambiguity_ratio);
   FindComponents(survey, &init);
+  clock.Lap("single views");
   init.T_world_robot.assign(survey.frames.size(), std::nullopt);
   init.T_world_marker.assign(survey.markers.size(), std::nullopt);
   init.local_maps = BuildLocalMaps(survey, cameras, init.views, init.frame_component, local);
   init.links = FindLocalMapLinks(survey, init.local_maps, local);
   const int num_maps = static_cast<int>(init.local_maps.size());
   init.tree = SpanningForest(num_maps, init.links);
+  clock.Lap("local maps");
   const LocalMapGraph graph =
       SolveLocalMapGraph(init.local_maps, init.links, survey.motion == MotionModel::kPlanar, options.graph);
   init.odometry_calibration = graph.odometry_calibration;
+  clock.Lap("local map graph");
   PlaceFromLocalMaps(survey, graph.T_world_ref, &init);
   RefineMarkers(survey, cameras, local, &init);
   for (int round = 0; round < options.refine_rounds; ++round) {
@@ -357,7 +497,14 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
     RefineMarkers(survey, cameras, local, &init);
   }
   for (int c = 0; c < init.components; ++c) AlignComponent(survey, c, &init);
+  clock.Lap("initial refinement");
+  const int connected = init.components;
+  MergeWorldComponents(survey, &init);
   init.notes = DescribeInitialization(survey, init);
+  if (init.components < connected) {
+    init.notes.push_back(std::to_string(connected) + " groups of codes that share no observation are one map: " +
+                         "their anchors or priors put them in one world frame");
+  }
   init.notes.push_back(DescribeLocalMapGraph(graph));
   return init;
 }

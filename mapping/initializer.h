@@ -39,6 +39,7 @@
 
 #include "geometry/camera.h"
 #include "geometry/marker_pose.h"
+#include "mapping/build_stats.h"
 #include "mapping/local_map_graph.h"
 #include "mapping/local_maps.h"
 #include "mapping/survey.h"
@@ -82,6 +83,7 @@ struct Initialization {
   // [k_rad_per_m, turn_scale, distance_scale] of factors/calibrated_odometry_factor.h.
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   std::vector<std::string> notes;                   // facts for the build summary
+  std::vector<PhaseTime> phases;                    // single views, local maps, graph, refinement
 };
 
 // Lines for the build summary: local maps, links in the tree (code / odometry), the weakest

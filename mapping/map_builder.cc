@@ -12,22 +12,29 @@
 #include "mapping/global_problem.h"
 #include "mapping/outlier_rejection.h"
 #include "mapping/residuals.h"
+#include "util/stats.h"
 
 namespace waymark {
 namespace {
 
 void FillReprojection(const Survey& survey, const GlobalProblem& problem, const std::vector<int>& kept,
                       MapBuildResult* result) {
-  std::map<std::string, std::pair<size_t, double>> per_camera;  // observations, sum of squared px
+  std::map<std::string, std::vector<double>> per_camera;  // squared px per observation (sum over its corners)
   for (int o : kept) {
     const SurveyObservation& obs = survey.observations[o];
     const double sigma = CornerSigmaPx(survey.cameras.at(obs.camera));
-    auto& entry = per_camera[obs.camera];
-    ++entry.first;
-    entry.second += problem.SquaredError(o) * sigma * sigma;
+    per_camera[obs.camera].push_back(problem.SquaredError(o) * sigma * sigma);
   }
-  for (const auto& [camera, entry] : per_camera) {
-    result->reprojection.push_back({camera, entry.first, std::sqrt(entry.second / (4.0 * entry.first))});
+  for (auto& [camera, squares] : per_camera) {
+    double sum = 0.0;
+    std::vector<double> rms;  // per observation
+    for (double s : squares) {
+      sum += s;
+      rms.push_back(std::sqrt(s / 4.0));
+    }
+    std::sort(rms.begin(), rms.end());
+    const size_t n = rms.size();
+    result->reprojection.push_back({camera, n, std::sqrt(sum / (4.0 * n)), QuantileOfSorted(rms, 0.5)});
   }
 }
 
@@ -89,8 +96,12 @@ bool MapBuildOptions::Check(std::string* why) const {
 }
 
 MapBuildResult BuildMap(const Dataset& dataset, const MapBuildOptions& options) {
+  std::vector<PhaseTime> ingest;
+  PhaseClock clock(&ingest);
   const Survey survey = IngestDataset(dataset, options.ingest);
+  clock.Lap("ingest");
   MapBuildResult result = BuildMapFromSurvey(survey, options);
+  result.phases.insert(result.phases.begin(), ingest.begin(), ingest.end());
   for (const auto& [reason, count] : dataset.warnings.counts) {
     result.notes.push_back("input: " + std::to_string(count) + " x " + reason);
   }
@@ -110,8 +121,10 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
            std::to_string(survey.markers.size()) + " codes, " + std::to_string(survey.observations.size()) +
            " observations");
   const auto start = std::chrono::steady_clock::now();
+  PhaseClock clock(&result.phases);
   std::vector<int> inconsistent;
   if (options.check_ids) inconsistent = FindInconsistentIds(survey, MakeCameras(survey), options.id_check);
+  clock.Lap("id check");
   for (int o : inconsistent) {
     const SurveyObservation& obs = survey.observations[o];
     result.outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0,
@@ -124,6 +137,7 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
     initializer.graph.given_calibration_sigma = options.odometry_calibration_sigma;
   }
   const Initialization init = Initialize(checked, initializer);
+  result.phases.insert(result.phases.end(), init.phases.begin(), init.phases.end());
   result.notes.insert(result.notes.end(), init.notes.begin(), init.notes.end());  // local maps, links
   result.init_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return OptimizeSurvey(checked, init, options, std::move(result));
@@ -138,6 +152,7 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   const std::vector<int> active = UsableObservations(survey, init, &result);
   std::vector<std::string> gauges;
   const auto start = std::chrono::steady_clock::now();
+  PhaseClock clock(&result.phases);
   // A corner behind its camera at the current values only gets a finite penalty
   // (factors/corner_observation.h), which would drag the solve: such observations (a
   // misdecoded id, a wrong placement) are set aside for the solve that follows.
@@ -155,6 +170,7 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   };
   ceres::Solver::Summary robust = problem.Solve(in_front(active), true, &gauges);
   record("robust", robust);
+  clock.Lap("robust solve");
   int iterations = static_cast<int>(robust.iterations.size());
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
   for (int round = 0; round < options.replace_rounds; ++round) {
@@ -169,8 +185,10 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   }
   const std::vector<int> kept =
       RejectOutliers(survey, problem, RemoveDuplicateCodes(survey, init, problem, active, &result), options, &result);
+  clock.Lap("re-placing and outliers");
   const ceres::Solver::Summary final_summary = problem.Solve(kept, false, &gauges);
   record("final", final_summary);
+  clock.Lap("final solve");
   result.solver_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.iterations = iterations + static_cast<int>(final_summary.iterations.size());
   result.termination = ceres::TerminationTypeToString(final_summary.termination_type) + std::string(": ") +
@@ -182,6 +200,7 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
   result.odometry_calibration_given = result.odometry_calibration && !problem.CalibrationEstimated();
   FillReprojection(survey, problem, kept, &result);
   FillOutputs(survey, init, problem, kept, gauges, &result);
+  clock.Lap("outputs");
   if (options.compute_covariance) {
     progress("marker covariances");
     const auto covariance_start = std::chrono::steady_clock::now();
@@ -200,6 +219,7 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     }
     result.covariance_time_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
+    clock.Lap("covariance");
   }
   return result;
 }

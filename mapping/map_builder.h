@@ -32,6 +32,7 @@
 #include <Eigen/Core>
 
 #include "geometry/types.h"
+#include "mapping/build_stats.h"
 #include "mapping/id_consistency.h"
 #include "mapping/initializer.h"
 #include "mapping/survey.h"
@@ -88,7 +89,8 @@ struct UnmappedMarker {
 struct CameraReprojection {
   std::string camera;
   size_t observations = 0;
-  double rms_px = 0.0;  // over corners
+  double rms_px = 0.0;     // over corners
+  double median_px = 0.0;  // of the observations' RMS (as waymark map score)
 };
 
 struct ComponentSummary {
@@ -126,6 +128,9 @@ struct MapBuildResult {
   double covariance_time_s = 0.0;
   int iterations = 0;
   std::vector<SolveStageSummary> solves;  // in the order they ran
+  // Every phase of the build (mapping/build_stats.h): ingest, id check, the initializer's
+  // phases, solves, outlier stages, covariance; with the process's peak memory.
+  std::vector<PhaseTime> phases;
   std::string termination;               // Ceres' final termination type and message
   bool covariance_computed = false;
   // The odometry's systematic errors c = [k_rad_per_m, turn_scale, distance_scale]

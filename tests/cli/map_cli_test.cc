@@ -214,6 +214,39 @@ TEST_F(MapCliTest, OdometryCalibrationIsReportedAndCanBeGiven) {
   EXPECT_NE(both.err.find("exclude each other"), std::string::npos) << both.err;
 }
 
+// Item 6 of issue 13: per camera RMS and median, rejected observations by reason and by code,
+// time and peak memory per phase, in the summary and in --report.
+TEST_F(MapCliTest, ReportHasMedianPhasesPeakMemoryAndOutlierTallies) {
+  const fs::path survey = SmallSurvey();
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
+                              " --report " + (dir_ / "report.json").string());
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_NE(build.out.find("px, median "), std::string::npos) << build.out;
+  EXPECT_NE(build.out.find("phases: ingest "), std::string::npos) << build.out;
+  EXPECT_NE(build.out.find("MiB"), std::string::npos) << build.out;
+  const nlohmann::json report = nlohmann::json::parse(ReadTextFile(dir_ / "report.json"));
+  ASSERT_FALSE(report["reprojection"].empty()) << report.dump();
+  const double rms = report["reprojection"][0]["rms_px"].get<double>();
+  const double median = report["reprojection"][0]["median_px"].get<double>();
+  EXPECT_GT(median, 0.0);
+  EXPECT_LE(median, 1.5 * rms);
+  std::vector<std::string> phases;
+  for (const auto& p : report["phases"]) {
+    phases.push_back(p["phase"].get<std::string>());
+    EXPECT_GE(p["seconds"].get<double>(), 0.0);
+  }
+  for (const std::string name : {"ingest", "single views", "local maps", "local map graph", "robust solve",
+                                 "final solve", "covariance"}) {
+    EXPECT_NE(std::find(phases.begin(), phases.end(), name), phases.end()) << name;
+  }
+  EXPECT_GT(report["peak_rss_mb"].get<double>(), 1.0);
+  size_t by_reason = 0, by_code = 0;
+  for (const auto& [reason, n] : report["outliers_by_reason"].items()) by_reason += n.get<size_t>();
+  for (const auto& [code, n] : report["outliers_by_code"].items()) by_code += n.get<size_t>();
+  EXPECT_EQ(by_reason, report["outliers"].size());
+  EXPECT_EQ(by_code, report["outliers"].size());
+}
+
 TEST_F(MapCliTest, PayloadSigmaMustBePositive) {
   const fs::path survey = SmallSurvey();
   for (const char* bad : {"0", "-0.01", "x"}) {

@@ -324,7 +324,7 @@ TEST(DatasetIoTest, OutOfImageCornersAndUnsizedMarkersAreWarnings) {
   Dataset dataset = MakeDataset();
   dataset.images.clear();
   dataset.config.default_marker_size_m.reset();
-  dataset.detections[0].markers.at(0).corners_px[1] = {641.0, 10.0};  // cam0 is 640 wide
+  dataset.detections[0].markers.at(0).corners_px[1] = {5000.0, 10.0};  // cam0 is 640 wide
   WriteDataset(dir.path, dataset);
   const Dataset read = LoadDataset(dir.path);
   EXPECT_EQ(read.warnings.counts.at("corner outside image"), 1);

@@ -125,6 +125,23 @@ TEST(DetectionsIoTest, RejectedMarkersAreCountedWarnings) {
   EXPECT_EQ(ParseDetections(text, "detections.jsonl", &no_camera_warnings)[3].markers.size(), 1u);
 }
 
+// A code cut by the image border: AprilTag puts the corner where the edge lines meet, outside
+// the image. Kept while it is within half the quad's shorter diagonal of the image (TagSLAM's
+// real test10 has 51 such corners up to 25 px out, which TagSLAM uses); farther out, dropped.
+TEST(DetectionsIoTest, ACornerJustOutsideTheImageIsKept) {
+  const std::string text =
+      Line(1, R"({"family": "qr", "id": "a", "corners_px": [[600,100],[660,100],[660,160],[600,160]]})") +
+      Line(2, R"({"family": "qr", "id": "b", "corners_px": [[600,100],[720,100],[720,160],[600,160]]})");
+  ReadWarnings warnings;
+  const std::map<std::string, CameraInfo> cameras = OneCamera();
+  ASSERT_EQ(cameras.at("cam0").width, 640);
+  const std::vector<DetectionFrame> frames = ParseDetections(text, "detections.jsonl", &warnings, &cameras);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].markers.size(), 1u);  // 20 px out, diagonal 85 px
+  EXPECT_TRUE(frames[1].markers.empty());   // 80 px out, diagonal 134 px
+  EXPECT_EQ(warnings.counts["corner outside image"], 1);
+}
+
 TEST(DetectionsIoTest, MissingFileIsNamed) {
   ReadWarnings warnings;
   try {

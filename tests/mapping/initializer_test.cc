@@ -69,6 +69,17 @@ class SurveyBuilder {
       survey_.observations.push_back(obs);
     }
   }
+  // markers.json gives code m as a prior of these sigmas (rad, m) at `T_world_marker`.
+  void SetPrior(int m, const SE3d& T_world_marker, double sigma_rad, double sigma_m) {
+    MapMarker known;
+    known.key = survey_.markers[m].key;
+    known.size_m = survey_.markers[m].size_m;
+    known.T_world_marker = T_world_marker;
+    Vector6d variances;
+    variances << Eigen::Vector3d::Constant(sigma_rad * sigma_rad), Eigen::Vector3d::Constant(sigma_m * sigma_m);
+    known.covariance = Matrix6d(variances.asDiagonal());
+    survey_.markers[m].known = known;
+  }
   const Survey& survey() const { return survey_; }
   const SE3d& robot(int f) const { return robots_[f]; }
   const SE3d& code(int m) const { return codes_[m]; }
@@ -195,6 +206,57 @@ TEST(InitializerTest, DisconnectedGroupsBecomeComponents) {
   const SE3d truth_6_c = builder.robot(6).inverse() * builder.code(c);
   EXPECT_LT((T_robot6_c.translation() - truth_6_c.translation()).norm(), 0.05);
   // Codes A and B 0.5 m apart (a near-frontal code's orientation is loose; its position is not).
+  const Eigen::Vector3d a_to_b = init.T_world_marker[b]->translation() - init.T_world_marker[a]->translation();
+  EXPECT_LT((a_to_b - (builder.code(b).translation() - builder.code(a).translation())).norm(), 0.02);
+  EXPECT_FALSE(init.notes.empty());
+}
+
+}  // namespace
+}  // namespace waymark
+
+namespace waymark {
+namespace {
+
+// A rough survey as TagSLAM's test10 gives it: codes whose priors (sigma 0.5 m, 0.1 rad) are up
+// to 0.3 m and 0.08 rad off, in groups that share no observation (no odometry; most frames
+// see one code). The groups holding priors are one component in the world frame, initialized
+// near the truth there; a group without any prior stays a component of its own.
+TEST(InitializerTest, GroupsWithPriorsAreOneComponentInTheWorldFrame) {
+  std::mt19937 rng(11);
+  SurveyBuilder builder;
+  const int a = builder.AddCode("A", WallCode(Eigen::Vector3d(2.0, 0.2, 0.35), 0.0), 0.10);
+  const int b = builder.AddCode("B", WallCode(Eigen::Vector3d(2.0, -0.3, 0.35), 10.0 * kDeg), 0.10);
+  const int c = builder.AddCode("C", WallCode(Eigen::Vector3d(12.0, 0.0, 0.35), 0.0), 0.10);
+  const int d = builder.AddCode("D", WallCode(Eigen::Vector3d(22.0, 5.0, 0.35), -15.0 * kDeg), 0.10);
+  const int e = builder.AddCode("E", WallCode(Eigen::Vector3d(32.0, 0.0, 0.35), 0.0), 0.10);
+  const auto off = [](const SE3d& T, double dx, double dy, double dyaw) {
+    return SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(dyaw, Eigen::Vector3d::UnitZ())) * T.rotation(),
+                T.translation() + Eigen::Vector3d(dx, dy, 0.1));
+  };
+  builder.SetPrior(a, off(builder.code(a), 0.3, -0.1, 0.08), 0.1, 0.5);
+  builder.SetPrior(b, off(builder.code(b), -0.2, 0.2, -0.05), 0.1, 0.5);
+  builder.SetPrior(c, off(builder.code(c), 0.25, 0.15, 0.06), 0.1, 0.5);
+  builder.SetPrior(d, off(builder.code(d), -0.3, -0.2, -0.08), 0.1, 0.5);
+  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.1 * i, 0.0, 0.02 * i), {a, b}, false, &rng);
+  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(10.0 + 0.05 * i, 0.0, 0.0, 0.0), {c}, false, &rng);
+  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(20.0, 5.0 + 0.05 * i, 0.0, 0.0), {d}, false, &rng);
+  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(30.0 + 0.05 * i, 0.0, 0.0, 0.0), {e}, false, &rng);
+  const Initialization init = Initialize(builder.survey());
+  ASSERT_EQ(init.components, 2);
+  EXPECT_EQ(init.marker_component, (std::vector<int>{0, 0, 0, 0, 1}));
+  for (int f = 0; f < 12; ++f) EXPECT_EQ(init.frame_component[f], 0) << f;
+  for (int f = 12; f < 16; ++f) EXPECT_EQ(init.frame_component[f], 1) << f;
+  ASSERT_EQ(init.gauge.size(), 2u);
+  EXPECT_EQ(init.gauge[0], "4 anchor marker(s)");
+  // In the world frame, each group within its priors' errors of the truth (0.3 m, 0.08 rad at
+  // most, and the group of A and B fitted to both); the frames seeing one code each too.
+  for (int m : {a, b, c, d}) {
+    EXPECT_LT((init.T_world_marker[m]->translation() - builder.code(m).translation()).norm(), 0.5) << m;
+  }
+  for (int f = 0; f < 12; ++f) {
+    EXPECT_LT((init.T_world_robot[f]->translation() - builder.robot(f).translation()).norm(), 1.0) << f;
+  }
+  // Inside the group of A and B the geometry is the images', not the priors'.
   const Eigen::Vector3d a_to_b = init.T_world_marker[b]->translation() - init.T_world_marker[a]->translation();
   EXPECT_LT((a_to_b - (builder.code(b).translation() - builder.code(a).translation())).norm(), 0.02);
   EXPECT_FALSE(init.notes.empty());
