@@ -74,6 +74,9 @@ class GlobalProblem {
  private:
   void AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges);
   void AddOdometry();
+  // Whether an odometry link joins two frames of the problem (else the frames are eliminated
+  // first by a Schur complement).
+  bool FramesJoined() const;
   void AddCalibratedOdometry(const OdometryLink& link);
 
   const Survey& survey_;

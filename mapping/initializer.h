@@ -6,9 +6,12 @@
 // are rejected and counted.
 //
 // Components. A graph whose nodes are frames and markers, joined by every usable observation
-// and every odometry link; its connected groups that hold a marker are the components, numbered
-// 0, 1, ... in the order of their first frame. Each has its own world frame. Frames without any
-// marker in their group get component -1 (no pose).
+// and every odometry link; its connected groups that hold a marker are initialized apart, each
+// in its own frame. After the alignment onto priors (below), the groups holding anchors are all
+// in the world frame and become one component (MergeWorldComponents in initializer.cc); the
+// components are numbered 0, 1, ... in the order of their first frame, and only groups without
+// anchors keep a frame of their own. Frames without any marker in their group get component -1
+// (no pose).
 //
 // Initialization, per component, by local maps stitched along a spanning tree
 // (mapping/local_maps.h has the equations):
@@ -27,9 +30,12 @@
 //     undoes a flipped or misdecoded first view), frames seeing codes are refined by PnP
 //     against them (Cauchy loss), and codes are fused once more.
 // Planar surveys keep every robot pose in SE(2) (z = 0, yaw only).
-// Then the component is moved onto its priors: anchors (markers.json entries, fixed or with a
-// covariance) give the transform directly (SE(2) for planar surveys); otherwise two or more
-// payload positions give yaw and x, y (2-D fit), and the mean z offset of those with z.
+// Then each group is moved onto its priors: a fixed anchor gives the transform directly (the
+// one the other anchors agree with best); anchors that are priors each propose one, the one the
+// others agree with best (Cauchy cost of their whitened misfits) is taken, and replaced by a
+// weighted Kabsch fit of the positions of the anchors within 3 sigma of it (>= 3, not collinear)
+// when that agrees better (SE(2) for planar surveys). Otherwise two or more payload positions
+// give yaw and x, y (2-D fit), and the mean z offset of those with z.
 #pragma once
 
 #include <map>
