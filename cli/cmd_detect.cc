@@ -42,7 +42,7 @@ namespace fs = std::filesystem;
 constexpr const char* kUsage = R"(Usage:
   waymark detect INPUT --out detections.jsonl [--camera cam.yaml]
                  [--families qr,datamatrix,apriltag-36h11] [--annotate DIR]
-                 [--budget-ms 8] [--apriltag-decimate 4]
+                 [--max-candidates 8] [--apriltag-decimate 4]
 
 Detects printed codes and writes one JSON line per image or video frame (docs/design.md
 detections.jsonl; frames without codes get a line too). INPUT is
@@ -63,7 +63,9 @@ Options:
                       circle49h12,custom48h12,standard41h12,standard52h13}
   --annotate DIR      also write each image with its detections drawn (PNG), corner 0
                       (top-left of the upright code) marked
-  --budget-ms MS      CPU time per frame after which QR/DataMatrix second passes stop (8)
+  --max-candidates N  candidate regions per frame the QR/DataMatrix second passes try (8);
+                      work is bounded by counts, never by time: the same images give the
+                      same detections on any machine and at any load
   --apriltag-decimate F   libapriltag quad_decimate (4; 2 finds smaller tags, slower)
 
 Exit status 0 on success; 1 with one line on stderr for a corrupt image, an unreadable
@@ -258,7 +260,12 @@ std::vector<ImageJob> ListDataset(const Dataset& dataset, const std::string& as_
 
 std::unique_ptr<MarkerDetector> MakeDetector(const Args& args) {
   DetectorOptions options;
-  if (const auto budget = args.GetDouble("budget-ms")) options.time_budget_ms = *budget;
+  if (const auto regions = args.GetInt("max-candidates")) {
+    if (*regions < 0 || *regions > 64) {
+      throw std::invalid_argument("--max-candidates: expected 0..64, got " + std::to_string(*regions));
+    }
+    options.max_candidates = static_cast<int>(*regions);
+  }
   if (const auto decimate = args.GetDouble("apriltag-decimate")) options.apriltag_decimate = *decimate;
   return CreateMultiDetector(ParseFamilyList(args.GetOr("families", kDefaultDetectFamilies)), options);
 }
@@ -282,7 +289,7 @@ std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* d
 }
 
 int RunDetect(const std::vector<std::string>& argv) {
-  const Args args(argv, {"out", "camera", "families", "annotate", "budget-ms", "apriltag-decimate"}, {});
+  const Args args(argv, {"out", "camera", "families", "annotate", "max-candidates", "apriltag-decimate"}, {});
   if (args.Help()) {
     std::cout << kUsage;
     return 0;

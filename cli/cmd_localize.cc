@@ -73,11 +73,18 @@ Options:
                       it for the survey): odometry stamped t is used at t - S (default 0)
   --late-frame-window S      live: how late (s) a frame may arrive after newer odometry and still
                       be used at its stamp (default 0.2)
+  --detect-budget-ms MS      live, image lines: wall-clock time per image after which the QR and
+                      DataMatrix second passes stop (default 25; 0: no limit); the attempts
+                      skipped are counted in the summary. Offline (dataset mode) detection
+                      never reads a clock: its results depend on the images alone.
 )";
 
 const std::set<std::string> kValues = {"map",      "out",          "mode", "predicted", "poses", "families",
-                                       "odometry-time-offset", "late-frame-window"};
+                                       "odometry-time-offset", "late-frame-window", "detect-budget-ms"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
+// Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
+// leaves 33 ms per frame for detection and the update).
+constexpr double kDefaultLiveDetectBudgetMs = 25.0;
 
 LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
   LocalizeRunOptions options;
@@ -151,6 +158,7 @@ void WriteOutputs(const Args& args, const LocalizeRun& run) {
 
 int RunDataset(const Args& args) {
   args.Require("out");
+  if (args.Has("detect-budget-ms")) throw std::invalid_argument("--detect-budget-ms applies to --live only");
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   const LocalizeRunOptions options = ParseOptions(args, dataset);
@@ -192,6 +200,11 @@ class LiveInput {
   void PrintSummary(std::ostream& out) const {
     out << "waymark localize --live: " << line_number_ << " lines, " << frames_ << " frames (" << tracking_
         << " tracking), " << malformed_ << " malformed lines skipped\n";
+    if (images_ > 0) {
+      out << "detection: " << images_ << " images, " << shed_images_ << " shed work under the "
+          << options_.detector.live_budget_ms << " ms budget (" << skipped_attempts_
+          << " second-pass attempts skipped)\n";
+    }
     for (const std::string& warning : stream_.warnings().Lines()) out << "warning: " << warning << "\n";
     for (const auto& [reason, count] : read_warnings_.counts) out << "warning: " << reason << ": " << count << "\n";
   }
@@ -219,6 +232,7 @@ class LiveInput {
   std::unique_ptr<MarkerDetector> detector_;  // created at the first image line
   ReadWarnings read_warnings_;
   long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;
+  long images_ = 0, shed_images_ = 0, skipped_attempts_ = 0;  // image lines; those that shed work
 };
 
 void LiveInput::HandleLine(const std::string& line, RealtimePacer* pacer) {
@@ -265,6 +279,10 @@ void LiveInput::HandleImage(const nlohmann::json& object, const JsonSource& sour
   std::string why;
   const std::optional<DetectionFrame> frame = DetectImageFile(*detector_, path, stamp_s, camera, &why);
   if (!frame) throw std::invalid_argument(why);
+  ++images_;
+  const int skipped = detector_->SkippedAttempts();
+  shed_images_ += skipped > 0;
+  skipped_attempts_ += skipped;
   stream_.AddFrame(*frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
 }
 
@@ -276,6 +294,11 @@ int RunLive(const Args& args) {
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   LocalizeRunOptions options = ParseOptions(args, dataset);
   options.progress = nullptr;
+  options.detector.live_budget_ms = kDefaultLiveDetectBudgetMs;
+  if (const auto budget = args.GetDouble("detect-budget-ms")) {
+    if (!(*budget >= 0.0)) throw std::invalid_argument("--detect-budget-ms: expected a value >= 0");
+    options.detector.live_budget_ms = *budget;
+  }
   LiveInput live(dataset, map, options);
   live.Run(std::cin);
   live.PrintSummary(std::cerr);

@@ -14,12 +14,20 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include <opencv2/imgproc.hpp>
+
 #include "detect/common.h"
+#include "detect/quads.h"
 
 namespace waymark {
 namespace {
 
 constexpr int kMinImageSidePx = 32;
+// Pass 2 looks at solid-bordered quads up to this many times the decimation wide (tags
+// above it are found by the decimated pass), each cropped with half a side of margin.
+constexpr double kSecondPassMaxSidePerDecimate = 40.0;
+constexpr double kCropMarginFraction = 0.5;
+constexpr int kMaxSecondPassQuads = 16;
 
 struct FamilyEntry {
   const char* name;  // after "apriltag-"
@@ -60,8 +68,15 @@ class AprilTagDetector : public MarkerDetector {
     detector_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
     detector_->nthreads = options.threads;
     detector_->refine_edges = true;
+    full_resolution_ = apriltag_detector_create();
+    apriltag_detector_add_family_bits(full_resolution_, tag_family_, options.apriltag_max_bits_corrected);
+    full_resolution_->quad_decimate = 1.0f;
+    full_resolution_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
+    full_resolution_->nthreads = 1;
+    full_resolution_->refine_edges = true;
   }
   ~AprilTagDetector() override {
+    apriltag_detector_destroy(full_resolution_);
     apriltag_detector_destroy(detector_);
     entry_.destroy(tag_family_);
   }
@@ -69,6 +84,7 @@ class AprilTagDetector : public MarkerDetector {
   AprilTagDetector& operator=(const AprilTagDetector&) = delete;
 
   std::vector<std::string> Families() const override { return {family_}; }
+  int SkippedAttempts() const override { return skipped_; }
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
@@ -76,30 +92,68 @@ class AprilTagDetector : public MarkerDetector {
     // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
     const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * options_.apriltag_decimate);
     if (gray.cols < min_side_px || gray.rows < min_side_px) return {};
-    image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]), gray.data};
-    zarray_t* detections = apriltag_detector_detect(detector_, &view);
-    std::vector<MarkerObservation> raw;
+    std::vector<MarkerObservation> raw = Run(detector_, gray, cv::Point(0, 0));
+    FrameWork work(options_.live_budget_ms);
+    if (options_.second_pass && options_.apriltag_decimate > 1.0) {
+      // Pass 2: tags too small for the decimated quad search, at full resolution but only
+      // where a solid dark border is (detect/quads.h), each crop holding no tag yet.
+      const double max_side = kSecondPassMaxSidePerDecimate * options_.apriltag_decimate;
+      for (const Quad2d& quad : SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px), max_side,
+                                                 kMaxSecondPassQuads)) {
+        const Eigen::Vector2d centre = QuadCenter(quad);
+        const bool known = std::any_of(raw.begin(), raw.end(), [&centre](const MarkerObservation& o) {
+          return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
+        });
+        if (known || !work.Allow()) continue;
+        std::vector<cv::Point2f> points;
+        for (const Eigen::Vector2d& c : quad) points.emplace_back(float(c.x()), float(c.y()));
+        cv::Rect box = cv::boundingRect(points);
+        const int margin = static_cast<int>(std::ceil(kCropMarginFraction * std::max(box.width, box.height))) + 2;
+        box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
+              cv::Rect(0, 0, gray.cols, gray.rows);
+        if (box.width < kMinImageSidePx || box.height < kMinImageSidePx) continue;
+        for (const MarkerObservation& obs : Run(full_resolution_, gray(box), box.tl())) {
+          const bool seen = std::any_of(raw.begin(), raw.end(), [&obs](const MarkerObservation& o) {
+            return SameDetection(o, obs);
+          });
+          if (!seen) raw.push_back(obs);
+        }
+      }
+    }
+    skipped_ = work.skipped();
+    const bool refine = options_.refine_corners && !tag_family_->reversed_border;
+    return FinishObservations(gray, raw, refine, options_.min_side_px);
+  }
+
+ private:
+  // libapriltag on `gray` (a view into the frame at `offset`): corners in frame pixels,
+  // DESIGN.md order, OpenCV's pixel centres.
+  std::vector<MarkerObservation> Run(apriltag_detector_t* detector, const cv::Mat& gray, const cv::Point& offset) {
+    image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]), const_cast<uint8_t*>(gray.data)};
+    zarray_t* detections = apriltag_detector_detect(detector, &view);
+    std::vector<MarkerObservation> out;
     for (int i = 0; i < zarray_size(detections); ++i) {
       apriltag_detection_t* det = nullptr;
       zarray_get(detections, i, &det);
       MarkerObservation obs;
       obs.key = {family_, std::to_string(det->id)};
       for (int k = 0; k < 4; ++k) {
-        obs.corners_px[k] = Eigen::Vector2d(det->p[3 - k][0] - 0.5, det->p[3 - k][1] - 0.5);
+        obs.corners_px[k] =
+            Eigen::Vector2d(det->p[3 - k][0] - 0.5 + offset.x, det->p[3 - k][1] - 0.5 + offset.y);
       }
-      raw.push_back(obs);
+      out.push_back(obs);
     }
     apriltag_detections_destroy(detections);
-    const bool refine = options_.refine_corners && !tag_family_->reversed_border;
-    return FinishObservations(gray, raw, refine, options_.min_side_px);
+    return out;
   }
 
- private:
   std::string family_;
   FamilyEntry entry_;
   DetectorOptions options_;
   apriltag_family_t* tag_family_ = nullptr;
   apriltag_detector_t* detector_ = nullptr;
+  apriltag_detector_t* full_resolution_ = nullptr;  // quad_decimate 1, for pass 2's crops
+  int skipped_ = 0;
 };
 
 }  // namespace

@@ -3,6 +3,8 @@
 #include <time.h>
 
 #include <algorithm>
+#include <chrono>
+#include <limits>
 #include <cmath>
 #include <stdexcept>
 
@@ -197,9 +199,31 @@ std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates)
   return regions;
 }
 
+namespace {
+
+double WallMs() {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+FrameWork::FrameWork(double live_budget_ms) : budget_ms_(live_budget_ms) {
+  if (budget_ms_ > 0.0) start_ms_ = WallMs();
+}
+
+bool FrameWork::Allow() {
+  if (budget_ms_ <= 0.0 || WallMs() - start_ms_ < budget_ms_) return true;
+  ++skipped_;
+  return false;
+}
+
+double FrameWork::LeftMs() const {
+  if (budget_ms_ <= 0.0) return std::numeric_limits<double>::infinity();
+  return budget_ms_ - (WallMs() - start_ms_);
+}
+
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, const FrameBudget& budget,
-                   std::vector<MarkerObservation>* found) {
+                   const std::vector<CropAttempt>& attempts, FrameWork* work, std::vector<MarkerObservation>* found) {
   for (const cv::Rect& region : regions) {
     if (region.width < 8 || region.height < 8) continue;
     const bool covered = std::any_of(found->begin(), found->end(),
@@ -207,7 +231,7 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
     if (covered) continue;
     const cv::Mat crop = gray(region);
     for (const CropAttempt& attempt : attempts) {
-      if (clock.ElapsedMs() >= budget.For(*found)) return;
+      if (!work->Allow()) continue;
       std::vector<MarkerObservation> decoded = attempt(crop);
       if (decoded.empty()) continue;
       MapFromCrop(region.tl(), 1.0, &decoded);

@@ -1,5 +1,6 @@
 // Helpers shared by the code detectors (detect/detector.h): image conversion, the checks
-// every reported quad must pass, candidate regions for second passes, and a frame clock.
+// every reported quad must pass, candidate regions for second passes, and the work bound of
+// a frame.
 // Pixel convention: the centre of pixel (c, r) is at (c, r) (OpenCV).
 #pragma once
 
@@ -75,21 +76,31 @@ std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates)
 // One way of decoding a crop: returns observations with corners in crop pixels.
 using CropAttempt = std::function<std::vector<MarkerObservation>(const cv::Mat& crop)>;
 
-class FrameClock;
+// What a frame's second passes may still do. Offline (live_budget_ms == 0) every attempt
+// runs and no clock is read: the work is bounded by the callers' counts (regions,
+// candidates), so the result depends on the image alone. Live (live_budget_ms > 0): once
+// the frame has taken live_budget_ms of wall-clock time, Allow() returns false and counts
+// the attempt as skipped.
+class FrameWork {
+ public:
+  explicit FrameWork(double live_budget_ms);
+  // True if the next attempt may run; false (and one more skipped attempt) if not.
+  bool Allow();
+  // Wall-clock milliseconds left in a live frame; infinity offline.
+  double LeftMs() const;
+  int skipped() const { return skipped_; }
 
-// The CPU budget in force: `empty_ms` while nothing is decoded, `with_codes_ms` after.
-struct FrameBudget {
-  double empty_ms;
-  double with_codes_ms;
-  double For(const std::vector<MarkerObservation>& found) const { return found.empty() ? empty_ms : with_codes_ms; }
+ private:
+  double budget_ms_;
+  double start_ms_ = 0.0;
+  int skipped_ = 0;
 };
 
 // For each region holding no code of `found` yet, runs `attempts` in order on the crop
-// until one decodes something (appended to *found in full-image pixels), while
-// clock.ElapsedMs() < budget.For(*found) (checked before every attempt).
+// until one decodes something (appended to *found in full-image pixels); every attempt
+// asks work->Allow() first.
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                   const std::vector<CropAttempt>& attempts, const FrameClock& clock, const FrameBudget& budget,
-                   std::vector<MarkerObservation>* found);
+                   const std::vector<CropAttempt>& attempts, FrameWork* work, std::vector<MarkerObservation>* found);
 
 // The last step of every detector: refines each quad (if options.refine_corners; the
 // quality is the refinement's inlier fraction, 0 when it fails and the decoder's
@@ -97,9 +108,7 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
 std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray, const std::vector<MarkerObservation>& raw,
                                                   bool refine_corners, double min_side_px);
 
-// CPU time of the calling thread since construction, in milliseconds. Budgets count the
-// work this thread did on the frame, so that a loaded machine does not change which
-// attempts run (and thus what is found); wall-clock figures are the benchmark's.
+// CPU time of the calling thread since construction, in milliseconds (benchmarks).
 class FrameClock {
  public:
   FrameClock() : start_ms_(ThreadCpuMs()) {}

@@ -9,18 +9,16 @@
 #include <opencv2/imgproc.hpp>
 
 #include "detect/common.h"
+#include "detect/quads.h"
 #include "detect/zxing.h"
 
 namespace waymark {
 namespace {
 
 constexpr int kMaxUpscaleSidePx = 240;  // only small crops are upscaled
-// libdmtx scans crops larger than this (longer side) at half resolution.
-constexpr int kDmtxShrinkAbovePx = 320;
-// libdmtx's timeout granularity is 1 ms; below this a scan is not worth starting.
-constexpr double kMinDmtxTimeoutMs = 1.0;
-// In the first round of pass 2 a region gets at least this much of the time left.
-constexpr double kMinDmtxShareMs = 4.0;
+// libdmtx scans an image at 1/shrink resolution, shrink the smallest integer that brings
+// its longer side to at most this: the work of a full scan is bounded by the image alone.
+constexpr int kDmtxMaxScanPx = 320;
 
 // Corners of a decoded libdmtx region in y-down pixels of an image `height` rows tall
 // scanned at 1/shrink resolution, docs/design.md order. Grid (0,0) is the L corner
@@ -44,36 +42,34 @@ class DataMatrixDetector : public MarkerDetector {
 
   std::vector<std::string> Families() const override { return {kFamilyDataMatrix}; }
 
+  int SkippedAttempts() const override { return skipped_; }
+
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
-    const FrameClock clock;
     const cv::Mat gray = ToGray8(image);
-    const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
+    FrameWork work(options_.live_budget_ms);
     std::vector<MarkerObservation> found;
-    const std::vector<CropAttempt> first = {
-        [](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); }};
-    const double unlimited = std::numeric_limits<double>::infinity();
-    RunSecondPass(gray, regions, first, clock, {unlimited, unlimited}, &found);
-    if (options_.second_pass) {
-      // Two rounds over the regions zxing left: first each gets an equal share of the time
-      // left (so one slow region, e.g. clutter early in the list, cannot starve a code behind
-      // it), then the regions still unread get whatever is left, in order.
-      const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
-      int shares_left = static_cast<int>(std::count_if(regions.begin(), regions.end(), [&found](const cv::Rect& r) {
-        return std::none_of(found.begin(), found.end(), [&r](const MarkerObservation& o) { return ObservationInside(o, r); });
-      }));
-      const auto libdmtx = [&clock, &budget, &found, &shares_left](const cv::Mat& crop, bool shared) {
-        double left_ms = budget.For(found) - clock.ElapsedMs();
-        if (shared) left_ms = std::min(left_ms, std::max(kMinDmtxShareMs, left_ms / std::max(1, shares_left--)));
-        if (left_ms < kMinDmtxTimeoutMs) return std::vector<MarkerObservation>{};
-        return ReadWithLibdmtx(crop, left_ms);
-      };
-      RunSecondPass(gray, regions,
-                    {[&libdmtx](const cv::Mat& crop) { return libdmtx(crop, true); },
-                     [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
-                    clock, budget, &found);
-      RunSecondPass(gray, regions, {[&libdmtx](const cv::Mat& crop) { return libdmtx(crop, false); }}, clock, budget,
-                    &found);
+    // Pass 1: Waymark's own candidates (the L finder and the timing pattern), each rectified
+    // and decoded on its own small patch (detect/quads.h).
+    for (const DataMatrixCandidate& candidate :
+         DataMatrixCandidates(FindDarkQuads(gray, options_.min_side_px), options_.max_datamatrix_candidates)) {
+      const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
+      const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
+        return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
+      });
+      if (known || !work.Allow()) continue;
+      AppendUnique(ReadDataMatrixCandidate(gray, candidate), &found);
     }
+    if (options_.second_pass) {
+      // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
+      // a symbol touching other dark things): zxing on the candidate regions holding no
+      // symbol yet, then on small ones upscaled.
+      const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
+      RunSecondPass(gray, regions,
+                    {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
+                     [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
+                    &work, &found);
+    }
+    skipped_ = work.skipped();
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
   }
 
@@ -88,6 +84,7 @@ class DataMatrixDetector : public MarkerDetector {
   }
 
   DetectorOptions options_;
+  int skipped_ = 0;
 };
 
 // Owns libdmtx's objects for one scan.
@@ -112,11 +109,14 @@ std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeo
                                DmtxPack8bppK);
   if (scan.image == nullptr) return out;
   dmtxImageSetProp(scan.image, DmtxPropRowPadBytes, static_cast<int>(gray.step[0]) - gray.cols);
-  const int shrink = std::max(gray.cols, gray.rows) > kDmtxShrinkAbovePx ? 2 : 1;
+  const int shrink = std::max(1, (std::max(gray.cols, gray.rows) + kDmtxMaxScanPx - 1) / kDmtxMaxScanPx);
   scan.decode = dmtxDecodeCreate(scan.image, shrink);
   if (scan.decode == nullptr) return out;
-  DmtxTime deadline = dmtxTimeAdd(dmtxTimeNow(), static_cast<long>(std::ceil(timeout_ms)));
-  while (DmtxRegion* region = dmtxRegionFindNext(scan.decode, &deadline)) {
+  // No deadline unless one is given: a timeout would make the result depend on the machine.
+  const bool timed = std::isfinite(timeout_ms);
+  if (timed && timeout_ms < 1.0) return out;  // libdmtx's timeout granularity is 1 ms
+  DmtxTime deadline = timed ? dmtxTimeAdd(dmtxTimeNow(), static_cast<long>(std::ceil(timeout_ms))) : DmtxTime{};
+  while (DmtxRegion* region = dmtxRegionFindNext(scan.decode, timed ? &deadline : nullptr)) {
     if (DmtxMessage* message = dmtxDecodeMatrixRegion(scan.decode, region, DmtxUndefined)) {
       MarkerObservation obs;
       obs.key.family = kFamilyDataMatrix;
@@ -129,6 +129,99 @@ std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeo
     if (static_cast<int>(out.size()) >= max_symbols) break;
   }
   return out;
+}
+
+namespace {
+
+// The rectified patch of a candidate: the symbol's side and the quiet zone around it.
+constexpr int kPatchMinSidePx = 48;
+constexpr int kPatchMaxSidePx = 140;
+constexpr double kPatchMarginFraction = 0.3;
+// Seeds on each of the L's two outer edges (fractions of the side), and across the edge
+// (pixels): the candidate's corners are about a pixel off.
+constexpr double kSeedFractions[] = {0.5, 0.3, 0.7};
+constexpr int kSeedOffsetsPx[] = {0, -1, 1};
+// A decoded symbol must lie where its candidate is (fraction of the candidate's side) and be
+// of about its size.
+constexpr double kMaxCentreOffset = 0.2;
+constexpr double kMaxSizeRatio = 1.4;
+
+Eigen::Vector2d Apply(const cv::Matx33d& h, const Eigen::Vector2d& p) {
+  const cv::Vec3d q = h * cv::Vec3d(p.x(), p.y(), 1.0);
+  return Eigen::Vector2d(q[0] / q[2], q[1] / q[2]);
+}
+
+}  // namespace
+
+std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCandidate& candidate) {
+  CV_Assert(gray.type() == CV_8UC1);
+  const int side = std::clamp(static_cast<int>(std::lround(QuadMeanSide(candidate.corners_px))), kPatchMinSidePx,
+                              kPatchMaxSidePx);
+  const int margin = static_cast<int>(std::lround(kPatchMarginFraction * side));
+  const int size = side + 2 * margin;
+  const double lo = margin - 0.5, hi = margin + side - 0.5;  // outer edges in pixel-centre coordinates
+  std::vector<cv::Point2f> patch_pts = {{float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)},
+                                        {float(lo), float(hi)}};
+  std::vector<cv::Point2f> frame_pts;
+  for (const Eigen::Vector2d& c : candidate.corners_px) frame_pts.emplace_back(float(c.x()), float(c.y()));
+  const cv::Matx33d patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
+  cv::Mat patch;
+  cv::warpPerspective(gray, patch, cv::Mat(patch_to_frame), cv::Size(size, size),
+                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  // Back to frame pixels; a symbol that is not where the candidate is (its centre more than
+  // a fifth of a side away, or its size off by more than 40 %) is dropped: a decode of some
+  // other grid in the patch is not this candidate's symbol.
+  const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
+  const double side_px = QuadMeanSide(candidate.corners_px);
+  const auto to_frame = [&](std::vector<MarkerObservation> found) {
+    std::vector<MarkerObservation> out;
+    for (MarkerObservation& obs : found) {
+      for (Eigen::Vector2d& c : obs.corners_px) c = Apply(patch_to_frame, c);
+      const double ratio = QuadMeanSide(obs.corners_px) / side_px;
+      if ((QuadCenter(obs.corners_px) - centre).norm() > kMaxCentreOffset * side_px) continue;
+      if (ratio < 1.0 / kMaxSizeRatio || ratio > kMaxSizeRatio) continue;
+      out.push_back(std::move(obs));
+    }
+    return out;
+  };
+
+  // libdmtx, started only on the L's outer edges: the left side (x = margin) and the bottom
+  // side (y = margin + side) of the upright patch. Its y axis points up from the last row.
+  DmtxScan scan;
+  scan.image = dmtxImageCreate(patch.ptr<unsigned char>(0), patch.cols, patch.rows, DmtxPack8bppK);
+  if (scan.image != nullptr) {
+    dmtxImageSetProp(scan.image, DmtxPropRowPadBytes, static_cast<int>(patch.step[0]) - patch.cols);
+    scan.decode = dmtxDecodeCreate(scan.image, 1);
+  }
+  if (scan.decode != nullptr) {
+    for (const double t : kSeedFractions) {
+      for (const int offset : kSeedOffsetsPx) {
+        const int along = margin + static_cast<int>(std::lround(t * side));
+        const cv::Point seeds[2] = {{margin + offset, along}, {along, margin + side - 1 + offset}};
+        for (const cv::Point& seed : seeds) {
+          DmtxRegion* region = dmtxRegionScanPixel(scan.decode, seed.x, (size - 1) - seed.y);
+          if (region == nullptr) continue;
+          std::vector<MarkerObservation> out;
+          if (DmtxMessage* message = dmtxDecodeMatrixRegion(scan.decode, region, DmtxUndefined)) {
+            MarkerObservation obs;
+            obs.key.family = kFamilyDataMatrix;
+            obs.key.id = TextToId(std::string(reinterpret_cast<const char*>(message->output), message->outputIdx));
+            obs.corners_px = DmtxCorners(*region, size, 1);
+            out.push_back(std::move(obs));
+            dmtxMessageDestroy(&message);
+          }
+          dmtxRegionDestroy(&region);
+          if (!out.empty()) {
+            out = to_frame(std::move(out));
+            if (!out.empty()) return out;
+          }
+        }
+      }
+    }
+  }
+  // zxing-cpp's DataMatrix reader on the same patch: the symbol is at its centre, where
+  // zxing 1.4 starts its search.
+  return to_frame(ReadWithZxing(patch, ZxingSymbology::kDataMatrix, ZxingPass{}));
 }
 
 std::unique_ptr<MarkerDetector> CreateDataMatrixDetector(const DetectorOptions& options) {

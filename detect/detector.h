@@ -38,15 +38,21 @@ struct DetectorOptions {
   double min_side_px = 6.0;
 
   // QR and DataMatrix: after the first pass, a second pass (inverted and rescaled crops,
-  // a second decoder) runs on candidate regions that were not decoded, while the CPU
-  // time this thread spent on the frame is below `time_budget_ms` (checked before each
-  // attempt; CPU time, so that machine load does not change what is found).
+  // a second decoder) runs on candidate regions that were not decoded. Its work is bounded
+  // by counts, never by the clock, so that the same image gives the same detections on any
+  // machine and at any load: at most `max_candidates` regions per frame (best score first)
+  // and, for QR, at most `max_qr_finder_candidates` finder-pattern triples read per frame.
   bool second_pass = true;
-  double time_budget_ms = 8.0;
-  // The budget once the frame has a decoded code of the family (a frame with codes in it
-  // is worth more time than an empty one).
-  double time_budget_with_codes_ms = 24.0;
   int max_candidates = 8;  // candidate regions tried per frame, best score first
+  int max_qr_finder_candidates = 8;
+  // DataMatrix: Waymark's own candidates (L finder + timing pattern, detect/quads.h)
+  // rectified and decoded per frame, best first.
+  int max_datamatrix_candidates = 16;
+  // Live loops only (`waymark localize --live`): when > 0, second-pass attempts stop once
+  // the frame has taken this much wall-clock time, and each attempt not run is counted
+  // (MarkerDetector::SkippedAttempts). 0 (the default, and every offline command): no
+  // clock is read, results depend on the image alone.
+  double live_budget_ms = 0.0;
 
   // AprilTag (libapriltag's apriltag_detector_t fields).
   // quad_decimate: quads are found at 1/decimate resolution (corners are refined at full
@@ -68,6 +74,9 @@ class MarkerDetector {
   virtual std::vector<std::string> Families() const = 0;
   // All codes found in `image`, in no particular order.
   virtual std::vector<MarkerObservation> Detect(const cv::Mat& image) = 0;
+  // Second-pass attempts the last Detect() skipped because DetectorOptions::live_budget_ms
+  // ran out (always 0 when it is 0).
+  virtual int SkippedAttempts() const { return 0; }
 };
 
 // Family names CreateDetector accepts: qr, datamatrix, and apriltag-<name> for every

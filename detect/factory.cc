@@ -1,5 +1,6 @@
 // DetectorOptions::Check, the family list and the factories of detect/detector.h.
 #include <algorithm>
+#include <cmath>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -15,9 +16,10 @@ namespace waymark {
 
 bool DetectorOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(min_side_px >= 1.0, "min_side_px must be >= 1");
-  WAYMARK_CHECK_OPTION(time_budget_ms >= 0.0, "time_budget_ms must be >= 0");
-  WAYMARK_CHECK_OPTION(time_budget_with_codes_ms >= 0.0, "time_budget_with_codes_ms must be >= 0");
   WAYMARK_CHECK_OPTION(max_candidates >= 0, "max_candidates must be >= 0");
+  WAYMARK_CHECK_OPTION(max_qr_finder_candidates >= 0, "max_qr_finder_candidates must be >= 0");
+  WAYMARK_CHECK_OPTION(max_datamatrix_candidates >= 0, "max_datamatrix_candidates must be >= 0");
+  WAYMARK_CHECK_OPTION(live_budget_ms >= 0.0 && std::isfinite(live_budget_ms), "live_budget_ms must be >= 0");
   WAYMARK_CHECK_OPTION(apriltag_decimate >= 1.0, "apriltag_decimate must be >= 1");
   WAYMARK_CHECK_OPTION(apriltag_blur_sigma >= 0.0, "apriltag_blur_sigma must be >= 0");
   WAYMARK_CHECK_OPTION(apriltag_max_bits_corrected >= 0 && apriltag_max_bits_corrected <= 3,
@@ -55,12 +57,19 @@ class MultiDetector : public MarkerDetector {
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);  // convert once for every family
     std::vector<MarkerObservation> all;
-    for (const auto& d : detectors_) AppendUnique(d->Detect(gray), &all);
+    skipped_ = 0;
+    for (const auto& d : detectors_) {
+      AppendUnique(d->Detect(gray), &all);
+      skipped_ += d->SkippedAttempts();
+    }
     return all;
   }
 
+  int SkippedAttempts() const override { return skipped_; }
+
  private:
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;
+  int skipped_ = 0;
 };
 
 }  // namespace

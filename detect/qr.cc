@@ -74,33 +74,29 @@ bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObser
 
 // Pass 2a: QR candidates from finder patterns (detect/qr_finder.h) in each region
 // (smallest first) that is not one code already read, each candidate not read yet resampled
-// upright and read, while the frame's budget lasts (checked before every region and
-// candidate). Three finders in a code's layout count as a code in the frame: from the first
-// candidate on, the budget is the one for frames with codes. Returns true if a candidate
-// was seen.
-bool ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, const FrameClock& clock,
-                          const FrameBudget& budget, std::vector<MarkerObservation>* found) {
+// upright and read: at most `max_reads` candidates per frame (and none once a live frame's
+// time is up).
+void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, int max_reads, FrameWork* work,
+                          std::vector<MarkerObservation>* found) {
   // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
   // many blobs) and small codes are the ones zxing misses on the whole frame.
   std::stable_sort(regions.begin(), regions.end(),
                    [](const cv::Rect& a, const cv::Rect& b) { return a.area() < b.area(); });
-  bool seen_candidate = false;
-  const auto within_budget = [&] {
-    return clock.ElapsedMs() < (seen_candidate ? budget.with_codes_ms : budget.For(*found));
-  };
+  int reads = 0;
   for (const cv::Rect& region : regions) {
-    if (!within_budget()) break;
+    if (reads >= max_reads) return;
     if (RegionIsOneReadCode(region, *found)) continue;
+    if (!work->Allow()) continue;
     const std::vector<QrCandidate> candidates =
         GroupQrFinders(FindQrFinderPatterns(gray, region), gray.size());
     for (const QrCandidate& candidate : candidates) {
+      if (reads >= max_reads) return;
       if (CandidateIsRead(candidate, *found)) continue;
-      seen_candidate = true;
-      if (!within_budget()) return true;
+      if (!work->Allow()) continue;
+      ++reads;
       AppendUnique(ReadRectifiedQr(gray, candidate), found);
     }
   }
-  return seen_candidate;
 }
 
 class QrDetector : public MarkerDetector {
@@ -108,10 +104,11 @@ class QrDetector : public MarkerDetector {
   explicit QrDetector(const DetectorOptions& options) : options_(options) {}
 
   std::vector<std::string> Families() const override { return {kFamilyQr}; }
+  int SkippedAttempts() const override { return skipped_; }
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
-    const FrameClock clock;
     const cv::Mat gray = ToGray8(image);
+    FrameWork work(options_.live_budget_ms);
     std::vector<MarkerObservation> found = ReadWithZxing(gray, ZxingSymbology::kQrCode, ZxingPass{});
     if (options_.second_pass) {
       const std::vector<CropAttempt> attempts = {
@@ -125,12 +122,10 @@ class QrDetector : public MarkerDetector {
           },
       };
       const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
-      const FrameBudget budget{options_.time_budget_ms, options_.time_budget_with_codes_ms};
-      const bool seen_candidate = ReadFinderCandidates(gray, regions, clock, budget, &found);
-      // An unread finder triple counts as a code in the frame for the other attempts too.
-      const FrameBudget rest{seen_candidate ? budget.with_codes_ms : budget.empty_ms, budget.with_codes_ms};
-      RunSecondPass(gray, regions, attempts, clock, rest, &found);
+      ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &work, &found);
+      RunSecondPass(gray, regions, attempts, &work, &found);
     }
+    skipped_ = work.skipped();
     if (options_.refine_corners) {
       for (MarkerObservation& obs : found) RefineQrCorners(gray, &obs);
     }
@@ -175,6 +170,7 @@ class QrDetector : public MarkerDetector {
   }
 
   DetectorOptions options_;
+  int skipped_ = 0;
   cv::wechat_qrcode::WeChatQRCode wechat_;
   cv::QRCodeDetector corner_finder_;
 };

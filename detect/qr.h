@@ -1,7 +1,8 @@
 // QR code detector (family "qr").
 //
 // Pass 1, whole frame: zxing-cpp (local-average binarizer, try-harder).
-// Pass 2, while the frame is within DetectorOptions::time_budget_ms: candidate regions
+// Pass 2, bounded by counts (DetectorOptions::max_candidates regions,
+// max_qr_finder_candidates finder triples; see detect/detector.h): candidate regions
 // (the whole image first when it is at most 640x480, then FindCodeCandidates) that hold no
 // decoded code yet are cropped and tried, stopping at the first success, with
 //   a. zxing on the inverted crop (light-on-dark codes),

@@ -4,10 +4,14 @@
 // unreadable video, unknown family): exit 1, one line, no output file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -155,6 +159,8 @@ TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
       {(dir_ / "mixed").string(), "b.png: cannot read image"},
       {(dir_ / "missing.png").string(), "no such file"},
       {(dir_ / "mixed").string() + " --families qr,ean13", "unknown marker family"},
+      {(dir_ / "mixed").string() + " --max-candidates -1", "--max-candidates: expected 0..64, got -1"},
+      {(dir_ / "mixed").string() + " --max-candidates 65", "--max-candidates: expected 0..64, got 65"},
   };
   const fs::path annotate = dir_ / "new" / "annotated";  // neither exists yet
   for (const auto& [input, message] : cases) {
@@ -173,6 +179,82 @@ TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
   EXPECT_TRUE(fs::is_empty(dir_ / "kept"));
   EXPECT_EQ(Run((dir_ / "mixed" / "a.png").string()), 1);  // --out missing
   EXPECT_NE(Stderr().find("--out"), std::string::npos);
+}
+
+// Busy threads on every core while they live (a machine under full load).
+class CpuHog {
+ public:
+  CpuHog() {
+    const unsigned n = std::max(2u, std::thread::hardware_concurrency());
+    for (unsigned i = 0; i < n; ++i) {
+      threads_.emplace_back([this] {
+        volatile double x = 1.0;
+        while (!stop_.load()) x = x * 1.0000001 + 1e-9;
+      });
+    }
+  }
+  ~CpuHog() {
+    stop_ = true;
+    for (std::thread& t : threads_) t.join();
+  }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::vector<std::thread> threads_;
+};
+
+// Frames that make every second pass work: a cluttered 1280x960 background, a small oblique
+// QR code (finder pass), DataMatrix symbols at 45 degrees (zxing 1.4 misses them), a small
+// AprilTag, light-on-dark QR, blur and noise.
+cv::Mat HardFrame(int seed) {
+  cv::Mat frame(960, 1280, CV_8U);
+  cv::RNG rng(seed);
+  for (int y = 0; y < frame.rows; ++y) {
+    for (int x = 0; x < frame.cols; ++x) frame.at<uint8_t>(y, x) = static_cast<uint8_t>(100 + 70 * x / 1280);
+  }
+  for (int i = 0; i < 25; ++i) {
+    const cv::Rect box(rng.uniform(0, 1200), rng.uniform(0, 900), rng.uniform(20, 200), rng.uniform(20, 200));
+    cv::rectangle(frame, box, cv::Scalar(rng.uniform(30, 230)), rng.uniform(0, 2) ? cv::FILLED : 3);
+  }
+  DrawSymbol(QrSymbol("hard/" + std::to_string(seed)), MakeQuad({250.0, 250.0}, 60.0, 0.4, 0.6), &frame);
+  DrawSymbol(DataMatrixSymbol("DM" + std::to_string(seed)), MakeQuad({700.0, 300.0}, 110.0, 0.785, 0.9), &frame);
+  DrawSymbol(DataMatrixSymbol("dm" + std::to_string(seed)), MakeQuad({1050.0, 650.0}, 70.0, 2.2, 0.8), &frame);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", seed), MakeQuad({300.0, 720.0}, 50.0, 0.3, 0.8), &frame);
+  DrawSymbol(QrSymbol("inv/" + std::to_string(seed)), MakeQuad({700.0, 720.0}, 150.0, -0.2), &frame, 230, 25);
+  cv::GaussianBlur(frame, frame, cv::Size(0, 0), 0.8);
+  cv::Mat noise(frame.size(), CV_16S), wide;
+  rng.fill(noise, cv::RNG::NORMAL, 0, 3.0);
+  frame.convertTo(wide, CV_16S);
+  wide += noise;
+  wide.convertTo(frame, CV_8U);
+  return frame;
+}
+
+// Issue 14: offline detection depends on the images alone. Two runs, the second beside
+// busy threads on every core, write byte-identical files.
+TEST_F(DetectCli, SameImagesGiveIdenticalFilesUnderLoad) {
+  fs::create_directories(dir_ / "frames");
+  for (int i = 0; i < 3; ++i) {
+    cv::imwrite((dir_ / "frames" / ("f" + std::to_string(i) + ".png")).string(), HardFrame(i + 1));
+  }
+  const std::string input = (dir_ / "frames").string();
+  ASSERT_EQ(Run(input + " --out " + (dir_ / "quiet.jsonl").string()), 0) << Stderr();
+  {
+    const CpuHog hog;
+    ASSERT_EQ(Run(input + " --out " + (dir_ / "loaded.jsonl").string()), 0) << Stderr();
+  }
+  const auto slurp = [](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string quiet = slurp(dir_ / "quiet.jsonl");
+  EXPECT_EQ(quiet, slurp(dir_ / "loaded.jsonl"));
+  // The frames hold codes the second passes read (not an empty file compared with itself).
+  const auto frames = ReadBack(dir_ / "quiet.jsonl");
+  ASSERT_EQ(frames.size(), 3u);
+  size_t markers = 0;
+  for (const DetectionFrame& frame : frames) markers += frame.markers.size();
+  EXPECT_GE(markers, 9u) << quiet;
 }
 
 }  // namespace

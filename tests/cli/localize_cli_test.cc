@@ -18,6 +18,9 @@
 
 #include "tests/cli/cli_test_util.h"
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "detect/synthetic.h"
 #include "io/util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
@@ -152,6 +155,38 @@ TEST_F(LocalizeCliTest, LiveGivesTheDatasetModesPosesAndSkipsMalformedLines) {
     b.erase("latency_ms");
     ASSERT_EQ(a, b) << "line " << i + 1;
   }
+}
+
+// Issue 14: only the live loop sheds detection work under time pressure, and it says so.
+TEST_F(LocalizeCliTest, LiveImageDetectionShedsWorkAndSaysSo) {
+  // A light-on-dark QR code of the map: only the second pass (inverted crops) reads it.
+  const MarkerMap map = ReadMap(Path("map.json"));
+  ASSERT_FALSE(map.markers.empty());
+  ASSERT_EQ(map.markers[0].key.family, "qr");
+  cv::Mat image(480, 640, CV_8U, cv::Scalar(40));
+  DrawSymbol(QrSymbol(map.markers[0].key.id), MakeQuad({320.0, 240.0}, 160.0, 0.1), &image, 235, 20);
+  cv::imwrite(Path("inverted.png"), image);
+  const std::string line = "{\"t\": 0.5, \"camera\": \"left\", \"image\": \"" + Path("inverted.png") + "\"}\n";
+  AtomicWriteFile(Path("image_line.jsonl"), line);
+  const std::string base = "localize " + Path("run") + " --map " + Path("map.json") + " --live";
+  const RunResult tight = Run(base + " --detect-budget-ms 0.001", Path("image_line.jsonl"));
+  ASSERT_EQ(tight.exit_code, 0) << tight.err;
+  EXPECT_NE(tight.err.find("detection: 1 images, 1 shed work under the 0.001 ms budget ("), std::string::npos)
+      << tight.err;
+  const RunResult unlimited = Run(base + " --detect-budget-ms 0", Path("image_line.jsonl"));
+  ASSERT_EQ(unlimited.exit_code, 0) << unlimited.err;
+  EXPECT_NE(unlimited.err.find("detection: 1 images, 0 shed work under the 0 ms budget (0 second-pass attempts "
+                               "skipped)"),
+            std::string::npos)
+      << unlimited.err;
+  const RunResult negative = Run(base + " --detect-budget-ms -1", Path("image_line.jsonl"));
+  EXPECT_EQ(negative.exit_code, 1);
+  EXPECT_NE(negative.err.find("--detect-budget-ms: expected a value >= 0"), std::string::npos) << negative.err;
+  const RunResult offline = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
+                                Path("x.tum") + " --detect-budget-ms 5");
+  EXPECT_EQ(offline.exit_code, 1);
+  EXPECT_NE(offline.err.find("--detect-budget-ms applies to --live only"), std::string::npos) << offline.err;
+  EXPECT_FALSE(fs::exists(Path("x.tum")));
 }
 
 TEST_F(LocalizeCliTest, LiveTimeGoingBackwardsIsCountedNotAPose) {

@@ -102,6 +102,16 @@ TEST(DetectCommon, FactoryFamiliesAndOptions) {
   options = DetectorOptions{};
   options.threads = 0;
   EXPECT_FALSE(options.Check(&why));
+  options = DetectorOptions{};
+  options.live_budget_ms = -1.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_EQ(why, "live_budget_ms must be >= 0");
+  options.live_budget_ms = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(options.Check(&why));
+  options = DetectorOptions{};
+  options.max_qr_finder_candidates = -1;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_EQ(why, "max_qr_finder_candidates must be >= 0");
 }
 
 TEST(DetectCommon, MultiDetectorReadsEveryFamilyInOneImage) {
@@ -109,9 +119,7 @@ TEST(DetectCommon, MultiDetectorReadsEveryFamilyInOneImage) {
   DrawSymbol(QrSymbol("q-1"), MakeQuad({220.0, 240.0}, 170.0, 0.1), &image);
   DrawSymbol(DataMatrixSymbol("d-2"), MakeQuad({640.0, 240.0}, 150.0, -0.1), &image);
   DrawSymbol(AprilTagSymbol("apriltag-36h11", 3), MakeQuad({1060.0, 240.0}, 170.0, 0.2), &image);
-  DetectorOptions options;
-  options.time_budget_ms = 1000.0;
-  auto detector = CreateMultiDetector({"qr", "datamatrix", "apriltag-36h11"}, options);
+  auto detector = CreateMultiDetector({"qr", "datamatrix", "apriltag-36h11"});
   const auto found = detector->Detect(image);
   std::set<std::string> keys;
   for (const auto& obs : found) keys.insert(obs.key.ToString());

@@ -122,9 +122,7 @@ TEST(DetectQr, InvertedCodeIsReadBySecondPass) {
   DetectorOptions no_second;
   no_second.second_pass = false;
   EXPECT_TRUE(CreateDetector("qr", no_second)->Detect(image).empty());
-  DetectorOptions generous;
-  generous.time_budget_ms = 1000.0;  // a loaded test machine must not decide the outcome
-  const auto found = CreateDetector("qr", generous)->Detect(image);
+  const auto found = CreateDetector("qr")->Detect(image);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "light-on-dark");
   EXPECT_LT((QuadCenter(found[0].corners_px) - QuadCenter(truth)).norm(), 2.0);

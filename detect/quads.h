@@ -1,0 +1,69 @@
+// Dark quadrilaterals: the candidate stage Waymark runs itself for DataMatrix (the solid L
+// finder and the dashed timing pattern) and for AprilTags too small for libapriltag's
+// decimated quad search (a solid dark border around mixed bits).
+//
+// The frame is binarized against its local mean (dark = at least 7 gray levels below the
+// mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
+// few modules of codes from about 10 to 400 px (levels above the last keep components up
+// to 130 work pixels; larger ones are the next level's). Every dark component's outer
+// contour gives a convex hull reduced to four corners (approxPolyDP; a fifth corner, where
+// the hull cuts off a light corner module as at a DataMatrix symbol's top-right, is
+// replaced by the intersection of its neighbouring sides). Each side is sampled just
+// inside itself (3 % of its length in, from 8 % to 92 % along): its dark fraction and its
+// number of dark runs; and the middle half of the quad: the standard deviation of its gray
+// levels over the border's contrast (just outside minus just inside the sides). The work
+// is a fixed function of the image (no clock).
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "detect/common.h"
+
+namespace waymark {
+
+struct DarkQuad {
+  Quad2d corners_px;                // frame pixels, clockwise on screen
+  std::array<double, 4> side_dark;  // side j runs from corner j to corner j+1
+  std::array<int, 4> side_runs;
+  double interior_spread = 0.0;  // gray-level spread inside / the border's contrast
+  double scale = 1.0;  // the level it was found at
+};
+
+// Every dark component's quad with each side at least `min_side_px` (and at most 3.5 times
+// another), in the order found (level by level, contour order): deterministic.
+std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px = 10.0);
+
+struct DataMatrixCandidate {
+  // Outer corners in frame pixels in docs/design.md order of the symbol as the L finder puts it
+  // upright: top-left, top-right, bottom-right, bottom-left (the L's corner is bottom-left;
+  // its legs are the left and bottom sides).
+  Quad2d corners_px;
+  // The L's solidity (the smaller dark fraction of its two sides) times 0.8 + 0.2 r / 5,
+  // r = the dark runs of the less alternating timing side, at most 5.
+  double score = 0.0;
+};
+
+// The quads with two adjacent solid sides (>= 85 % dark) and two dashed ones (15-85 % dark,
+// at least 2 dark runs), best first, at most `max_candidates`, duplicates (a centre within
+// half a side of a better one, e.g. the same symbol at two levels) dropped. The top-right
+// corner is the L's parallelogram completion unless the hull's corner is within 8 % of a
+// side of it (light modules near that corner can leave the dark component well short).
+std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates);
+
+// Rectifies a candidate onto a small upright patch (side 48-140 px and a 30 % quiet zone,
+// through the homography of its corners), starts libdmtx only at seed pixels on the L's two
+// outer edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and falls
+// back to zxing-cpp's DataMatrix reader on the same patch (the symbol at its centre, where
+// zxing 1.4 starts its search). Corners in frame pixels, docs/design.md order, not refined.
+// Implemented in detect/datamatrix.cc with the rest of the libdmtx glue.
+std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCandidate& candidate);
+
+// The quads with four solid sides and a varied interior (spread >= 0.2) whose mean side is at
+// most `max_side_px`: where an AprilTag (black border) may be. Best first, at most
+// `max_candidates`, duplicates dropped.
+std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px, int max_candidates);
+
+}  // namespace waymark

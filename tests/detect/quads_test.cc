@@ -1,0 +1,99 @@
+// Waymark's own candidate stage (detect/quads.h): DataMatrix L finders in every
+// rotation and under perspective, with their corners and their orientation; solid-bordered
+// quads where AprilTags are; nothing from blank, noise or filled boxes; a candidate read by
+// libdmtx on its rectified patch.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "detect/quads.h"
+#include "detect/synthetic.h"
+
+namespace waymark {
+namespace {
+
+cv::Mat Canvas(int width = 640, int height = 480) { return cv::Mat(height, width, CV_8U, cv::Scalar(200)); }
+
+double MaxCornerError(const Quad2d& a, const Quad2d& b) {
+  double worst = 0.0;
+  for (int i = 0; i < 4; ++i) worst = std::max(worst, (a[i] - b[i]).norm());
+  return worst;
+}
+
+TEST(DetectQuads, DataMatrixCandidateInEveryRotationWithItsOrientation) {
+  const SymbolImage symbol = DataMatrixSymbol("Q7");
+  for (int r = 0; r < 4; ++r) {
+    for (const double squeeze : {1.0, 0.7}) {
+      cv::Mat image = Canvas();
+      const Quad2d truth = MakeQuad({320.0, 240.0}, 90.0, r * M_PI / 2 + 0.3, squeeze);
+      DrawSymbol(symbol, truth, &image);
+      cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+      const auto candidates = DataMatrixCandidates(FindDarkQuads(image), 8);
+      ASSERT_GE(candidates.size(), 1u) << "rotation " << r << " squeeze " << squeeze;  // best first
+      // The L's three corners come from the hull (a pixel at the level it was found at); the
+      // fourth, where the hull
+      // cuts across the timing pattern's corner, can be a few modules off: the decoder finds
+      // the symbol in the patch's quiet zone all the same.
+      for (int k : {0, 2, 3}) {
+        EXPECT_LT((candidates[0].corners_px[k] - truth[k]).norm(), 3.0) << "rotation " << r << " corner " << k;
+      }
+      EXPECT_LT((candidates[0].corners_px[1] - truth[1]).norm(), 0.35 * QuadMeanSide(truth)) << "rotation " << r;
+      const auto read = ReadDataMatrixCandidate(image, candidates[0]);
+      ASSERT_EQ(read.size(), 1u) << "rotation " << r << " squeeze " << squeeze;
+      EXPECT_EQ(read[0].key.id, "Q7");
+      EXPECT_LT(MaxCornerError(read[0].corners_px, truth), 2.0) << "rotation " << r;  // libdmtx's fit
+    }
+  }
+}
+
+TEST(DetectQuads, SmallAndLargeSymbolsAreCandidates) {
+  for (const double side : {22.0, 40.0, 380.0}) {
+    cv::Mat image = Canvas(1280, 960);
+    const Quad2d truth = MakeQuad({640.0, 480.0}, side, 0.2);
+    DrawSymbol(DataMatrixSymbol("S1"), truth, &image);
+    cv::GaussianBlur(image, image, cv::Size(0, 0), 0.6);
+    const auto candidates = DataMatrixCandidates(FindDarkQuads(image), 8);
+    ASSERT_EQ(candidates.size(), 1u) << side;
+    EXPECT_LT((candidates[0].corners_px[3] - truth[3]).norm(), std::max(2.0, 0.03 * side)) << side;
+    const auto read = ReadDataMatrixCandidate(image, candidates[0]);
+    ASSERT_EQ(read.size(), 1u) << side;
+    EXPECT_EQ(read[0].key.id, "S1");
+  }
+}
+
+TEST(DetectQuads, AprilTagBorderIsASolidQuadAndFilledBoxesAreNot) {
+  cv::Mat image = Canvas();
+  const Quad2d tag = MakeQuad({200.0, 240.0}, 60.0, 0.4, 0.8);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", 5), tag, &image);
+  cv::rectangle(image, cv::Rect(400, 200, 80, 80), cv::Scalar(30), cv::FILLED);  // a filled box
+  cv::rectangle(image, cv::Rect(520, 60, 60, 60), cv::Scalar(30), 6);            // an empty frame
+  const auto quads = FindDarkQuads(image);
+  const auto solid = SolidBorderQuads(quads, 200.0, 8);
+  ASSERT_EQ(solid.size(), 1u);
+  EXPECT_LT(MaxCornerError(solid[0], tag), 2.0);
+  EXPECT_TRUE(DataMatrixCandidates(quads, 8).empty());
+  EXPECT_TRUE(SolidBorderQuads(quads, 40.0, 8).empty());  // larger than the limit
+}
+
+TEST(DetectQuads, BlankNoiseAndTextGiveNoCandidate) {
+  EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(Canvas()), 8).empty());
+  cv::Mat noise(480, 640, CV_8U);
+  cv::RNG rng(4);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(noise), 8).empty());
+  cv::Mat text = Canvas();
+  for (int i = 0; i < 8; ++i) {
+    cv::putText(text, "EXIT 12 aisle B L7", cv::Point(20, 50 + 55 * i), cv::FONT_HERSHEY_SIMPLEX, 1.0 + 0.2 * i,
+                cv::Scalar(20), 2);
+  }
+  for (const DataMatrixCandidate& c : DataMatrixCandidates(FindDarkQuads(text), 8)) {
+    EXPECT_TRUE(ReadDataMatrixCandidate(text, c).empty());
+  }
+  EXPECT_TRUE(FindDarkQuads(cv::Mat(8, 8, CV_8U, cv::Scalar(0))).empty());
+  EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(Canvas()), 0).empty());
+}
+
+}  // namespace
+}  // namespace waymark
