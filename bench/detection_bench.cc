@@ -164,12 +164,15 @@ cv::Mat Frame(const std::string& family, int codes) {
 }
 
 nlohmann::json TimeFamily(const std::string& family, int codes, int repeats) {
-  const cv::Mat frame = Frame(family, codes);
+  cv::Mat frame = Frame(family, codes);
   auto detector = CreateDetector(family);
   std::vector<double> wall_ms;
   double cpu_ms = 0.0;
   size_t found = 0;
   for (int r = 0; r < repeats; ++r) {
+    // A new frame each time (one corner pixel differs): the candidate stage keeps its last
+    // result for the same pixels (detect/quads.h), which a camera never gives twice.
+    frame.at<uint8_t>(0, 0) = static_cast<uint8_t>(r);
     const auto start = std::chrono::steady_clock::now();
     const double cpu_start = FrameClock::ThreadCpuMs();
     found = detector->Detect(frame).size();

@@ -73,9 +73,9 @@ Options:
                       it for the survey): odometry stamped t is used at t - S (default 0)
   --late-frame-window S      live: how late (s) a frame may arrive after newer odometry and still
                       be used at its stamp (default 0.2)
-  --detect-budget-ms MS      live, image lines: wall-clock time per image after which the QR and
-                      DataMatrix second passes stop (default 25; 0: no limit); the attempts
-                      skipped are counted in the summary. Offline (dataset mode) detection
+  --detect-budget-ms MS      live, image lines: wall-clock time per image after which the second
+                      passes (QR, DataMatrix, AprilTag) stop (default 25; 0: no limit); the
+                      attempts skipped are counted in the summary. Offline (dataset mode) detection
                       never reads a clock: its results depend on the images alone.
 )";
 

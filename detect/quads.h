@@ -33,7 +33,10 @@ struct DarkQuad {
 };
 
 // Every dark component's quad with each side at least `min_side_px` (and at most 3.5 times
-// another), in the order found (level by level, contour order): deterministic.
+// another), in the order found (level by level, contour order): deterministic. The families
+// of one frame share one run: each thread keeps its last result with the image's size,
+// min_side_px and a 64-bit hash of its pixels (about 0.2 ms for 1280x960), and returns it for
+// the same pixels again.
 std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px = 10.0);
 
 struct DataMatrixCandidate {

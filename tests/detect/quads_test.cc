@@ -95,5 +95,24 @@ TEST(DetectQuads, BlankNoiseAndTextGiveNoCandidate) {
   EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(Canvas()), 0).empty());
 }
 
+TEST(DetectQuads, SharedRunFollowsThePixelsNotTheBuffer) {
+  // The same buffer, drawn on after a first run: the second run sees the new pixels.
+  cv::Mat image = Canvas();
+  EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(image), 8).empty());
+  DrawSymbol(DataMatrixSymbol("Q7"), MakeQuad({320.0, 240.0}, 90.0, 0.3), &image);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  const auto quads = FindDarkQuads(image);
+  EXPECT_EQ(DataMatrixCandidates(quads, 8).size(), 1u);
+  // One pixel changed far from the symbol: a new run (the same candidate).
+  image.at<uint8_t>(5, 5) = 0;
+  EXPECT_EQ(DataMatrixCandidates(FindDarkQuads(image), 8).size(), 1u);
+  // The same pixels in another buffer: the same quads.
+  const cv::Mat copy = image.clone();
+  const auto again = FindDarkQuads(copy);
+  ASSERT_EQ(again.size(), FindDarkQuads(image).size());
+  cv::Mat blank = Canvas();
+  EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(blank), 8).empty());
+}
+
 }  // namespace
 }  // namespace waymark
