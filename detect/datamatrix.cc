@@ -146,6 +146,14 @@ constexpr int kSeedOffsetsPx[] = {0, -1, 1};
 constexpr double kMaxCentreOffset = 0.2;
 constexpr double kMaxSizeRatio = 1.4;
 
+// True if `text` holds a control character other than tab, line feed or carriage return.
+bool HasControlBytes(const std::string& text) {
+  return std::any_of(text.begin(), text.end(), [](char c) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    return u < 0x20 && u != '\t' && u != '\n' && u != '\r';
+  });
+}
+
 Eigen::Vector2d Apply(const cv::Matx33d& h, const Eigen::Vector2d& p) {
   const cv::Vec3d q = h * cv::Vec3d(p.x(), p.y(), 1.0);
   return Eigen::Vector2d(q[0] / q[2], q[1] / q[2]);
@@ -213,6 +221,14 @@ std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, cons
           dmtxRegionDestroy(&region);
           if (!out.empty()) {
             out = to_frame(std::move(out));
+            // libdmtx passes ECI designators and other control codewords through as bytes
+            // (an ECI symbol reads "\xb6\x07\xb6"): zxing-cpp, which applies them, gives
+            // the text when it reads the same patch.
+            if (!out.empty() && HasControlBytes(out[0].key.id)) {
+              std::vector<MarkerObservation> confirmed =
+                  to_frame(ReadWithZxing(patch, ZxingSymbology::kDataMatrix, ZxingPass{}));
+              if (!confirmed.empty()) return confirmed;
+            }
             if (!out.empty()) return out;
           }
         }
