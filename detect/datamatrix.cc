@@ -222,14 +222,20 @@ std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, cons
           if (!out.empty()) {
             out = to_frame(std::move(out));
             // libdmtx passes ECI designators and other control codewords through as bytes
-            // (an ECI symbol reads "\xb6\x07\xb6"): zxing-cpp, which applies them, gives
-            // the text when it reads the same patch.
-            if (!out.empty() && HasControlBytes(out[0].key.id)) {
+            // (an ECI symbol reads "\xb6\x07\xb6"); zxing-cpp applies them.
+            // zxing-cpp confirms: when it reads the same patch, its corners are the start of
+            // the refinement (libdmtx's grid fit can be a pixel or two off, beyond the
+            // refinement's first window on small symbols), and its text replaces a libdmtx
+            // text with control bytes.
+            if (!out.empty()) {
               std::vector<MarkerObservation> confirmed =
                   to_frame(ReadWithZxing(patch, ZxingSymbology::kDataMatrix, ZxingPass{}));
-              if (!confirmed.empty()) return confirmed;
+              if (confirmed.size() == 1 &&
+                  (confirmed[0].key == out[0].key || HasControlBytes(out[0].key.id))) {
+                return confirmed;
+              }
+              return out;
             }
-            if (!out.empty()) return out;
           }
         }
       }

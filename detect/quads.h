@@ -60,8 +60,9 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
 // through the homography of its corners), starts libdmtx only at seed pixels on the L's two
 // outer edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and falls
 // back to zxing-cpp's DataMatrix reader on the same patch (the symbol at its centre, where
-// zxing 1.4 starts its search); a libdmtx text with control bytes (ECI designators, which
-// libdmtx passes through) is replaced by zxing's reading of the patch when it has one.
+// zxing 1.4 starts its search). When zxing reads the same text as libdmtx on the patch, its
+// corners are returned (a better start for the refinement), and its text replaces a libdmtx
+// text with control bytes (ECI designators, which libdmtx passes through).
 // Corners in frame pixels, docs/design.md order, not refined.
 // Implemented in detect/datamatrix.cc with the rest of the libdmtx glue.
 std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCandidate& candidate);
