@@ -4,7 +4,7 @@
 #   scripts/test.sh --sanitize   the same suite built with AddressSanitizer and
 #                                UndefinedBehaviorSanitizer in build-sanitize/ (docs/reliability.md):
 #                                any sanitizer report fails its test
-# Extra arguments after --sanitize go to ctest (e.g. -R 'core/|cli/' to run a part).
+# Extra arguments after --sanitize go to ctest (e.g. -R '^(io|cli)/' to run a part).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
