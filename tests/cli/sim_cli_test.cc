@@ -86,7 +86,11 @@ TEST_F(SimCliTest, WritesALoadableDatasetAndASummaryLine) {
   EXPECT_EQ(dataset.odometry.size(), dataset.groundtruth_trajectory->size());
   EXPECT_EQ(dataset.detections.size(), 2 * ((dataset.odometry.size() + 1) / 2));
   EXPECT_TRUE(dataset.config.payload.has_value());
-  EXPECT_EQ(dataset.warnings.Total(), 0);  // misdecoded ids included: nothing the reader rejects
+  // Misdecoded ids are read, except where a misdecode gave the id of another code in the same
+  // frame: that sighting is ambiguous and both copies are dropped (issue 18).
+  const auto duplicates = dataset.warnings.counts.find("duplicate marker in frame");
+  EXPECT_EQ(dataset.warnings.Total(), duplicates == dataset.warnings.counts.end() ? 0 : duplicates->second);
+  EXPECT_LE(dataset.warnings.Total(), 5);
   EXPECT_TRUE(fs::exists(dir_ / "out" / "sim_config.yaml"));
 }
 
