@@ -1,7 +1,7 @@
 // dataset.yaml (core/dataset_io.h), then images.csv with the same bytes: arbitrary text.
+#include "fuzz/fuzz_util.h"
 #include "io/dataset_io.h"
 #include "io/util.h"
-#include "fuzz/fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = waymark::fuzz::Text(data, size);

@@ -1,10 +1,10 @@
 // The detectors on arbitrary image file bytes (PNG, JPEG, ... through core/detect_image.h's
 // DecodeImage, as `waymark detect` reads files): every family at once.
-#include "runner/image.h"
 #include <memory>
 
 #include "detect/detector.h"
 #include "fuzz/fuzz_util.h"
+#include "runner/image.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const std::unique_ptr<waymark::MarkerDetector> detector = waymark::CreateMultiDetector(

@@ -1,7 +1,7 @@
 // detections.jsonl (core/detections_io.h): arbitrary text, with and without camera sizes.
+#include "fuzz/fuzz_util.h"
 #include "io/detections_io.h"
 #include "io/util.h"
-#include "fuzz/fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = waymark::fuzz::Text(data, size);
@@ -15,7 +15,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::vector<waymark::DetectionFrame> frames =
         waymark::ParseDetections(text, "detections.jsonl", &warnings, &cameras);
     const std::string again = waymark::FormatDetections(frames);
-    if (waymark::FormatDetections(waymark::ParseDetections(again, "again.jsonl", nullptr, &cameras)) != again) {
+    if (waymark::FormatDetections(waymark::ParseDetections(again, "again.jsonl", nullptr, &cameras)) !=
+        again) {
       __builtin_trap();
     }
   } catch (const waymark::FormatError&) {

@@ -3,8 +3,8 @@
 // as malformed or ignored.
 #include <sstream>
 
-#include "geometry/camera.h"
 #include "fuzz/fuzz_util.h"
+#include "geometry/camera.h"
 #include "runner/live_input.h"
 
 namespace {

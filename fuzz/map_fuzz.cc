@@ -1,7 +1,7 @@
 // Maps, map.json (core/map_io.h): arbitrary text, poses required and optional.
-#include "io/util.h"
-#include "io/map_io.h"
 #include "fuzz/fuzz_util.h"
+#include "io/map_io.h"
+#include "io/util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = waymark::fuzz::Text(data, size);

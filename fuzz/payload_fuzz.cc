@@ -3,8 +3,8 @@
 // text to parse.
 #include <sstream>
 
-#include "geometry/payload.h"
 #include "fuzz/fuzz_util.h"
+#include "geometry/payload.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::istringstream in(waymark::fuzz::Text(data, size));

@@ -1,7 +1,7 @@
 // TUM trajectories (core/tum_io.h): arbitrary text.
-#include "io/util.h"
-#include "io/tum_io.h"
 #include "fuzz/fuzz_util.h"
+#include "io/tum_io.h"
+#include "io/util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {

@@ -13,7 +13,11 @@ namespace waymark {
 
 LiveInput::LiveInput(const Dataset& dataset, const MarkerMap& map, const LocalizeRunOptions& options,
                      std::ostream& out, std::ostream& err)
-    : dataset_(dataset), map_(map), options_(options), out_(out), err_(err),
+    : dataset_(dataset),
+      map_(map),
+      options_(options),
+      out_(out),
+      err_(err),
       stream_(dataset, map, options, [this](const LocalizeStream::FrameOutput& output) { Write(output); }) {}
 
 void LiveInput::Run(std::istream& in) {
@@ -45,7 +49,8 @@ void LiveInput::PrintSummary(std::ostream& out) const {
       << " tracking), " << malformed_ << " malformed lines skipped\n";
   for (const std::string& warning : stream_.warnings().Lines()) out << "warning: " << warning << "\n";
   if (!pacer_.Summary().empty()) out << "warning: " << pacer_.Summary() << "\n";
-  for (const auto& [reason, count] : read_warnings_.counts) out << "warning: " << reason << ": " << count << "\n";
+  for (const auto& [reason, count] : read_warnings_.counts)
+    out << "warning: " << reason << ": " << count << "\n";
 }
 
 void LiveInput::Reject(const std::string& message) {
@@ -89,18 +94,22 @@ void LiveInput::HandleLine(const std::string& line) {
     return HandleImage(camera, JsonString(source, object["image"], "image"), stamp_s);
   }
   throw std::invalid_argument(
-      "expected an odometry line (T_odom_robot), a velocity line (v, omega), a detection line (markers) or an "
+      "expected an odometry line (T_odom_robot), a velocity line (v, omega), a detection line (markers) or "
+      "an "
       "image line (image)");
 }
 
 void LiveInput::HandleImage(const std::string& camera, const std::string& path, double stamp_s) {
-  if (!dataset_.cameras.count(camera)) throw std::invalid_argument("camera: '" + camera + "' is not in the dataset");
-  if (!detector_) detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), options_.detector);
+  if (!dataset_.cameras.count(camera))
+    throw std::invalid_argument("camera: '" + camera + "' is not in the dataset");
+  if (!detector_)
+    detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), options_.detector);
   const auto start = std::chrono::steady_clock::now();
   std::string why;
   const std::optional<DetectionFrame> frame = DetectImageFile(*detector_, path, stamp_s, camera, &why);
   if (!frame) throw std::invalid_argument(why);
-  stream_.AddFrame(*frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  stream_.AddFrame(
+      *frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
 }
 
 }  // namespace waymark

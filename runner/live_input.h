@@ -17,8 +17,8 @@ namespace waymark {
 class LiveInput {
  public:
   // `out` receives the pose lines (flushed at once), `err` one line per malformed input line.
-  LiveInput(const Dataset& dataset, const MarkerMap& map, const LocalizeRunOptions& options, std::ostream& out,
-            std::ostream& err);
+  LiveInput(const Dataset& dataset, const MarkerMap& map, const LocalizeRunOptions& options,
+            std::ostream& out, std::ostream& err);
 
   // Reads every line of `in`, then flushes the stream (frames still waiting are answered).
   void Run(std::istream& in);

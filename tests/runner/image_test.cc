@@ -40,10 +40,17 @@ TEST(DecodeImageTest, BadBytesSayWhyInOneLine) {
   EXPECT_TRUE(DecodeImage(png.substr(0, png.size() / 2), &why).empty());
   EXPECT_EQ(why.find('\n'), std::string::npos);
   // The header says 40000 x 40000: refused before the decoder allocates 1.6 GB.
-  png[16] = 0; png[17] = 0; png[18] = static_cast<char>(0x9c); png[19] = 0x40;
-  png[20] = 0; png[21] = 0; png[22] = static_cast<char>(0x9c); png[23] = 0x40;
+  png[16] = 0;
+  png[17] = 0;
+  png[18] = static_cast<char>(0x9c);
+  png[19] = 0x40;
+  png[20] = 0;
+  png[21] = 0;
+  png[22] = static_cast<char>(0x9c);
+  png[23] = 0x40;
   EXPECT_TRUE(DecodeImage(png, &why).empty());
-  EXPECT_EQ(why, "image of 40000x40000 is larger than the limit (sides up to 32768 px, 67108864 pixels in all)");
+  EXPECT_EQ(why,
+            "image of 40000x40000 is larger than the limit (sides up to 32768 px, 67108864 pixels in all)");
 }
 
 TEST(ReadImageFileTest, MissingFileIsNamed) {
