@@ -61,7 +61,22 @@ void RejectNestedRepetition(const std::string& pattern) {
   }
 }
 
+// Throws on a run of more than 6 digits: libstdc++'s regex compiler reads a repetition count or
+// a back-reference number into an int without an overflow check (fuzz/payload_fuzz.cc:
+// `\\777777777777777777777`, undefined behaviour); no payload needs such a number.
+void RejectLongNumbers(const std::string& pattern) {
+  size_t run = 0;
+  for (size_t i = 0; i < pattern.size(); ++i) {
+    run = (pattern[i] >= '0' && pattern[i] <= '9') ? run + 1 : 0;
+    if (run > 6) {
+      throw std::runtime_error("payload: pattern: a number of more than 6 digits at `" +
+                               pattern.substr(i + 1 - run, run) + "` (a repetition count or back-reference)");
+    }
+  }
+}
+
 std::regex CompilePattern(const std::string& pattern) {
+  RejectLongNumbers(pattern);
   RejectNestedRepetition(pattern);
   try {
     return std::regex(pattern, std::regex::ECMAScript);
