@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <stdexcept>
 
+#include "io/util.h"
+
 namespace waymark::cli {
 
 Args::Args(const std::vector<std::string>& argv, const std::set<std::string>& value_options,
@@ -120,6 +122,14 @@ void Args::ExpectPositionals(size_t min_count, size_t max_count, const std::stri
   if (positionals_.size() > max_count) {
     throw std::invalid_argument("unexpected argument '" + positionals_[max_count] + "' (see --help)");
   }
+}
+
+void Args::ExpectDistinctOutputs(const std::vector<std::string>& names) const {
+  std::vector<std::pair<std::string, std::string>> given;
+  for (const std::string& name : names) {
+    if (const auto value = Get(name)) given.emplace_back("--" + name, *value);
+  }
+  CheckDistinctOutputs(given);
 }
 
 }  // namespace waymark::cli

@@ -32,6 +32,9 @@ class Args {
   const std::vector<std::string>& positionals() const { return positionals_; }
   // Throws unless the number of positionals is within [min_count, max_count].
   void ExpectPositionals(size_t min_count, size_t max_count, const std::string& what) const;
+  // Throws "--out and --poses name the same file 'X'" when two of the given output options
+  // (those present among `names`) name the same file; commands call it before their work.
+  void ExpectDistinctOutputs(const std::vector<std::string>& names) const;
 
  private:
   std::map<std::string, std::string> values_;

@@ -520,7 +520,9 @@ int RunDemo(const std::vector<std::string>& argv) {
   r.seconds = SecondsSince(start);
   const std::string table = FormatTable(r, out_dir);
   const auto files = RenderOutputs(r, table);
-  for (const auto& [name, contents] : files) AtomicWriteFile(fs::path(out_dir) / name, contents);
+  std::vector<std::pair<fs::path, std::string>> outputs;
+  for (const auto& [name, contents] : files) outputs.emplace_back(fs::path(out_dir) / name, contents);
+  AtomicWriteFiles(outputs);  // all or nothing
   std::cout << table;
   Log("done in " + FormatFixed(r.seconds, 1) + " s; " + std::to_string(files.size()) + " files in " + out_dir);
   return 0;

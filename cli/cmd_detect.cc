@@ -30,6 +30,7 @@
 #include "io/camera_io.h"
 #include "io/dataset_io.h"
 #include "detect/common.h"
+#include "runner/image.h"
 #include "io/detections_io.h"
 #include "detect/detector.h"
 #include "io/util.h"
@@ -130,6 +131,7 @@ class Annotator {
       created_.push_back(p);  // deepest first
       if (p == p.parent_path()) break;
     }
+    RemoveStaleTemporaryDirectories(*dir_, ".partial-");  // of a killed `waymark detect`
     staging_ = *dir_ / (".partial-" + std::to_string(::getpid()));
     fs::create_directories(staging_);
   }
@@ -197,8 +199,9 @@ std::vector<DetectionFrame> RunImages(const std::vector<ImageJob>& jobs, MarkerD
   std::vector<DetectionFrame> frames;
   for (size_t i = 0; i < jobs.size(); ++i) {
     const ImageJob& job = jobs[i];
-    const cv::Mat image = cv::imread(job.file.string(), cv::IMREAD_UNCHANGED);
-    if (image.empty()) throw std::runtime_error(job.file.string() + ": cannot read image (missing, corrupt or not an image)");
+    std::string why;
+    const cv::Mat image = ReadImageFile(job.file, &why);
+    if (image.empty()) throw std::runtime_error(why);
     const auto camera = cameras.find(job.camera);
     if (camera != cameras.end()) CheckImageMatchesCamera(image, camera->second, job.file.string());
     DetectionFrame frame = DetectOne(detector, image, timing);

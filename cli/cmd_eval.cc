@@ -160,9 +160,11 @@ void WriteOutputs(const Args& args, const eval::EvalReportInput& input, const st
   }
   const std::string json = eval::EvalReportToJson(input).dump(2) + "\n";
   const std::string markdown = eval::EvalReportToMarkdown(input);
-  if (const auto path = args.Get("json")) AtomicWriteFile(*path, json);
-  if (const auto path = args.Get("report")) AtomicWriteFile(*path, markdown);
-  if (svg) AtomicWriteFile(*args.Get("plot"), *svg);
+  std::vector<std::pair<std::filesystem::path, std::string>> files;
+  if (const auto path = args.Get("json")) files.emplace_back(*path, json);
+  if (const auto path = args.Get("report")) files.emplace_back(*path, markdown);
+  if (svg) files.emplace_back(*args.Get("plot"), *svg);
+  AtomicWriteFiles(files);  // all or nothing
 }
 
 void PrintGroup(const eval::GroupResult& group) {
@@ -182,6 +184,7 @@ int RunEval(const std::vector<std::string>& argv) {
     return 0;
   }
   CheckModes(args);
+  args.ExpectDistinctOutputs({"json", "report", "plot"});
   std::optional<eval::TrajectoryEvaluation> trajectory;
   if (args.Has("est")) trajectory = RunTrajectory(args);
   std::optional<MarkerMap> est_map, gt_map;

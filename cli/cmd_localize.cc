@@ -22,6 +22,7 @@
 #include "io/json_util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "runner/live_input.h"
 #include "runner/run.h"
 
 namespace waymark::cli {
@@ -67,7 +68,8 @@ Options:
                       detections.jsonl; the detection time counts in the latency
   --families LIST     families to detect (default: those of the map's codes), e.g.
                       qr,datamatrix,apriltag-36h11
-  --realtime          pace the input by its timestamps (replay at the recorded speed)
+  --realtime          pace the input by its timestamps (replay at the recorded speed; a gap
+                      between two stamps waits at most 1 s, and the shortened gaps are counted)
   --live              read the input from stdin (above) instead of DATASET's files
   --odometry-time-offset S   odometry clock minus image clock, s (as `waymark map build` reports
                       it for the survey): odometry stamped t is used at t - S (default 0)
@@ -151,14 +153,16 @@ void WriteOutputs(const Args& args, const LocalizeRun& run) {
     for (size_t i = 0; i < run.outputs.size(); ++i)
       poses += FormatPoseLine(run.outputs[i], run.cameras[i], run.frame_counts[i], run.latency_ms[i]) + "\n";
   }
-  AtomicWriteFile(args.Require("out"), tum);
-  if (args.Has("predicted")) AtomicWriteFile(*args.Get("predicted"), predicted);
-  if (args.Has("poses")) AtomicWriteFile(*args.Get("poses"), poses);
+  std::vector<std::pair<std::filesystem::path, std::string>> files = {{args.Require("out"), tum}};
+  if (args.Has("predicted")) files.emplace_back(*args.Get("predicted"), predicted);
+  if (args.Has("poses")) files.emplace_back(*args.Get("poses"), poses);
+  AtomicWriteFiles(files);  // all or nothing
 }
 
 int RunDataset(const Args& args) {
   args.Require("out");
   if (args.Has("detect-budget-ms")) throw std::invalid_argument("--detect-budget-ms applies to --live only");
+  args.ExpectDistinctOutputs({"out", "predicted", "poses"});
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   const LocalizeRunOptions options = ParseOptions(args, dataset);
@@ -170,121 +174,6 @@ int RunDataset(const Args& args) {
 }
 
 // ---- Live mode ----
-
-// Feeds stdin's lines to a LocalizeStream; a malformed line is reported and skipped.
-class LiveInput {
- public:
-  LiveInput(const Dataset& dataset, const MarkerMap& map, const LocalizeRunOptions& options)
-      : dataset_(dataset), map_(map), options_(options),
-        stream_(dataset, map, options, [this](const LocalizeStream::FrameOutput& output) { Write(output); }) {}
-
-  void Run(std::istream& in) {
-    RealtimePacer pacer;
-    std::string line;
-    while (std::getline(in, line)) {
-      ++line_number_;
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      if (line.find_first_not_of(" \t") == std::string::npos) continue;
-      try {
-        HandleLine(line, options_.realtime ? &pacer : nullptr);
-      } catch (const FormatError& e) {
-        Reject(e.message());
-      } catch (const std::invalid_argument& e) {
-        Reject(e.what());
-      }
-    }
-    stream_.Flush();
-    stream_.CheckMapMatches(true);
-  }
-
-  void PrintSummary(std::ostream& out) const {
-    out << "waymark localize --live: " << line_number_ << " lines, " << frames_ << " frames (" << tracking_
-        << " tracking), " << malformed_ << " malformed lines skipped\n";
-    if (images_ > 0) {
-      out << "detection: " << images_ << " images, " << shed_images_ << " shed work under the "
-          << options_.detector.live_budget_ms << " ms budget (" << skipped_attempts_
-          << " second-pass attempts skipped)\n";
-    }
-    for (const std::string& warning : stream_.warnings().Lines()) out << "warning: " << warning << "\n";
-    for (const auto& [reason, count] : read_warnings_.counts) out << "warning: " << reason << ": " << count << "\n";
-  }
-
- private:
-  void Reject(const std::string& message) {
-    ++malformed_;
-    std::cerr << "waymark localize: stdin:" << line_number_ << ": " << message << "\n";
-  }
-
-  void Write(const LocalizeStream::FrameOutput& output) {
-    ++frames_;
-    tracking_ += output.pose.T_world_robot.has_value();
-    std::cout << FormatPoseLine(output.pose, output.camera, CountOutcomes(output.result), output.latency_ms) << "\n"
-              << std::flush;
-  }
-
-  void HandleLine(const std::string& line, RealtimePacer* pacer);
-  void HandleImage(const nlohmann::json& object, const JsonSource& source, double stamp_s);
-
-  const Dataset& dataset_;
-  const MarkerMap& map_;
-  LocalizeRunOptions options_;
-  LocalizeStream stream_;
-  std::unique_ptr<MarkerDetector> detector_;  // created at the first image line
-  ReadWarnings read_warnings_;
-  long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;
-  long images_ = 0, shed_images_ = 0, skipped_attempts_ = 0;  // image lines; those that shed work
-};
-
-void LiveInput::HandleLine(const std::string& line, RealtimePacer* pacer) {
-  nlohmann::json object;
-  try {
-    object = nlohmann::json::parse(line);
-  } catch (const nlohmann::json::parse_error& e) {
-    const std::string what = e.what();  // "[json.exception.parse_error.101] parse error at ..."
-    throw std::invalid_argument("not valid JSON: " + what.substr(what.find("] ") == std::string::npos ? 0 : what.find("] ") + 2));
-  }
-  if (!object.is_object()) throw std::invalid_argument("expected a JSON object");
-  const JsonSource source{"stdin", [this](const std::string&) { return std::optional<long>(line_number_); }};
-  const double stamp_s = JsonNumber(source, *JsonMember(source, object, "", "t", true), "t");
-  if (pacer) pacer->WaitFor(stamp_s);
-  if (object.contains("T_odom_robot")) {
-    JsonWarnUnknownKeys(source, object, "", {"t", "T_odom_robot"}, &read_warnings_);
-    return stream_.AddOdometry(stamp_s, JsonPose(source, object["T_odom_robot"], "T_odom_robot"));
-  }
-  if (object.contains("v") || object.contains("omega")) {
-    JsonWarnUnknownKeys(source, object, "", {"t", "v", "omega"}, &read_warnings_);
-    const double v_mps = JsonNumber(source, *JsonMember(source, object, "", "v", true), "v");
-    const double omega_radps = JsonNumber(source, *JsonMember(source, object, "", "omega", true), "omega");
-    return stream_.AddVelocity(stamp_s, v_mps, omega_radps);
-  }
-  if (object.contains("markers")) {
-    ReadWarnings warnings;
-    std::vector<DetectionFrame> frames = ParseDetections(line, "stdin", &warnings, &dataset_.cameras);
-    for (const auto& [reason, count] : warnings.counts) read_warnings_.counts[reason] += count;
-    return stream_.AddFrame(frames.at(0));
-  }
-  if (object.contains("image")) return HandleImage(object, source, stamp_s);
-  throw std::invalid_argument(
-      "expected an odometry line (T_odom_robot), a velocity line (v, omega), a detection line (markers) or an "
-      "image line (image)");
-}
-
-void LiveInput::HandleImage(const nlohmann::json& object, const JsonSource& source, double stamp_s) {
-  JsonWarnUnknownKeys(source, object, "", {"t", "camera", "image"}, &read_warnings_);
-  const std::string camera = JsonString(source, *JsonMember(source, object, "", "camera", true), "camera");
-  if (!dataset_.cameras.count(camera)) throw std::invalid_argument("camera: '" + camera + "' is not in the dataset");
-  const std::string path = JsonString(source, object["image"], "image");
-  if (!detector_) detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), options_.detector);
-  const auto start = std::chrono::steady_clock::now();
-  std::string why;
-  const std::optional<DetectionFrame> frame = DetectImageFile(*detector_, path, stamp_s, camera, &why);
-  if (!frame) throw std::invalid_argument(why);
-  ++images_;
-  const int skipped = detector_->SkippedAttempts();
-  shed_images_ += skipped > 0;
-  skipped_attempts_ += skipped;
-  stream_.AddFrame(*frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-}
 
 int RunLive(const Args& args) {
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
@@ -299,7 +188,7 @@ int RunLive(const Args& args) {
     if (!(*budget >= 0.0)) throw std::invalid_argument("--detect-budget-ms: expected a value >= 0");
     options.detector.live_budget_ms = *budget;
   }
-  LiveInput live(dataset, map, options);
+  LiveInput live(dataset, map, options, std::cout, std::cerr);
   live.Run(std::cin);
   live.PrintSummary(std::cerr);
   return 0;

@@ -223,7 +223,7 @@ void WriteOutputs(const Args& args, const MapBuildResult& result) {
     }
   }
   if (const auto path = args.Get("report")) files.emplace_back(*path, ReportJson(result).dump(1) + "\n");
-  for (const auto& [path, text] : files) AtomicWriteFile(path, text);
+  AtomicWriteFiles({files.begin(), files.end()});  // all or nothing
 }
 
 // What `waymark eval` would measure against the truth, predicted from the map's covariances
@@ -261,6 +261,7 @@ int RunBuild(const std::vector<std::string>& argv) {
   }
   args.ExpectPositionals(1, 1, "dataset directory DATASET");
   args.Require("out");
+  args.ExpectDistinctOutputs({"out", "trajectory", "report"});
   const MapBuildOptions options = ParseBuildOptions(args);
   const Dataset dataset = LoadSurvey(args, args.positionals()[0]);
   return Finish(args, BuildMap(dataset, options));
@@ -274,6 +275,7 @@ int RunMerge(const std::vector<std::string>& argv) {
   }
   args.ExpectPositionals(2, 2, "MAP.json and dataset directory DATASET");
   args.Require("out");
+  args.ExpectDistinctOutputs({"out", "trajectory", "report"});
   const MapBuildOptions options = ParseBuildOptions(args);
   const MarkerMap existing = ReadMap(args.positionals()[0]);
   const Dataset dataset = LoadSurvey(args, args.positionals()[1]);

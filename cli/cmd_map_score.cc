@@ -93,6 +93,7 @@ int RunScore(const std::vector<std::string>& argv) {
     return 0;
   }
   args.ExpectPositionals(1, 1, "dataset directory DATASET");
+  args.ExpectDistinctOutputs({"json", "out-map"});
   MapScoreOptions options;
   options.solve_missing_markers = args.Flag("solve-missing-markers");
   if (const auto s = args.GetDouble("stamp-tolerance")) options.stamp_tolerance_s = *s;
@@ -109,8 +110,10 @@ int RunScore(const std::vector<std::string>& argv) {
   // Everything is formatted before anything is written.
   const std::string json_text = args.Has("json") ? ScoreJson(score, line, centres_world.size()) : "";
   const std::string map_text = args.Has("out-map") ? FormatMap(score.map) : "";
-  if (args.Has("json")) AtomicWriteFile(*args.Get("json"), json_text);
-  if (args.Has("out-map")) AtomicWriteFile(*args.Get("out-map"), map_text);
+  std::vector<std::pair<std::filesystem::path, std::string>> files;
+  if (args.Has("json")) files.emplace_back(*args.Get("json"), json_text);
+  if (args.Has("out-map")) files.emplace_back(*args.Get("out-map"), map_text);
+  AtomicWriteFiles(files);  // all or nothing
   std::cout << FormatMapScore(score);
   if (args.Flag("line") && !line) std::cout << "line fit: needs 2 or more marker centres\n";
   if (line) {

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli/command.h"
+#include "runner/image.h"
 
 namespace waymark::cli {
 
@@ -35,8 +36,9 @@ std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDe
   frames.reserve(rows.size());
   for (const ImageEntry& row : rows) {
     const std::string file = (dataset.dir / row.path).string();
-    const cv::Mat image = cv::imread(file, cv::IMREAD_UNCHANGED);
-    if (image.empty()) throw std::runtime_error(file + ": cannot read image (missing, corrupt or not an image)");
+    std::string why;
+    const cv::Mat image = ReadImageFile(file, &why);
+    if (image.empty()) throw std::runtime_error(why);
     // The dataset reader checked that images.csv names only cameras of dataset.yaml.
     CheckImageMatchesCamera(image, dataset.cameras.at(row.camera), file);
     DetectionFrame frame;

@@ -149,7 +149,11 @@ std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const Candi
   const double scale = std::min(1.0, static_cast<double>(options.work_width_px) / gray.cols);
   cv::Mat small;
   if (scale < 1.0) {
-    cv::resize(gray, small, cv::Size(), scale, scale, cv::INTER_AREA);
+    // At least one pixel each way: a 2000x1 image scaled by 0.32 has rows 0.32 (cv::resize
+    // with fx, fy would round it to 0 and assert).
+    const cv::Size size(std::max(1, static_cast<int>(std::lround(gray.cols * scale))),
+                        std::max(1, static_cast<int>(std::lround(gray.rows * scale))));
+    cv::resize(gray, small, size, 0, 0, cv::INTER_AREA);
   } else {
     small = gray;
   }

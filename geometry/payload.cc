@@ -5,6 +5,7 @@
 #include <set>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "geometry/pose.h"
 
@@ -15,7 +16,68 @@ bool IsCoordinateField(const std::string& name) {
   return name == "x" || name == "y" || name == "z" || name == "yaw_deg";
 }
 
+// Whether the quantifier at pattern[i] repeats without bound: *, + or {n,}.
+bool UnboundedQuantifierAt(const std::string& pattern, size_t i) {
+  if (i >= pattern.size()) return false;
+  if (pattern[i] == '*' || pattern[i] == '+') return true;
+  if (pattern[i] != '{') return false;
+  const size_t close = pattern.find('}', i);
+  return close != std::string::npos && pattern[close - 1] == ',';
+}
+
+// Throws when a group that repeats without bound holds a repetition without bound itself
+// ("(a+)+", "(?:[^;]*)*"): std::regex takes exponential time on such patterns.
+void RejectNestedRepetition(const std::string& pattern) {
+  std::vector<bool> holds_repetition;  // one per open group
+  for (size_t i = 0; i < pattern.size(); ++i) {
+    const char c = pattern[i];
+    if (c == '\\') {
+      ++i;  // an escaped character
+    } else if (c == '[') {  // a class: up to its closing ']' (a leading ']' or '^]' is literal)
+      size_t j = i + 1;
+      if (j < pattern.size() && pattern[j] == '^') ++j;
+      if (j < pattern.size() && pattern[j] == ']') ++j;
+      while (j < pattern.size() && pattern[j] != ']') j += pattern[j] == '\\' ? 2 : 1;
+      i = j;
+      if (UnboundedQuantifierAt(pattern, i + 1) && !holds_repetition.empty()) holds_repetition.back() = true;
+    } else if (c == '(') {
+      holds_repetition.push_back(false);
+    } else if (c == ')' && !holds_repetition.empty()) {
+      const bool inner = holds_repetition.back();
+      holds_repetition.pop_back();
+      if (UnboundedQuantifierAt(pattern, i + 1)) {
+        if (inner) {
+          throw std::runtime_error("payload: pattern: a repeated group holds a repetition itself (`" +
+                                   pattern.substr(0, i + 2) +
+                                   "`): std::regex can take exponential time on it; repeat only one of them");
+        }
+        if (!holds_repetition.empty()) holds_repetition.back() = true;
+      } else if (inner && !holds_repetition.empty()) {
+        holds_repetition.back() = true;
+      }
+    } else if (UnboundedQuantifierAt(pattern, i) && !holds_repetition.empty()) {
+      holds_repetition.back() = true;
+    }
+  }
+}
+
+// Throws on a run of more than 6 digits: libstdc++'s regex compiler reads a repetition count or
+// a back-reference number into an int without an overflow check (fuzz/payload_fuzz.cc:
+// `\\777777777777777777777`, undefined behaviour); no payload needs such a number.
+void RejectLongNumbers(const std::string& pattern) {
+  size_t run = 0;
+  for (size_t i = 0; i < pattern.size(); ++i) {
+    run = (pattern[i] >= '0' && pattern[i] <= '9') ? run + 1 : 0;
+    if (run > 6) {
+      throw std::runtime_error("payload: pattern: a number of more than 6 digits at `" +
+                               pattern.substr(i + 1 - run, run) + "` (a repetition count or back-reference)");
+    }
+  }
+}
+
 std::regex CompilePattern(const std::string& pattern) {
+  RejectLongNumbers(pattern);
+  RejectNestedRepetition(pattern);
   try {
     return std::regex(pattern, std::regex::ECMAScript);
   } catch (const std::regex_error& e) {

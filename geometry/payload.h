@@ -12,8 +12,10 @@
 // require the whole text to match. Payload text comes from the outside world: parsing never
 // throws on it. Only the spec (written by the dataset's author) is validated with errors.
 // std::regex backtracks: a pattern with nested quantifiers such as "^(a+)+$" can take
-// exponential time on a hostile text even below kMaxPayloadBytes. Keep patterns simple
-// (one quantifier per group), as in the example.
+// exponential time on a hostile text even below kMaxPayloadBytes (fuzz/payload_fuzz.cc found
+// `X=([^;]*)+`). A group that repeats without bound (*, +, {n,}) and holds such a repetition
+// itself is therefore an error of the spec. Overlapping alternatives under one repetition
+// ("(a|a)*") are not detected: keep patterns simple (one quantifier per group), as in the example.
 #pragma once
 
 #include <cstddef>

@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -11,6 +12,37 @@
 
 namespace waymark {
 namespace {
+
+// "" when fx, fy are at most kMaxFocalLengthPx and the principal point lies within one image
+// size of the image (a crop may move it outside, not further).
+std::string CheckIntrinsicsRange(const double* intrinsics, int width, int height) {
+  if (intrinsics[0] > kMaxFocalLengthPx || intrinsics[1] > kMaxFocalLengthPx) {
+    return "expected focal lengths up to " + FormatDouble(kMaxFocalLengthPx) + " px, got " +
+           FormatDouble(std::max(intrinsics[0], intrinsics[1]));
+  }
+  if (std::abs(intrinsics[2] - 0.5 * width) > 1.5 * width || std::abs(intrinsics[3] - 0.5 * height) > 1.5 * height) {
+    return "expected the principal point within one image size of the " + std::to_string(width) + "x" +
+           std::to_string(height) + " image, got (" + FormatDouble(intrinsics[2]) + ", " + FormatDouble(intrinsics[3]) +
+           ")";
+  }
+  return "";
+}
+
+std::string CheckDistortionRange(const std::vector<double>& distortion) {
+  for (const double k : distortion) {
+    if (std::abs(k) > kMaxDistortionCoefficient) {
+      return "expected coefficients within +-" + FormatDouble(kMaxDistortionCoefficient) + ", got " + FormatDouble(k);
+    }
+  }
+  return "";
+}
+
+std::string CheckCameraOffset(const SE3d& T_robot_camera) {
+  const double offset_m = T_robot_camera.translation().norm();
+  if (offset_m <= kMaxCameraOffsetM) return "";
+  return "expected the camera within " + FormatDouble(kMaxCameraOffsetM) + " m of the robot, got " +
+         FormatDouble(offset_m) + " m";
+}
 
 CameraModel ReadModel(const std::filesystem::path& path, const YAML::Node& root) {
   const YAML::Node node = YamlRequire(path, root, "model");
@@ -50,18 +82,30 @@ CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path&
   if (!(intrinsics[0] > 0.0 && intrinsics[1] > 0.0)) {
     ThrowYamlError(path, intrinsics_node, "intrinsics: expected positive focal lengths fx, fy");
   }
+  if (const std::string why = CheckIntrinsicsRange(intrinsics.data(), camera.width, camera.height); !why.empty()) {
+    ThrowYamlError(path, intrinsics_node, "intrinsics: " + why);
+  }
   for (int i = 0; i < 4; ++i) camera.intrinsics[i] = intrinsics[i];
 
   const size_t distortion_size = CameraInfo::DistortionSize(camera.model);
   camera.distortion =
       YamlNumbers(path, YamlRequire(path, root, "distortion"),
                   std::string("distortion (") + CameraModelName(camera.model) + ")", distortion_size);
-  camera.T_robot_camera = YamlPose(path, YamlRequire(path, root, "T_robot_camera"), "T_robot_camera");
+  if (const std::string why = CheckDistortionRange(camera.distortion); !why.empty()) {
+    ThrowYamlError(path, root["distortion"], "distortion: " + why);
+  }
+  const YAML::Node pose_node = YamlRequire(path, root, "T_robot_camera");
+  camera.T_robot_camera = YamlPose(path, pose_node, "T_robot_camera");
+  if (const std::string why = CheckCameraOffset(camera.T_robot_camera); !why.empty()) {
+    ThrowYamlError(path, pose_node, "T_robot_camera.t: " + why);
+  }
 
   if (const YAML::Node sigma = root["pixel_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
     camera.pixel_sigma = YamlNumber(path, sigma, "pixel_sigma");
-    if (!(*camera.pixel_sigma > 0.0))
-      ThrowYamlError(path, sigma, "pixel_sigma: expected a positive number of pixels");
+    if (!(*camera.pixel_sigma > 0.0 && *camera.pixel_sigma <= kMaxPixelSigmaPx)) {
+      ThrowYamlError(path, sigma, "pixel_sigma: expected a positive number of pixels up to " +
+                                      FormatDouble(kMaxPixelSigmaPx) + ", got " + FormatDouble(*camera.pixel_sigma));
+    }
   }
   YamlWarnUnknownKeys(
       path, root, {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera", "pixel_sigma"},
@@ -99,6 +143,11 @@ void CheckWritable(const CameraInfo& camera) {
     if (!std::isfinite(k)) throw std::invalid_argument(name + "distortion not finite");
   }
   if (!camera.T_robot_camera.IsFinite()) throw std::invalid_argument(name + "T_robot_camera not finite");
+  if (const std::string why = CheckIntrinsicsRange(camera.intrinsics.data(), camera.width, camera.height) +
+                              CheckDistortionRange(camera.distortion) + CheckCameraOffset(camera.T_robot_camera);
+      !why.empty()) {
+    throw std::invalid_argument(name + why);
+  }
   if (camera.pixel_sigma && !(*camera.pixel_sigma > 0.0 && std::isfinite(*camera.pixel_sigma))) {
     throw std::invalid_argument(name + "pixel_sigma must be positive");
   }

@@ -87,6 +87,10 @@ PayloadSpec ReadPayload(const fs::path& path, const YAML::Node& node) {
   }
   if (const YAML::Node z = node["default_z_m"]; z.IsDefined() && !z.IsNull()) {
     spec.default_z_m = YamlNumber(path, z, "payload.default_z_m");
+    if (std::abs(*spec.default_z_m) > kMaxCoordinateM) {
+      ThrowYamlError(path, z, "payload.default_z_m: expected a coordinate within +-" + FormatDouble(kMaxCoordinateM) +
+                                  " m, got " + FormatDouble(*spec.default_z_m));
+    }
   }
   if (const std::string why = CheckPayloadSpec(spec); !why.empty())
     ThrowYamlError(path, node, "payload: " + why);
@@ -145,6 +149,8 @@ DatasetConfig ParseDatasetYaml(const std::string& text, const fs::path& path, Re
     config.default_marker_size_m = YamlNumber(path, size, "default_marker_size_m");
     if (!(*config.default_marker_size_m > 0.0))
       ThrowYamlError(path, size, "default_marker_size_m: expected a positive size");
+    if (const std::string why = CheckMarkerSize(*config.default_marker_size_m); !why.empty())
+      ThrowYamlError(path, size, "default_marker_size_m: " + why);
   }
   if (const YAML::Node sigma = root["odometry_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
     config.odometry_sigma = ReadOdometrySigma(path, sigma);

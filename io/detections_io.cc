@@ -145,6 +145,23 @@ const CameraInfo* FindCamera(const JsonSource& source, const std::string& name,
   ThrowJsonError(source, "camera", "camera \"" + name + "\" is not in the dataset (cameras: " + known + ")");
 }
 
+// A code seen twice in one frame: which sighting is it? Every copy is dropped, counted once.
+void DropDuplicateMarkers(const JsonSource& source, DetectionFrame* frame, ReadWarnings* warnings) {
+  std::map<MarkerKey, int> count;
+  for (const MarkerObservation& marker : frame->markers) ++count[marker.key];
+  for (const auto& [key, n] : count) {
+    if (n < 2) continue;
+    if (warnings) {
+      warnings->Add("duplicate marker in frame",
+                    JsonErrorText(source, "markers",
+                                  key.ToString() + " seen " + std::to_string(n) + " times in one frame, all ignored"));
+    }
+    frame->markers.erase(std::remove_if(frame->markers.begin(), frame->markers.end(),
+                                        [&key = key](const MarkerObservation& m) { return m.key == key; }),
+                         frame->markers.end());
+  }
+}
+
 DetectionFrame ParseFrame(const JsonSource& source, const nlohmann::json& root,
                           const std::map<std::string, CameraInfo>* cameras, ReadWarnings* warnings) {
   if (!root.is_object())
@@ -163,11 +180,17 @@ DetectionFrame ParseFrame(const JsonSource& source, const nlohmann::json& root,
   const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
   if (!markers.is_array())
     ThrowJsonError(source, "markers", "expected an array (empty when nothing was seen)");
+  if (markers.size() > kMaxMarkersPerFrame) {
+    ThrowJsonError(source, "markers",
+                   "expected at most " + std::to_string(kMaxMarkersPerFrame) + " markers in one frame, got " +
+                       std::to_string(markers.size()));
+  }
   for (size_t i = 0; i < markers.size(); ++i) {
     std::optional<MarkerObservation> marker =
         ParseMarker(source, markers[i], JsonField("markers", i), camera, warnings);
     if (marker) frame.markers.push_back(std::move(*marker));
   }
+  DropDuplicateMarkers(source, &frame, warnings);
   JsonWarnUnknownKeys(source, root, "", {"t", "camera", "image", "frame", "markers"}, warnings);
   return frame;
 }
@@ -196,15 +219,7 @@ std::vector<DetectionFrame> ParseDetections(const std::string& text, const std::
     ++line_number;
     if (line.find_first_not_of(" \t\r") == std::string_view::npos) continue;
     const JsonSource source = LineSource(path, line_number);
-    nlohmann::json root;
-    try {
-      root = nlohmann::json::parse(NonFiniteLiteralsToNull(line));
-    } catch (const nlohmann::json::exception& e) {
-      std::string message = e.what();
-      const size_t colon = message.find(": ", message.find("column"));
-      if (colon != std::string::npos) message = message.substr(colon + 2);
-      throw FormatError(path, line_number, "invalid JSON: " + message);
-    }
+    const nlohmann::json root = ParseJsonLine(NonFiniteLiteralsToNull(line), path, line_number);
     DetectionFrame frame = ParseFrame(source, root, cameras, warnings);
     const auto [it, inserted] = last_stamp_s.emplace(frame.camera, frame.stamp_s);
     if (!inserted) {
@@ -229,6 +244,10 @@ std::string FormatDetectionLine(const DetectionFrame& frame) {
   const std::string name = "detections writer: frame at t=" + FormatDouble(frame.stamp_s) + ": ";
   if (!std::isfinite(frame.stamp_s)) throw std::invalid_argument(name + "t not finite");
   if (frame.camera.empty()) throw std::invalid_argument(name + "empty camera name");
+  if (frame.markers.size() > kMaxMarkersPerFrame) {
+    throw std::invalid_argument(name + std::to_string(frame.markers.size()) + " markers, more than " +
+                                std::to_string(kMaxMarkersPerFrame));
+  }
   nlohmann::ordered_json json;
   json["t"] = frame.stamp_s;
   json["camera"] = frame.camera;

@@ -16,6 +16,11 @@
 // frame kept): a marker with an unknown family ("unknown family"), a non-finite corner ("non-finite corner",
 // NaN/Infinity written as NaN, Infinity or null), a corner outside the camera's image
 // ("corner outside image", when camera sizes are given). Unknown keys are counted warnings.
+//
+// Limits (issue 18: a line of 10^6 markers made localize and map build run for minutes): at
+// most kMaxMarkersPerFrame markers in one line (more is an error), and a code seen twice in
+// one frame is ambiguous: every copy of it is dropped with the counted warning "duplicate
+// marker in frame" (the writer writes such frames: they are what a detector saw).
 #pragma once
 
 #include <filesystem>
@@ -26,6 +31,9 @@
 #include "geometry/types.h"
 
 namespace waymark {
+
+// The most markers one detections line (one camera frame) may hold.
+inline constexpr size_t kMaxMarkersPerFrame = 1000;
 
 // Parses detections.jsonl text; `path` names the file in messages. When `cameras` is not
 // null, every frame's camera must be one of them and corners must lie inside its image.

@@ -7,6 +7,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -23,11 +24,24 @@ struct JsonSource {
   std::function<std::optional<long>(const std::string& field)> line_of;
 };
 
-// Parses a whole JSON document. A syntax error is a FormatError with its line. When `lines`
-// is not null it receives the 1-based line of every value, keyed by field path ("" for the
-// root, "markers[0]", "markers[0].size_m", ...).
+// The deepest nesting of arrays and objects a JSON reader accepts (Waymark's formats use at
+// most 5); deeper text is an error "invalid JSON: arrays and objects nested deeper than 32
+// levels" at its line. It keeps the line recording below linear in the text.
+inline constexpr int kMaxJsonDepth = 32;
+
+// Parses a whole JSON document in time and memory linear in its size. A syntax error, a
+// number out of double range or nesting deeper than kMaxJsonDepth is a FormatError with its
+// line. When `lines` is not null it receives the 1-based line of every value, keyed by field
+// path ("" for the root, "markers[0]", "markers[0].size_m", ...).
 nlohmann::json ParseJsonDocument(const std::string& text, const std::filesystem::path& path,
                                  std::map<std::string, long>* lines);
+// One JSON value on one line of a JSON-lines input (line `line_number` of `path`), with the
+// same checks; every error is a FormatError "path:line_number: invalid JSON: ...".
+nlohmann::json ParseJsonLine(std::string_view line, const std::filesystem::path& path, long line_number);
+// A JsonSource for a document parsed from `text` (which must outlive it): the lines of its
+// fields are recorded only when the first one is asked for (an error or a warning), so
+// reading a valid file costs no line bookkeeping.
+JsonSource JsonSourceForText(const std::filesystem::path& path, std::string_view text);
 // A JsonSource whose line_of looks `field` up in `lines`, falling back to the nearest
 // enclosing field.
 JsonSource JsonSourceWithLines(const std::filesystem::path& path, std::map<std::string, long> lines);

@@ -71,6 +71,9 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
     ThrowJsonError(source, JsonField(field, "size_m"),
                    "expected a positive size, got " + FormatDouble(marker.size_m));
   }
+  if (const std::string why = CheckMarkerSize(marker.size_m); !why.empty()) {
+    ThrowJsonError(source, JsonField(field, "size_m"), why);
+  }
   const nlohmann::json* pose =
       JsonMember(source, value, field, "T_world_marker", poses == MapPoses::kRequired);
   if (pose != nullptr) {
@@ -123,9 +126,8 @@ void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
 
 MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, ReadWarnings* warnings,
                    MapPoses poses) {
-  std::map<std::string, long> lines;
-  const nlohmann::json root = ParseJsonDocument(text, path, &lines);
-  const JsonSource source = JsonSourceWithLines(path, std::move(lines));
+  const nlohmann::json root = ParseJsonDocument(text, path, nullptr);
+  const JsonSource source = JsonSourceForText(path, text);
   CheckHeader(source, root);
   const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
   if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array of markers");
@@ -196,7 +198,11 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
   if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
   if (!(marker.size_m > 0.0) || !std::isfinite(marker.size_m))
     throw std::invalid_argument(name + "size_m not positive");
+  if (const std::string why = CheckMarkerSize(marker.size_m); !why.empty())
+    throw std::invalid_argument(name + "size_m: " + why);
   if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "T_world_marker not finite");
+  if (marker.T_world_marker.translation().cwiseAbs().maxCoeff() > kMaxCoordinateM)
+    throw std::invalid_argument(name + "T_world_marker beyond the coordinate range");
   if (!marker.has_pose && (marker.fixed || marker.covariance))
     throw std::invalid_argument(name + "fixed or with a covariance but without a pose");
   if (marker.covariance && !marker.covariance->allFinite())

@@ -3,6 +3,7 @@
 #include "io/yaml_util.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
@@ -16,6 +17,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
@@ -76,15 +78,32 @@ FormatError::FormatError(const std::filesystem::path& file, std::optional<long> 
                          const std::string& message)
     : std::runtime_error(FormatWhat(file, line, message)), file_(file), line_(line), message_(message) {}
 
-void AtomicWriteFile(const std::filesystem::path& path, const std::string& contents) {
+namespace {
+
+// Creates the missing directories above `path`, recording each one made (outermost first)
+// in *created so that a failed write can remove them again.
+void CreateParents(const std::filesystem::path& path, std::vector<std::filesystem::path>* created) {
+  const std::filesystem::path parent = path.parent_path();
+  if (parent.empty()) return;
+  std::vector<std::filesystem::path> missing;
+  std::error_code ec;
+  for (std::filesystem::path dir = parent; !dir.empty() && !std::filesystem::exists(dir, ec);
+       dir = dir.parent_path()) {
+    missing.push_back(dir);
+    if (dir == dir.parent_path()) break;
+  }
+  for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+    if (!std::filesystem::create_directory(*it, ec) && ec) {
+      throw std::runtime_error(path.string() + ": cannot create directory: " + ec.message());
+    }
+    created->push_back(*it);
+  }
+}
+
+// Writes `contents` to a new temporary file beside `path` (fsync'ed) and returns its path.
+std::filesystem::path WriteTemporary(const std::filesystem::path& path, const std::string& contents) {
   if (path.empty() || !path.has_filename()) {
     throw std::runtime_error("cannot write '" + path.string() + "': not a file path");
-  }
-  const std::filesystem::path parent = path.parent_path();
-  if (!parent.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(parent, ec);
-    if (ec) throw std::runtime_error(path.string() + ": cannot create directory: " + ec.message());
   }
   const std::filesystem::path temp = TempPathFor(path);
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
@@ -100,12 +119,126 @@ void AtomicWriteFile(const std::filesystem::path& path, const std::string& conte
     ::unlink(temp.c_str());
     throw std::runtime_error(path.string() + ": cannot write: " + reason);
   }
-  if (::rename(temp.c_str(), path.c_str()) != 0) {
-    const std::string reason = ErrnoText();
-    ::unlink(temp.c_str());
-    throw std::runtime_error(path.string() + ": cannot rename temporary file into place: " + reason);
+  return temp;
+}
+
+// The identity of an output path for comparison: absolute, with symlinks and ".." resolved
+// as far as the path exists.
+std::filesystem::path OutputIdentity(const std::filesystem::path& path) {
+  std::error_code ec;
+  std::filesystem::path resolved = std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec), ec);
+  return ec ? std::filesystem::absolute(path).lexically_normal() : resolved;
+}
+
+}  // namespace
+
+void AtomicWriteFile(const std::filesystem::path& path, const std::string& contents) {
+  AtomicWriteFiles({{path, contents}});
+}
+
+void AtomicWriteFiles(const std::vector<std::pair<std::filesystem::path, std::string>>& files) {
+  std::set<std::filesystem::path> identities;
+  for (const auto& [path, contents] : files) {
+    if (!identities.insert(OutputIdentity(path)).second) {
+      throw std::invalid_argument(path.string() + ": the same file is given twice as an output");
+    }
   }
-  SyncDirectory(parent);
+  std::vector<std::filesystem::path> created_dirs;
+  std::vector<std::filesystem::path> temps;
+  try {
+    for (const auto& [path, contents] : files) {
+      CreateParents(path, &created_dirs);
+      RemoveStaleTemporaries(path.parent_path());
+      temps.push_back(WriteTemporary(path, contents));
+    }
+  } catch (...) {
+    for (const std::filesystem::path& temp : temps) ::unlink(temp.c_str());
+    std::error_code ec;
+    for (auto it = created_dirs.rbegin(); it != created_dirs.rend(); ++it) std::filesystem::remove(*it, ec);
+    throw;
+  }
+  // Every file is written: only renames are left (in the same directory: they do not fail
+  // for want of space or permission once the temporary could be created).
+  for (size_t i = 0; i < files.size(); ++i) {
+    const std::filesystem::path& path = files[i].first;
+    if (::rename(temps[i].c_str(), path.c_str()) != 0) {
+      const std::string reason = ErrnoText();
+      for (size_t k = i; k < temps.size(); ++k) ::unlink(temps[k].c_str());
+      throw std::runtime_error(path.string() + ": cannot rename temporary file into place: " + reason);
+    }
+  }
+  std::set<std::filesystem::path> dirs;
+  for (const auto& [path, contents] : files) dirs.insert(path.parent_path());
+  for (const std::filesystem::path& dir : dirs) SyncDirectory(dir);
+}
+
+void CheckDistinctOutputs(const std::vector<std::pair<std::string, std::string>>& options) {
+  std::map<std::filesystem::path, std::string> seen;  // identity -> option
+  for (const auto& [option, path] : options) {
+    const auto [it, inserted] = seen.emplace(OutputIdentity(path), option);
+    if (!inserted) {
+      throw std::invalid_argument(it->second + " and " + option + " name the same file '" + path + "'");
+    }
+  }
+}
+
+bool IsTemporaryFileName(const std::string& name, long* pid) {
+  // ".<name>.tmp-<pid>-<hex>" as TempPathFor makes it.
+  if (name.size() < 2 || name[0] != '.') return false;
+  const size_t tmp = name.rfind(".tmp-");
+  if (tmp == std::string::npos || tmp == 0) return false;
+  const size_t dash = name.find('-', tmp + 5);
+  if (dash == std::string::npos) return false;
+  const std::string pid_text = name.substr(tmp + 5, dash - tmp - 5);
+  const std::string hex = name.substr(dash + 1);
+  if (pid_text.empty() || pid_text.size() > 10 || hex.empty() || hex.size() > 16) return false;
+  if (pid_text.find_first_not_of("0123456789") != std::string::npos) return false;
+  if (hex.find_first_not_of("0123456789abcdef") != std::string::npos) return false;
+  *pid = std::stol(pid_text);
+  return *pid > 0;
+}
+
+bool ProcessIsGone(long pid) {
+  if (pid <= 0 || pid == ::getpid()) return false;
+  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
+}
+
+int RemoveStaleTemporaryDirectories(const std::filesystem::path& dir, const std::string& prefix) {
+  std::error_code ec;
+  std::filesystem::directory_iterator it(dir.empty() ? std::filesystem::path(".") : dir, ec);
+  if (ec) return 0;
+  std::vector<std::filesystem::path> stale;
+  for (const std::filesystem::directory_entry& entry : it) {
+    const std::string name = entry.path().filename().string();
+    const size_t at = name.rfind(prefix);
+    if (at == std::string::npos || (at != 0 && name[0] != '.')) continue;
+    const std::string pid_text = name.substr(at + prefix.size());
+    if (pid_text.empty() || pid_text.size() > 10 || pid_text.find_first_not_of("0123456789") != std::string::npos) {
+      continue;
+    }
+    if (!entry.is_directory(ec) || entry.is_symlink(ec)) continue;
+    if (ProcessIsGone(std::stol(pid_text))) stale.push_back(entry.path());
+  }
+  int removed = 0;
+  for (const std::filesystem::path& path : stale) {
+    if (std::filesystem::remove_all(path, ec) > 0) ++removed;
+  }
+  return removed;
+}
+
+int RemoveStaleTemporaries(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::directory_iterator it(dir.empty() ? std::filesystem::path(".") : dir, ec);
+  if (ec) return 0;
+  int removed = 0;
+  for (const std::filesystem::directory_entry& entry : it) {
+    long pid = 0;
+    if (!IsTemporaryFileName(entry.path().filename().string(), &pid)) continue;
+    if (!entry.is_regular_file(ec) || entry.is_symlink(ec)) continue;
+    if (!ProcessIsGone(pid)) continue;  // only a writer that is gone
+    if (std::filesystem::remove(entry.path(), ec)) ++removed;
+  }
+  return removed;
 }
 
 std::string ReadTextFile(const std::filesystem::path& path) {
@@ -145,9 +278,20 @@ long LineOfOffset(std::string_view text, size_t offset) {
   return 1 + static_cast<long>(std::count(text.begin(), text.begin() + offset, '\n'));
 }
 
+std::string CheckMarkerSize(double size_m) {
+  if (size_m >= kMinMarkerSizeM && size_m <= kMaxMarkerSizeM) return "";
+  return "expected a size between " + FormatDouble(kMinMarkerSizeM) + " and " + FormatDouble(kMaxMarkerSizeM) +
+         " m, got " + FormatDouble(size_m);
+}
+
 bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, SE3d* T, std::string* why) {
   if (!t.allFinite()) {
     *why = "t: expected 3 finite numbers";
+    return false;
+  }
+  if (t.cwiseAbs().maxCoeff() > kMaxCoordinateM) {
+    *why = "t: expected coordinates within +-" + FormatDouble(kMaxCoordinateM) + " m, got " +
+           FormatDouble(t.cwiseAbs().maxCoeff());
     return false;
   }
   if (!q_xyzw.allFinite()) {
@@ -313,7 +457,8 @@ std::vector<std::string> YamlStrings(const std::filesystem::path& path, const YA
 SE3d YamlPose(const std::filesystem::path& path, const YAML::Node& node, const std::string& what) {
   if (!node.IsMap())
     ThrowYamlError(path, node, what + ": expected a map {t, q_xyzw}, got " + YamlTypeName(node));
-  const std::vector<double> t = YamlNumbers(path, YamlRequire(path, node, "t"), what + ".t", 3);
+  const YAML::Node t_node = YamlRequire(path, node, "t");
+  const std::vector<double> t = YamlNumbers(path, t_node, what + ".t", 3);
   const YAML::Node q_node = YamlRequire(path, node, "q_xyzw");
   const std::vector<double> q = YamlNumbers(path, q_node, what + ".q_xyzw", 4);
   for (const auto& key_value : node) {
@@ -325,7 +470,7 @@ SE3d YamlPose(const std::filesystem::path& path, const YAML::Node& node, const s
   std::string why;
   if (!MakePoseFromFile(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Vector4d(q[0], q[1], q[2], q[3]), &T,
                         &why)) {
-    ThrowYamlError(path, q_node, what + "." + why);
+    ThrowYamlError(path, why.rfind("t:", 0) == 0 ? t_node : q_node, what + "." + why);
   }
   return T;
 }
@@ -383,7 +528,9 @@ class TrackingIterator {
   size_t* furthest_;
 };
 
-// SAX handler recording the line where every value is (the line of its last character read).
+// SAX handler that checks the nesting depth (kMaxJsonDepth) and, when `lines` is not null,
+// records the line where every value is (the line of its last character read). Lines are
+// counted incrementally (the lexer only moves forward), so the pass is linear in the text.
 class LineRecorder {
  public:
   using number_integer_t = nlohmann::json::number_integer_t;
@@ -407,17 +554,30 @@ class LineRecorder {
   bool end_object() { return Close(); }
   bool end_array() { return Close(); }
   bool key(string_t& key) {
-    stack_.back().key = key;
+    if (lines_ != nullptr) stack_.back().key = key;
     return true;
   }
   bool parse_error(std::size_t position, const std::string&, const nlohmann::detail::exception& e) {
     error_offset_ = position;
-    error_message_ = e.what();
+    error_message_ = ShortMessage(e.what());
     return false;
   }
-  // Set when the text is not valid JSON: the byte count read when it failed, and nlohmann's message.
+  // Set when the text is not valid JSON or nests too deep: the byte count read when it
+  // failed, and the message (nlohmann's without its prefix, or ours).
   const std::optional<size_t>& error_offset() const { return error_offset_; }
   const std::string& error_message() const { return error_message_; }
+
+  // 1-based line of the byte at `offset`, counting on from the last offset asked for.
+  long LineAt(size_t offset) {
+    offset = std::min(offset, text_.size());
+    if (offset < counted_to_) {  // not expected: the lexer only moves forward
+      counted_to_ = 0;
+      counted_line_ = 1;
+    }
+    counted_line_ += static_cast<long>(std::count(text_.begin() + counted_to_, text_.begin() + offset, '\n'));
+    counted_to_ = offset;
+    return counted_line_;
+  }
 
  private:
   struct Level {
@@ -427,18 +587,36 @@ class LineRecorder {
     std::string key;
   };
 
+  // nlohmann's message without the "[json.exception...] parse error at line L, column C: " prefix.
+  static std::string ShortMessage(const std::string& what) {
+    const size_t column = what.find("column ");
+    if (column != std::string::npos) {
+      const size_t colon = what.find(": ", column);
+      if (colon != std::string::npos) return what.substr(colon + 2);
+    }
+    const size_t bracket = what.find("] ");
+    return bracket == std::string::npos ? what : what.substr(bracket + 2);
+  }
+
   // Field path of the value about to be recorded.
   std::string CurrentField() {
     if (stack_.empty()) return "";
     Level& level = stack_.back();
     return level.is_array ? JsonField(level.field, level.next_index++) : JsonField(level.field, level.key);
   }
-  long CurrentLine() const { return LineOfOffset(text_, *furthest_ > 0 ? *furthest_ - 1 : 0); }
+  long CurrentLine() { return LineAt(*furthest_ > 0 ? *furthest_ - 1 : 0); }
   bool Value() {
-    (*lines_)[CurrentField()] = CurrentLine();
+    if (lines_ != nullptr) (*lines_)[CurrentField()] = CurrentLine();
     return true;
   }
   bool Open(bool is_array) {
+    if (depth_ >= kMaxJsonDepth) {
+      error_offset_ = *furthest_;
+      error_message_ = "arrays and objects nested deeper than " + std::to_string(kMaxJsonDepth) + " levels";
+      return false;
+    }
+    ++depth_;
+    if (lines_ == nullptr) return true;
     Level level;
     level.field = CurrentField();
     level.is_array = is_array;
@@ -447,7 +625,8 @@ class LineRecorder {
     return true;
   }
   bool Close() {
-    stack_.pop_back();
+    --depth_;
+    if (lines_ != nullptr) stack_.pop_back();
     return true;
   }
 
@@ -455,19 +634,25 @@ class LineRecorder {
   const size_t* furthest_;
   std::map<std::string, long>* lines_;
   std::vector<Level> stack_;
+  int depth_ = 0;
+  size_t counted_to_ = 0;
+  long counted_line_ = 1;
   std::optional<size_t> error_offset_;
   std::string error_message_;
 };
 
-// nlohmann's message without the "[json.exception...] parse error at line L, column C: " prefix.
-std::string ShortJsonMessage(const std::string& what) {
-  const size_t column = what.find("column ");
-  if (column != std::string::npos) {
-    const size_t colon = what.find(": ", column);
-    if (colon != std::string::npos) return what.substr(colon + 2);
-  }
-  const size_t bracket = what.find("] ");
-  return bracket == std::string::npos ? what : what.substr(bracket + 2);
+// A SAX pass over `text`: checks syntax, number range and depth, and fills `lines` if not
+// null. Returns the error (its 1-based line within `text` and its message) if any.
+std::optional<std::pair<long, std::string>> CheckJson(std::string_view text, std::map<std::string, long>* lines) {
+  size_t furthest = 0;
+  LineRecorder recorder(text, &furthest, lines);
+  const char* begin = text.data();
+  const bool valid =
+      nlohmann::json::sax_parse(TrackingIterator(begin, begin, &furthest),
+                                TrackingIterator(begin, begin + text.size(), &furthest), &recorder);
+  if (valid) return std::nullopt;
+  const size_t offset = recorder.error_offset().value_or(furthest);
+  return std::make_pair(recorder.LineAt(offset > 0 ? offset - 1 : 0), recorder.error_message());
 }
 
 const char* JsonTypeName(const nlohmann::json& value) {
@@ -484,25 +669,44 @@ const char* JsonTypeName(const nlohmann::json& value) {
 
 nlohmann::json ParseJsonDocument(const std::string& text, const std::filesystem::path& path,
                                  std::map<std::string, long>* lines) {
-  // A first pass with a SAX handler gives the line of every value, and of a syntax error
-  // (including numbers out of double range, which nlohmann reports without a position).
-  std::map<std::string, long> local_lines;
-  size_t furthest = 0;
-  LineRecorder recorder(text, &furthest, lines != nullptr ? lines : &local_lines);
-  const char* begin = text.data();
-  const bool valid =
-      nlohmann::json::sax_parse(TrackingIterator(begin, begin, &furthest),
-                                TrackingIterator(begin, begin + text.size(), &furthest), &recorder);
-  if (!valid) {
-    const size_t offset = recorder.error_offset().value_or(furthest);
-    throw FormatError(path, LineOfOffset(text, offset > 0 ? offset - 1 : 0),
-                      "invalid JSON: " + ShortJsonMessage(recorder.error_message()));
+  // A first pass with a SAX handler checks the depth and gives the line of every value, and
+  // of a syntax error (including numbers out of double range, which nlohmann's DOM parser
+  // reports without a position).
+  if (const auto error = CheckJson(text, lines)) {
+    throw FormatError(path, error->first, "invalid JSON: " + error->second);
   }
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {  // not expected after the first pass
-    throw FormatError(path, "invalid JSON: " + ShortJsonMessage(e.what()));
+    throw FormatError(path, std::string("invalid JSON: ") + e.what());
   }
+}
+
+nlohmann::json ParseJsonLine(std::string_view line, const std::filesystem::path& path, long line_number) {
+  if (const auto error = CheckJson(line, nullptr)) {
+    throw FormatError(path, line_number, "invalid JSON: " + error->second);
+  }
+  try {
+    return nlohmann::json::parse(line);
+  } catch (const nlohmann::json::exception& e) {  // not expected after the first pass
+    throw FormatError(path, line_number, std::string("invalid JSON: ") + e.what());
+  }
+}
+
+JsonSource JsonSourceForText(const std::filesystem::path& path, std::string_view text) {
+  // Built at the first question: reading a valid file records no line at all.
+  auto lines = std::make_shared<std::optional<JsonSource>>();
+  JsonSource source;
+  source.path = path;
+  source.line_of = [path, text, lines](const std::string& field) -> std::optional<long> {
+    if (!*lines) {
+      std::map<std::string, long> all;
+      if (CheckJson(text, &all)) all.clear();  // not valid JSON: no line is known
+      *lines = JsonSourceWithLines(path, std::move(all));
+    }
+    return (*lines)->line_of(field);
+  };
+  return source;
 }
 
 JsonSource JsonSourceWithLines(const std::filesystem::path& path, std::map<std::string, long> lines) {
@@ -613,7 +817,8 @@ SE3d JsonPose(const JsonSource& source, const nlohmann::json& value, const std::
   std::string why;
   if (!MakePoseFromFile(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Vector4d(q[0], q[1], q[2], q[3]), &T,
                         &why)) {
-    ThrowJsonError(source, JsonField(field, "q_xyzw"), why.substr(why.find(": ") + 2));
+    const std::string key = why.substr(0, why.find(": "));  // "t" or "q_xyzw"
+    ThrowJsonError(source, JsonField(field, key), why.substr(why.find(": ") + 2));
   }
   return T;
 }

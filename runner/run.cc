@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "runner/image.h"
 #include "io/util.h"
 
 namespace waymark {
@@ -126,11 +127,8 @@ std::vector<std::string> DetectionFamilies(const MarkerMap& map, const std::vect
 
 std::optional<DetectionFrame> DetectImageFile(MarkerDetector& detector, const std::filesystem::path& file,
                                               double stamp_s, const std::string& camera, std::string* why) {
-  const cv::Mat image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-  if (image.empty()) {
-    if (why) *why = file.string() + ": cannot read the image";
-    return std::nullopt;
-  }
+  const cv::Mat image = ReadImageFile(file, why);
+  if (image.empty()) return std::nullopt;
   DetectionFrame frame;
   frame.stamp_s = stamp_s;
   frame.camera = camera;
@@ -311,17 +309,30 @@ void LocalizeStream::CheckMapMatches(bool at_end) const {
 
 void RealtimePacer::WaitFor(double stamp_s) {
   if (!std::isfinite(stamp_s)) return;
-  const auto now = std::chrono::steady_clock::now();
-  if (!start_wall_) {
-    start_wall_ = now;
-    start_stamp_s_ = stamp_s;
+  if (!target_wall_) {
+    target_wall_ = std::chrono::steady_clock::now();
+    last_stamp_s_ = stamp_s;
     return;
   }
-  const double offset_s = stamp_s - start_stamp_s_;
-  if (offset_s <= 0.0) return;
-  const auto target = *start_wall_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                         std::chrono::duration<double>(offset_s));
-  if (target > now) std::this_thread::sleep_until(target);
+  double gap_s = stamp_s - last_stamp_s_;
+  if (!(gap_s > 0.0)) return;
+  last_stamp_s_ = stamp_s;
+  if (gap_s > max_gap_s_) {
+    gap_s = max_gap_s_;
+    ++shortened_gaps_;
+  }
+  // Each due time follows the previous one (not the first): the capped gaps add up, and the
+  // duration converted is at most max_gap_s, far from the clock's range.
+  *target_wall_ += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap_s));
+  if (*target_wall_ > std::chrono::steady_clock::now()) std::this_thread::sleep_until(*target_wall_);
+}
+
+std::string RealtimePacer::Summary() const {
+  if (shortened_gaps_ == 0) return "";
+  std::ostringstream text;
+  text << "--realtime: " << shortened_gaps_ << " stamp gap" << (shortened_gaps_ == 1 ? "" : "s") << " longer than "
+       << max_gap_s_ << " s " << (shortened_gaps_ == 1 ? "was" : "were") << " waited as " << max_gap_s_ << " s";
+  return text.str();
 }
 
 }  // namespace waymark
@@ -458,6 +469,7 @@ LocalizeRun RunLocalizer(const Dataset& dataset, const MarkerMap& map, const Loc
   run.warnings = stream.warnings().Lines();
   for (const std::string& line : image_warnings.Lines()) run.warnings.push_back(line);
   if (stream.frames_with_codes() == 0) run.warnings.push_back("no code detected in the whole run");
+  if (!pacer.Summary().empty()) run.warnings.push_back(pacer.Summary());
   run.frames_with_codes = stream.frames_with_codes();
   run.frames_with_map_codes = stream.frames_with_map_codes();
   return run;

@@ -198,14 +198,26 @@ class LocalizeStream {
   long frames_with_map_codes_ = 0;
 };
 
-// Sleeps so that inputs are released at the pace of their stamps (the first stamp is "now").
+// The longest wait --realtime makes for one gap between consecutive stamps: a recording
+// paused for an hour (or a stamp jump from 0 to 1e6) is replayed with this pause instead.
+inline constexpr double kMaxRealtimeGapS = 1.0;
+
+// Sleeps so that inputs are released at the pace of their stamps (the first stamp is "now"),
+// each gap between consecutive stamps waited for at most `max_gap_s` (the longer gaps are
+// counted: shortened_gaps()). Stamps going backwards do not wait.
 class RealtimePacer {
  public:
+  explicit RealtimePacer(double max_gap_s = kMaxRealtimeGapS) : max_gap_s_(max_gap_s) {}
   void WaitFor(double stamp_s);
+  long shortened_gaps() const { return shortened_gaps_; }
+  // "--realtime: 2 stamp gaps longer than 1 s were waited as 1 s", or "" when none was.
+  std::string Summary() const;
 
  private:
-  std::optional<std::chrono::steady_clock::time_point> start_wall_;
-  double start_stamp_s_ = 0.0;
+  double max_gap_s_;
+  std::optional<std::chrono::steady_clock::time_point> target_wall_;  // when the last stamp was due
+  double last_stamp_s_ = 0.0;
+  long shortened_gaps_ = 0;
 };
 
 }  // namespace waymark

@@ -12,6 +12,11 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang-format
 )
+# scripts/install-deps.sh --fuzz adds what scripts/fuzz.sh needs: clang with its sanitizer
+# and libFuzzer runtimes (docs/reliability.md). Not part of the default install.
+if [[ "${1:-}" == "--fuzz" ]]; then
+  packages+=(clang libclang-rt-14-dev libfuzzer-14-dev)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

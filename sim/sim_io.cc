@@ -39,6 +39,7 @@ void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint6
   std::error_code ec;
   fs::create_directories(parent, ec);
   if (ec) throw std::runtime_error(parent.string() + ": cannot create directory: " + ec.message());
+  RemoveStaleTemporaryDirectories(parent, ".sim-tmp-");  // of a killed `waymark sim`
   const fs::path temp =
       parent / ("." + target.filename().string() + ".sim-tmp-" + std::to_string(::getpid()));
   fs::remove_all(temp, ec);

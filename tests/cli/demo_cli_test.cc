@@ -49,6 +49,27 @@ std::map<std::string, nlohmann::json> TableRows(const nlohmann::json& report) {
   return rows;
 }
 
+// Issue 18, finding 9: scripts/demo.sh OUT_DIR began with `rm -rf "$OUT_DIR"`, so
+// `scripts/demo.sh ~/robot` wiped the user's directory. The script now deletes nothing and
+// hands a relative OUT_DIR to the binary as the caller meant it (a stub binary records it).
+TEST_F(DemoCliTest, DemoScriptDeletesNothingOfTheUsers) {
+  const fs::path user_dir = dir_ / "robot";
+  fs::create_directories(user_dir / "notes");
+  AtomicWriteFile(user_dir / "notes" / "calibration.txt", "precious\n");
+  const fs::path stub = dir_ / "stub.sh";
+  AtomicWriteFile(stub, "#!/bin/sh\nprintf '%s\\n' \"$@\" > " + (dir_ / "args.txt").string() + "\n");
+  fs::permissions(stub, fs::perms::owner_all);
+  const std::string script = (fs::path(WAYMARK_SOURCE_DIR) / "scripts" / "demo.sh").string();
+  const std::string env = "WAYMARK_DEMO_SKIP_SETUP=1 WAYMARK_DEMO_BINARY=" + stub.string() + " ";
+  ASSERT_EQ(std::system((env + script + " " + user_dir.string()).c_str()), 0);
+  EXPECT_EQ(ReadTextFile(user_dir / "notes" / "calibration.txt"), "precious\n");
+  EXPECT_NE(ReadTextFile(dir_ / "args.txt").find("--out\n" + user_dir.string() + "\n"), std::string::npos);
+  // A relative OUT_DIR is the caller's, not the source tree's.
+  ASSERT_EQ(std::system(("cd " + dir_.string() + " && " + env + script + " robot").c_str()), 0);
+  EXPECT_NE(ReadTextFile(dir_ / "args.txt").find("--out\n" + user_dir.string() + "\n"), std::string::npos);
+  EXPECT_EQ(ReadTextFile(user_dir / "notes" / "calibration.txt"), "precious\n");
+}
+
 TEST_F(DemoCliTest, ShippedDataGivesTheTableWithOursBest) {
   const fs::path out = dir_ / "out";
   const RunResult demo = Run("demo --data " + DemoData().string() + " --out " + out.string());

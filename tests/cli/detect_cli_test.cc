@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -142,6 +143,50 @@ TEST_F(DetectCli, VideoFramesAreNumbered) {
     EXPECT_FALSE(frames[i].image.has_value());
     EXPECT_EQ(Keys(frames[i]), std::set<std::string>{"apriltag-36h11:" + std::to_string(i)});
   }
+}
+
+// Issue 18, finding 3: an 8-bit PNG of 2000x1 (or 4000x1, 20000x4) ended `detect` with a raw
+// OpenCV assertion (resize.cpp, !dsize.empty()); now a normal empty result.
+TEST_F(DetectCli, OddImageShapesGiveAnEmptyResult) {
+  for (const cv::Size size : {cv::Size(2000, 1), cv::Size(4000, 1), cv::Size(20000, 4), cv::Size(1, 3000),
+                              cv::Size(1, 1)}) {
+    cv::Mat image(size, CV_8U);
+    cv::randu(image, 0, 256);
+    const fs::path file = dir_ / ("odd_" + std::to_string(size.width) + "x" + std::to_string(size.height) + ".png");
+    ASSERT_TRUE(cv::imwrite(file.string(), image));
+    const fs::path out = dir_ / "odd.jsonl";
+    ASSERT_EQ(Run(file.string() + " --out " + out.string()), 0) << file << ": " << Stderr();
+    const auto frames = ReadBack(out);
+    ASSERT_EQ(frames.size(), 1u);
+    EXPECT_TRUE(frames[0].markers.empty());
+  }
+}
+
+// Issue 18, finding 3: a corrupt PNG printed libpng's warnings beside the one-line error.
+TEST_F(DetectCli, CorruptPngIsOneLineWithoutDecoderNoise) {
+  std::vector<uchar> png;
+  ASSERT_TRUE(cv::imencode(".png", Scene("P/1", 1), png));
+  // A wrong CRC in the header chunk, and a file cut in the middle of its pixels.
+  std::vector<uchar> bad_crc = png;
+  bad_crc[29] ^= 0xff;
+  std::ofstream(dir_ / "crc.png", std::ios::binary).write(reinterpret_cast<const char*>(bad_crc.data()), bad_crc.size());
+  std::ofstream(dir_ / "cut.png", std::ios::binary).write(reinterpret_cast<const char*>(png.data()), png.size() / 2);
+  // A PNG header declaring 100000 x 100000 pixels: refused before decoding.
+  std::vector<uchar> huge(png.begin(), png.begin() + 33);
+  for (int i = 0; i < 2; ++i) {
+    const uint32_t side = 100000;
+    for (int b = 0; b < 4; ++b) huge[16 + 4 * i + b] = static_cast<uchar>(side >> (24 - 8 * b));
+  }
+  std::ofstream(dir_ / "huge.png", std::ios::binary).write(reinterpret_cast<const char*>(huge.data()), huge.size());
+  for (const std::string name : {"crc.png", "cut.png", "huge.png"}) {
+    EXPECT_EQ(Run((dir_ / name).string() + " --out " + (dir_ / "never.jsonl").string()), 1) << name;
+    const std::string err = Stderr();
+    EXPECT_NE(err.find(name + ": cannot read image"), std::string::npos) << err;
+    EXPECT_EQ(err.find("libpng"), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    EXPECT_FALSE(fs::exists(dir_ / "never.jsonl"));
+  }
+  EXPECT_NE(Stderr().find("larger than the limit"), std::string::npos) << Stderr();
 }
 
 TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {

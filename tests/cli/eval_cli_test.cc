@@ -107,6 +107,21 @@ MapMarker CliMarker(const std::string& id, double x, double y, std::optional<int
   return m;
 }
 
+// Issue 18, finding 4: `--json ok.json --plot afile/p.svg` exited 1 but left ok.json.
+TEST_F(EvalCliTest, SeveralOutputsAreAllOrNothing) {
+  WriteHandCase(Path("gt.tum"), Path("est.tum"));
+  AtomicWriteFile(Path("afile"), "a plain file\n");
+  const std::string inputs = "--est " + Path("est.tum") + " --gt " + Path("gt.tum");
+  const RunResult r = Run(inputs + " --json " + Path("ok.json") + " --plot " + Path("afile/p.svg"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("afile/p.svg"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(Path("ok.json")));
+  const RunResult same = Run(inputs + " --json " + Path("x") + " --report " + Path("x"));
+  EXPECT_EQ(same.exit_code, 1);
+  EXPECT_NE(same.err.find("--json and --report name the same file"), std::string::npos) << same.err;
+  EXPECT_FALSE(fs::exists(Path("x")));
+}
+
 TEST_F(EvalCliTest, MapAgainstMap) {
   // Component 0: a, b, c moved rigidly (errors 0). Component 1: d alone, moved rigidly (0).
   // e is only in the truth, f only in the estimate.

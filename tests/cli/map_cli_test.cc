@@ -76,6 +76,23 @@ TEST_F(MapCliTest, BuildWritesMapAndTrajectoryAndSummary) {
   EXPECT_NE(build.out.find("mm RMS after alignment"), std::string::npos) << build.out;
 }
 
+// Issue 18, finding 4: `map build --out ok.json --trajectory afile/t.tum` exited 1 but left
+// ok.json; the same file for two outputs is refused before the build.
+TEST_F(MapCliTest, SeveralOutputsAreAllOrNothing) {
+  const fs::path survey = SmallSurvey();
+  AtomicWriteFile(dir_ / "afile", "a plain file\n");
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "ok.json").string() +
+                              " --trajectory " + (dir_ / "afile" / "t.tum").string());
+  EXPECT_EQ(build.exit_code, 1);
+  EXPECT_NE(build.err.find("afile/t.tum"), std::string::npos) << build.err;
+  EXPECT_FALSE(fs::exists(dir_ / "ok.json"));
+  const RunResult same = Run("map build " + survey.string() + " --out " + (dir_ / "m.json").string() +
+                             " --report " + (dir_ / "m.json").string());
+  EXPECT_EQ(same.exit_code, 1);
+  EXPECT_NE(same.err.find("--out and --report name the same file"), std::string::npos) << same.err;
+  EXPECT_FALSE(fs::exists(dir_ / "m.json"));
+}
+
 TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {
   const fs::path survey = SmallSurvey();
   ASSERT_EQ(Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string()).exit_code, 0);

@@ -168,6 +168,18 @@ TEST(PayloadTest, InvalidSpecsThrowClearErrors) {
   expect_error({"^(.*)/(.*)$", {"x", "x"}}, "appears twice");
   expect_error({"^(.*)/(.*)$", {"id", "x"}}, "`x` needs both `x` and `y`");
   expect_error({"^(.*)/(.*)$", {"id", "z"}}, "`z` needs both");
+  // Issue 18 (found by fuzz/payload_fuzz.cc): a repeated group that repeats inside takes
+  // exponential time in std::regex; such patterns are refused, single repetitions are not.
+  expect_error({"^ID=(\\w+);X=([^;]*)+Y=(.*)$", {"id", "x", "y"}}, "a repeated group holds a repetition itself");
+  expect_error({"^((a+))*$", {"x", "y"}}, "a repeated group holds a repetition itself");
+  expect_error({"^(?:a|b*){2,}(c)$", {"id"}}, "a repeated group holds a repetition itself");
+  EXPECT_NO_THROW(ValidatePayloadSpec({"^([a+]+)$", {"id"}}));          // '+' in a class is a character
+  EXPECT_NO_THROW(ValidatePayloadSpec({"^\\(a+\\)+$", {}}));  // escaped parentheses are characters
+  EXPECT_NO_THROW(ValidatePayloadSpec({"^(?:;Z=([^;]*))?(x{2,3})*$", {"a", "b"}}));  // bounded outer repetitions
+  // Also found by fuzz/payload_fuzz.cc: std::regex's compiler overflows an int on a huge count.
+  expect_error({"^(a{77777777777777777777})$", {"id"}}, "a number of more than 6 digits");
+  expect_error({"^(\\\\777777777777777777777)$", {"id"}}, "a number of more than 6 digits");
+  EXPECT_NO_THROW(ValidatePayloadSpec({"^(\\d{1,6})/(x{12})$", {"a", "b"}}));
   // Non-capturing groups do not count; a spec without coordinates is valid.
   EXPECT_NO_THROW(ValidatePayloadSpec({"^(?:L|R)-(\\d+)$", {"shelf"}}));
   const PayloadParser attributes_only({"^(?:L|R)-(\\d+)$", {"shelf"}});

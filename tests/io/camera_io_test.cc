@@ -94,6 +94,27 @@ TEST(CameraIoTest, ErrorsNameFileLineAndField) {
   EXPECT_THAT(ParseError(""), HasSubstr("cameras/cam0.yaml: expected a map of keys"));
 }
 
+// Issue 18, finding 8: a translation of 1e308 and k1 = 1e9 were accepted; the build then
+// "succeeded" with every view rejected. Out-of-range values are one-line errors with the line.
+TEST(CameraIoTest, PhysicallyMeaninglessValuesAreErrors) {
+  EXPECT_EQ(ParseError(GoodCameraWith("t: [0.1, 0.0, 0.0]", "t: [1e308, 0.0, 0.0]")),
+            "cameras/cam0.yaml:7: T_robot_camera.t: expected coordinates within +-1e+07 m, got 1e+308");
+  EXPECT_EQ(ParseError(GoodCameraWith("t: [0.1, 0.0, 0.0]", "t: [0.1, 150, 0.0]")),
+            "cameras/cam0.yaml:7: T_robot_camera.t: expected the camera within 100 m of the robot, got "
+            "150.0000333333296 m");
+  EXPECT_EQ(ParseError(GoodCameraWith("[-0.233024,", "[1e9,")),
+            "cameras/cam0.yaml:5: distortion: expected coefficients within +-100, got 1e+09");
+  EXPECT_EQ(ParseError(GoodCameraWith("[1506.9,", "[1e9,")),
+            "cameras/cam0.yaml:4: intrinsics: expected focal lengths up to 1e+06 px, got 1e+09");
+  EXPECT_THAT(ParseError(GoodCameraWith("641.176", "1e7")),
+              HasSubstr("cameras/cam0.yaml:4: intrinsics: expected the principal point within one image size"));
+  EXPECT_EQ(ParseError(GoodCameraWith("pixel_sigma: 1.0", "pixel_sigma: 1e300")),
+            "cameras/cam0.yaml:9: pixel_sigma: expected a positive number of pixels up to 1000, got 1e+300");
+  CameraInfo camera = ParseCameraYaml(kGoodCamera, "cameras/cam0.yaml", "cam0");
+  camera.distortion[0] = 1e9;
+  EXPECT_THROW(FormatCameraYaml(camera), std::invalid_argument);  // the writer refuses it too
+}
+
 TEST(CameraIoTest, MissingFileAndUnknownKeys) {
   try {
     ReadCameraYaml("/nonexistent/cameras/cam9.yaml");

@@ -173,6 +173,11 @@ TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
   EXPECT_THAT(ParseError(GoodYamlWith("motion: planar\n", "")),
               HasSubstr("dataset.yaml:1: missing key 'motion'"));
   EXPECT_THAT(ParseError("format: [\n"), HasSubstr("dataset.yaml:2: invalid YAML"));
+  // Issue 18, finding 8: physically meaningless sizes and heights.
+  EXPECT_THAT(ParseError(GoodYamlWith("0.10", "9223372036854775808")),
+              HasSubstr("dataset.yaml:6: default_marker_size_m: expected a size between 1e-04 and 100 m"));
+  EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, y], default_z_m: 1e300")),
+              HasSubstr("dataset.yaml:8: payload.default_z_m: expected a coordinate within +-1e+07 m"));
 }
 
 TEST(DatasetIoTest, ImagesCsv) {

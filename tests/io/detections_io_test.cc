@@ -142,6 +142,34 @@ TEST(DetectionsIoTest, ACornerJustOutsideTheImageIsKept) {
   EXPECT_EQ(warnings.counts["corner outside image"], 1);
 }
 
+// Issue 18, finding 2: a line of 10^6 markers was accepted (minutes of work per frame), and
+// the same code twice in one frame silently.
+TEST(DetectionsIoTest, MarkersPerFrameAreLimitedAndDuplicatesDropped) {
+  std::string many;
+  for (size_t i = 0; i <= kMaxMarkersPerFrame; ++i) {
+    many += std::string(i ? "," : "") + R"({"family": "qr", "id": ")" + std::to_string(i) +
+            R"(", "corners_px": [[10, 20], [30, 20], [30, 40], [10, 40]]})";
+  }
+  EXPECT_THAT(ParseError(Line(1, kMarker) + Line(2, many)),
+              HasSubstr("detections.jsonl:2: markers: expected at most 1000 markers in one frame, got 1001"));
+  const std::string other =
+      R"({"family": "qr", "id": "other", "corners_px": [[100, 20], [130, 20], [130, 40], [100, 40]]})";
+  ReadWarnings warnings;
+  const std::vector<DetectionFrame> frames = ParseDetections(
+      Line(1, std::string(kMarker) + "," + other + "," + kMarker), "detections.jsonl", &warnings);
+  ASSERT_EQ(frames.size(), 1u);
+  ASSERT_EQ(frames[0].markers.size(), 1u);
+  EXPECT_EQ(frames[0].markers[0].key.id, "other");
+  EXPECT_EQ(warnings.counts["duplicate marker in frame"], 1);
+  ASSERT_EQ(warnings.first_messages.size(), 1u);
+  EXPECT_EQ(warnings.first_messages[0],
+            "detections.jsonl:1: markers: qr:0/2/10 seen 2 times in one frame, all ignored");
+  DetectionFrame big;
+  big.camera = "cam0";
+  big.markers.resize(kMaxMarkersPerFrame + 1, frames[0].markers[0]);
+  EXPECT_THROW(FormatDetectionLine(big), std::invalid_argument);
+}
+
 TEST(DetectionsIoTest, MissingFileIsNamed) {
   ReadWarnings warnings;
   try {

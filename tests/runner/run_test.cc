@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <random>
 
@@ -391,6 +392,32 @@ TEST(RealtimePacerTest, ReleasesInputsAtThePaceOfTheirStamps) {
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_GE(elapsed_s, 0.08);
   EXPECT_LT(elapsed_s, 2.0);  // a loaded machine may oversleep, never by seconds
+}
+
+}  // namespace
+}  // namespace waymark
+
+namespace waymark {
+namespace {
+
+double SecondsOf(const std::function<void()>& work) {
+  const auto start = std::chrono::steady_clock::now();
+  work();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Issue 18, finding 6: a stamp jump from 0 to 1e6 waited 11 days, one of 1e12 overflowed the
+// clock conversion and did not wait at all. Each gap now waits at most the cap, and says so.
+TEST(RealtimePacerTest, GapsAreCappedAndCounted) {
+  RealtimePacer pacer(0.2);
+  pacer.WaitFor(0.0);
+  EXPECT_NEAR(SecondsOf([&] { pacer.WaitFor(0.1); }), 0.1, 0.08);  // a normal gap: waited
+  EXPECT_NEAR(SecondsOf([&] { pacer.WaitFor(1e6); }), 0.2, 0.1);   // capped
+  EXPECT_NEAR(SecondsOf([&] { pacer.WaitFor(1e18); }), 0.2, 0.1);  // no overflow: still waits
+  EXPECT_LT(SecondsOf([&] { pacer.WaitFor(5.0); }), 0.05);          // backwards: no wait
+  EXPECT_EQ(pacer.shortened_gaps(), 2);
+  EXPECT_EQ(pacer.Summary(), "--realtime: 2 stamp gaps longer than 0.2 s were waited as 0.2 s");
+  EXPECT_EQ(RealtimePacer().Summary(), "");
 }
 
 }  // namespace
