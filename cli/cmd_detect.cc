@@ -27,6 +27,7 @@
 #include "util/stats.h"
 #include "cli/command.h"
 #include "cli/dataset_detect.h"
+#include "cli/led_pairs.h"
 #include "io/camera_io.h"
 #include "io/dataset_io.h"
 #include "detect/common.h"
@@ -34,6 +35,8 @@
 #include "io/detections_io.h"
 #include "detect/detector.h"
 #include "io/util.h"
+#include "detect/square.h"
+#include "geometry/square_marker.h"
 
 namespace waymark::cli {
 namespace {
@@ -53,6 +56,11 @@ detections.jsonl; frames without codes get a line too). INPUT is
     row's stamp and camera;
   - a video file (.mp4 .avi .mkv .mov .webm .m4v .mpg .mpeg): "frame": N from 0, stamps
     from the video's clock.
+Family square (the large square ceiling marker of reflective tape, seed 002) is found in the
+LED pairs of a dataset (images.csv rows ending -on.<ext> and -off.<ext>, docs/formats.md) by
+detect/square.h; its side, tape and height come from the dataset's markers.json. A pair
+gives one line at the on image's stamp; with one square in markers.json the detection gets its
+id, with several the id "*" (the localizer tells them apart by its pose).
 Image inputs get t = 0 (photos have no time) unless they come from a dataset.
 
 Options:
@@ -61,7 +69,7 @@ Options:
                       have its size (default camera name: cam0)
   --families LIST     comma-separated families (default qr,datamatrix,apriltag-36h11);
                       any of: qr, datamatrix, apriltag-{16h5,25h9,36h10,36h11,circle21h7,
-                      circle49h12,custom48h12,standard41h12,standard52h13}
+                      circle49h12,custom48h12,standard41h12,standard52h13}, square
   --annotate DIR      also write each image with its detections drawn (PNG), corner 0
                       (top-left of the upright code) marked
   --max-candidates N  candidate regions per frame the QR/DataMatrix second passes try (8);
@@ -261,7 +269,9 @@ std::vector<ImageJob> ListDataset(const Dataset& dataset, const std::string& as_
   return jobs;
 }
 
-std::unique_ptr<MarkerDetector> MakeDetector(const Args& args) {
+// The code detector for the families other than square (nullptr if there are none);
+// *square is set when the list has square.
+std::unique_ptr<MarkerDetector> MakeDetector(const Args& args, bool* square) {
   DetectorOptions options;
   if (const auto regions = args.GetInt("max-candidates")) {
     if (*regions < 0 || *regions > 64) {
@@ -270,18 +280,115 @@ std::unique_ptr<MarkerDetector> MakeDetector(const Args& args) {
     options.max_candidates = static_cast<int>(*regions);
   }
   if (const auto decimate = args.GetDouble("apriltag-decimate")) options.apriltag_decimate = *decimate;
-  return CreateMultiDetector(ParseFamilyList(args.GetOr("families", kDefaultDetectFamilies)), options);
+  const std::string list = args.GetOr("families", kDefaultDetectFamilies);
+  std::string others;
+  *square = false;
+  std::stringstream stream(list);
+  for (std::string item; std::getline(stream, item, ',');) {
+    if (item == kFamilySquare) {
+      if (*square) throw std::invalid_argument("marker family 'square' repeated in '" + list + "'");
+      *square = true;
+    } else {
+      others += (others.empty() ? "" : ",") + item;
+    }
+  }
+  if (*square && others.empty()) {
+    if (list.back() == ',' || list.front() == ',') throw std::invalid_argument("empty marker family in '" + list + "'");
+    return nullptr;
+  }
+  return CreateMultiDetector(ParseFamilyList(others), options);
 }
 
-std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* detector, const RunOptions& run,
-                                     Annotator* annotator, Timing* timing) {
+cv::Mat ReadImage(const fs::path& file) {
+  const cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  if (image.empty()) throw std::runtime_error(file.string() + ": cannot read image (missing, corrupt or not an image)");
+  return image;
+}
+
+cv::Mat Gray(const cv::Mat& image) {
+  if (image.channels() == 1) return image;
+  cv::Mat gray;
+  cv::cvtColor(image, gray, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
+  return gray;
+}
+
+// A dataset with family square: squares in its LED pairs, the other families (if any) in the
+// on images and the unpaired rows.
+std::vector<DetectionFrame> RunDatasetPairs(const Dataset& dataset, const std::string& input, MarkerDetector* detector,
+                                            Annotator* annotator, Timing* timing) {
+  std::vector<LedPair> pairs;
+  std::vector<ImageEntry> others;
+  const std::string images_csv = (dataset.dir / dataset.config.images_file).string();
+  if (dataset.images.empty()) throw std::runtime_error(input + ": dataset has no images.csv rows to detect on");
+  SplitLedPairs(ImageRowsInStampOrder(dataset), images_csv, &pairs, &others);
+  if (pairs.empty()) {
+    throw std::runtime_error(images_csv + ": no LED pairs (rows ending -on.<ext> and -off.<ext>) for family square");
+  }
+  const MapMarker* only = OnlySquare(dataset);
+  std::map<std::string, SquareDetector> detectors;
+  std::vector<DetectionFrame> frames;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const LedPair& pair = pairs[i];
+    const fs::path on_file = dataset.dir / pair.on.path, off_file = dataset.dir / pair.off.path;
+    const cv::Mat on = ReadImage(on_file), off = ReadImage(off_file);
+    if (on.size() != off.size()) {
+      throw std::runtime_error(on_file.string() + ": LED pair: the on image is " + std::to_string(on.cols) + "x" +
+                               std::to_string(on.rows) + " but its off image " + pair.off.path + " is " +
+                               std::to_string(off.cols) + "x" + std::to_string(off.rows));
+    }
+    const CameraInfo& camera = dataset.cameras.at(pair.on.camera);
+    CheckImageMatchesCamera(on, camera, on_file.string());
+    auto it = detectors.find(camera.name);
+    if (it == detectors.end()) {
+      it = detectors.emplace(camera.name, SquareDetector(Camera(camera), SquareOptionsFor(dataset, camera))).first;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    DetectionFrame frame;
+    for (const SquareDetection& found : it->second.Detect(Gray(on), Gray(off))) {
+      MarkerObservation observation;
+      observation.key = {kFamilySquare, only ? only->key.id : kUnidentifiedSquareId};
+      observation.corners_px = only ? SolidFirstToMarkerOrder(found.corners_px, TapeOf(*only).solid_side)
+                                    : found.corners_px;
+      frame.markers.push_back(observation);
+    }
+    if (detector != nullptr) {
+      for (MarkerObservation& m : detector->Detect(on)) frame.markers.push_back(std::move(m));
+    }
+    timing->frame_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    timing->markers += static_cast<long>(frame.markers.size());
+    frame.stamp_s = pair.on.stamp_s;
+    frame.camera = pair.on.camera;
+    frame.image = pair.on.path;
+    annotator->Add(on, frame.markers, std::to_string(i) + "_" + on_file.stem().string());
+    frames.push_back(std::move(frame));
+    ShowProgress(frames.size(), static_cast<long>(pairs.size() + (detector ? others.size() : 0)));
+  }
+  if (detector != nullptr && !others.empty()) {
+    std::vector<ImageJob> jobs;
+    for (const ImageEntry& row : others) jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
+    for (DetectionFrame& f : RunImages(jobs, detector, dataset.cameras, annotator, timing)) frames.push_back(std::move(f));
+    std::stable_sort(frames.begin(), frames.end(),
+                     [](const DetectionFrame& a, const DetectionFrame& b) { return a.stamp_s < b.stamp_s; });
+  }
+  return frames;
+}
+
+std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* detector, bool square,
+                                     const RunOptions& run, Annotator* annotator, Timing* timing) {
   const fs::path path(input);
   std::map<std::string, CameraInfo> cameras;
   const std::string camera_name = run.camera ? run.camera->name : run.default_camera;
   if (run.camera) cameras[camera_name] = *run.camera;
+  const bool is_dataset = fs::is_directory(path) && fs::exists(path / "dataset.yaml");
+  if (square && !is_dataset) {
+    throw std::runtime_error(input + ": family square is detected in the LED pairs of a dataset (a directory with "
+                                     "dataset.yaml and images.csv)");
+  }
   if (fs::is_directory(path)) {
-    if (fs::exists(path / "dataset.yaml")) {
+    if (is_dataset) {
       const Dataset dataset = LoadDataset(path);
+      if (square) return RunDatasetPairs(dataset, input, detector, annotator, timing);
       return RunImages(ListDataset(dataset, input), detector, dataset.cameras, annotator, timing);
     }
     return RunImages(ListImageDir(path, input, camera_name), detector, cameras, annotator, timing);
@@ -304,10 +411,12 @@ int RunDetect(const std::vector<std::string>& argv) {
   RunOptions run;
   if (const auto camera = args.Get("camera")) run.camera = ReadCameraYaml(*camera);
   if (const auto dir = args.Get("annotate")) run.annotate_dir = fs::path(*dir);
-  std::unique_ptr<MarkerDetector> detector = MakeDetector(args);
+  bool square = false;
+  std::unique_ptr<MarkerDetector> detector = MakeDetector(args, &square);
   Annotator annotator(run.annotate_dir);
   Timing timing;
-  const std::vector<DetectionFrame> frames = RunInput(args.positionals()[0], detector.get(), run, &annotator, &timing);
+  const std::vector<DetectionFrame> frames =
+      RunInput(args.positionals()[0], detector.get(), square, run, &annotator, &timing);
   if (StderrIsTerminal()) std::cerr << "\n";
   WriteDetections(out, frames);
   annotator.Commit();

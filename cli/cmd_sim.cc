@@ -49,7 +49,8 @@ std::string Usage() {
          "  --print-config      print the effective keys as YAML and exit\n"
          "  --render            also render PNG images of the camera frames (images/<camera>/<n>.png,\n"
          "                      images.csv) and their exact code corners (groundtruth/corners.jsonl);\n"
-         "                      photometry from the render.* keys\n"
+         "                      photometry from the render.* keys; square-ceiling: infrared LED pairs\n"
+         "                      images/<camera>/<n>-on.png and <n>-off.png, photometry from the ir.* keys\n"
          "  --render-every N    render every N-th camera frame only (default 1)\n";
   for (const auto& [flag, key] : kShortcuts) {
     out << "  --" << flag << " V" << std::string(16 - flag.size(), ' ') << "same as --set " << key << "=V\n";
@@ -135,7 +136,13 @@ int RunSim(const std::vector<std::string>& argv) {
   const sim::SimResult result = sim::Simulate(scenario, params, static_cast<std::uint64_t>(seed));
   sim::RenderStats render_stats;
   std::function<void(const std::filesystem::path&)> render;
-  if (args.Flag("render")) {
+  if (args.Flag("render") && result.scene.ir_room) {
+    const sim::IrOptions options = sim::IrOptionsFromParams(params);
+    render = [&, options](const std::filesystem::path& dir) {
+      render_stats = sim::RenderIrRun(result, options, static_cast<std::uint64_t>(seed), render_every, dir,
+                                      ShowProgress);
+    };
+  } else if (args.Flag("render")) {
     const sim::RenderOptions options = sim::RenderOptionsFromParams(params);
     render = [&, options](const std::filesystem::path& dir) {
       render_stats = sim::RenderRun(result, options, static_cast<std::uint64_t>(seed), render_every, dir,

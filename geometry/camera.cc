@@ -29,6 +29,24 @@ double EquidistantThetaD(const std::vector<double>& d, double theta, double* slo
   return theta * (1.0 + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3]))));
 }
 
+// rho(theta) = 2 sin(theta/2) P(theta) and its derivative for the equisolid model,
+// P = 1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8.
+double EquisolidRho(const std::vector<double>& d, double theta, double* slope = nullptr) {
+  const double t2 = theta * theta;
+  const double poly = 1.0 + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3])));
+  const double base = 2.0 * std::sin(0.5 * theta);
+  if (slope != nullptr) {
+    const double dpoly = theta * (2.0 * d[0] + t2 * (4.0 * d[1] + t2 * (6.0 * d[2] + t2 * 8.0 * d[3])));
+    *slope = std::cos(0.5 * theta) * poly + base * dpoly;
+  }
+  return base * poly;
+}
+
+// The radial map of either fisheye model: image radius (normalized) of a ray theta off-axis.
+double FisheyeRho(CameraModel model, const std::vector<double>& d, double theta, double* slope = nullptr) {
+  return model == CameraModel::kEquisolid ? EquisolidRho(d, theta, slope) : EquidistantThetaD(d, theta, slope);
+}
+
 // First root of a function that is positive at `lo`, searched on the given grid of points
 // and refined by bisection; `hi_default` if it stays positive on the whole grid.
 template <typename F>
@@ -101,8 +119,9 @@ Camera::Camera(CameraInfo info) : info_(std::move(info)) {
     const double theta_end = 0.5 * M_PI - kThetaMargin;
     for (int i = 1; i <= 2000; ++i) grid.push_back(theta_end * i / 2000.0);
     double slope = 0.0;
-    const auto f = [&d, &slope](double theta) {
-      EquidistantThetaD(d, theta, &slope);
+    const CameraModel model = info_.model;
+    const auto f = [&d, &slope, model](double theta) {
+      FisheyeRho(model, d, theta, &slope);
       return slope;
     };
     max_radius_ = std::tan(FirstRoot(f, grid, theta_end));
@@ -125,17 +144,19 @@ Eigen::Vector2d Camera::Distort(const Eigen::Vector2d& xy, Eigen::Matrix2d* J) c
     }
     return xy_d;
   }
-  // Equidistant: (xd, yd) = s(u) (x, y), J = s I + 2 s'(u) (x, y)^T (x, y).
-  const double s = EquidistantScale(d, u);
+  // Fisheye: (xd, yd) = s(u) (x, y), J = s I + 2 s'(u) (x, y)^T (x, y).
+  const bool equisolid = info_.model == CameraModel::kEquisolid;
+  const double s = equisolid ? EquisolidScale(d, u) : EquidistantScale(d, u);
   if (J == nullptr) return s * xy;
   double ds_du = 0.0;
   if (u < kEquidistantSeriesR2) {
-    ds_du = (d[0] - 1.0 / 3.0) + 2.0 * u * (d[1] - d[0] + 0.2);
+    ds_du = equisolid ? (d[0] - 3.0 / 8.0) + 2.0 * u * (d[1] - 25.0 / 24.0 * d[0] + 31.0 / 128.0)
+                      : (d[0] - 1.0 / 3.0) + 2.0 * u * (d[1] - d[0] + 0.2);
   } else {
-    double theta_d_slope = 0.0;
-    EquidistantThetaD(info_.distortion, std::atan(std::sqrt(u)), &theta_d_slope);
-    // ds/dr = (theta_d'(theta) / (1 + u) - s) / r,  ds/du = ds/dr / (2 r).
-    ds_du = (theta_d_slope / (1.0 + u) - s) / (2.0 * u);
+    double rho_slope = 0.0;
+    FisheyeRho(info_.model, info_.distortion, std::atan(std::sqrt(u)), &rho_slope);
+    // ds/dr = (rho'(theta) / (1 + u) - s) / r,  ds/du = ds/dr / (2 r).
+    ds_du = (rho_slope / (1.0 + u) - s) / (2.0 * u);
   }
   *J = s * Eigen::Matrix2d::Identity() + 2.0 * ds_du * xy * xy.transpose();
   return s * xy;
@@ -164,7 +185,7 @@ std::optional<Eigen::Vector3d> Camera::Unproject(const Eigen::Vector2d& px) cons
   const Eigen::Vector2d xy_d((px.x() - k[2]) / k[0], (px.y() - k[3]) / k[1]);
   const std::optional<Eigen::Vector2d> xy = info_.model == CameraModel::kPinholeRadtan
                                                 ? UndistortRadtan(xy_d)
-                                                : UndistortEquidistant(xy_d);
+                                                : UndistortFisheye(xy_d);
   if (!xy) return std::nullopt;
   return Eigen::Vector3d(xy->x(), xy->y(), 1.0);
 }
@@ -201,13 +222,14 @@ std::optional<Eigen::Vector2d> Camera::UndistortRadtan(const Eigen::Vector2d& xy
   return xy;
 }
 
-std::optional<Eigen::Vector2d> Camera::UndistortEquidistant(const Eigen::Vector2d& xy_d) const {
+std::optional<Eigen::Vector2d> Camera::UndistortFisheye(const Eigen::Vector2d& xy_d) const {
   const std::vector<double>& d = info_.distortion;
+  const CameraModel model = info_.model;
   const double theta_d = xy_d.norm();
   if (theta_d == 0.0) return Eigen::Vector2d::Zero();
   const double theta_max = std::atan(max_radius_);
-  const auto theta_map = [&d](double theta, double* slope) { return EquidistantThetaD(d, theta, slope); };
-  if (EquidistantThetaD(d, theta_max) < theta_d) return std::nullopt;
+  const auto theta_map = [&d, model](double theta, double* slope) { return FisheyeRho(model, d, theta, slope); };
+  if (FisheyeRho(model, d, theta_max) < theta_d) return std::nullopt;
   const std::optional<double> theta = SolveIncreasing(theta_map, theta_d, 0.0, theta_max);
   if (!theta) return std::nullopt;
   const Eigen::Vector2d xy = xy_d * (std::tan(*theta) / theta_d);

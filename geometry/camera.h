@@ -1,7 +1,9 @@
 // Camera models: project a point in the camera frame (OpenCV: x right, y down, z forward)
-// to pixels, and back. Two models, both with OpenCV's conventions exactly:
+// to pixels, and back. Three models, the first two with OpenCV's conventions exactly:
 //   pinhole-radtan      OpenCV plumb-bob, distortion [k1 k2 p1 p2 k3] (cv::projectPoints)
 //   pinhole-equidistant OpenCV fisheye / Kalibr equidistant, [k1 k2 k3 k4] (cv::fisheye)
+//   equisolid           equisolid-angle fisheye (r = 2 f sin(theta/2), e.g. the FIT FI-23 lens
+//                       of seed 002), with the same polynomial in theta as equidistant, [k1 k2 k3 k4]
 // The projection is templated on the scalar so Ceres can differentiate it (Jets).
 // Intrinsics are [fx fy cx cy]. YAML reading is in io/camera_io.h, not here.
 //
@@ -12,13 +14,19 @@
 //   equidistant:  theta = atan(r),  theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)
 //                 xd = x s,  yd = y s,  s = theta_d / r   (s -> 1 as r -> 0, evaluated by a
 //                 series in u near r = 0 so that Jets never see the derivative of sqrt(0))
+//   equisolid:    as equidistant with theta replaced by 2 sin(theta / 2) in front of the polynomial:
+//                 rho = 2 sin(theta/2) (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8),
+//                 xd = x s,  yd = y s,  s = rho / r   (series near r = 0 likewise). With zero
+//                 coefficients the pixel radius is fx 2 sin(theta/2), fx = focal length / pixel pitch.
 //   pixel:        px = (fx xd + cx, fy yd + cy)   (no skew)
 //
 // Valid field of view. Both distortion polynomials eventually fold back (r_d stops growing
 // with r), after which OpenCV's formulas map far off-axis points to plausible pixels inside
 // the image. ProjectPoint<T> follows OpenCV exactly and only rejects Z <= kMinDepth;
 // Camera::Project and Camera::Unproject also reject points beyond the first fold
-// (Camera::max_normalized_radius()), where the model is not one-to-one.
+// (Camera::max_normalized_radius()), where the model is not one-to-one. The two fisheye
+// models are used up to theta = 90 deg at most (points are (x/z, y/z, 1) rays): a pixel
+// further out than 90 degrees off-axis has no ray.
 #pragma once
 
 #include <cmath>
@@ -39,7 +47,8 @@ bool ProjectPoint(CameraModel model, const T* intrinsics, const T* distortion, c
 
 inline constexpr double kMinDepth = 1e-6;
 
-// Below this u = r^2 the equidistant scale s = theta_d / r is evaluated by its series in u.
+// Below this u = r^2 the fisheye scales (equidistant s = theta_d / r, equisolid s = rho / r)
+// are evaluated by their series in u.
 inline constexpr double kEquidistantSeriesR2 = 1e-8;
 
 // Radtan distortion of normalized coordinates (x, y) -> (xd, yd); d = [k1 k2 p1 p2 k3].
@@ -69,6 +78,24 @@ T EquidistantScale(const T* d, const T& u) {
   return theta_d / r;
 }
 
+// Equisolid scale s(u) = rho / r with u = r^2; d = [k1 k2 k3 k4]. Near u = 0, from
+// 2 sin(atan(r)/2) / r = 1 - 3/8 u + 31/128 u^2 + O(u^3) and theta^2 = u - 2/3 u^2 + O(u^3):
+//   s = 1 + (k1 - 3/8) u + (k2 - 25/24 k1 + 31/128) u^2 + O(u^3).
+template <typename T>
+T EquisolidScale(const T* d, const T& u) {
+  using std::atan;
+  using std::sin;
+  using std::sqrt;
+  if (u < T(kEquidistantSeriesR2)) {
+    return T(1.0) + u * ((d[0] - T(3.0 / 8.0)) + u * (d[1] - T(25.0 / 24.0) * d[0] + T(31.0 / 128.0)));
+  }
+  const T r = sqrt(u);
+  const T theta = atan(r);
+  const T t2 = theta * theta;
+  const T rho = T(2.0) * sin(T(0.5) * theta) * (T(1.0) + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3]))));
+  return rho / r;
+}
+
 template <typename T>
 bool ProjectPoint(CameraModel model, const T* intrinsics, const T* distortion, const T* p_camera, T* px) {
   if (!(p_camera[2] > T(kMinDepth))) return false;  // also false for NaN depth
@@ -78,7 +105,8 @@ bool ProjectPoint(CameraModel model, const T* intrinsics, const T* distortion, c
   if (model == CameraModel::kPinholeRadtan) {
     DistortRadtan(distortion, x, y, &xd, &yd);
   } else {
-    const T s = EquidistantScale(distortion, T(x * x + y * y));
+    const T u = x * x + y * y;
+    const T s = model == CameraModel::kEquisolid ? EquisolidScale(distortion, u) : EquidistantScale(distortion, u);
     xd = x * s;
     yd = y * s;
   }
@@ -116,7 +144,7 @@ class Camera {
 
   // Largest normalized radius r = |(x/z, y/z)| inside the valid field of view: the first
   // fold of the distortion (d r_d / d r = 0), or +infinity if it never folds. For the
-  // equidistant model it is at most tan(pi/2 - 1e-6).
+  // fisheye models (equidistant, equisolid) it is at most tan(pi/2 - 1e-6).
   double max_normalized_radius() const { return max_radius_; }
 
   // Distorted normalized coordinates (xd, yd) of normalized (x, y) and, if J is given,
@@ -125,7 +153,8 @@ class Camera {
 
  private:
   std::optional<Eigen::Vector2d> UndistortRadtan(const Eigen::Vector2d& xy_d) const;
-  std::optional<Eigen::Vector2d> UndistortEquidistant(const Eigen::Vector2d& xy_d) const;
+  // Both fisheye models (equidistant, equisolid): solve rho(theta) = |xy_d| for theta.
+  std::optional<Eigen::Vector2d> UndistortFisheye(const Eigen::Vector2d& xy_d) const;
 
   CameraInfo info_;
   double max_radius_ = 0.0;  // see max_normalized_radius()

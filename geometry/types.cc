@@ -30,6 +30,8 @@ const char* CameraModelName(CameraModel model) {
       return "pinhole-radtan";
     case CameraModel::kPinholeEquidistant:
       return "pinhole-equidistant";
+    case CameraModel::kEquisolid:
+      return "equisolid";
   }
   return "unknown";
 }
@@ -37,6 +39,7 @@ const char* CameraModelName(CameraModel model) {
 std::optional<CameraModel> ParseCameraModel(const std::string& name) {
   if (name == "pinhole-radtan") return CameraModel::kPinholeRadtan;
   if (name == "pinhole-equidistant") return CameraModel::kPinholeEquidistant;
+  if (name == "equisolid") return CameraModel::kEquisolid;
   return std::nullopt;
 }
 

@@ -79,6 +79,19 @@ std::optional<SE3d> InterpolateTrajectory(const Trajectory& trajectory, double s
 // Rows F_i of a map's low-rank joint marker covariance (6 x k; mapping/map_covariance.h).
 using CovarianceFactor = Eigen::Matrix<double, 6, Eigen::Dynamic>;
 
+// The tape of a `square` marker (seed 002: retro-reflective tape on the ceiling). The marker's
+// size_m is the side between the tape's centrelines, so its corners (MarkerCorners) are where
+// the centrelines cross. One side is solid, the three others dashed: dashes of dash_m with
+// gaps of about gap_m, spread evenly so that a dash covers each end of the side. The math is in
+// geometry/square_marker.h.
+enum class SquareSide { kTop, kRight, kBottom, kLeft };  // top: corners 0-1, right: 1-2, ...
+struct SquareTape {
+  double tape_width_m = 0.05;
+  SquareSide solid_side = SquareSide::kTop;
+  double dash_m = 0.10;
+  double gap_m = 0.10;
+};
+
 // A marker in a map (map.json; also ground-truth and known markers).
 struct MapMarker {
   MarkerKey key;
@@ -91,6 +104,8 @@ struct MapMarker {
   // Optional rows F_i (6 x k) of the map's low-rank joint covariance, Sigma ~ F F^T + blockdiag(D_i)
   // with D_i = covariance - F_i F_i^T (mapping/map_covariance.h); k is the same for every marker.
   std::optional<CovarianceFactor> covariance_factor = std::nullopt;
+  // Family `square` only: its tape (absent: SquareTape's defaults, the paper's 50 mm tape).
+  std::optional<SquareTape> square_tape = std::nullopt;
 };
 
 struct MarkerMap {
@@ -101,9 +116,9 @@ struct MarkerMap {
   MapMarker* Find(const MarkerKey& key);
 };
 
-enum class CameraModel { kPinholeRadtan, kPinholeEquidistant };
+enum class CameraModel { kPinholeRadtan, kPinholeEquidistant, kEquisolid };
 
-// "pinhole-radtan" / "pinhole-equidistant"; ParseCameraModel returns nullopt otherwise.
+// "pinhole-radtan" / "pinhole-equidistant" / "equisolid"; ParseCameraModel returns nullopt otherwise.
 const char* CameraModelName(CameraModel model);
 std::optional<CameraModel> ParseCameraModel(const std::string& name);
 
@@ -114,7 +129,7 @@ struct CameraInfo {
   int width = 0;
   int height = 0;
   std::array<double, 4> intrinsics{};  // fx, fy, cx, cy
-  std::vector<double> distortion;      // radtan: k1 k2 p1 p2 k3; equidistant: k1 k2 k3 k4
+  std::vector<double> distortion;      // radtan: k1 k2 p1 p2 k3; equidistant, equisolid: k1 k2 k3 k4
   SE3d T_robot_camera;
   std::optional<double> pixel_sigma;   // corner noise, px
 

@@ -51,8 +51,9 @@ CameraModel ReadModel(const std::filesystem::path& path, const YAML::Node& root)
   if (!model) {
     ThrowYamlError(path, node,
                    "model: unknown camera model '" + name + "' (expected " +
-                       CameraModelName(CameraModel::kPinholeRadtan) + " or " +
-                       CameraModelName(CameraModel::kPinholeEquidistant) + ")");
+                       CameraModelName(CameraModel::kPinholeRadtan) + ", " +
+                       CameraModelName(CameraModel::kPinholeEquidistant) + " or " +
+                       CameraModelName(CameraModel::kEquisolid) + ")");
   }
   return *model;
 }

@@ -8,6 +8,7 @@
 
 #include "io/util.h"
 #include "io/json_util.h"
+#include "geometry/square_marker.h"
 
 namespace waymark {
 namespace {
@@ -51,6 +52,34 @@ CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann:
     ThrowJsonError(source, field, "expected covariance - F F^T positive semi-definite (F F^T exceeds the covariance)");
   }
   return factor;
+}
+
+// {"tape_width_m": 0.05, "solid_side": "top", "dash_m": 0.1, "gap_m": 0.1}, every key optional.
+SquareTape ParseSquareTape(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                           double side_m, ReadWarnings* warnings) {
+  if (!value.is_object()) ThrowJsonError(source, field, "expected an object");
+  SquareTape tape;
+  const auto number = [&](const char* key, double* out) {
+    if (const nlohmann::json* v = JsonMember(source, value, field, key, false)) {
+      *out = JsonNumber(source, *v, JsonField(field, key));
+    }
+  };
+  number("tape_width_m", &tape.tape_width_m);
+  number("dash_m", &tape.dash_m);
+  number("gap_m", &tape.gap_m);
+  if (const nlohmann::json* v = JsonMember(source, value, field, "solid_side", false)) {
+    const std::string name = JsonString(source, *v, JsonField(field, "solid_side"));
+    const std::optional<SquareSide> side = ParseSquareSide(name);
+    if (!side) {
+      ThrowJsonError(source, JsonField(field, "solid_side"),
+                     "expected top, right, bottom or left, got \"" + name + "\"");
+    }
+    tape.solid_side = *side;
+  }
+  std::string why;
+  if (!CheckSquareTape(tape, side_m, &why)) ThrowJsonError(source, field, why);
+  JsonWarnUnknownKeys(source, value, field, {"tape_width_m", "solid_side", "dash_m", "gap_m"}, warnings);
+  return tape;
 }
 
 MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
@@ -103,9 +132,20 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
     ThrowJsonError(source, JsonField(field, "T_world_marker"),
                    "expected a pose for a fixed marker or one with a covariance");
   }
+  if (const nlohmann::json* square = JsonMember(source, value, field, "square", false)) {
+    if (marker.key.family != kFamilySquare) {
+      ThrowJsonError(source, JsonField(field, "square"), "only a marker of family square has a tape");
+    }
+    marker.square_tape = ParseSquareTape(source, *square, JsonField(field, "square"), marker.size_m, warnings);
+  } else if (marker.key.family == kFamilySquare) {
+    std::string why;
+    if (!CheckSquareTape(SquareTape{}, marker.size_m, &why)) {
+      ThrowJsonError(source, JsonField(field, "size_m"), "too small for the default tape (" + why + ")");
+    }
+  }
   JsonWarnUnknownKeys(source, value, field,
                       {"family", "id", "size_m", "T_world_marker", "covariance", "covariance_factor", "fixed",
-                       "component"},
+                       "component", "square"},
                       warnings);
   return marker;
 }
@@ -189,6 +229,13 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
   }
   json["fixed"] = marker.fixed;
   if (marker.component) json["component"] = *marker.component;
+  if (marker.square_tape) {
+    const SquareTape& tape = *marker.square_tape;
+    json["square"] = {{"tape_width_m", tape.tape_width_m},
+                      {"solid_side", SquareSideName(tape.solid_side)},
+                      {"dash_m", tape.dash_m},
+                      {"gap_m", tape.gap_m}};
+  }
   return json;
 }
 
@@ -205,6 +252,11 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
     throw std::invalid_argument(name + "T_world_marker beyond the coordinate range");
   if (!marker.has_pose && (marker.fixed || marker.covariance))
     throw std::invalid_argument(name + "fixed or with a covariance but without a pose");
+  if (marker.square_tape) {
+    std::string why;
+    if (marker.key.family != kFamilySquare) throw std::invalid_argument(name + "a tape on a marker not of family square");
+    if (!CheckSquareTape(*marker.square_tape, marker.size_m, &why)) throw std::invalid_argument(name + why);
+  }
   if (marker.covariance && !marker.covariance->allFinite())
     throw std::invalid_argument(name + "covariance not finite");
   if (marker.covariance_factor &&

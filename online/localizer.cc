@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "geometry/square_marker.h"
 #include "online/chi_square.h"
 #include "online/marker_measurement.h"
 
@@ -329,15 +330,54 @@ void Localizer::FinishFrame(int accepted, double llr) {
   }
 }
 
+namespace {
+
+// A `square` detection's corners differ from a prediction by the pose's error times ~170 px/m
+// (seed 002's lens, 2 m up); squares of a map stand metres apart, hundreds of pixels.
+constexpr double kSquareGatePx = 100.0;
+
+// The square of the map a detection with the id "*" is (geometry/square_marker.h): the only one in
+// the map, or the one the tracked pose predicts (IdentifySquare). Leaves it "*" (unknown to the
+// map, counted as such) when neither tells.
+void IdentifySquareObservation(const MarkerMap& map, const Camera* camera, const std::optional<SE3d>& T_world_robot,
+                               MarkerObservation* observation) {
+  if (observation->key.family != kFamilySquare || observation->key.id != kUnidentifiedSquareId) return;
+  const MapMarker* only = nullptr;
+  int squares = 0;
+  for (const MapMarker& m : map.markers) {
+    if (m.key.family == kFamilySquare && m.has_pose) {
+      only = &m;
+      ++squares;
+    }
+  }
+  if (squares == 1) {
+    observation->key.id = only->key.id;
+    observation->corners_px = SolidFirstToMarkerOrder(observation->corners_px, TapeOf(*only).solid_side);
+    return;
+  }
+  if (camera == nullptr || !T_world_robot) return;
+  const std::optional<SquareMatch> match = IdentifySquare(
+      map, *camera, *T_world_robot * camera->info().T_robot_camera, observation->corners_px, kSquareGatePx);
+  if (!match) return;
+  observation->key.id = map.markers[match->index].key.id;
+  observation->corners_px = match->corners_px;
+}
+
+}  // namespace
+
 FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
   CameraFrame frame;
   frame.stamp_s = detections.stamp_s;
   frame.camera = detections.camera;
   frame.sightings.reserve(detections.markers.size());
+  const auto camera_it = cameras_.find(detections.camera);
+  const Camera* camera = camera_it == cameras_.end() ? nullptr : &camera_it->second;
+  const std::optional<SE3d> T_world_robot = HasTrack() ? std::optional<SE3d>(state_.T_world_robot()) : std::nullopt;
   for (const MarkerObservation& observation : detections.markers) {
     CodeSighting sighting;
     sighting.observation = observation;
-    sighting.solved = !map_.Find(observation.key);  // nothing to solve for an unknown code
+    IdentifySquareObservation(map_, camera, T_world_robot, &sighting.observation);
+    sighting.solved = !map_.Find(sighting.observation.key);  // nothing to solve for an unknown code
     frame.sightings.push_back(std::move(sighting));
   }
   return AddFrame(frame);

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <functional>
 
+#include "sim/ir_render.h"
 #include "sim/render.h"
 #include "sim/simulator.h"
 
@@ -28,5 +29,20 @@ struct RenderStats {
 RenderStats RenderRun(const SimResult& result, const RenderOptions& options, std::uint64_t seed, long every,
                       const std::filesystem::path& dir,
                       const std::function<void(long, long)>& progress = nullptr);
+
+// The square-ceiling scenario (SimResult::scene.ir_room set): every `every`-th camera frame as an
+// infrared LED pair (sim/ir_render.h) rendered with the true cameras:
+//   images/<camera>/<n>-on.png    LED on, at the frame's stamp t and true pose
+//   images/<camera>/<n>-off.png   LED off, at t + ir.pair_gap_s (robot and people moved on)
+//   images.csv                    both rows, on before off (docs/formats.md: LED pairs)
+//   groundtruth/corners.jsonl     exact corners of every square whose four corners are in the
+//                                 on image, at the on frame's stamp
+RenderStats RenderIrRun(const SimResult& result, const IrOptions& options, std::uint64_t seed, long every,
+                        const std::filesystem::path& dir,
+                        const std::function<void(long, long)>& progress = nullptr);
+
+// T_world_robot at `stamp_s` between the samples of `truth` (translation linear, rotation by
+// slerp); the first or last sample outside them.
+SE3d InterpolatePose(const Trajectory& truth, double stamp_s);
 
 }  // namespace waymark::sim

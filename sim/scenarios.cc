@@ -4,6 +4,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "geometry/square_marker.h"
 #include "sim/render.h"
 
 namespace waymark::sim {
@@ -117,6 +118,8 @@ const std::vector<ScenarioInfo>& Scenarios() {
        "8 cm DataMatrix codes on the walls of rooms joined by doors, plus one unconnected room ([George])"},
       {"warehouse-drone",
        "floor QR codes 0/x/y and load QR codes on racks, drone with down and front cameras ([Kang])"},
+      {"square-ceiling",
+       "2 m squares of reflective tape on the ceiling, upward equisolid fisheye, LED on/off pairs ([Seki])"},
   };
   return scenarios;
 }
@@ -506,12 +509,131 @@ Scene BuildWarehouseDrone(const ParamSet& p) {
   return scene;
 }
 
+// ---------------------------------------------------------------- square-ceiling
+
+ParamSet SquareCeilingParams() {
+  ParamSet p;
+  const SquareTape tape;
+  p.AddInt("place.squares", 1, 1, 50, "squares in a row along x (several: a larger room)");
+  p.AddDouble("place.square_spacing_m", 6.0, 0.5, 100.0, "distance between neighbouring squares' centres");
+  p.AddDouble("place.square_side_m", 2.0, 0.2, 20.0, "side between the tape's centrelines");
+  p.AddDouble("place.tape_width_m", tape.tape_width_m, 0.001, 1.0, "tape width");
+  p.AddDouble("place.dash_m", tape.dash_m, 0.001, 10.0, "dash length on the three dotted sides");
+  p.AddDouble("place.gap_m", tape.gap_m, 0.001, 10.0, "gap between dashes (at least; spread to fit)");
+  p.AddInt("place.solid_side", 0, 0, 3, "solid side: 0 top (marker +y), 1 right, 2 bottom, 3 left");
+  p.AddDouble("place.camera_height_m", 0.3, 0.0, 10.0, "camera height above the floor");
+  p.AddDouble("place.ceiling_above_camera_m", 2.0, 0.3, 20.0, "ceiling height above the camera (paper: 2 m)");
+  p.AddDouble("place.room_margin_m", 3.0, 0.5, 100.0, "room walls this far beyond the squares");
+  p.AddDouble("camera.focal_mm", 2.3, 0.1, 100.0, "focal length (FIT FI-23: 2.3 mm)");
+  p.AddDouble("camera.pixel_um", 6.7, 0.5, 50.0, "pixel pitch (Marlin F-131B: 6.7 um)");
+  p.AddInt("camera.width", 1280, 16, 10000, "image width");
+  p.AddInt("camera.height", 1024, 16, 10000, "image height");
+  p.AddDouble("camera.fov_deg", 160.0, 10.0, 180.0, "lens field of view (black beyond)");
+  p.AddDouble("camera.tilt_deg", 0.0, 0.0, 20.0, "true mount tilt off vertical; the calibration says upright");
+  p.AddDouble("camera.tilt_azimuth_deg", 0.0, -360.0, 360.0, "direction of the tilt (0: towards robot +x)");
+  p.AddDouble("camera.lens_error_k1", 0.0, -1.0, 1.0, "true lens k1 (equisolid polynomial); the calibration says 0");
+  p.AddDouble("camera.focal_error", 0.0, -0.5, 0.5, "true focal length / calibrated one - 1");
+  p.AddDouble("path.half_side_m", 1.2, 0.0, 50.0, "loop: rectangle this far around the squares' centres");
+  p.AddInt("path.loops", 1, 1, 100, "times round the loop");
+  AddCommonParams(&p, OdometryKind::kWheel, {0.3, 6.0, 75.0, 0.02, 0.02, 0.3, 45.0});
+  AddIrParams(&p);
+  return p;
+}
+
+Scene BuildSquareCeiling(const ParamSet& p) {
+  Scene scene;
+  World& world = scene.world;
+  world.name = "sim-square-ceiling";
+  const int squares = static_cast<int>(p.Int("place.squares"));
+  const double spacing = p.Double("place.square_spacing_m"), side = p.Double("place.square_side_m");
+  const double cam_h = p.Double("place.camera_height_m"), ceiling_z = cam_h + p.Double("place.ceiling_above_camera_m");
+  SquareTape tape;
+  tape.tape_width_m = p.Double("place.tape_width_m");
+  tape.dash_m = p.Double("place.dash_m");
+  tape.gap_m = p.Double("place.gap_m");
+  tape.solid_side = static_cast<SquareSide>(p.Int("place.solid_side"));
+  std::string why;
+  if (!CheckSquareTape(tape, side, &why)) throw std::invalid_argument("place: " + why);
+  if (squares > 1 && spacing < side + tape.tape_width_m + 0.1) {
+    throw std::invalid_argument("place.square_spacing_m: squares would overlap");
+  }
+  world.default_marker_size_m = side;
+  for (int i = 0; i < squares; ++i) {
+    SimMarker m;
+    m.key = {kFamilySquare, "S" + std::to_string(i)};
+    m.size_m = side;
+    // Facing down; marker x along world +x, y along world -y (seen from below, upright).
+    m.T_world_marker = SE3d(RotationFromZY({0, 0, -1}, {0, -1, 0}), Eigen::Vector3d(i * spacing, 0.0, ceiling_z));
+    m.anchor = true;  // the squares' positions are known (the paper measures them)
+    m.square_tape = tape;
+    world.markers.push_back(m);
+  }
+  const double margin = p.Double("place.room_margin_m"), half = 0.5 * side;
+  IrRoom room;
+  room.room_min = Eigen::Vector2d(-half - margin, -half - margin);
+  room.room_max = Eigen::Vector2d((squares - 1) * spacing + half + margin, half + margin);
+  room.ceiling_z = ceiling_z;
+  const int lamps = static_cast<int>(p.Int("ir.lamps"));
+  for (int k = 0; k < lamps; ++k) {  // around the first square, 0.4 m outside its tape
+    const double a = 2.0 * M_PI * k / std::max(1, lamps) + 0.3;
+    room.lamps.emplace_back((half + 0.4) * std::sqrt(2.0) * std::cos(a), (half + 0.4) * std::sqrt(2.0) * std::sin(a));
+  }
+  AddRectangleWalls(room.room_min.x(), room.room_min.y(), room.room_max.x(), room.room_max.y(), ceiling_z, &world.occluders);
+  scene.ir_room = room;
+
+  // The camera: equisolid, fx = focal / pixel pitch; truly tilted and with the lens' own error,
+  // while the calibration the dataset gets is the nominal one, upright.
+  CameraInfo nominal;
+  nominal.name = "up";
+  nominal.model = CameraModel::kEquisolid;
+  nominal.width = static_cast<int>(p.Int("camera.width"));
+  nominal.height = static_cast<int>(p.Int("camera.height"));
+  const double f_px = p.Double("camera.focal_mm") * 1e-3 / (p.Double("camera.pixel_um") * 1e-6);
+  nominal.intrinsics = {f_px, f_px, 0.5 * nominal.width, 0.5 * nominal.height};
+  nominal.distortion = {0.0, 0.0, 0.0, 0.0};
+  nominal.T_robot_camera = Mount({0, 0, cam_h}, {0, 0, 1}, {-1, 0, 0});
+  CameraInfo truth = nominal;
+  truth.intrinsics[0] = truth.intrinsics[1] = f_px * (1.0 + p.Double("camera.focal_error"));
+  truth.distortion[0] = p.Double("camera.lens_error_k1");
+  const double tilt = p.Double("camera.tilt_deg") * kDegToRad, azimuth = p.Double("camera.tilt_azimuth_deg") * kDegToRad;
+  // Tilt the optical axis towards robot direction (cos azimuth, sin azimuth, 0).
+  const Eigen::Vector3d tilt_axis(-std::sin(azimuth), std::cos(azimuth), 0.0);
+  truth.T_robot_camera = SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(tilt, tilt_axis)) * nominal.T_robot_camera.rotation(),
+                              nominal.T_robot_camera.translation());
+  Camera{truth};  // checks the true calibration (throws std::runtime_error if unusable)
+  world.cameras.push_back(truth);
+  world.calibrated_cameras.push_back(nominal);
+
+  // The loop: a rectangle path.half_side_m around the squares' centres, counter-clockwise from
+  // its corner (-a, -a) facing +x, path.loops times, then back to the start heading.
+  const double a = p.Double("path.half_side_m");
+  const double x1 = (squares - 1) * spacing + a;
+  if (a + 0.3 > margin + half) throw std::invalid_argument("path.half_side_m: the loop leaves the room");
+  PlanarPathBuilder path(SE2d(-a, -a, 0.0), p.Double("rate.odometry_hz"), p.Double("robot.speed_mps"),
+                         p.Double("robot.turn_rate_dps") * kDegToRad);
+  for (long loop = 0; loop < p.Int("path.loops"); ++loop) {
+    if (a > 0.0) {
+      path.DriveTo({x1, -a});
+      path.DriveTo({x1, a});
+      path.DriveTo({-a, a});
+      path.DriveTo({-a, -a});
+    } else {
+      path.TurnBy(M_PI);  // a loop of no size: turn round on the spot under the square
+      path.TurnBy(M_PI);
+    }
+  }
+  path.TurnTo(0.0);
+  scene.truth = path.Build();
+  return scene;
+}
+
 // The scenario's own keys, without the render.* keys.
 std::optional<ParamSet> PlaceParams(const std::string& scenario) {
   if (scenario == "corridor") return CorridorParams();
   if (scenario == "ceiling-grid") return CeilingParams();
   if (scenario == "rooms") return RoomsParams();
   if (scenario == "warehouse-drone") return DroneParams();
+  if (scenario == "square-ceiling") return SquareCeilingParams();
   return std::nullopt;
 }
 
@@ -519,7 +641,7 @@ std::optional<ParamSet> PlaceParams(const std::string& scenario) {
 
 ParamSet ScenarioParams(const std::string& scenario) {
   if (std::optional<ParamSet> params = PlaceParams(scenario)) {
-    AddRenderParams(&*params);
+    if (scenario != "square-ceiling") AddRenderParams(&*params);  // it has its ir.* keys instead
     return *params;
   }
   std::string known;
@@ -532,6 +654,7 @@ Scene BuildScene(const std::string& scenario, const ParamSet& params) {
   if (scenario == "ceiling-grid") return BuildCeilingGrid(params);
   if (scenario == "rooms") return BuildRooms(params);
   if (scenario == "warehouse-drone") return BuildWarehouseDrone(params);
+  if (scenario == "square-ceiling") return BuildSquareCeiling(params);
   ScenarioParams(scenario);  // throws the message that lists the known scenarios
   throw std::logic_error("scenario without a builder: " + scenario);
 }

@@ -15,12 +15,17 @@
 //                    door and the robot is carried there (odometry restarts).
 //   warehouse-drone  [Kang]: floor QR codes "0/x/y" in the aisles, load QR codes on the rack
 //                    faces; a down-looking and a front-looking camera; 6-DoF flight.
+//   square-ceiling   seed 002: one (or several) large squares of retro-reflective tape on the
+//                    ceiling, an upward equisolid fisheye with blinking infrared LEDs, a loop under
+//                    the squares; rendered as LED-on/LED-off pairs (sim/ir_render.h).
 // docs/sim.md gives every key, the geometry and the noise models.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "sim/ir_render.h"
 #include "sim/motion.h"
 #include "sim/params.h"
 #include "sim/world.h"
@@ -46,6 +51,8 @@ struct Scene {
   World world;
   SimTrajectory truth;  // T_world_robot at the odometry rate
   OdometryKind odometry = OdometryKind::kWheel;
+  // Set for a scene rendered as infrared LED pairs (square-ceiling) instead of by sim/render.h.
+  std::optional<IrRoom> ir_room;
 };
 
 // The place and the path of `scenario` for `params` (deterministic; no noise).

@@ -135,7 +135,7 @@ void FillPlace(const SimResult& result, const ParamSet& params, Dataset* dataset
       OdometrySigma{params.Double("odometry.trans_per_m"), params.Double("odometry.rot_per_rad")};
   config.payload = world.payload;
   const double sigma_px = params.Double("detect.pixel_sigma_px");
-  for (CameraInfo camera : world.cameras) {
+  for (CameraInfo camera : world.calibrated_cameras.empty() ? world.cameras : world.calibrated_cameras) {
     if (sigma_px > 0.0) camera.pixel_sigma = sigma_px;
     config.cameras.push_back(camera.name);
     dataset->cameras[camera.name] = camera;
@@ -146,6 +146,7 @@ void FillPlace(const SimResult& result, const ParamSet& params, Dataset* dataset
     entry.key = m.key;
     entry.size_m = m.size_m;
     entry.T_world_marker = m.T_world_marker;
+    entry.square_tape = m.square_tape;
     truth.markers.push_back(entry);
     // markers.json lists every code's size; only anchors also give their (fixed) pose.
     entry.fixed = m.anchor;
@@ -199,7 +200,7 @@ SimResult Simulate(const std::string& scenario, const ParamSet& params, std::uin
   std::mt19937_64 rng = MakeRng(seed, kDetectionStream);
   DetectionDrawer drawer(world, limits, noise, &rng);
   std::vector<Camera> cameras;
-  for (const CameraInfo& info : world.cameras) cameras.emplace_back(dataset.cameras.at(info.name));
+  for (const CameraInfo& info : world.cameras) cameras.emplace_back(info);  // the true ones
   std::vector<int> frame_segments;
   for (size_t k = 0; k < truth.size(); k += stride) {
     for (const Camera& camera : cameras) {

@@ -32,6 +32,7 @@ struct SimMarker {
   SE3d T_world_marker;  // z out of the printed face, y up as read (docs/design.md)
   bool anchor = false;  // its pose is given as known (markers.json, fixed)
   int region = 0;       // scenario-defined grouping (room, rack face, ...), for tests and docs
+  std::optional<SquareTape> square_tape;  // family square: its tape (absent: the defaults)
 };
 
 // An opaque rectangle: the part |x| <= half_width_m, |y| <= half_height_m of the x-y
@@ -67,7 +68,10 @@ struct World {
   MotionModel motion = MotionModel::kPlanar;
   std::vector<SimMarker> markers;
   std::vector<Occluder> occluders;
-  std::vector<CameraInfo> cameras;
+  std::vector<CameraInfo> cameras;  // the true cameras (lens and mount)
+  // The calibration the dataset is given (cameras/<name>.yaml) where it differs from the truth
+  // (lens calibration error, mount tilt); empty: the true cameras.
+  std::vector<CameraInfo> calibrated_cameras;
   std::optional<PayloadSpec> payload;
   double default_marker_size_m = 0.0;
 };

@@ -35,6 +35,20 @@ inline CameraInfo TagslamFisheyeInfo() {
   return info;
 }
 
+// Seed 002's camera: 1280x1024 NIR (Marlin F-131B, 6.7 um pixels) behind an equisolid-angle
+// fisheye (FIT FI-23, f = 2.3 mm, 160 degrees): fx = 2.3 mm / 6.7 um = 343.28 px, so the 160 degree
+// circle is 2 fx sin(40 deg) = 441 px in radius and fits the 1024 px height.
+inline CameraInfo Seed002EquisolidInfo() {
+  CameraInfo info;
+  info.name = "seed002-cam0";
+  info.model = CameraModel::kEquisolid;
+  info.width = 1280;
+  info.height = 1024;
+  info.intrinsics = {2.3e-3 / 6.7e-6, 2.3e-3 / 6.7e-6, 640.0, 512.0};
+  info.distortion = {0.0, 0.0, 0.0, 0.0};
+  return info;
+}
+
 // An ideal pinhole camera (no distortion), principal point at the image centre.
 inline CameraInfo IdealPinholeInfo(const std::string& name, int width, int height, double focal_px) {
   CameraInfo info;

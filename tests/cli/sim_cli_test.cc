@@ -159,7 +159,7 @@ TEST_F(SimCliTest, RenderOptionsAreChecked) {
 
 TEST_F(SimCliTest, UnknownScenarioFailsCleanly) {
   ExpectCleanFailure(Waymark("sim hallway --out out"),
-                     "unknown scenario 'hallway' (known: corridor, ceiling-grid, rooms, warehouse-drone)");
+                     "unknown scenario 'hallway' (known: corridor, ceiling-grid, rooms, warehouse-drone, square-ceiling)");
   ExpectCleanFailure(Waymark("sim --out out"), "missing scenario");
 }
 

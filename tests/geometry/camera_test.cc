@@ -1,7 +1,9 @@
 // Tests of geometry/camera.h against OpenCV, central differences, Ceres Jets, and itself
 // (project o unproject). The two calibrations are real ones, typed in from
 // /work/shared/data/tagslam: tagslam-test16 cam0 (radtan, strong barrel distortion) and
-// tagslam-test22 cam0 (RealSense T265 fisheye, equidistant).
+// tagslam-test22 cam0 (RealSense T265 fisheye, equidistant). The equisolid model (no OpenCV
+// counterpart) is checked against its closed form r = 2 f sin(theta/2) on seed 002's camera,
+// and with a distortion polynomial.
 #include "geometry/camera.h"
 #include "tests/test_cameras.h"
 
@@ -22,6 +24,16 @@ CameraInfo RadtanInfo() { return testing::TagslamRadtanInfo(); }
 // T265 sensor (848 x 800) say the image is 848 wide; the grid below covers 848 x 848 so that
 // either reading is tested.
 CameraInfo FisheyeInfo() { return testing::TagslamFisheyeInfo(); }
+
+CameraInfo EquisolidInfo() { return testing::Seed002EquisolidInfo(); }
+
+// Seed 002's camera with a distortion polynomial (as a calibration would give).
+CameraInfo DistortedEquisolidInfo() {
+  CameraInfo info = testing::Seed002EquisolidInfo();
+  info.intrinsics = {343.0, 344.1, 641.3, 509.7};
+  info.distortion = {0.012, -0.004, 0.0007, -0.0002};
+  return info;
+}
 
 cv::Matx33d CvK(const CameraInfo& info) {
   const auto& k = info.intrinsics;
@@ -97,6 +109,119 @@ TEST(CameraTest, FisheyeRoundTripOverWholeImage) {
   EXPECT_LE(worst_px, 1e-6);
 }
 
+// Every pixel of the image within 90 degrees of the axis comes back from its ray; pixels
+// further out (the image corners of seed 002's camera) have no ray.
+void ExpectFisheyeRoundTrip(const Camera& camera, int min_inside, int min_outside) {
+  const auto& k = camera.info().intrinsics;
+  const double r_edge = camera.max_normalized_radius() * (1.0 - 1e-9);
+  const Eigen::Vector2d px_edge = *camera.Project(Eigen::Vector3d(r_edge, 0.0, 1.0));
+  const double rho_edge = (px_edge.x() - k[2]) / k[0];
+  double worst_px = 0.0;
+  int inside = 0, outside = 0;
+  for (double v = 0.0; v <= camera.height(); v += 3.0) {
+    for (double u = 0.0; u <= camera.width(); u += 3.0) {
+      const Eigen::Vector2d px(u, v);
+      const double rho = Eigen::Vector2d((u - k[2]) / k[0], (v - k[3]) / k[1]).norm();
+      const std::optional<Eigen::Vector3d> ray = camera.Unproject(px);
+      if (rho > rho_edge * (1.0 + 1e-9)) {
+        EXPECT_FALSE(ray.has_value()) << "pixel " << px.transpose() << " is outside the field of view";
+        ++outside;
+        continue;
+      }
+      if (rho > rho_edge * (1.0 - 1e-9)) continue;  // on the edge: either answer is right
+      ASSERT_TRUE(ray.has_value()) << "pixel " << px.transpose();
+      const std::optional<Eigen::Vector2d> back = camera.Project(*ray);
+      ASSERT_TRUE(back.has_value()) << "pixel " << px.transpose();
+      worst_px = std::max(worst_px, (*back - px).norm());
+      ++inside;
+    }
+  }
+  EXPECT_GT(inside, min_inside);
+  EXPECT_GT(outside, min_outside);
+  EXPECT_LE(worst_px, 1e-6);
+}
+
+TEST(CameraTest, EquisolidRoundTripOverWholeImage) {
+  const Camera ideal(EquisolidInfo());
+  // No fold: the ideal lens is used up to 90 degrees (1e-6 rad short).
+  EXPECT_NEAR(std::atan(ideal.max_normalized_radius()), 0.5 * M_PI, 1e-5);
+  ExpectFisheyeRoundTrip(ideal, 70000, 20000);
+  ExpectFisheyeRoundTrip(Camera(DistortedEquisolidInfo()), 70000, 20000);
+}
+
+// r = 2 f sin(theta / 2): the ideal model against the closed form in long double, and seed
+// 002's lens: its 160 degree field of view is a circle of 441 px radius.
+TEST(CameraTest, EquisolidMatchesClosedForm) {
+  const Camera camera(EquisolidInfo());
+  const double f = camera.info().intrinsics[0];
+  for (const Eigen::Vector3d& p : RandomPoints(2000, std::tan(85.0 * M_PI / 180.0), 21)) {
+    const long double theta = std::atan2(std::hypot(static_cast<long double>(p.x()), p.y()),
+                                         static_cast<long double>(p.z()));
+    const long double r = 2.0L * f * std::sin(theta / 2.0L), a = std::atan2(p.y(), p.x());
+    const std::optional<Eigen::Vector2d> px = camera.Project(p);
+    ASSERT_TRUE(px.has_value());
+    EXPECT_NEAR(px->x(), static_cast<double>(640.0L + r * std::cos(a)), 1e-9);
+    EXPECT_NEAR(px->y(), static_cast<double>(512.0L + r * std::sin(a)), 1e-9);
+  }
+  const double theta_80 = 80.0 * M_PI / 180.0;
+  const Eigen::Vector2d edge = *camera.Project(Eigen::Vector3d(std::sin(theta_80), 0.0, std::cos(theta_80)));
+  EXPECT_NEAR(edge.x() - 640.0, 441.3, 0.1);
+  // A ray 80 degrees off-axis comes back from its pixel.
+  const std::optional<Eigen::Vector3d> ray = camera.Unproject(edge);
+  ASSERT_TRUE(ray.has_value());
+  EXPECT_NEAR(std::atan(ray->x()), theta_80, 1e-12);
+}
+
+TEST(CameraTest, EquisolidOnAxisJacobianIsFocalOverDepth) {
+  const Camera camera(DistortedEquisolidInfo());
+  Eigen::Matrix<double, 2, 3> J;
+  const std::optional<Eigen::Vector2d> px = camera.Project(Eigen::Vector3d(0.0, 0.0, 2.0), &J);
+  ASSERT_TRUE(px.has_value());
+  EXPECT_DOUBLE_EQ(px->x(), 641.3);
+  EXPECT_DOUBLE_EQ(px->y(), 509.7);
+  Eigen::Matrix<double, 2, 3> expected;
+  expected << 343.0 / 2.0, 0.0, 0.0, 0.0, 344.1 / 2.0, 0.0;
+  EXPECT_LE((J - expected).norm(), 1e-12);
+}
+
+// The r -> 0 series of the equisolid scale s(u) = rho / r against the closed form in long
+// double, on both sides of the switch, and its slope s'(0) = k1 - 3/8.
+TEST(CameraTest, EquisolidSeriesMatchesClosedForm) {
+  const std::vector<double> d = DistortedEquisolidInfo().distortion;
+  const auto closed_form = [&d](long double u) {
+    const long double r = std::sqrt(u), theta = std::atan(r), t2 = theta * theta;
+    return 2.0L * std::sin(theta / 2.0L) * (1.0L + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3])))) / r;
+  };
+  for (double u : {1e-14, 1e-11, 1e-9, 0.999e-8, 1.001e-8, 1e-7}) {
+    EXPECT_NEAR(EquisolidScale(d.data(), u), static_cast<double>(closed_form(u)), 1e-15) << u;
+    const long double h = 1e-3L * u;
+    const double slope = static_cast<double>((closed_form(u + h) - closed_form(u - h)) / (2.0L * h));
+    using Jet = ceres::Jet<double, 1>;
+    const Jet d_jet[4] = {Jet(d[0]), Jet(d[1]), Jet(d[2]), Jet(d[3])};
+    const Jet s = EquisolidScale(d_jet, Jet(u, 0));
+    if (u >= 1e-9) {  // below, long double differences are noise
+      EXPECT_NEAR(s.v(0), slope, 1e-6) << u;
+    }
+    EXPECT_NEAR(s.v(0), d[0] - 3.0 / 8.0, 1e-6) << u;
+  }
+}
+
+// A distortion polynomial that folds back: rays past the fold are refused both ways.
+TEST(CameraTest, EquisolidFoldIsOutsideTheValidFieldOfView) {
+  CameraInfo info = EquisolidInfo();
+  info.distortion = {-0.3, 0.0, 0.0, 0.0};
+  const Camera camera(info);
+  const double theta_max = std::atan(camera.max_normalized_radius());
+  EXPECT_LT(theta_max, 1.2);
+  const auto rho = [](double theta) { return 2.0 * std::sin(0.5 * theta) * (1.0 - 0.3 * theta * theta); };
+  EXPECT_GT(rho(theta_max), rho(theta_max * 0.99));
+  EXPECT_GT(rho(theta_max), rho(theta_max * 1.01));
+  EXPECT_FALSE(camera.Project(Eigen::Vector3d(std::tan(theta_max * 1.01), 0.0, 1.0)).has_value());
+  EXPECT_TRUE(camera.Project(Eigen::Vector3d(std::tan(theta_max * 0.99), 0.0, 1.0)).has_value());
+  const double f = info.intrinsics[0];
+  EXPECT_FALSE(camera.Unproject(Eigen::Vector2d(640.0 + 1.01 * f * rho(theta_max), 512.0)).has_value());
+}
+
 TEST(CameraTest, RadtanAgreesWithOpenCv) {
   const Camera camera(RadtanInfo());
   const std::vector<Eigen::Vector3d> points = RandomPoints(2000, 0.75, 7);
@@ -148,6 +273,8 @@ void ExpectJacobianMatchesCentralDifferences(const Camera& camera, const std::ve
 TEST(CameraTest, AnalyticJacobianMatchesCentralDifferences) {
   ExpectJacobianMatchesCentralDifferences(Camera(RadtanInfo()), RandomPoints(300, 0.75, 9));
   ExpectJacobianMatchesCentralDifferences(Camera(FisheyeInfo()), RandomPoints(300, 5.0, 10));
+  ExpectJacobianMatchesCentralDifferences(Camera(EquisolidInfo()), RandomPoints(300, 5.0, 13));
+  ExpectJacobianMatchesCentralDifferences(Camera(DistortedEquisolidInfo()), RandomPoints(300, 5.0, 14));
 }
 
 void ExpectJetMatchesAnalytic(const Camera& camera, const std::vector<Eigen::Vector3d>& points) {
@@ -172,6 +299,8 @@ void ExpectJetMatchesAnalytic(const Camera& camera, const std::vector<Eigen::Vec
 TEST(CameraTest, JetDerivativesMatchAnalyticJacobian) {
   ExpectJetMatchesAnalytic(Camera(RadtanInfo()), RandomPoints(300, 0.75, 11));
   ExpectJetMatchesAnalytic(Camera(FisheyeInfo()), RandomPoints(300, 5.0, 12));
+  ExpectJetMatchesAnalytic(Camera(EquisolidInfo()), RandomPoints(300, 5.0, 15));
+  ExpectJetMatchesAnalytic(Camera(DistortedEquisolidInfo()), RandomPoints(300, 5.0, 16));
 }
 
 // The r -> 0 series of the equidistant scale s(u) = theta_d / r against the closed form in
@@ -209,7 +338,7 @@ TEST(CameraTest, FisheyeOnAxisJacobianIsFocalOverDepth) {
 }
 
 TEST(CameraTest, BehindOrOnTheCameraPlaneIsRejected) {
-  for (const CameraInfo& info : {RadtanInfo(), FisheyeInfo()}) {
+  for (const CameraInfo& info : {RadtanInfo(), FisheyeInfo(), EquisolidInfo()}) {
     const Camera camera(info);
     const std::vector<Eigen::Vector3d> points = {
         Eigen::Vector3d(0.1, 0.2, -1.0), Eigen::Vector3d(0.0, 0.0, -1.0), Eigen::Vector3d(0.1, 0.0, 0.0),
@@ -287,6 +416,9 @@ TEST(CameraTest, BadCalibrationThrows) {
   EXPECT_THROW(Camera{info}, std::runtime_error);
   info = FisheyeInfo();
   info.distortion.push_back(0.0);
+  EXPECT_THROW(Camera{info}, std::runtime_error);
+  info = EquisolidInfo();
+  info.distortion.pop_back();
   EXPECT_THROW(Camera{info}, std::runtime_error);
   info = RadtanInfo();
   info.intrinsics[0] = 0.0;

@@ -64,8 +64,10 @@ TEST(CameraIoTest, ErrorsNameFileLineAndField) {
               HasSubstr("cameras/cam0.yaml:4: intrinsics: expected 4 numbers, got 3"));
   EXPECT_THAT(
       ParseError(GoodCameraWith("pinhole-radtan", "fisheye")),
-      HasSubstr("cameras/cam0.yaml:1: model: unknown camera model 'fisheye' (expected pinhole-radtan or "
-                "pinhole-equidistant)"));
+      HasSubstr("cameras/cam0.yaml:1: model: unknown camera model 'fisheye' (expected pinhole-radtan, "
+                "pinhole-equidistant or equisolid)"));
+  EXPECT_THAT(ParseError(GoodCameraWith("pinhole-radtan", "equisolid")),
+              HasSubstr("cameras/cam0.yaml:5: distortion (equisolid): expected 4 numbers, got 5"));
   EXPECT_THAT(ParseError(GoodCameraWith("pinhole-radtan", "pinhole-equidistant")),
               HasSubstr("cameras/cam0.yaml:5: distortion (pinhole-equidistant): expected 4 numbers, got 5"));
   EXPECT_THAT(ParseError(GoodCameraWith("641.176", ".nan")),
@@ -159,6 +161,16 @@ TEST(CameraIoTest, RoundTripIsExact) {
 
   camera.distortion.push_back(0.0);
   EXPECT_THROW(FormatCameraYaml(camera), std::invalid_argument);
+}
+
+TEST(CameraIoTest, ReadsEquisolid) {
+  const std::string text = GoodCameraWith("pinhole-radtan", "equisolid");
+  const std::string equisolid = text.substr(0, text.find("distortion:")) + "distortion: [0, 0, 0.001, 0]\n" +
+                                text.substr(text.find("T_robot_camera:"));
+  const CameraInfo camera = ParseCameraYaml(equisolid, "cameras/cam0.yaml", "cam0");
+  EXPECT_EQ(camera.model, CameraModel::kEquisolid);
+  EXPECT_EQ(camera.distortion, std::vector<double>({0.0, 0.0, 0.001, 0.0}));
+  EXPECT_EQ(ParseCameraYaml(FormatCameraYaml(camera), "cameras/cam0.yaml", "cam0").model, CameraModel::kEquisolid);
 }
 
 }  // namespace

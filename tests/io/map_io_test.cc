@@ -138,6 +138,54 @@ TEST(MapIoTest, PhysicallyMeaninglessValuesAreErrors) {
   EXPECT_THROW(FormatMap(map), std::invalid_argument);
 }
 
+const char* const kSquareMap = R"({"format": "waymark-map", "version": 1,
+ "markers": [
+  {"family": "square", "id": "A", "size_m": 2.0,
+   "T_world_marker": {"t": [0, 0, 2.3], "q_xyzw": [1, 0, 0, 0]},
+   "square": {"tape_width_m": 0.04, "solid_side": "left", "dash_m": 0.15, "gap_m": 0.05}},
+  {"family": "square", "id": "B", "size_m": 1.5,
+   "T_world_marker": {"t": [4, 0, 2.3], "q_xyzw": [1, 0, 0, 0]}}
+ ]}
+)";
+
+std::string SquareMapWith(const std::string& from, const std::string& to) {
+  std::string text = kSquareMap;
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+TEST(MapIoTest, SquareTapeRoundTrip) {
+  const MarkerMap map = ParseMap(kSquareMap, "map.json");
+  ASSERT_EQ(map.markers.size(), 2u);
+  ASSERT_TRUE(map.markers[0].square_tape.has_value());
+  EXPECT_EQ(map.markers[0].square_tape->tape_width_m, 0.04);
+  EXPECT_EQ(map.markers[0].square_tape->solid_side, SquareSide::kLeft);
+  EXPECT_EQ(map.markers[0].square_tape->dash_m, 0.15);
+  EXPECT_EQ(map.markers[0].square_tape->gap_m, 0.05);
+  EXPECT_FALSE(map.markers[1].square_tape.has_value());  // the defaults
+  const MarkerMap again = ParseMap(FormatMap(map), "again.json");
+  ASSERT_TRUE(again.markers[0].square_tape.has_value());
+  EXPECT_EQ(again.markers[0].square_tape->solid_side, SquareSide::kLeft);
+  EXPECT_EQ(again.markers[0].square_tape->gap_m, 0.05);
+  EXPECT_FALSE(again.markers[1].square_tape.has_value());
+}
+
+TEST(MapIoTest, SquareTapeErrors) {
+  EXPECT_THAT(ParseError(SquareMapWith("\"left\"", "\"up\"")),
+              HasSubstr("map.json:5: markers[0].square.solid_side: expected top, right, bottom or left, got \"up\""));
+  EXPECT_THAT(ParseError(SquareMapWith("\"tape_width_m\": 0.04", "\"tape_width_m\": 0.9")),
+              HasSubstr("map.json:5: markers[0].square: tape_width_m: expected > 0 and <= side / 4"));
+  EXPECT_THAT(ParseError(SquareMapWith("\"dash_m\": 0.15", "\"dash_m\": \"long\"")),
+              HasSubstr("map.json:5: markers[0].square.dash_m: expected a number"));
+  EXPECT_THAT(ParseError(SquareMapWith("\"square\": {", "\"square\": 3, \"x\": {")),
+              HasSubstr("markers[0].square: expected an object"));
+  EXPECT_THAT(ParseError(SquareMapWith("\"family\": \"square\", \"id\": \"A\"", "\"family\": \"qr\", \"id\": \"A\"")),
+              HasSubstr("markers[0].square: only a marker of family square has a tape"));
+  EXPECT_THAT(ParseError(SquareMapWith("\"size_m\": 1.5", "\"size_m\": 0.1")),
+              HasSubstr("map.json:6: markers[1].size_m: too small for the default tape"));
+}
+
 TEST(MapIoTest, UnknownKeysAreCountedWarnings) {
   ReadWarnings warnings;
   const MarkerMap map = ParseMap(
