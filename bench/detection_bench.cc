@@ -20,18 +20,17 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <nlohmann/json.hpp>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/core/utility.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "detect/common.h"
+#include "detect/detector.h"
 #include "detect/synthetic.h"
 #include "detect/zxing.h"
-#include "detect/detector.h"
 #include "io/util.h"
 
 namespace waymark {
@@ -97,8 +96,8 @@ nlohmann::json EvaluateSet(const std::string& set, const std::string& family) {
     if (!ok) missed.push_back(file.filename().string());
   }
   std::cout << "  " << set << ": " << ours << "/" << images << " (zxing-cpp alone " << zxing << ")\n";
-  return {{"set", set}, {"family", family}, {"images", images}, {"decoded", ours}, {"zxing_alone", zxing},
-          {"missed", missed}};
+  return {{"set", set},      {"family", family},     {"images", images},
+          {"decoded", ours}, {"zxing_alone", zxing}, {"missed", missed}};
 }
 
 nlohmann::json EvaluateFalsePositives() {
@@ -113,9 +112,12 @@ nlohmann::json EvaluateFalsePositives() {
     ++images;
     detections += static_cast<int>(detector->Detect(gray).size());
   }
-  std::cout << "  falsepositives-1: " << detections << " detections on " << images << " images (" << unreadable
-            << " unreadable by OpenCV)\n";
-  return {{"set", "falsepositives-1"}, {"images", images}, {"unreadable", unreadable}, {"detections", detections}};
+  std::cout << "  falsepositives-1: " << detections << " detections on " << images << " images ("
+            << unreadable << " unreadable by OpenCV)\n";
+  return {{"set", "falsepositives-1"},
+          {"images", images},
+          {"unreadable", unreadable},
+          {"detections", detections}};
 }
 
 // A 1280x960 indoor-like frame: a lit gradient, boxes, text lines and sensor noise.
@@ -123,7 +125,8 @@ cv::Mat Background(uint64_t seed) {
   cv::RNG rng(seed);
   cv::Mat frame(960, 1280, CV_8U);
   for (int y = 0; y < frame.rows; ++y) {
-    for (int x = 0; x < frame.cols; ++x) frame.at<uint8_t>(y, x) = static_cast<uint8_t>(110 + 60 * x / 1280 + 20 * y / 960);
+    for (int x = 0; x < frame.cols; ++x)
+      frame.at<uint8_t>(y, x) = static_cast<uint8_t>(110 + 60 * x / 1280 + 20 * y / 960);
   }
   for (int i = 0; i < 30; ++i) {
     const cv::Rect box(rng.uniform(0, 1200), rng.uniform(0, 900), rng.uniform(20, 260), rng.uniform(20, 260));
@@ -177,14 +180,20 @@ nlohmann::json TimeFamily(const std::string& family, int codes, int repeats) {
     const double cpu_start = FrameClock::ThreadCpuMs();
     found = detector->Detect(frame).size();
     cpu_ms += FrameClock::ThreadCpuMs() - cpu_start;
-    wall_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
   }
   std::sort(wall_ms.begin(), wall_ms.end());
   const double median = wall_ms[wall_ms.size() / 2];
   std::cout << "  " << family << " " << codes << " codes: median " << median << " ms, max " << wall_ms.back()
             << " ms, mean CPU " << cpu_ms / repeats << " ms, decoded " << found << "/" << codes << "\n";
-  return {{"family", family}, {"codes", codes}, {"median_ms", median}, {"max_ms", wall_ms.back()},
-          {"mean_cpu_ms", cpu_ms / repeats}, {"decoded", found}, {"repeats", repeats}};
+  return {{"family", family},
+          {"codes", codes},
+          {"median_ms", median},
+          {"max_ms", wall_ms.back()},
+          {"mean_cpu_ms", cpu_ms / repeats},
+          {"decoded", found},
+          {"repeats", repeats}};
 }
 
 void Report() {
@@ -195,7 +204,8 @@ void Report() {
   if (fs::exists(kCodes)) {
     std::cout << "Real photos (" << kCodes.string() << "), images decoded with the right text:\n";
     for (int i = 1; i <= 6; ++i) out["photos"].push_back(EvaluateSet("qrcode-" + std::to_string(i), "qr"));
-    for (int i = 1; i <= 3; ++i) out["photos"].push_back(EvaluateSet("datamatrix-" + std::to_string(i), "datamatrix"));
+    for (int i = 1; i <= 3; ++i)
+      out["photos"].push_back(EvaluateSet("datamatrix-" + std::to_string(i), "datamatrix"));
     out["false_positives"] = EvaluateFalsePositives();
   } else {
     std::cout << "Real photos: " << kCodes.string() << " absent, skipped\n";
@@ -238,8 +248,9 @@ int main(int argc, char** argv) {
   if (report_only) return 0;
   for (const std::string& family : waymark::kTimedFamilies) {
     for (int codes : {0, 1, 4}) {
-      benchmark::RegisterBenchmark(("BM_Detect/" + family + "/" + std::to_string(codes)).c_str(),
-                                   [family, codes](benchmark::State& s) { waymark::BM_Detect(s, family, codes); })
+      benchmark::RegisterBenchmark(
+          ("BM_Detect/" + family + "/" + std::to_string(codes)).c_str(),
+          [family, codes](benchmark::State& s) { waymark::BM_Detect(s, family, codes); })
           ->Unit(benchmark::kMillisecond);
     }
   }

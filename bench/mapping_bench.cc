@@ -1,10 +1,10 @@
 // Mapping bench: (1) covariance honesty, Monte Carlo over seeds: measured marker position RMS
 // against the RMS the map's covariances predict, on a small anchored corridor (no alignment
 // needed: the anchors fix the frame to the truth), and after alignment on the default sim
-// corridor and rooms (seeds 1..N, per component, eval::PredictMapError); (2) build time against survey size (sim
-// corridor loops of growing length), split into init / solve / covariance, with the solver
-// iterations and the observations counted (one observation = one code's 4 corners), and per Ceres
-// solve its iterations and where its time went (linear solver, Jacobian and residual evaluations).
+// corridor and rooms (seeds 1..N, per component, eval::PredictMapError); (2) build time against survey size
+// (sim corridor loops of growing length), split into init / solve / covariance, with the solver iterations
+// and the observations counted (one observation = one code's 4 corners), and per Ceres solve its iterations
+// and where its time went (linear solver, Jacobian and residual evaluations).
 //   bench_mapping_bench [--quick] [--seeds N] [--max-path M] [--out bench/results/mapping.json]
 // Quick: 6 seeds, loop paths of 10, 40 and 160 m. Full: 24 seeds, loop paths 10 m .. 1 km
 // (the 1 km loop: about 2000 codes and 150 000 corner observations); --max-path M skips longer loops.
@@ -15,13 +15,12 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
-#include "io/util.h"
 #include "eval/map_metrics.h"
+#include "io/util.h"
 #include "mapping/map_builder.h"
 #include "mapping/survey.h"
 #include "sim/simulator.h"
@@ -41,9 +40,11 @@ nlohmann::json CovarianceMonteCarlo(int seeds) {
   double e_t = 0.0, v_t = 0.0, e_r = 0.0, v_r = 0.0;
   nlohmann::json per_seed = nlohmann::json::array();
   for (int seed = 100; seed < 100 + seeds; ++seed) {
-    const sim::SimResult sim = Simulate(seed, {"place.loop_length_m=4", "place.loop_width_m=3", "place.spacing_m=0.5"});
+    const sim::SimResult sim =
+        Simulate(seed, {"place.loop_length_m=4", "place.loop_width_m=3", "place.spacing_m=0.5"});
     const MapBuildResult result = BuildMap(sim.dataset);
-    if (!result.covariance_computed) throw std::runtime_error("covariance not computed, seed " + std::to_string(seed));
+    if (!result.covariance_computed)
+      throw std::runtime_error("covariance not computed, seed " + std::to_string(seed));
     double seed_e = 0.0, seed_v = 0.0;
     for (const MapMarker& m : result.map.markers) {
       if (m.fixed || !m.covariance) continue;
@@ -62,9 +63,13 @@ nlohmann::json CovarianceMonteCarlo(int seeds) {
     std::printf("  seed %d: measured/predicted position RMS %.3f\n", seed, std::sqrt(seed_e / seed_v));
   }
   const double ratio = std::sqrt(e_t / v_t), rot_ratio = std::sqrt(e_r / v_r);
-  std::printf("covariance Monte Carlo over %d seeds: position ratio %.3f, rotation ratio %.3f (target 0.8..1.25)\n",
-              seeds, ratio, rot_ratio);
-  return {{"seeds", seeds}, {"position_ratio", ratio}, {"rotation_ratio", rot_ratio}, {"per_seed_position_ratio", per_seed}};
+  std::printf(
+      "covariance Monte Carlo over %d seeds: position ratio %.3f, rotation ratio %.3f (target 0.8..1.25)\n",
+      seeds, ratio, rot_ratio);
+  return {{"seeds", seeds},
+          {"position_ratio", ratio},
+          {"rotation_ratio", rot_ratio},
+          {"per_seed_position_ratio", per_seed}};
 }
 
 // The issue's own settings, scenario defaults (sim corridor, sim rooms), seeds 1..N: the marker
@@ -96,10 +101,11 @@ nlohmann::json AlignedPredictionMonteCarlo(const std::string& scenario, int seed
       over += m > 0.01 ? 1 : 0;
     }
     const double n = static_cast<double>(pairs.size());
-    std::printf("%s component %d, %zu seeds: aligned marker RMS mean %.1f mm, worst %.1f mm, %d over 1 cm; "
-                "predicted by the covariance %.1f mm RMS, measured/predicted %.3f\n",
-                scenario.c_str(), component, pairs.size(), 1e3 * sum / n, 1e3 * worst, over, 1e3 * std::sqrt(p2 / n),
-                std::sqrt(m2 / p2));
+    std::printf(
+        "%s component %d, %zu seeds: aligned marker RMS mean %.1f mm, worst %.1f mm, %d over 1 cm; "
+        "predicted by the covariance %.1f mm RMS, measured/predicted %.3f\n",
+        scenario.c_str(), component, pairs.size(), 1e3 * sum / n, 1e3 * worst, over, 1e3 * std::sqrt(p2 / n),
+        std::sqrt(m2 / p2));
     report.push_back({{"scenario", scenario},
                       {"component", component},
                       {"seeds", pairs.size()},
@@ -141,9 +147,9 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 // reprojection summary, outputs).
 nlohmann::json BuildTime(double path_m, double spacing_m) {
   const double width_m = std::max(2.0, path_m / 8.0), length_m = path_m / 2.0 - width_m;
-  const sim::SimResult sim = Simulate(1, {"place.loop_length_m=" + std::to_string(length_m),
-                                          "place.loop_width_m=" + std::to_string(width_m),
-                                          "place.spacing_m=" + std::to_string(spacing_m)});
+  const sim::SimResult sim = Simulate(
+      1, {"place.loop_length_m=" + std::to_string(length_m), "place.loop_width_m=" + std::to_string(width_m),
+          "place.spacing_m=" + std::to_string(spacing_m)});
   MapBuildOptions options;
   options.num_threads = 2;
   IngestOptions no_offset = options.ingest;
@@ -156,11 +162,12 @@ nlohmann::json BuildTime(double path_m, double spacing_m) {
   const double ingest_s = SecondsSince(start);
   const MapBuildResult result = BuildMapFromSurvey(survey, options);
   const double total_s = SecondsSince(start);
-  const double other_s = total_s - ingest_s - result.init_time_s - result.solver_time_s - result.covariance_time_s;
+  const double other_s =
+      total_s - ingest_s - result.init_time_s - result.solver_time_s - result.covariance_time_s;
   std::printf("%7.0f m %5.2f m %6zu %6zu %7zu %8zu %4d %8.2f %7.2f %7.2f %7.2f %7.2f %6.2f %6.2f\n", path_m,
-              spacing_m, result.frames, result.map.markers.size(), result.observations, 4 * result.observations,
-              result.iterations, total_s, ingest_s, result.init_time_s, result.solver_time_s,
-              result.covariance_time_s, other_s, std::max(0.0, ingest_s - no_offset_s));
+              spacing_m, result.frames, result.map.markers.size(), result.observations,
+              4 * result.observations, result.iterations, total_s, ingest_s, result.init_time_s,
+              result.solver_time_s, result.covariance_time_s, other_s, std::max(0.0, ingest_s - no_offset_s));
   nlohmann::json stages = SolveStages(result);
   std::fflush(stdout);
   return {{"loop_path_m", path_m},
@@ -206,15 +213,18 @@ int Run(int argc, char** argv) {
   nlohmann::json report = {{"quick", quick}, {"max_path_m", max_path_m}};
   report["covariance"] = CovarianceMonteCarlo(seeds);
   for (const char* scenario : {"corridor", "rooms"}) {
-    for (const nlohmann::json& row : AlignedPredictionMonteCarlo(scenario, seeds)) report["aligned_prediction"].push_back(row);
+    for (const nlohmann::json& row : AlignedPredictionMonteCarlo(scenario, seeds))
+      report["aligned_prediction"].push_back(row);
   }
   // Path lengths 10 m .. 1 km at 1 m spacing; the 1 km loop is also the large case (>= 1000
   // codes, >= 100 000 corner observations).
-  const std::vector<double> paths = quick ? std::vector<double>{10.0, 40.0, 160.0}
-                                          : std::vector<double>{10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0, 1000.0};
+  const std::vector<double> paths =
+      quick ? std::vector<double>{10.0, 40.0, 160.0}
+            : std::vector<double>{10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0, 1000.0};
   std::printf(
       "build time, 2 threads (offset: the ingest's time-offset check)\n"
-      "   path spacing frames  codes     obs  corners  its    total  ingest    init   solve   covar  other offset\n");
+      "   path spacing frames  codes     obs  corners  its    total  ingest    init   solve   covar  other "
+      "offset\n");
   for (double path_m : paths) {
     if (path_m <= max_path_m) report["build_time"].push_back(BuildTime(path_m, 1.0));
   }

@@ -18,13 +18,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
-#include "io/util.h"
 #include "eval/map_metrics.h"
+#include "io/util.h"
 #include "mapping/id_consistency.h"
 #include "mapping/map_builder.h"
 #include "sim/simulator.h"
@@ -59,7 +58,8 @@ sim::SimResult SimulateLoop(const Settings& s) {
 Initialization AtTruth(const sim::SimResult& sim, const Survey& survey, Initialization init) {
   for (size_t f = 0; f < survey.frames.size(); ++f) {
     if (init.T_world_robot[f]) {
-      init.T_world_robot[f] = InterpolateTrajectory(*sim.dataset.groundtruth_trajectory, survey.frames[f].stamp_s, 1.0);
+      init.T_world_robot[f] =
+          InterpolateTrajectory(*sim.dataset.groundtruth_trajectory, survey.frames[f].stamp_s, 1.0);
     }
   }
   for (size_t m = 0; m < survey.markers.size(); ++m) {
@@ -92,10 +92,11 @@ nlohmann::json MapErrors(const MarkerMap& map, const MarkerMap& truth, const cha
     worst_m = std::max(worst_m, e.position_error_m);
     over_10cm += e.position_error_m > 0.1 ? 1 : 0;
   }
-  std::printf("%s: %zu codes matched in %zu component(s), position RMS %.4f m, worst %.3f m, %zu over 10 cm, "
-              "orientation RMS %.3f deg\n",
-              what, eval.markers, eval.components.size(), eval.position_rmse_m, worst_m, over_10cm,
-              eval.orientation_rmse_deg);
+  std::printf(
+      "%s: %zu codes matched in %zu component(s), position RMS %.4f m, worst %.3f m, %zu over 10 cm, "
+      "orientation RMS %.3f deg\n",
+      what, eval.markers, eval.components.size(), eval.position_rmse_m, worst_m, over_10cm,
+      eval.orientation_rmse_deg);
   return {{"markers", eval.markers},
           {"components", eval.components.size()},
           {"position_rmse_m", eval.position_rmse_m},
@@ -121,8 +122,9 @@ nlohmann::json AnchoredErrors(const MarkerMap& map, const MarkerMap& truth) {
   }
   const double rms = n ? std::sqrt(sum_sq / n) : 0.0;
   const double predicted = with_covariance ? std::sqrt(sum_trace / with_covariance) : 0.0;
-  std::printf("in the anchors' frame (no alignment): position RMS %.4f m, predicted by the covariances %.4f m\n",
-              rms, predicted);
+  std::printf(
+      "in the anchors' frame (no alignment): position RMS %.4f m, predicted by the covariances %.4f m\n", rms,
+      predicted);
   return {{"position_rmse_m", rms}, {"predicted_rmse_m", predicted}};
 }
 
@@ -136,16 +138,22 @@ int Run(const Settings& s) {
   const Survey survey = IngestDataset(sim.dataset, options.ingest);
   const double ingest_s = Seconds(start);
   start = std::chrono::steady_clock::now();
-  const Survey checked = WithoutObservations(survey, FindInconsistentIds(survey, MakeCameras(survey), options.id_check));
+  const Survey checked =
+      WithoutObservations(survey, FindInconsistentIds(survey, MakeCameras(survey), options.id_check));
   Initialization init = Initialize(checked, options.initializer);
   const double init_s = Seconds(start);
   if (s.from_truth) init = AtTruth(sim, checked, std::move(init));
   for (const std::string& note : init.notes) std::printf("  %s\n", note.c_str());
-  std::printf("ingest %.2f s, id check + initialization %.2f s: %zu frames, %zu codes, %d component(s)\n", ingest_s,
-              init_s, survey.frames.size(), survey.markers.size(), init.components);
-  nlohmann::json report = {{"path_m", s.path_m},   {"spacing_m", s.spacing_m}, {"seed", s.seed},
-                           {"threads", s.threads}, {"frames", survey.frames.size()},
-                           {"codes", survey.markers.size()}, {"ingest_s", ingest_s}, {"init_s", init_s},
+  std::printf("ingest %.2f s, id check + initialization %.2f s: %zu frames, %zu codes, %d component(s)\n",
+              ingest_s, init_s, survey.frames.size(), survey.markers.size(), init.components);
+  nlohmann::json report = {{"path_m", s.path_m},
+                           {"spacing_m", s.spacing_m},
+                           {"seed", s.seed},
+                           {"threads", s.threads},
+                           {"frames", survey.frames.size()},
+                           {"codes", survey.markers.size()},
+                           {"ingest_s", ingest_s},
+                           {"init_s", init_s},
                            {"init_components", init.components}};
   report["from_truth"] = s.from_truth;
   report["init"] = MapErrors(InitialMap(checked, init), *sim.dataset.groundtruth_markers, "initial codes");
@@ -153,10 +161,12 @@ int Run(const Settings& s) {
     MapBuildResult result;
     result.init_time_s = init_s;
     result = OptimizeSurvey(checked, init, options, std::move(result));
-    std::printf("build: %zu codes mapped, %zu unmapped, %zu outliers, %d iterations, solve %.2f s, covariance %.2f s\n"
-                "  %s\n",
-                result.map.markers.size(), result.unmapped.size(), result.outliers.size(), result.iterations,
-                result.solver_time_s, result.covariance_time_s, result.termination.c_str());
+    std::printf(
+        "build: %zu codes mapped, %zu unmapped, %zu outliers, %d iterations, solve %.2f s, covariance %.2f "
+        "s\n"
+        "  %s\n",
+        result.map.markers.size(), result.unmapped.size(), result.outliers.size(), result.iterations,
+        result.solver_time_s, result.covariance_time_s, result.termination.c_str());
     report["build"] = MapErrors(result.map, *sim.dataset.groundtruth_markers, "mapped codes");
     report["build"]["anchored"] = AnchoredErrors(result.map, *sim.dataset.groundtruth_markers);
     report["build"]["mapped"] = result.map.markers.size();
@@ -191,10 +201,11 @@ int main(int argc, char** argv) {
     } else if (std::strcmp(argv[i], "--out") == 0 && has_value) {
       s.out = argv[++i];
     } else {
-      std::fprintf(stderr,
-                   "usage: %s [--path M] [--spacing M] [--seed N] [--threads N] [--init-only] [--from-truth]\n"
-                   "       [--out FILE]\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--path M] [--spacing M] [--seed N] [--threads N] [--init-only] [--from-truth]\n"
+          "       [--out FILE]\n",
+          argv[0]);
       return 2;
     }
   }

@@ -34,14 +34,14 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <tuple>
 #include <string>
+#include <tuple>
 #include <vector>
 
-#include "io/util.h"
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"
 #include "eval/trajectory_metrics.h"
+#include "io/util.h"
 #include "mapping/map_builder.h"
 #include "online/chi_square.h"
 #include "online/localizer.h"
@@ -96,7 +96,8 @@ double& HeadingWalk() {
   return value;
 }
 
-sim::SimResult Simulate(const std::string& scenario, const std::vector<std::string>& sets, std::uint64_t seed) {
+sim::SimResult Simulate(const std::string& scenario, const std::vector<std::string>& sets,
+                        std::uint64_t seed) {
   sim::ParamSet params = sim::ScenarioParams(scenario);
   for (const std::string& assignment : sets) params.SetAssignment(assignment);
   for (const std::string& assignment : ExtraSets()) {
@@ -108,13 +109,13 @@ sim::SimResult Simulate(const std::string& scenario, const std::vector<std::stri
 // How far a learned map is from the truth as it is (what the localizer sees) and after the
 // best rigid alignment of its component 0 (the map's own error, eval/map_metrics.h).
 struct MapFigures {
-  double unaligned_mean_m = 0.0;   // mean marker position error, no alignment
-  double aligned_rmse_m = 0.0;     // component 0 aligned
+  double unaligned_mean_m = 0.0;  // mean marker position error, no alignment
+  double aligned_rmse_m = 0.0;    // component 0 aligned
   double aligned_rmse_deg = 0.0;
-  double gauge_m = 0.0;            // |t| of the alignment
-  double gauge_deg = 0.0;          // angle of its rotation
+  double gauge_m = 0.0;    // |t| of the alignment
+  double gauge_deg = 0.0;  // angle of its rotation
   size_t markers = 0;
-  eval::Sim3Alignment alignment;   // map frame -> truth frame (component 0)
+  eval::Sim3Alignment alignment;  // map frame -> truth frame (component 0)
 };
 
 MapFigures CompareMaps(const MarkerMap& map, const MarkerMap& truth) {
@@ -161,11 +162,12 @@ MarkerMap LearnMap(const std::string& scenario, const std::vector<std::string>& 
   const sim::SimResult survey = Simulate(scenario, survey_sets, seed + kSurveySeedOffset);
   MarkerMap map = BuildMap(survey.dataset).map;
   const MapFigures f = CompareMaps(map, *survey.dataset.groundtruth_markers);
-  std::fprintf(stderr,
-               "  map %s %s seed %lu: %zu markers, unaligned mean error %.4f m; aligned RMS %.4f m %.3f deg; gauge "
-               "%.4f m %.3f deg\n",
-               scenario.c_str(), sets.empty() ? "" : sets[0].c_str(), static_cast<unsigned long>(seed), f.markers,
-               f.unaligned_mean_m, f.aligned_rmse_m, f.aligned_rmse_deg, f.gauge_m, f.gauge_deg);
+  std::fprintf(
+      stderr,
+      "  map %s %s seed %lu: %zu markers, unaligned mean error %.4f m; aligned RMS %.4f m %.3f deg; gauge "
+      "%.4f m %.3f deg\n",
+      scenario.c_str(), sets.empty() ? "" : sets[0].c_str(), static_cast<unsigned long>(seed), f.markers,
+      f.unaligned_mean_m, f.aligned_rmse_m, f.aligned_rmse_deg, f.gauge_m, f.gauge_deg);
   if (figures) *figures = f;
   cache[cache_key] = {map, f};
   return map;
@@ -187,10 +189,10 @@ LocalizerOptions OptionsFor(const Dataset& dataset, CorrectionMode mode) {
 
 // What one localizer run produced, per odometry stamp of the run.
 struct LocalizedRun {
-  Trajectory tracked;           // poses output while tracking
-  Trajectory predicted;         // the pose before each correcting frame
-  std::vector<double> nees;     // per odometry stamp, -1 while not tracking
-  std::vector<bool> tracking;   // per odometry stamp
+  Trajectory tracked;          // poses output while tracking
+  Trajectory predicted;        // the pose before each correcting frame
+  std::vector<double> nees;    // per odometry stamp, -1 while not tracking
+  std::vector<bool> tracking;  // per odometry stamp
   LocalizerCounters counters;
 };
 
@@ -208,7 +210,8 @@ LocalizedRun Localize(const Dataset& dataset, const Trajectory& truth, const Mar
   std::vector<CameraInfo> cameras;
   for (const auto& [name, info] : dataset.cameras) cameras.push_back(info);
   Localizer localizer(options, map, cameras);
-  if (truth.size() != dataset.odometry.size()) throw std::runtime_error("truth and odometry differ in length");
+  if (truth.size() != dataset.odometry.size())
+    throw std::runtime_error("truth and odometry differ in length");
   LocalizedRun run;
   size_t f = 0;
   for (size_t k = 0; k < dataset.odometry.size(); ++k) {
@@ -230,13 +233,15 @@ LocalizedRun Localize(const Dataset& dataset, const Trajectory& truth, const Mar
 std::vector<double> DetectionInstants(const Dataset& dataset) {
   std::vector<double> stamps;
   for (const DetectionFrame& frame : dataset.detections) {
-    if (!frame.markers.empty() && (stamps.empty() || stamps.back() != frame.stamp_s)) stamps.push_back(frame.stamp_s);
+    if (!frame.markers.empty() && (stamps.empty() || stamps.back() != frame.stamp_s))
+      stamps.push_back(frame.stamp_s);
   }
   return stamps;
 }
 
 // The poses of `trajectory` (already in the truth's frame) at `stamps`, with the truth there.
-eval::PeTeResult PeTeAt(const Trajectory& truth, const Trajectory& trajectory, const std::vector<double>& stamps) {
+eval::PeTeResult PeTeAt(const Trajectory& truth, const Trajectory& trajectory,
+                        const std::vector<double>& stamps) {
   eval::TrajectoryEvalOptions options;
   options.align = eval::AlignmentMode::kNone;
   Trajectory at;
@@ -260,8 +265,12 @@ MethodFigures Figures(const Trajectory& truth, const Trajectory& est, const eval
           evaluation.ate.translation_m.mean};
 }
 
-const char* kMethods[] = {"odometry",         "loose ([Bach])",          "ours (tight)",
-                          "smoothing (offline)", "loose, true map (control)", "ours, true map (control)"};
+const char* kMethods[] = {"odometry",
+                          "loose ([Bach])",
+                          "ours (tight)",
+                          "smoothing (offline)",
+                          "loose, true map (control)",
+                          "ours, true map (control)"};
 constexpr size_t kMethodCount = sizeof(kMethods) / sizeof(kMethods[0]);
 
 // The four methods on one corridor run; also returns the tight run (for NEES).
@@ -276,14 +285,16 @@ std::vector<MethodFigures> Table1Run(double spacing_m, std::uint64_t seed, Local
   // Odometry alone, its first pose put on the truth's.
   eval::TrajectoryEvalOptions origin;
   origin.align = eval::AlignmentMode::kOrigin;
-  const eval::TrajectoryEvaluation odometry = eval::EvaluateTrajectory(truth, dataset.odometry, std::nullopt, origin);
+  const eval::TrajectoryEvaluation odometry =
+      eval::EvaluateTrajectory(truth, dataset.odometry, std::nullopt, origin);
   figures.push_back(Figures(truth, dataset.odometry, PeTeAt(truth, odometry.est_aligned, instants),
                             eval::AlignmentMode::kOrigin));
   const auto filter = [&](CorrectionMode mode, const MarkerMap& with_map) {
     LocalizedRun localized = Localize(dataset, truth, with_map, OptionsFor(dataset, mode));
     eval::TrajectoryEvalOptions none;
     none.align = eval::AlignmentMode::kNone;
-    figures.push_back(Figures(truth, localized.tracked, eval::EvaluatePredicted(truth, localized.predicted, none, {}),
+    figures.push_back(Figures(truth, localized.tracked,
+                              eval::EvaluatePredicted(truth, localized.predicted, none, {}),
                               eval::AlignmentMode::kNone));
     if (mode == CorrectionMode::kTightCorners && tight_run) *tight_run = std::move(localized);
   };
@@ -338,7 +349,8 @@ Json Table1(const BenchOptions& options) {
   Json rows = Json::array();
   std::printf("\n## Table 1 ([Bach]) on sim corridor, %d runs per cell, map from another seed's survey\n\n",
               options.table_runs);
-  std::printf("| d (m) | method | PE (m) | TE (deg) | ATE RMSE (m) | ATE mean (m) |\n|---|---|---|---|---|---|\n");
+  std::printf(
+      "| d (m) | method | PE (m) | TE (deg) | ATE RMSE (m) | ATE mean (m) |\n|---|---|---|---|---|---|\n");
   for (double spacing_m : {1.0, 2.0, 4.0}) {
     if (OnlySpacing() > 0.0 && spacing_m != OnlySpacing()) continue;
     std::vector<MethodFigures> sums(kMethodCount);
@@ -435,27 +447,31 @@ Json NeesStudy(const BenchOptions& options) {
     const MarkerMap learned = LearnMap("corridor", sets, seed);
     const MarkerMap per_marker = WithoutFactor(learned);
     const auto [joint_nees, marginal_nees] = MapNees(learned, *run.dataset.groundtruth_markers);
-    std::fprintf(stderr, "  map seed %d: map NEES per coordinate, joint %.3f, marginals %.3f\n", seed, joint_nees,
-                 marginal_nees);
+    std::fprintf(stderr, "  map seed %d: map NEES per coordinate, joint %.3f, marginals %.3f\n", seed,
+                 joint_nees, marginal_nees);
     map_nees_joint += joint_nees / options.nees_seeds;
     map_nees_marginal += marginal_nees / options.nees_seeds;
     for (size_t v = 0; v < variants.size(); ++v) {
       LocalizerOptions localizer_options = OptionsFor(run.dataset, CorrectionMode::kTightCorners);
       localizer_options.map_uncertainty = variants[v].map_uncertainty;
-      if (variants[v].floor_trans_m >= 0.0) localizer_options.odometry.floor_trans_m = variants[v].floor_trans_m;
-      const MarkerMap& map =
-          variants[v].true_map ? *run.dataset.groundtruth_markers : (variants[v].joint_factor ? learned : per_marker);
+      if (variants[v].floor_trans_m >= 0.0)
+        localizer_options.odometry.floor_trans_m = variants[v].floor_trans_m;
+      const MarkerMap& map = variants[v].true_map ? *run.dataset.groundtruth_markers
+                                                  : (variants[v].joint_factor ? learned : per_marker);
       runs[v].push_back(Localize(run.dataset, truth, map, localizer_options));
     }
   }
-  std::printf("\n## Consistency (ours, corridor d = 1 m, %d runs, maps learned from other seeds' surveys)\n\n",
-              options.nees_seeds);
-  std::printf("| map uncertainty | mean NEES | 95 %% band | stamps inside | mean NEES, all stamps |\n|---|---|---|---|---|\n");
+  std::printf(
+      "\n## Consistency (ours, corridor d = 1 m, %d runs, maps learned from other seeds' surveys)\n\n",
+      options.nees_seeds);
+  std::printf(
+      "| map uncertainty | mean NEES | 95 %% band | stamps inside | mean NEES, all stamps "
+      "|\n|---|---|---|---|---|\n");
   Json out = Json::array();
   for (size_t v = 0; v < variants.size(); ++v) {
     const NeesFigures nees = MonteCarloNees(runs[v], 3);
-    std::printf("| %s | %.3f | [%.3f, %.3f] | %.1f %% | %.3f |\n", variants[v].name.c_str(), nees.mean_over_steps,
-                nees.lower, nees.upper, 100.0 * nees.fraction_inside, nees.mean_all);
+    std::printf("| %s | %.3f | [%.3f, %.3f] | %.1f %% | %.3f |\n", variants[v].name.c_str(),
+                nees.mean_over_steps, nees.lower, nees.upper, 100.0 * nees.fraction_inside, nees.mean_all);
     out.push_back({{"map_uncertainty", variants[v].name},
                    {"runs", nees.runs},
                    {"common_stamps", nees.steps},
@@ -470,9 +486,10 @@ Json NeesStudy(const BenchOptions& options) {
       out.back()["map_nees_per_coordinate_marginals"] = map_nees_marginal;
     }
   }
-  std::printf("\nlearned maps' own NEES per coordinate (1 when their covariance is calibrated), mean over the "
-              "seeds: joint (factor) %.3f, marginals alone %.3f\n",
-              map_nees_joint, map_nees_marginal);
+  std::printf(
+      "\nlearned maps' own NEES per coordinate (1 when their covariance is calibrated), mean over the "
+      "seeds: joint (factor) %.3f, marginals alone %.3f\n",
+      map_nees_joint, map_nees_marginal);
   std::fflush(stdout);
   return out;
 }
@@ -511,8 +528,8 @@ Dataset Kidnap(const Dataset& dataset, double t1_s, double t2_s) {
 // from the jump to the first pose again and that pose's error.
 struct KidnapFigures {
   long wrong_outputs = 0, untracked_after_jump = 0;
-  long wrong_after_first_code = 0;   // from the first frame with a code after the jump on
-  long wrong_before_first_code = 0;  // between the jump and the first frame with a code
+  long wrong_after_first_code = 0;    // from the first frame with a code after the jump on
+  long wrong_before_first_code = 0;   // between the jump and the first frame with a code
   long wrong_before_first_frame = 0;  // of those, before any camera frame after the jump (no evidence yet)
   std::vector<std::array<double, 3>> wrong_stamps_s;  // stamp, error (m), 1 if after the jump
   double tracking_percent = 0.0, first_pose_again_s = -1.0, error_at_relocalization_m = -1.0;
@@ -590,11 +607,13 @@ Json KidnapJson(const KidnapFigures& f) {
 }
 
 void PrintKidnapRow(const std::string& label, const KidnapFigures& f) {
-  std::printf("| %s | %ld (%ld, %ld / %ld) | %.1f | %ld | %.2f | %.4f | %ld | %ld (%ld) / %ld | %ld (%ld) |\n", label.c_str(),
-              f.wrong_outputs, f.wrong_after_first_code, f.wrong_before_first_code, f.wrong_before_first_frame,
-              f.tracking_percent, f.untracked_after_jump, f.first_pose_again_s, f.error_at_relocalization_m,
-              f.counters.initializations, f.counters.times_suspect, f.counters.suspect_by_missed_codes,
-              f.counters.suspect_cleared, f.counters.times_lost, f.counters.lost_by_missed_codes);
+  std::printf(
+      "| %s | %ld (%ld, %ld / %ld) | %.1f | %ld | %.2f | %.4f | %ld | %ld (%ld) / %ld | %ld (%ld) |\n",
+      label.c_str(), f.wrong_outputs, f.wrong_after_first_code, f.wrong_before_first_code,
+      f.wrong_before_first_frame, f.tracking_percent, f.untracked_after_jump, f.first_pose_again_s,
+      f.error_at_relocalization_m, f.counters.initializations, f.counters.times_suspect,
+      f.counters.suspect_by_missed_codes, f.counters.suspect_cleared, f.counters.times_lost,
+      f.counters.lost_by_missed_codes);
 }
 
 // Corridor d = 1 m, seed 1, against the map learned from seed 1001's survey: the plain run, the
@@ -605,11 +624,14 @@ Json KidnapStudy() {
   const sim::SimResult run = Simulate("corridor", sets, 1);
   const sim::SimResult misdecoded = Simulate("corridor", {sets[0], "detect.misdecode_fraction=0.1"}, 1);
   std::printf(
-      "\n## Kidnapping (corridor d = 1 m, seed 1; wrong = pose output with error > 0.2 m, in brackets: those\n"
-      "from the first frame with a code after the jump on, those between the jump and that frame / of these,\n"
+      "\n## Kidnapping (corridor d = 1 m, seed 1; wrong = pose output with error > 0.2 m, in brackets: "
+      "those\n"
+      "from the first frame with a code after the jump on, those between the jump and that frame / of "
+      "these,\n"
       "those before any camera frame after the jump; in brackets after suspect and lost: by codes expected\n"
       "in view but not seen)\n\n"
-      "| run | wrong | tracking %% | stamps without pose after the jump | first pose again after (s) | its error (m) | "
+      "| run | wrong | tracking %% | stamps without pose after the jump | first pose again after (s) | its "
+      "error (m) | "
       "initializations | suspect / cleared | lost |\n|---|---|---|---|---|---|---|---|---|\n");
   Json out;
   for (const bool negative : {true, false}) {
@@ -632,7 +654,8 @@ Json KidnapStudy() {
     const KidnapFigures f = KidnapRun(kidnapped, map, t1_s);
     const KidnapFigures without = KidnapRun(kidnapped, map, t1_s, false);
     char label[96];
-    std::snprintf(label, sizeof(label), "carried %.2f m at t = %.0f s (to the pose of t = %.0f s)", jump_m, t1_s, t2_s);
+    std::snprintf(label, sizeof(label), "carried %.2f m at t = %.0f s (to the pose of t = %.0f s)", jump_m,
+                  t1_s, t2_s);
     PrintKidnapRow(label, f);
     PrintKidnapRow(std::string(label) + " (without negative information)", without);
     Json entry = KidnapJson(f);
@@ -674,7 +697,8 @@ Json ScenarioStudy(const std::string& scenario, int runs) {
     eval::TrajectoryEvalOptions none;
     none.align = eval::AlignmentMode::kNone;
     add(eval::EvaluateTrajectory(truth, localized.tracked, std::nullopt, none).ate, &raw);
-    add(eval::EvaluateTrajectory(truth, map_figures.alignment.Apply(localized.tracked), std::nullopt, none).ate,
+    add(eval::EvaluateTrajectory(truth, map_figures.alignment.Apply(localized.tracked), std::nullopt, none)
+            .ate,
         &in_map);
     nees += MonteCarloNees({localized}, StateDim(run.dataset.config.motion)).mean_all / runs;
     const LocalizedRun exact = Localize(run.dataset, truth, *run.dataset.groundtruth_markers,
@@ -685,24 +709,29 @@ Json ScenarioStudy(const std::string& scenario, int runs) {
     accepted += localized.counters.accepted;
   }
   std::printf("\n## %s (ours, %d runs, map from another seed's survey)\n\n", scenario.c_str(), runs);
-  std::printf("| frame | mean position error (m) | max (m) | mean abs x (m) | y (m) | z (m) | yaw (deg) |\n"
-              "|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "| frame | mean position error (m) | max (m) | mean abs x (m) | y (m) | z (m) | yaw (deg) |\n"
+      "|---|---|---|---|---|---|---|\n");
   Json out = {{"runs", runs}};
-  for (const auto& [name, sums] : {std::make_pair("truth (as is)", raw), std::make_pair("learned map's", in_map),
-                                   std::make_pair("true map (control)", control)}) {
-    std::printf("| %s | %.4f | %.4f | %.4f | %.4f | %.4f | %.3f |\n", name, sums.mean_m, sums.max_m, sums.x, sums.y,
-                sums.z, sums.yaw);
-    const std::string key = std::string(name) == "truth (as is)"  ? "world_frame"
+  for (const auto& [name, sums] :
+       {std::make_pair("truth (as is)", raw), std::make_pair("learned map's", in_map),
+        std::make_pair("true map (control)", control)}) {
+    std::printf("| %s | %.4f | %.4f | %.4f | %.4f | %.4f | %.3f |\n", name, sums.mean_m, sums.max_m, sums.x,
+                sums.y, sums.z, sums.yaw);
+    const std::string key = std::string(name) == "truth (as is)"   ? "world_frame"
                             : std::string(name) == "learned map's" ? "map_frame"
                                                                    : "true_map_control";
-    out[key] = {
-        {"mean_position_error_m", sums.mean_m}, {"max_position_error_m", sums.max_m}, {"mean_abs_x_m", sums.x},
-        {"mean_abs_y_m", sums.y},               {"mean_abs_z_m", sums.z},         {"mean_abs_yaw_deg", sums.yaw}};
+    out[key] = {{"mean_position_error_m", sums.mean_m},
+                {"max_position_error_m", sums.max_m},
+                {"mean_abs_x_m", sums.x},
+                {"mean_abs_y_m", sums.y},
+                {"mean_abs_z_m", sums.z},
+                {"mean_abs_yaw_deg", sums.yaw}};
   }
-  std::printf("\nmean NEES %.2f against the truth as is, %.2f with the true map (control) (dim %d); "
-              "corrections accepted %ld, gated %ld\n",
-              nees, nees_control, StateDim(MotionModel::kPlanar) + (scenario == "warehouse-drone"), accepted,
-              gated);
+  std::printf(
+      "\nmean NEES %.2f against the truth as is, %.2f with the true map (control) (dim %d); "
+      "corrections accepted %ld, gated %ld\n",
+      nees, nees_control, StateDim(MotionModel::kPlanar) + (scenario == "warehouse-drone"), accepted, gated);
   out["mean_nees"] = nees;
   out["mean_nees_true_map_control"] = nees_control;
   out["accepted"] = accepted;
@@ -751,10 +780,13 @@ BenchOptions ParseOptions(int argc, char** argv) {
     } else if (arg == "--out") {
       options.out = next();
     } else {
-      throw std::invalid_argument("unknown argument `" + arg + "` (known: --quick --seeds N --table-runs N --only STUDY --out FILE --set KEY=VALUE --heading-walk K --map-uncertainty M --attitude A --spacing D)");
+      throw std::invalid_argument("unknown argument `" + arg +
+                                  "` (known: --quick --seeds N --table-runs N --only STUDY --out FILE --set "
+                                  "KEY=VALUE --heading-walk K --map-uncertainty M --attitude A --spacing D)");
     }
   }
-  if (options.table_runs < 1 || options.nees_seeds < 1) throw std::invalid_argument("--seeds and --table-runs >= 1");
+  if (options.table_runs < 1 || options.nees_seeds < 1)
+    throw std::invalid_argument("--seeds and --table-runs >= 1");
   return options;
 }
 

@@ -29,8 +29,8 @@
 #include <string>
 #include <vector>
 
-#include "geometry/camera.h"
 #include "detect/detector.h"
+#include "geometry/camera.h"
 #include "io/util.h"
 #include "online/localizer.h"
 #include "runner/run.h"
@@ -139,11 +139,13 @@ CornerTiming TimeCorrections(const CornerWorkload& w, LocalizerOptions options, 
       const bool tracking = localizer.tracking() == TrackingStatus::kTracking;
       const auto start = std::chrono::steady_clock::now();
       const FrameResult result = localizer.AddFrame(input.frame);
-      const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const double elapsed_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (r == 0) {
         int n = 0;
         for (const CorrectionResult& c : result.corrections) {
-          n += tracking && (c.outcome == CorrectionOutcome::kAccepted || c.outcome == CorrectionOutcome::kGated);
+          n += tracking &&
+               (c.outcome == CorrectionOutcome::kAccepted || c.outcome == CorrectionOutcome::kGated);
         }
         updates.push_back(n);
         best_s.push_back(elapsed_s);
@@ -198,9 +200,13 @@ nlohmann::json ReportCornerUpdates() {
               << " /s (" << FormatDouble(std::round(100.0 * us) / 100.0) << " us each, fastest of " << repeats
               << "; mean " << FormatDouble(std::round(100.0 * mean_us) / 100.0) << " us; whole run "
               << FormatDouble(std::round(1e5 * t.run_cpu_s) / 100.0) << " ms CPU)\n";
-    out[name] = {{"updates", t.updates}, {"per_second", t.PerSecond()}, {"us_per_update", us},
-                 {"us_per_update_mean_of_repeats", mean_us}, {"whole_run_cpu_ms", 1e3 * t.run_cpu_s},
-                 {"odometry_samples_per_run", odometry_samples}, {"frames_per_run", frames}};
+    out[name] = {{"updates", t.updates},
+                 {"per_second", t.PerSecond()},
+                 {"us_per_update", us},
+                 {"us_per_update_mean_of_repeats", mean_us},
+                 {"whole_run_cpu_ms", 1e3 * t.run_cpu_s},
+                 {"odometry_samples_per_run", odometry_samples},
+                 {"frames_per_run", frames}};
   };
   std::cout << "Corner updates (sim corridor seed 3, " << repeats
             << " runs, wall time of Localizer::AddFrame on frames with codes, one thread):\n";
@@ -259,8 +265,8 @@ RenderedWorkload MakeRenderedWorkload(size_t count) {
 
 // A tracking localizer: the simulated detections and odometry before `until_s`.
 std::unique_ptr<Localizer> WarmLocalizer(const sim::SimResult& sim, double until_s) {
-  auto localizer = std::make_unique<Localizer>(DefaultLocalizerOptions(sim.dataset), *sim.dataset.groundtruth_markers,
-                                               Cameras(sim.dataset));
+  auto localizer = std::make_unique<Localizer>(DefaultLocalizerOptions(sim.dataset),
+                                               *sim.dataset.groundtruth_markers, Cameras(sim.dataset));
   size_t f = 0;
   for (const StampedSE3& odometry : sim.dataset.odometry) {
     if (odometry.stamp_s >= until_s) break;
@@ -275,7 +281,8 @@ nlohmann::json ReportDetectAndUpdate() {
   const auto render_start = std::chrono::steady_clock::now();
   const RenderedWorkload w = MakeRenderedWorkload(quick ? 2 : 8);
   const int repeats = quick ? 3 : 15;  // Detect() runs per frame; the median is kept
-  const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
+  const double render_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   std::unique_ptr<Localizer> localizer = WarmLocalizer(w.sim, w.first_stamp_s);
   auto detector = CreateMultiDetector(DetectionFamilies(*w.sim.dataset.groundtruth_markers, {}));
   std::vector<double> cpu_ms, wall_ms;
@@ -311,15 +318,22 @@ nlohmann::json ReportDetectAndUpdate() {
   };
   const nlohmann::json cpu = stats(cpu_ms), wall = stats(wall_ms);
   std::cout << "Detection + update per rendered 1280x960 frame (sim corridor x2, " << w.frames.size()
-            << " frames from t=" << w.first_stamp_s << " s, rendered in " << FormatDouble(std::round(render_s)) << " s):\n"
-            << "  thread CPU ms: mean " << cpu["mean"].get<double>() << ", median " << cpu["median"].get<double>()
-            << ", max " << cpu["max"].get<double>() << "\n"
-            << "  wall ms:       mean " << wall["mean"].get<double>() << ", median " << wall["median"].get<double>()
-            << ", max " << wall["max"].get<double>() << "\n"
+            << " frames from t=" << w.first_stamp_s << " s, rendered in "
+            << FormatDouble(std::round(render_s)) << " s):\n"
+            << "  thread CPU ms: mean " << cpu["mean"].get<double>() << ", median "
+            << cpu["median"].get<double>() << ", max " << cpu["max"].get<double>() << "\n"
+            << "  wall ms:       mean " << wall["mean"].get<double>() << ", median "
+            << wall["median"].get<double>() << ", max " << wall["max"].get<double>() << "\n"
             << "  codes decoded " << decoded << " of " << true_codes << " fully visible; tracking after "
             << tracking << "/" << w.frames.size() << " frames\n";
-  return {{"frames", w.frames.size()}, {"detect_repeats", repeats}, {"cpu_ms", cpu}, {"wall_ms", wall}, {"codes_decoded", decoded},
-          {"codes_visible", true_codes}, {"frames_tracking", tracking}, {"target_ms", 20}};
+  return {{"frames", w.frames.size()},
+          {"detect_repeats", repeats},
+          {"cpu_ms", cpu},
+          {"wall_ms", wall},
+          {"codes_decoded", decoded},
+          {"codes_visible", true_codes},
+          {"frames_tracking", tracking},
+          {"target_ms", 20}};
 }
 
 void Report() {
@@ -363,7 +377,8 @@ void BM_DetectAndUpdate(benchmark::State& state) {
     stamp_s += 0.1;
     localizer->AddOdometry(stamp_s, T_odom_robot);
     const RenderedFrame& frame = w.frames[i++ % 2];
-    localizer->AddDetections({stamp_s, frame.camera, detector->Detect(frame.image), std::nullopt, std::nullopt});
+    localizer->AddDetections(
+        {stamp_s, frame.camera, detector->Detect(frame.image), std::nullopt, std::nullopt});
   }
 }
 
@@ -388,8 +403,10 @@ int main(int argc, char** argv) {
   }
   waymark::Report();
   if (report_only) return 0;
-  benchmark::RegisterBenchmark("BM_CornerUpdateRun", waymark::BM_CornerUpdateRun)->Unit(benchmark::kMillisecond);
-  benchmark::RegisterBenchmark("BM_DetectAndUpdate", waymark::BM_DetectAndUpdate)->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("BM_CornerUpdateRun", waymark::BM_CornerUpdateRun)
+      ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("BM_DetectAndUpdate", waymark::BM_DetectAndUpdate)
+      ->Unit(benchmark::kMillisecond);
   int rest_argc = static_cast<int>(rest.size());
   benchmark::Initialize(&rest_argc, rest.data());
   benchmark::RunSpecifiedBenchmarks();

@@ -18,17 +18,16 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
-#include <string>
-#include <vector>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
 
 #include "detect/common.h"
-#include "detect/synthetic.h"
 #include "detect/detector.h"
+#include "detect/synthetic.h"
 #include "io/util.h"
 
 namespace waymark {
@@ -137,8 +136,10 @@ Frame MakeFrame(cv::RNG& rng, int index, int codes, const std::vector<std::strin
       const double margin = 0.8 * side + 10;
       const Eigen::Vector2d centre(rng.uniform(margin, 1280 - margin), rng.uniform(margin, 960 - margin));
       if (margin * 2 >= 900) break;
-      const cv::Rect box(int(centre.x() - margin), int(centre.y() - margin), int(2 * margin), int(2 * margin));
-      if (std::any_of(taken.begin(), taken.end(), [&box](const cv::Rect& t) { return (t & box).area() > 0; })) continue;
+      const cv::Rect box(int(centre.x() - margin), int(centre.y() - margin), int(2 * margin),
+                         int(2 * margin));
+      if (std::any_of(taken.begin(), taken.end(), [&box](const cv::Rect& t) { return (t & box).area() > 0; }))
+        continue;
       taken.push_back(box);
       TrueCode code;
       code.truth.key.family = family;
@@ -146,7 +147,8 @@ Frame MakeFrame(cv::RNG& rng, int index, int codes, const std::vector<std::strin
       code.truth.corners_px = ProjectedSquare(centre, side, roll, tilt, axis);
       // A light card under the code (1.5 sides), as printed codes have.
       DrawSymbol({cv::Mat(1, 1, CV_8U, cv::Scalar(255)), cv::Rect(0, 0, 1, 1)},
-                 ProjectedSquare(centre, 1.5 * side, roll, tilt, axis), &frame.image, 20, rng.uniform(200, 245));
+                 ProjectedSquare(centre, 1.5 * side, roll, tilt, axis), &frame.image, 20,
+                 rng.uniform(200, 245));
       DrawSymbol(symbol, code.truth.corners_px, &frame.image, rng.uniform(10, 50), rng.uniform(200, 245));
       code.width_px = ShortestSide(code.truth.corners_px);
       code.tilt_deg = tilt * 180.0 / M_PI;
@@ -161,7 +163,8 @@ Frame MakeFrame(cv::RNG& rng, int index, int codes, const std::vector<std::strin
     const double angle = rng.uniform(0.0, 180.0);
     cv::Mat kernel = cv::Mat::zeros(length | 1, length | 1, CV_32F);
     const int c = kernel.rows / 2;
-    cv::line(kernel, cv::Point(c - int(c * std::cos(angle * M_PI / 180)), c - int(c * std::sin(angle * M_PI / 180))),
+    cv::line(kernel,
+             cv::Point(c - int(c * std::cos(angle * M_PI / 180)), c - int(c * std::sin(angle * M_PI / 180))),
              cv::Point(c + int(c * std::cos(angle * M_PI / 180)), c + int(c * std::sin(angle * M_PI / 180))),
              cv::Scalar(1.0));
     kernel /= cv::sum(kernel)[0];
@@ -217,7 +220,7 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, boo
         int dump_frame) {
   cv::RNG rng(seed);
   const auto detector = CreateMultiDetector(families);
-  std::map<std::string, std::map<int, Tally>> by_bin;          // family -> bin
+  std::map<std::string, std::map<int, Tally>> by_bin;           // family -> bin
   std::map<std::string, std::map<std::string, Tally>> by_cond;  // family -> condition
   std::map<std::string, long> misread;
   std::vector<double> code_ms, empty_ms;
@@ -294,7 +297,8 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, boo
     return j;
   };
   nlohmann::json out;
-  out["command"] = "bench_recall_bench --frames " + std::to_string(frames) + " --seed " + std::to_string(seed);
+  out["command"] =
+      "bench_recall_bench --frames " + std::to_string(frames) + " --seed " + std::to_string(seed);
   double load[3] = {0, 0, 0};
   getloadavg(load, 3);
   out["load_average_1min"] = load[0];
@@ -321,14 +325,15 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, boo
       nlohmann::json j = t.Json();
       j["bin"] = kBinNames[b];
       fam["bins"].push_back(j);
-      std::printf("  %-7s %4ld codes, found %4ld (%5.1f %%), corner RMS %.3f px\n", kBinNames[b], t.codes, t.found,
-                  j["found_pct"].get<double>(), j["corner_rms_px"].get<double>());
+      std::printf("  %-7s %4ld codes, found %4ld (%5.1f %%), corner RMS %.3f px\n", kBinNames[b], t.codes,
+                  t.found, j["found_pct"].get<double>(), j["corner_rms_px"].get<double>());
     }
     fam["at_least_40px"] = wide.Json();
     fam["from_25_to_40px"] = mid.Json();
-    std::printf("  >=40 px: %.1f %% found (target 98), 25-40 px: %.1f %% (target 90), corner RMS >=40 px %.3f px\n",
-                wide.Json()["found_pct"].get<double>(), mid.Json()["found_pct"].get<double>(),
-                wide.Json()["corner_rms_px"].get<double>());
+    std::printf(
+        "  >=40 px: %.1f %% found (target 98), 25-40 px: %.1f %% (target 90), corner RMS >=40 px %.3f px\n",
+        wide.Json()["found_pct"].get<double>(), mid.Json()["found_pct"].get<double>(),
+        wide.Json()["corner_rms_px"].get<double>());
     for (const char* condition : kConditions) {
       nlohmann::json j = by_cond[family][condition].Json();
       j["condition"] = condition;
@@ -338,11 +343,12 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, boo
     }
     out["families"].push_back(fam);
   }
-  std::printf("CPU time per frame with 1-4 codes: mean %.1f ms, max %.1f ms; empty: mean %.1f ms, max %.1f ms; "
-              "%ld detections on %zu empty frames\n",
-              out["time_with_codes"].value("mean_ms", 0.0), out["time_with_codes"].value("max_ms", 0.0),
-              out["time_empty"].value("mean_ms", 0.0), out["time_empty"].value("max_ms", 0.0), empty_detections,
-              empty_ms.size());
+  std::printf(
+      "CPU time per frame with 1-4 codes: mean %.1f ms, max %.1f ms; empty: mean %.1f ms, max %.1f ms; "
+      "%ld detections on %zu empty frames\n",
+      out["time_with_codes"].value("mean_ms", 0.0), out["time_with_codes"].value("max_ms", 0.0),
+      out["time_empty"].value("mean_ms", 0.0), out["time_empty"].value("max_ms", 0.0), empty_detections,
+      empty_ms.size());
   out["misses"] = misses;
   if (write) {
     const fs::path json = fs::path(WAYMARK_SOURCE_DIR) / "bench" / "results" / "recall.json";
@@ -377,7 +383,8 @@ int main(int argc, char** argv) {
     } else if (arg == "--no-write") {
       write = false;
     } else {
-      std::cerr << "usage: bench_recall_bench [--frames N] [--seed S] [--families LIST] [--verbose] [--no-write]\n";
+      std::cerr
+          << "usage: bench_recall_bench [--frames N] [--seed S] [--families LIST] [--verbose] [--no-write]\n";
       return 1;
     }
   }

@@ -30,8 +30,8 @@
 #include <string>
 #include <vector>
 
-#include "geometry/camera.h"
 #include "detect/detector.h"
+#include "geometry/camera.h"
 #include "io/util.h"
 #include "sim/render.h"
 #include "sim/test_scenes.h"

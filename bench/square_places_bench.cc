@@ -26,15 +26,14 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/core/utility.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-#include <opencv2/core/utility.hpp>
-
 #include "detect/square.h"
-#include "io/util.h"
 #include "geometry/square_marker.h"
+#include "io/util.h"
 #include "online/localizer.h"
 #include "sim/ir_render.h"
 #include "sim/scenarios.h"
@@ -114,8 +113,10 @@ Result RunCondition(const Condition& condition, const std::vector<Eigen::Vector2
       const PoseOutput output = localizer.Output();
       if (!output.T_world_robot) continue;
       ++result.fixes;
-      const double e_mm = 1000.0 * (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm();
-      const double e_deg = std::abs(std::remainder(output.T_world_robot->yaw() - yaw, 2.0 * M_PI)) * 180.0 / M_PI;
+      const double e_mm =
+          1000.0 * (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm();
+      const double e_deg =
+          std::abs(std::remainder(output.T_world_robot->yaw() - yaw, 2.0 * M_PI)) * 180.0 / M_PI;
       sum += e_mm;
       sum_sq += e_mm * e_mm;
       heading_sq += e_deg * e_deg;
@@ -150,23 +151,32 @@ int main(int argc, char** argv) {
     conditions = {conditions[0], conditions[3]};
   }
   cv::setNumThreads(1);
-  std::printf("| condition | poses | fixes | position mean (mm) | RMS (mm) | max (mm) | heading RMS (deg) | max (deg) "
-              "| detect CPU ms/pair mean | max |\n");
+  std::printf(
+      "| condition | poses | fixes | position mean (mm) | RMS (mm) | max (mm) | heading RMS (deg) | max "
+      "(deg) "
+      "| detect CPU ms/pair mean | max |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   nlohmann::ordered_json out = nlohmann::ordered_json::array();
   for (const Condition& condition : conditions) {
     const Result r = RunCondition(condition, places, headings);
-    std::printf("| %s | %d | %d | %.1f | %.1f | %.1f | %.3f | %.3f | %.1f | %.1f |\n", r.condition.c_str(), r.poses,
-                r.fixes, r.mean_mm, r.rms_mm, r.max_mm, r.heading_rms_deg, r.heading_max_deg, r.detect_cpu_mean_ms,
-                r.detect_cpu_max_ms);
+    std::printf("| %s | %d | %d | %.1f | %.1f | %.1f | %.3f | %.3f | %.1f | %.1f |\n", r.condition.c_str(),
+                r.poses, r.fixes, r.mean_mm, r.rms_mm, r.max_mm, r.heading_rms_deg, r.heading_max_deg,
+                r.detect_cpu_mean_ms, r.detect_cpu_max_ms);
     std::fflush(stdout);
-    out.push_back({{"condition", r.condition}, {"poses", r.poses}, {"fixes", r.fixes}, {"position_mean_mm", r.mean_mm},
-                   {"position_rms_mm", r.rms_mm}, {"position_max_mm", r.max_mm},
-                   {"heading_rms_deg", r.heading_rms_deg}, {"heading_max_deg", r.heading_max_deg},
-                   {"detect_cpu_mean_ms", r.detect_cpu_mean_ms}, {"detect_cpu_max_ms", r.detect_cpu_max_ms}});
+    out.push_back({{"condition", r.condition},
+                   {"poses", r.poses},
+                   {"fixes", r.fixes},
+                   {"position_mean_mm", r.mean_mm},
+                   {"position_rms_mm", r.rms_mm},
+                   {"position_max_mm", r.max_mm},
+                   {"heading_rms_deg", r.heading_rms_deg},
+                   {"heading_max_deg", r.heading_max_deg},
+                   {"detect_cpu_mean_ms", r.detect_cpu_mean_ms},
+                   {"detect_cpu_max_ms", r.detect_cpu_max_ms}});
   }
   if (!quick) {
-    const std::filesystem::path path = std::filesystem::path(WAYMARK_SOURCE_DIR) / "bench" / "results" / "square_places.json";
+    const std::filesystem::path path =
+        std::filesystem::path(WAYMARK_SOURCE_DIR) / "bench" / "results" / "square_places.json";
     AtomicWriteFile(path, out.dump(1) + "\n");
     std::printf("wrote %s\n", path.string().c_str());
   }

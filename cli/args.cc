@@ -82,7 +82,8 @@ std::optional<double> Args::GetDouble(const std::string& name) const {
   const auto value = Get(name);
   if (!value) return std::nullopt;
   const std::optional<double> x = ParseFinite(*value);
-  if (!x) throw std::invalid_argument("option --" + name + ": expected a finite number, got '" + *value + "'");
+  if (!x)
+    throw std::invalid_argument("option --" + name + ": expected a finite number, got '" + *value + "'");
   return x;
 }
 
@@ -96,8 +97,8 @@ std::optional<std::vector<double>> Args::GetDoubleList(const std::string& name) 
     const std::optional<double> x =
         ParseFinite(value->substr(begin, comma == std::string::npos ? std::string::npos : comma - begin));
     if (!x) {
-      throw std::invalid_argument("option --" + name + ": expected comma-separated finite numbers, got '" + *value +
-                                  "'");
+      throw std::invalid_argument("option --" + name + ": expected comma-separated finite numbers, got '" +
+                                  *value + "'");
     }
     numbers.push_back(*x);
     if (comma == std::string::npos) return numbers;

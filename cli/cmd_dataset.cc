@@ -7,10 +7,10 @@
 #include <vector>
 
 #include "cli/args.h"
-#include "util/format.h"
 #include "cli/command.h"
-#include "io/dataset_io.h"
 #include "geometry/types.h"
+#include "io/dataset_io.h"
+#include "util/format.h"
 
 namespace waymark::cli {
 namespace {
@@ -75,7 +75,8 @@ void PrintSummary(const Dataset& dataset, std::ostream& out) {
       << "\n";
   if (dataset.has_odometry_file) {
     out << "odometry: " << summary.odometry_poses << " poses, " << FormatFixed(summary.odometry_span_s, 3)
-        << " s, path " << FormatFixed(summary.odometry_path_length_m, 3) << " m (" << config.odometry_file << ")\n";
+        << " s, path " << FormatFixed(summary.odometry_path_length_m, 3) << " m (" << config.odometry_file
+        << ")\n";
   } else {
     out << "odometry: none\n";
   }

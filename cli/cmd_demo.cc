@@ -24,23 +24,23 @@
 #include <vector>
 
 #include "cli/args.h"
-#include "util/format.h"
 #include "cli/command.h"
-#include "io/dataset_io.h"
-#include "io/detections_io.h"
 #include "detect/detector.h"
-#include "io/util.h"
-#include "io/map_io.h"
-#include "io/tum_io.h"
 #include "eval/association.h"
 #include "eval/detection_check.h"
 #include "eval/map_metrics.h"
 #include "eval/report.h"
 #include "eval/svg_plot.h"
 #include "eval/trajectory_eval.h"
+#include "io/dataset_io.h"
+#include "io/detections_io.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
+#include "io/util.h"
 #include "mapping/build_report.h"
 #include "mapping/map_builder.h"
 #include "runner/run.h"
+#include "util/format.h"
 
 namespace waymark::cli {
 namespace {
@@ -296,7 +296,8 @@ std::string DetectionLine(const DemoResult& r) {
 // (eval::PredictMapError; pooled over the components by their code counts).
 std::string MapLine(const DemoResult& r) {
   const std::optional<double> predicted_m = eval::PooledAlignedRms(eval::PredictMapError(r.map.map));
-  const std::string predicted = predicted_m ? " (the map's covariances predicted " + Mm(*predicted_m) + ")" : "";
+  const std::string predicted =
+      predicted_m ? " (the map's covariances predicted " + Mm(*predicted_m) + ")" : "";
   return "map against the true code poses: " + std::to_string(r.map_eval.markers) + " codes, position RMSE " +
          Mm(r.map_eval.position_rmse_m) + predicted + ", orientation RMSE " +
          FormatFixed(r.map_eval.orientation_rmse_deg, 2) + " deg\n";
@@ -478,7 +479,8 @@ void DetectAndMap(DemoResult* r) {
   r->map = BuildMap(r->survey, options);
   EndProgress();
   r->map_eval = eval::EvaluateMap(r->map.map, *r->survey.groundtruth_markers);
-  Log(std::to_string(r->map.map.markers.size()) + " codes mapped in " + FormatFixed(SecondsSince(start), 1) + " s");
+  Log(std::to_string(r->map.map.markers.size()) + " codes mapped in " + FormatFixed(SecondsSince(start), 1) +
+      " s");
 }
 
 void DetectAndLocalize(DemoResult* r) {
@@ -524,7 +526,8 @@ int RunDemo(const std::vector<std::string>& argv) {
   for (const auto& [name, contents] : files) outputs.emplace_back(fs::path(out_dir) / name, contents);
   AtomicWriteFiles(outputs);  // all or nothing
   std::cout << table;
-  Log("done in " + FormatFixed(r.seconds, 1) + " s; " + std::to_string(files.size()) + " files in " + out_dir);
+  Log("done in " + FormatFixed(r.seconds, 1) + " s; " + std::to_string(files.size()) + " files in " +
+      out_dir);
   return 0;
 }
 

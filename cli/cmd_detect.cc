@@ -2,41 +2,40 @@
 // on an image, a directory of images, a dataset directory (its images.csv) or a video,
 // and writes detections.jsonl (io/detections_io.h) atomically: one line per image or
 // frame. Progress goes to stderr on a terminal; a per-frame timing summary at the end.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
-#include <map>
-#include <optional>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <numeric>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <unistd.h>
-
-#include <opencv2/core/utils/logger.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
-
 #include "cli/args.h"
-#include "util/stats.h"
 #include "cli/command.h"
 #include "cli/dataset_detect.h"
 #include "cli/led_pairs.h"
-#include "io/camera_io.h"
-#include "io/dataset_io.h"
 #include "detect/common.h"
-#include "runner/image.h"
-#include "io/detections_io.h"
 #include "detect/detector.h"
-#include "io/util.h"
 #include "detect/square.h"
 #include "geometry/square_marker.h"
+#include "io/camera_io.h"
+#include "io/dataset_io.h"
+#include "io/detections_io.h"
+#include "io/util.h"
+#include "runner/image.h"
+#include "util/stats.h"
 
 namespace waymark::cli {
 namespace {
@@ -81,9 +80,10 @@ Exit status 0 on success; 1 with one line on stderr for a corrupt image, an unre
 video, an empty directory or bad options.
 )";
 
-const std::set<std::string> kImageExtensions = {".png", ".jpg", ".jpeg", ".bmp", ".tif",
-                                                ".tiff", ".webp", ".pgm", ".ppm"};
-const std::set<std::string> kVideoExtensions = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".m4v", ".mpg", ".mpeg"};
+const std::set<std::string> kImageExtensions = {".png",  ".jpg",  ".jpeg", ".bmp", ".tif",
+                                                ".tiff", ".webp", ".pgm",  ".ppm"};
+const std::set<std::string> kVideoExtensions = {".mp4",  ".avi", ".mkv", ".mov",
+                                                ".webm", ".m4v", ".mpg", ".mpeg"};
 
 std::string LowerExtension(const fs::path& path) {
   std::string ext = path.extension().string();
@@ -93,7 +93,7 @@ std::string LowerExtension(const fs::path& path) {
 
 // One image to process.
 struct ImageJob {
-  fs::path file;        // where to read it
+  fs::path file;         // where to read it
   std::string as_given;  // written as "image"
   double stamp_s = 0.0;
   std::string camera;
@@ -113,11 +113,13 @@ struct Timing {
   std::string Summary() const {
     std::vector<double> sorted = frame_ms;
     std::sort(sorted.begin(), sorted.end());
-    const double mean = std::accumulate(sorted.begin(), sorted.end(), 0.0) / std::max<size_t>(sorted.size(), 1);
+    const double mean =
+        std::accumulate(sorted.begin(), sorted.end(), 0.0) / std::max<size_t>(sorted.size(), 1);
     const double median = sorted.empty() ? 0.0 : QuantileOfSorted(sorted, 0.5);
     return "detect: " + std::to_string(sorted.size()) + " frames, " + std::to_string(markers) +
-           " markers; detection time per frame: mean " + FormatFixed(mean, 1) + " ms, median " + FormatFixed(median, 1) +
-           " ms, max " + FormatFixed(sorted.empty() ? 0.0 : sorted.back(), 1) + " ms";
+           " markers; detection time per frame: mean " + FormatFixed(mean, 1) + " ms, median " +
+           FormatFixed(median, 1) + " ms, max " + FormatFixed(sorted.empty() ? 0.0 : sorted.back(), 1) +
+           " ms";
   }
 };
 
@@ -223,8 +225,9 @@ std::vector<DetectionFrame> RunImages(const std::vector<ImageJob>& jobs, MarkerD
   return frames;
 }
 
-std::vector<DetectionFrame> RunVideo(const fs::path& path, const std::string& as_given, MarkerDetector* detector,
-                                     const RunOptions& run, Annotator* annotator, Timing* timing) {
+std::vector<DetectionFrame> RunVideo(const fs::path& path, const std::string& as_given,
+                                     MarkerDetector* detector, const RunOptions& run, Annotator* annotator,
+                                     Timing* timing) {
   cv::VideoCapture video(path.string());
   if (!video.isOpened()) throw std::runtime_error(as_given + ": cannot open video");
   const long total = static_cast<long>(video.get(cv::CAP_PROP_FRAME_COUNT));
@@ -248,20 +251,25 @@ std::vector<DetectionFrame> RunVideo(const fs::path& path, const std::string& as
   return frames;
 }
 
-std::vector<ImageJob> ListImageDir(const fs::path& dir, const std::string& as_given, const std::string& camera) {
+std::vector<ImageJob> ListImageDir(const fs::path& dir, const std::string& as_given,
+                                   const std::string& camera) {
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir)) {
-    if (entry.is_regular_file() && kImageExtensions.count(LowerExtension(entry.path()))) files.push_back(entry.path());
+    if (entry.is_regular_file() && kImageExtensions.count(LowerExtension(entry.path())))
+      files.push_back(entry.path());
   }
-  if (files.empty()) throw std::runtime_error(as_given + ": no images in directory (expected .png, .jpg, ...)");
+  if (files.empty())
+    throw std::runtime_error(as_given + ": no images in directory (expected .png, .jpg, ...)");
   std::sort(files.begin(), files.end());
   std::vector<ImageJob> jobs;
-  for (const fs::path& f : files) jobs.push_back({f, (fs::path(as_given) / f.filename()).string(), 0.0, camera});
+  for (const fs::path& f : files)
+    jobs.push_back({f, (fs::path(as_given) / f.filename()).string(), 0.0, camera});
   return jobs;
 }
 
 std::vector<ImageJob> ListDataset(const Dataset& dataset, const std::string& as_given) {
-  if (dataset.images.empty()) throw std::runtime_error(as_given + ": dataset has no images.csv rows to detect on");
+  if (dataset.images.empty())
+    throw std::runtime_error(as_given + ": dataset has no images.csv rows to detect on");
   std::vector<ImageJob> jobs;
   for (const ImageEntry& row : ImageRowsInStampOrder(dataset)) {
     jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
@@ -293,7 +301,8 @@ std::unique_ptr<MarkerDetector> MakeDetector(const Args& args, bool* square) {
     }
   }
   if (*square && others.empty()) {
-    if (list.back() == ',' || list.front() == ',') throw std::invalid_argument("empty marker family in '" + list + "'");
+    if (list.back() == ',' || list.front() == ',')
+      throw std::invalid_argument("empty marker family in '" + list + "'");
     return nullptr;
   }
   return CreateMultiDetector(ParseFamilyList(others), options);
@@ -301,7 +310,8 @@ std::unique_ptr<MarkerDetector> MakeDetector(const Args& args, bool* square) {
 
 cv::Mat ReadImage(const fs::path& file) {
   const cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw std::runtime_error(file.string() + ": cannot read image (missing, corrupt or not an image)");
+  if (image.empty())
+    throw std::runtime_error(file.string() + ": cannot read image (missing, corrupt or not an image)");
   return image;
 }
 
@@ -314,15 +324,17 @@ cv::Mat Gray(const cv::Mat& image) {
 
 // A dataset with family square: squares in its LED pairs, the other families (if any) in the
 // on images and the unpaired rows.
-std::vector<DetectionFrame> RunDatasetPairs(const Dataset& dataset, const std::string& input, MarkerDetector* detector,
-                                            Annotator* annotator, Timing* timing) {
+std::vector<DetectionFrame> RunDatasetPairs(const Dataset& dataset, const std::string& input,
+                                            MarkerDetector* detector, Annotator* annotator, Timing* timing) {
   std::vector<LedPair> pairs;
   std::vector<ImageEntry> others;
   const std::string images_csv = (dataset.dir / dataset.config.images_file).string();
-  if (dataset.images.empty()) throw std::runtime_error(input + ": dataset has no images.csv rows to detect on");
+  if (dataset.images.empty())
+    throw std::runtime_error(input + ": dataset has no images.csv rows to detect on");
   SplitLedPairs(ImageRowsInStampOrder(dataset), images_csv, &pairs, &others);
   if (pairs.empty()) {
-    throw std::runtime_error(images_csv + ": no LED pairs (rows ending -on.<ext> and -off.<ext>) for family square");
+    throw std::runtime_error(images_csv +
+                             ": no LED pairs (rows ending -on.<ext> and -off.<ext>) for family square");
   }
   const MapMarker* only = OnlySquare(dataset);
   std::map<std::string, SquareDetector> detectors;
@@ -332,23 +344,24 @@ std::vector<DetectionFrame> RunDatasetPairs(const Dataset& dataset, const std::s
     const fs::path on_file = dataset.dir / pair.on.path, off_file = dataset.dir / pair.off.path;
     const cv::Mat on = ReadImage(on_file), off = ReadImage(off_file);
     if (on.size() != off.size()) {
-      throw std::runtime_error(on_file.string() + ": LED pair: the on image is " + std::to_string(on.cols) + "x" +
-                               std::to_string(on.rows) + " but its off image " + pair.off.path + " is " +
-                               std::to_string(off.cols) + "x" + std::to_string(off.rows));
+      throw std::runtime_error(on_file.string() + ": LED pair: the on image is " + std::to_string(on.cols) +
+                               "x" + std::to_string(on.rows) + " but its off image " + pair.off.path +
+                               " is " + std::to_string(off.cols) + "x" + std::to_string(off.rows));
     }
     const CameraInfo& camera = dataset.cameras.at(pair.on.camera);
     CheckImageMatchesCamera(on, camera, on_file.string());
     auto it = detectors.find(camera.name);
     if (it == detectors.end()) {
-      it = detectors.emplace(camera.name, SquareDetector(Camera(camera), SquareOptionsFor(dataset, camera))).first;
+      it = detectors.emplace(camera.name, SquareDetector(Camera(camera), SquareOptionsFor(dataset, camera)))
+               .first;
     }
     const auto start = std::chrono::steady_clock::now();
     DetectionFrame frame;
     for (const SquareDetection& found : it->second.Detect(Gray(on), Gray(off))) {
       MarkerObservation observation;
       observation.key = {kFamilySquare, only ? only->key.id : kUnidentifiedSquareId};
-      observation.corners_px = only ? SolidFirstToMarkerOrder(found.corners_px, TapeOf(*only).solid_side)
-                                    : found.corners_px;
+      observation.corners_px =
+          only ? SolidFirstToMarkerOrder(found.corners_px, TapeOf(*only).solid_side) : found.corners_px;
       frame.markers.push_back(observation);
     }
     if (detector != nullptr) {
@@ -366,8 +379,10 @@ std::vector<DetectionFrame> RunDatasetPairs(const Dataset& dataset, const std::s
   }
   if (detector != nullptr && !others.empty()) {
     std::vector<ImageJob> jobs;
-    for (const ImageEntry& row : others) jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
-    for (DetectionFrame& f : RunImages(jobs, detector, dataset.cameras, annotator, timing)) frames.push_back(std::move(f));
+    for (const ImageEntry& row : others)
+      jobs.push_back({dataset.dir / row.path, row.path, row.stamp_s, row.camera});
+    for (DetectionFrame& f : RunImages(jobs, detector, dataset.cameras, annotator, timing))
+      frames.push_back(std::move(f));
     std::stable_sort(frames.begin(), frames.end(),
                      [](const DetectionFrame& a, const DetectionFrame& b) { return a.stamp_s < b.stamp_s; });
   }
@@ -382,8 +397,9 @@ std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* d
   if (run.camera) cameras[camera_name] = *run.camera;
   const bool is_dataset = fs::is_directory(path) && fs::exists(path / "dataset.yaml");
   if (square && !is_dataset) {
-    throw std::runtime_error(input + ": family square is detected in the LED pairs of a dataset (a directory with "
-                                     "dataset.yaml and images.csv)");
+    throw std::runtime_error(input +
+                             ": family square is detected in the LED pairs of a dataset (a directory with "
+                             "dataset.yaml and images.csv)");
   }
   if (fs::is_directory(path)) {
     if (is_dataset) {
@@ -394,7 +410,8 @@ std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* d
     return RunImages(ListImageDir(path, input, camera_name), detector, cameras, annotator, timing);
   }
   if (!fs::exists(path)) throw std::runtime_error(input + ": no such file or directory");
-  if (kVideoExtensions.count(LowerExtension(path))) return RunVideo(path, input, detector, run, annotator, timing);
+  if (kVideoExtensions.count(LowerExtension(path)))
+    return RunVideo(path, input, detector, run, annotator, timing);
   return RunImages({{path, input, 0.0, camera_name}}, detector, cameras, annotator, timing);
 }
 

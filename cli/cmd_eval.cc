@@ -10,13 +10,13 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
-#include "io/util.h"
-#include "io/map_io.h"
-#include "io/tum_io.h"
 #include "eval/map_metrics.h"
 #include "eval/report.h"
 #include "eval/svg_plot.h"
 #include "eval/trajectory_eval.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
+#include "io/util.h"
 
 namespace waymark::cli {
 namespace {
@@ -80,7 +80,8 @@ eval::TrajectoryEvalOptions TrajectoryOptions(const Args& args) {
   options.max_dt_s = args.GetDouble("max-dt").value_or(eval::kDefaultMaxDtS);
   options.align_predicted = args.Flag("align-predicted");
   if (args.Has("rpe-delta")) {
-    options.rpe = eval::RpeOptions{*args.GetDouble("rpe-delta"), eval::ParseRpeUnit(args.GetOr("rpe-unit", "frames"))};
+    options.rpe =
+        eval::RpeOptions{*args.GetDouble("rpe-delta"), eval::ParseRpeUnit(args.GetOr("rpe-unit", "frames"))};
   } else if (args.Has("rpe-unit")) {
     throw std::invalid_argument("option --rpe-unit needs --rpe-delta");
   }
@@ -93,20 +94,24 @@ void CheckModes(const Args& args) {
   args.ExpectPositionals(0, 0, "arguments");
   const bool trajectory = args.Has("est") || args.Has("gt");
   const bool map = args.Has("map");
-  if (!trajectory && !map) throw std::invalid_argument("give --est and --gt, or --map and --gt-map (see --help)");
+  if (!trajectory && !map)
+    throw std::invalid_argument("give --est and --gt, or --map and --gt-map (see --help)");
   if (trajectory && !(args.Has("est") && args.Has("gt"))) {
     throw std::invalid_argument(std::string("missing required option --") + (args.Has("est") ? "gt" : "est"));
   }
-  if (map && !args.Has("gt-map")) throw std::invalid_argument("missing required option --gt-map (with --map)");
+  if (map && !args.Has("gt-map"))
+    throw std::invalid_argument("missing required option --gt-map (with --map)");
   if (args.Has("group") && !map) throw std::invalid_argument("option --group needs --map and --gt-map");
   if (args.Has("gt-map") && !map && !args.Has("markers")) {
     throw std::invalid_argument("option --gt-map needs --map or --markers");
   }
   for (const char* name : {"predicted", "rpe-delta", "rpe-unit", "markers", "align", "max-dt"}) {
-    if (args.Has(name) && !trajectory) throw std::invalid_argument(std::string("option --") + name + " needs --est and --gt");
+    if (args.Has(name) && !trajectory)
+      throw std::invalid_argument(std::string("option --") + name + " needs --est and --gt");
   }
   for (const char* name : {"scale", "align-predicted"}) {
-    if (args.Flag(name) && !trajectory) throw std::invalid_argument(std::string("option --") + name + " needs --est and --gt");
+    if (args.Flag(name) && !trajectory)
+      throw std::invalid_argument(std::string("option --") + name + " needs --est and --gt");
   }
   if (args.Has("markers") && !args.Has("plot")) throw std::invalid_argument("option --markers needs --plot");
   if (args.Flag("align-predicted") && !args.Has("predicted")) {
@@ -146,16 +151,17 @@ std::vector<eval::PlotMarker> MarkersToPlot(const Args& args, const eval::Trajec
 }
 
 // Everything is computed before anything is written: an error leaves no partial output.
-void WriteOutputs(const Args& args, const eval::EvalReportInput& input, const std::optional<MarkerMap>& est_map,
-                  const std::optional<MarkerMap>& gt_map) {
+void WriteOutputs(const Args& args, const eval::EvalReportInput& input,
+                  const std::optional<MarkerMap>& est_map, const std::optional<MarkerMap>& gt_map) {
   std::optional<std::string> svg;
   if (args.Has("plot")) {
     eval::PlotInput plot;
     plot.trajectory = input.trajectory;
     plot.markers = MarkersToPlot(args, input.trajectory, input.map, est_map, gt_map);
     const auto name = [](const std::string& path) { return std::filesystem::path(path).filename().string(); };
-    plot.title = input.trajectory ? "waymark eval: " + name(input.est_path) + " vs " + name(input.gt_path)
-                                  : "waymark eval: " + name(input.map_path) + " vs " + name(input.gt_map_path);
+    plot.title = input.trajectory
+                     ? "waymark eval: " + name(input.est_path) + " vs " + name(input.gt_path)
+                     : "waymark eval: " + name(input.map_path) + " vs " + name(input.gt_map_path);
     svg = eval::RenderSvg(plot);
   }
   const std::string json = eval::EvalReportToJson(input).dump(2) + "\n";
@@ -168,16 +174,16 @@ void WriteOutputs(const Args& args, const eval::EvalReportInput& input, const st
 }
 
 void PrintGroup(const eval::GroupResult& group) {
-  std::printf("group /%s/: %zu markers, position RMS %.4f m, orientation RMS %.3f deg\n", group.pattern.c_str(),
-              group.markers, group.position_rmse_m, group.orientation_rmse_deg);
+  std::printf("group /%s/: %zu markers, position RMS %.4f m, orientation RMS %.3f deg\n",
+              group.pattern.c_str(), group.markers, group.position_rmse_m, group.orientation_rmse_deg);
   std::printf("others: %zu markers, position RMS %.4f m, orientation RMS %.3f deg\n", group.markers_other,
               group.other_position_rmse_m, group.other_orientation_rmse_deg);
 }
 
 int RunEval(const std::vector<std::string>& argv) {
   const Args args(argv,
-                  {"est", "gt", "align", "max-dt", "rpe-delta", "rpe-unit", "predicted", "json", "report", "plot",
-                   "markers", "map", "gt-map", "group"},
+                  {"est", "gt", "align", "max-dt", "rpe-delta", "rpe-unit", "predicted", "json", "report",
+                   "plot", "markers", "map", "gt-map", "group"},
                   {"scale", "align-predicted"});
   if (args.Help()) {
     std::cout << kUsage;
@@ -192,7 +198,8 @@ int RunEval(const std::vector<std::string>& argv) {
   std::optional<eval::MapEvalResult> map_result;
   if (const auto map_path = args.Get("map")) {
     est_map = ReadMap(*map_path);
-    map_result = WithContext(*map_path + " vs " + args.Require("gt-map"), [&] { return eval::EvaluateMap(*est_map, *gt_map); });
+    map_result = WithContext(*map_path + " vs " + args.Require("gt-map"),
+                             [&] { return eval::EvaluateMap(*est_map, *gt_map); });
   }
 
   eval::EvalReportInput input;
@@ -212,7 +219,8 @@ int RunEval(const std::vector<std::string>& argv) {
   return 0;
 }
 
-const CommandRegistrar kRegistrar({"eval", "trajectory and map accuracy against ground truth (ATE, RPE, PE/TE)",
+const CommandRegistrar kRegistrar({"eval",
+                                   "trajectory and map accuracy against ground truth (ATE, RPE, PE/TE)",
                                    kUsage, RunEval});
 
 }  // namespace

@@ -13,17 +13,17 @@
 #include <vector>
 
 #include "cli/args.h"
-#include "util/stats.h"
-#include "util/format.h"
 #include "cli/command.h"
 #include "io/dataset_io.h"
 #include "io/detections_io.h"
-#include "io/util.h"
 #include "io/json_util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
 #include "runner/live_input.h"
 #include "runner/run.h"
+#include "util/format.h"
+#include "util/stats.h"
 
 namespace waymark::cli {
 namespace {
@@ -81,8 +81,15 @@ Options:
                       never reads a clock: its results depend on the images alone.
 )";
 
-const std::set<std::string> kValues = {"map",      "out",          "mode", "predicted", "poses", "families",
-                                       "odometry-time-offset", "late-frame-window", "detect-budget-ms"};
+const std::set<std::string> kValues = {"map",
+                                       "out",
+                                       "mode",
+                                       "predicted",
+                                       "poses",
+                                       "families",
+                                       "odometry-time-offset",
+                                       "late-frame-window",
+                                       "detect-budget-ms"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -102,7 +109,8 @@ LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
   options.detect_images = args.Flag("detect-images");
   if (args.Has("families")) options.families = ParseFamilyList(*args.Get("families"));
   options.realtime = args.Flag("realtime");
-  if (args.Has("odometry-time-offset")) options.odometry_time_offset_s = *args.GetDouble("odometry-time-offset");
+  if (args.Has("odometry-time-offset"))
+    options.odometry_time_offset_s = *args.GetDouble("odometry-time-offset");
   if (args.Has("late-frame-window")) options.late_frame_window_s = *args.GetDouble("late-frame-window");
   if (StderrIsTerminal()) {
     options.progress = [](const std::string& line) { std::cerr << "\r\033[K" << line << std::flush; };
@@ -119,8 +127,8 @@ std::string LatencyLine(std::vector<double> latency_ms) {
   double sum = 0.0;
   for (double ms : latency_ms) sum += ms;
   return "latency per frame (ms): mean " + FormatFixed(sum / latency_ms.size(), 3) + ", median " +
-         FormatFixed(QuantileOfSorted(latency_ms, 0.5), 3) + ", p99 " + FormatFixed(QuantileOfSorted(latency_ms, 0.99), 3) +
-         ", max " + FormatFixed(latency_ms.back(), 3);
+         FormatFixed(QuantileOfSorted(latency_ms, 0.5), 3) + ", p99 " +
+         FormatFixed(QuantileOfSorted(latency_ms, 0.99), 3) + ", max " + FormatFixed(latency_ms.back(), 3);
 }
 
 void PrintSummary(const LocalizeRun& run, std::ostream& out) {
@@ -129,13 +137,15 @@ void PrintSummary(const LocalizeRun& run, std::ostream& out) {
   const LocalizerCounters& c = run.counters;
   const double percent = run.outputs.empty() ? 0.0 : 100.0 * tracking / run.outputs.size();
   out << "frames: " << run.outputs.size() << " (" << run.frames_with_codes << " with codes, "
-      << run.frames_with_map_codes << " with codes of the map), tracking " << FormatFixed(percent, 1) << " % ("
-      << run.trajectory.size() << " poses)\n"
-      << "corrections: accepted " << c.accepted << ", gated " << c.gated << ", unknown codes " << c.unknown_markers
-      << ", not usable " << c.not_usable << "\n"
-      << "initializations: " << c.initializations << " (relocalizations " << std::max(0L, c.initializations - 1)
-      << "), times lost " << c.times_lost << ", rejected inputs " << c.rejected_inputs << "\n"
-      << "suspect: " << c.times_suspect << " times (" << c.suspect_by_missed_codes << " by codes expected in view but "
+      << run.frames_with_map_codes << " with codes of the map), tracking " << FormatFixed(percent, 1)
+      << " % (" << run.trajectory.size() << " poses)\n"
+      << "corrections: accepted " << c.accepted << ", gated " << c.gated << ", unknown codes "
+      << c.unknown_markers << ", not usable " << c.not_usable << "\n"
+      << "initializations: " << c.initializations << " (relocalizations "
+      << std::max(0L, c.initializations - 1) << "), times lost " << c.times_lost << ", rejected inputs "
+      << c.rejected_inputs << "\n"
+      << "suspect: " << c.times_suspect << " times (" << c.suspect_by_missed_codes
+      << " by codes expected in view but "
       << "not seen, " << c.suspect_cleared << " cleared), lost by missed codes " << c.lost_by_missed_codes
       << "; codes expected in view " << c.expected_codes << ", not detected " << c.expected_missed << "\n"
       << LatencyLine(run.latency_ms) << "\n";
@@ -177,7 +187,8 @@ int RunDataset(const Args& args) {
 
 int RunLive(const Args& args) {
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
-    throw std::invalid_argument("--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");
+    throw std::invalid_argument(
+        "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");
   }
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);

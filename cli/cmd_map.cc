@@ -7,27 +7,26 @@
 #include <functional>
 #include <iostream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "cli/args.h"
-#include "util/stats.h"
-#include "util/format.h"
 #include "cli/command.h"
 #include "cli/dataset_detect.h"
-#include "io/dataset_io.h"
-#include "io/util.h"
-#include "io/map_io.h"
-#include "io/tum_io.h"
 #include "eval/map_metrics.h"
 #include "factors/calibrated_odometry_factor.h"
+#include "io/dataset_io.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
+#include "io/util.h"
 #include "mapping/build_report.h"
 #include "mapping/map_builder.h"
 #include "mapping/map_merge.h"
+#include "util/format.h"
+#include "util/stats.h"
 
 namespace waymark::cli {
 namespace {
@@ -105,8 +104,10 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   options.calibrate_odometry = !args.Flag("no-calibration");
   if (const auto c = args.GetDoubleList("odometry-calibration")) {
     if (c->size() != 3 && c->size() != 6) {
-      throw std::invalid_argument("option --odometry-calibration: expected K,TURN,DIST or K,TURN,DIST,SK,ST,SD (3 or 6 "
-                                  "numbers), got " + std::to_string(c->size()));
+      throw std::invalid_argument(
+          "option --odometry-calibration: expected K,TURN,DIST or K,TURN,DIST,SK,ST,SD (3 or 6 "
+          "numbers), got " +
+          std::to_string(c->size()));
     }
     if (args.Flag("no-calibration")) {
       throw std::invalid_argument("--odometry-calibration and --no-calibration exclude each other");
@@ -121,9 +122,9 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   return options;
 }
 
-const std::set<std::string> kBuildValues = {"out",        "trajectory",   "report",   "threads",
-                                            "min-frames", "outlier-chi2", "max-gap",  "families",
-                                            "odometry-calibration", "payload-sigma"};
+const std::set<std::string> kBuildValues = {
+    "out",      "trajectory",           "report",       "threads", "min-frames", "outlier-chi2", "max-gap",
+    "families", "odometry-calibration", "payload-sigma"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
 
 // DATASET with the detections the build uses (cli/dataset_detect.h).
@@ -143,7 +144,8 @@ Dataset LoadSurvey(const Args& args, const std::string& dir) {
 std::string ComponentTrajectoryPath(const std::string& path, int component) {
   if (component == 0) return path;
   const std::filesystem::path p(path);
-  return (p.parent_path() / (p.stem().string() + ".component" + std::to_string(component) + p.extension().string()))
+  return (p.parent_path() /
+          (p.stem().string() + ".component" + std::to_string(component) + p.extension().string()))
       .string();
 }
 
@@ -159,12 +161,17 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
                            {"covariance_computed", result.covariance_computed},
                            {"notes", result.notes}};
   for (const ComponentSummary& c : result.components) {
-    report["components"].push_back({{"component", c.component}, {"markers", c.markers}, {"frames", c.frames},
-                                    {"trajectory_poses", c.trajectory_poses}, {"gauge", c.gauge}});
+    report["components"].push_back({{"component", c.component},
+                                    {"markers", c.markers},
+                                    {"frames", c.frames},
+                                    {"trajectory_poses", c.trajectory_poses},
+                                    {"gauge", c.gauge}});
   }
   for (const CameraReprojection& r : result.reprojection) {
-    report["reprojection"].push_back(
-        {{"camera", r.camera}, {"observations", r.observations}, {"rms_px", r.rms_px}, {"median_px", r.median_px}});
+    report["reprojection"].push_back({{"camera", r.camera},
+                                      {"observations", r.observations},
+                                      {"rms_px", r.rms_px},
+                                      {"median_px", r.median_px}});
   }
   report["phases"] = nlohmann::json::array();
   double peak_rss_mb = 0.0;
@@ -189,8 +196,12 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
   for (const auto& [code, n] : tally.by_code) report["outliers_by_code"][code] = n;
   report["outliers"] = nlohmann::json::array();
   for (const RejectedObservation& o : result.outliers) {
-    report["outliers"].push_back({{"family", o.key.family}, {"id", o.key.id}, {"t", o.stamp_s},
-                                  {"camera", o.camera}, {"rms_px", o.rms_px}, {"reason", o.reason}});
+    report["outliers"].push_back({{"family", o.key.family},
+                                  {"id", o.key.id},
+                                  {"t", o.stamp_s},
+                                  {"camera", o.camera},
+                                  {"rms_px", o.rms_px},
+                                  {"reason", o.reason}});
   }
   if (result.odometry_calibration) {
     const Eigen::Vector3d& c = *result.odometry_calibration;
@@ -217,9 +228,10 @@ void WriteOutputs(const Args& args, const MapBuildResult& result) {
   files.emplace_back(args.Require("out"), FormatMap(result.map));
   if (const auto path = args.Get("trajectory")) {
     for (size_t c = 0; c < result.trajectories.size(); ++c) {
-      files.emplace_back(ComponentTrajectoryPath(*path, static_cast<int>(c)),
-                         FormatTum(result.trajectories[c], "waymark map: smoothed T_world_robot of component " +
-                                                               std::to_string(c) + ", in its own frame"));
+      files.emplace_back(
+          ComponentTrajectoryPath(*path, static_cast<int>(c)),
+          FormatTum(result.trajectories[c], "waymark map: smoothed T_world_robot of component " +
+                                                std::to_string(c) + ", in its own frame"));
     }
   }
   if (const auto path = args.Get("report")) files.emplace_back(*path, ReportJson(result).dump(1) + "\n");
@@ -246,8 +258,9 @@ int Finish(const Args& args, const MapBuildResult& result) {
   PrintPredictedError(result.map);
   if (const auto path = args.Get("trajectory")) {
     for (size_t c = 0; c < result.trajectories.size(); ++c) {
-      std::cout << "trajectory of component " << c << ": " << ComponentTrajectoryPath(*path, static_cast<int>(c))
-                << " (" << result.trajectories[c].size() << " poses)\n";
+      std::cout << "trajectory of component " << c << ": "
+                << ComponentTrajectoryPath(*path, static_cast<int>(c)) << " ("
+                << result.trajectories[c].size() << " poses)\n";
     }
   }
   return 0;
@@ -298,7 +311,8 @@ int RunInfo(const std::vector<std::string>& argv) {
     ++components[m.component.value_or(0)];
     ++families[m.key.family];
     if (m.fixed) ++fixed;
-    if (m.covariance) sigma_mm.push_back(1e3 * std::sqrt(std::max(0.0, m.covariance->bottomRightCorner<3, 3>().trace())));
+    if (m.covariance)
+      sigma_mm.push_back(1e3 * std::sqrt(std::max(0.0, m.covariance->bottomRightCorner<3, 3>().trace())));
   }
   std::cout << "markers: " << map.markers.size() << " (" << fixed << " fixed)\n"
             << "components: " << components.size() << "\n";
@@ -308,8 +322,9 @@ int RunInfo(const std::vector<std::string>& argv) {
   std::cout << "\ncovariance: " << sigma_mm.size() << " markers";
   if (!sigma_mm.empty()) {
     std::sort(sigma_mm.begin(), sigma_mm.end());
-    std::cout << ", position sigma (sqrt of the trace) median " << FormatFixed(QuantileOfSorted(sigma_mm, 0.5), 2)
-              << " mm, max " << FormatFixed(sigma_mm.back(), 2) << " mm";
+    std::cout << ", position sigma (sqrt of the trace) median "
+              << FormatFixed(QuantileOfSorted(sigma_mm, 0.5), 2) << " mm, max "
+              << FormatFixed(sigma_mm.back(), 2) << " mm";
   }
   std::cout << "\n";
   PrintPredictedError(map);
@@ -326,8 +341,8 @@ int RunMap(const std::vector<std::string>& args) {
   throw std::invalid_argument("unknown verb '" + verb + "' (expected build, merge or info; see --help)");
 }
 
-const CommandRegistrar kRegistrar(Command{"map", "learn a map from a survey (build), merge a survey, describe a map",
-                                          kUsage, RunMap});
+const CommandRegistrar kRegistrar(Command{
+    "map", "learn a map from a survey (build), merge a survey, describe a map", kUsage, RunMap});
 
 }  // namespace
 }  // namespace waymark::cli

@@ -10,13 +10,13 @@
 #include <vector>
 
 #include "cli/args.h"
-#include "util/format.h"
 #include "cli/command.h"
 #include "io/dataset_io.h"
-#include "io/util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
 #include "mapping/map_score.h"
+#include "util/format.h"
 
 namespace waymark::cli {
 namespace {

@@ -145,8 +145,8 @@ int RunSim(const std::vector<std::string>& argv) {
   } else if (args.Flag("render")) {
     const sim::RenderOptions options = sim::RenderOptionsFromParams(params);
     render = [&, options](const std::filesystem::path& dir) {
-      render_stats = sim::RenderRun(result, options, static_cast<std::uint64_t>(seed), render_every, dir,
-                                    ShowProgress);
+      render_stats =
+          sim::RenderRun(result, options, static_cast<std::uint64_t>(seed), render_every, dir, ShowProgress);
     };
   }
   sim::WriteSimDataset(result, params, static_cast<std::uint64_t>(seed), out_dir, args.Flag("force"), render);

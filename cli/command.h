@@ -30,5 +30,4 @@ struct CommandRegistrar {
 // True when stderr is a terminal: progress is shown there and nowhere else.
 bool StderrIsTerminal();
 
-
 }  // namespace waymark::cli

@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <iostream>
-#include <stdexcept>
-
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
 
 #include "cli/command.h"
 #include "runner/image.h"
@@ -13,9 +12,9 @@ namespace waymark::cli {
 
 void CheckImageMatchesCamera(const cv::Mat& image, const CameraInfo& camera, const std::string& what) {
   if (image.cols != camera.width || image.rows != camera.height) {
-    throw std::runtime_error(what + ": image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
-                             " but camera " + camera.name + " is " + std::to_string(camera.width) + "x" +
-                             std::to_string(camera.height));
+    throw std::runtime_error(what + ": image is " + std::to_string(image.cols) + "x" +
+                             std::to_string(image.rows) + " but camera " + camera.name + " is " +
+                             std::to_string(camera.width) + "x" + std::to_string(camera.height));
   }
 }
 
@@ -56,17 +55,21 @@ void PrepareDetectionsForMapping(bool detect_images, const std::vector<std::stri
                                  Dataset* dataset) {
   const std::string where = "dataset " + dataset->dir.string();
   if (detect_images) {
-    const std::vector<std::string> used = families.empty() ? ParseFamilyList(kDefaultDetectFamilies) : families;
+    const std::vector<std::string> used =
+        families.empty() ? ParseFamilyList(kDefaultDetectFamilies) : families;
     const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(used, DetectorOptions{});
     std::function<void(size_t, size_t)> progress;
     if (StderrIsTerminal()) {
-      progress = [](size_t done, size_t total) { std::cerr << "\r\033[Kdetect: " << done << "/" << total << std::flush; };
+      progress = [](size_t done, size_t total) {
+        std::cerr << "\r\033[Kdetect: " << done << "/" << total << std::flush;
+      };
     }
     dataset->detections = DetectDatasetImages(*dataset, detector.get(), progress);
     if (progress) std::cerr << "\r\033[K";
   } else if (dataset->detections.empty() && !dataset->images.empty()) {
-    throw std::runtime_error(where + ": no detections.jsonl, only images: detect on them (--detect-images, or "
-                                     "`waymark detect` first)");
+    throw std::runtime_error(where +
+                             ": no detections.jsonl, only images: detect on them (--detect-images, or "
+                             "`waymark detect` first)");
   }
   const bool any_code = std::any_of(dataset->detections.begin(), dataset->detections.end(),
                                     [](const DetectionFrame& f) { return !f.markers.empty(); });

@@ -3,13 +3,12 @@
 // (`waymark map build/merge --detect-images`): the same detections `waymark detect DATASET`
 // writes, kept in memory instead of read back from detections.jsonl.
 #include <functional>
+#include <opencv2/core/mat.hpp>
 #include <string>
 #include <vector>
 
-#include <opencv2/core/mat.hpp>
-
-#include "io/dataset_io.h"
 #include "detect/detector.h"
+#include "io/dataset_io.h"
 
 namespace waymark::cli {
 
@@ -28,8 +27,9 @@ std::vector<ImageEntry> ImageRowsInStampOrder(const Dataset& dataset);
 // size differs from its camera's (CheckImageMatchesCamera), and when the dataset has no
 // images.csv rows.
 // `progress(done, total)` is called after every image when set.
-std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDetector* detector,
-                                                const std::function<void(size_t, size_t)>& progress = nullptr);
+std::vector<DetectionFrame> DetectDatasetImages(
+    const Dataset& dataset, MarkerDetector* detector,
+    const std::function<void(size_t, size_t)>& progress = nullptr);
 
 // The dataset's detections, checked for use by a map build: with `detect_images`, detected on
 // its images (families as given, or every supported family); without, its detections.jsonl.

@@ -31,7 +31,8 @@ void SplitLedPairs(const std::vector<ImageEntry>& rows, const std::string& where
   std::map<std::string, ImageEntry> pending;  // camera -> its on row waiting for the off row
   const auto lone_on = [&](const ImageEntry& on) {
     throw std::runtime_error(where + ": LED-on image '" + on.path + "' (camera " + on.camera +
-                             ") has no LED-off partner '" + *OffPartner(on.path) + "' on the camera's next row");
+                             ") has no LED-off partner '" + *OffPartner(on.path) +
+                             "' on the camera's next row");
   };
   for (const ImageEntry& row : rows) {
     const auto it = pending.find(row.camera);
@@ -76,8 +77,8 @@ SquareDetectorOptions SquareOptionsFor(const Dataset& dataset, const CameraInfo&
   }
   const std::optional<double> height = SquareCeilingHeight(*dataset.known_markers, camera);
   if (first == nullptr || !height) {
-    throw std::runtime_error(where + ": family square needs a square with a pose above camera " + camera.name +
-                             " in markers.json");
+    throw std::runtime_error(where + ": family square needs a square with a pose above camera " +
+                             camera.name + " in markers.json");
   }
   options.ceiling_height_m = *height;
   return options;

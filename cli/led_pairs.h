@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "io/dataset_io.h"
 #include "detect/square.h"
+#include "io/dataset_io.h"
 
 namespace waymark::cli {
 

@@ -12,9 +12,8 @@
 #include <apriltag/tagStandard52h13.h>
 
 #include <algorithm>
-#include <stdexcept>
-
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "detect/common.h"
 #include "detect/quads.h"
@@ -98,8 +97,8 @@ class AprilTagDetector : public MarkerDetector {
       // Pass 2: tags too small for the decimated quad search, at full resolution but only
       // where a solid dark border is (detect/quads.h), each crop holding no tag yet.
       const double max_side = kSecondPassMaxSidePerDecimate * options_.apriltag_decimate;
-      for (const Quad2d& quad : SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px), max_side,
-                                                 kMaxSecondPassQuads)) {
+      for (const Quad2d& quad :
+           SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px), max_side, kMaxSecondPassQuads)) {
         const Eigen::Vector2d centre = QuadCenter(quad);
         const bool known = std::any_of(raw.begin(), raw.end(), [&centre](const MarkerObservation& o) {
           return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
@@ -108,14 +107,14 @@ class AprilTagDetector : public MarkerDetector {
         std::vector<cv::Point2f> points;
         for (const Eigen::Vector2d& c : quad) points.emplace_back(float(c.x()), float(c.y()));
         cv::Rect box = cv::boundingRect(points);
-        const int margin = static_cast<int>(std::ceil(kCropMarginFraction * std::max(box.width, box.height))) + 2;
+        const int margin =
+            static_cast<int>(std::ceil(kCropMarginFraction * std::max(box.width, box.height))) + 2;
         box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
               cv::Rect(0, 0, gray.cols, gray.rows);
         if (box.width < kMinImageSidePx || box.height < kMinImageSidePx) continue;
         for (const MarkerObservation& obs : Run(full_resolution_, gray(box), box.tl())) {
-          const bool seen = std::any_of(raw.begin(), raw.end(), [&obs](const MarkerObservation& o) {
-            return SameDetection(o, obs);
-          });
+          const bool seen = std::any_of(raw.begin(), raw.end(),
+                                        [&obs](const MarkerObservation& o) { return SameDetection(o, obs); });
           if (!seen) raw.push_back(obs);
         }
       }
@@ -128,8 +127,10 @@ class AprilTagDetector : public MarkerDetector {
  private:
   // libapriltag on `gray` (a view into the frame at `offset`): corners in frame pixels,
   // DESIGN.md order, OpenCV's pixel centres.
-  std::vector<MarkerObservation> Run(apriltag_detector_t* detector, const cv::Mat& gray, const cv::Point& offset) {
-    image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]), const_cast<uint8_t*>(gray.data)};
+  std::vector<MarkerObservation> Run(apriltag_detector_t* detector, const cv::Mat& gray,
+                                     const cv::Point& offset) {
+    image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
+                    const_cast<uint8_t*>(gray.data)};
     zarray_t* detections = apriltag_detector_detect(detector, &view);
     std::vector<MarkerObservation> out;
     for (int i = 0; i < zarray_size(detections); ++i) {
@@ -198,7 +199,8 @@ cv::Mat AprilTagModuleImage(const std::string& family, int id, cv::Rect* symbol)
   return modules;
 }
 
-std::unique_ptr<MarkerDetector> CreateAprilTagDetector(const std::string& family, const DetectorOptions& options) {
+std::unique_ptr<MarkerDetector> CreateAprilTagDetector(const std::string& family,
+                                                       const DetectorOptions& options) {
   const FamilyEntry* entry = FindFamily(family);
   if (entry == nullptr) throw std::invalid_argument("unknown AprilTag family '" + family + "'");
   return std::make_unique<AprilTagDetector>(family, *entry, options);

@@ -11,10 +11,9 @@
 #pragma once
 
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "detect/detector.h"
 
@@ -26,7 +25,8 @@ std::vector<std::string> AprilTagFamilyNames();
 
 // `family` is the full name, e.g. "apriltag-36h11". Throws std::invalid_argument for an
 // unknown family.
-std::unique_ptr<MarkerDetector> CreateAprilTagDetector(const std::string& family, const DetectorOptions& options);
+std::unique_ptr<MarkerDetector> CreateAprilTagDetector(const std::string& family,
+                                                       const DetectorOptions& options);
 
 // The tag's module image, one pixel per module (0 dark, 255 light), total_width modules
 // wide (36h11: 10, its white border included), drawn from the family's code table and

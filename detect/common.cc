@@ -4,11 +4,10 @@
 
 #include <algorithm>
 #include <chrono>
-#include <limits>
 #include <cmath>
-#include <stdexcept>
-
+#include <limits>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "detect/refine.h"
 
@@ -97,8 +96,8 @@ bool SameDetection(const MarkerObservation& a, const MarkerObservation& b) {
 
 void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<MarkerObservation>* all) {
   for (const MarkerObservation& f : found) {
-    const bool seen =
-        std::any_of(all->begin(), all->end(), [&](const MarkerObservation& a) { return SameDetection(a, f); });
+    const bool seen = std::any_of(all->begin(), all->end(),
+                                  [&](const MarkerObservation& a) { return SameDetection(a, f); });
     if (!seen) all->push_back(f);
   }
 }
@@ -138,8 +137,8 @@ double ScoreBox(const cv::Mat& small, const cv::Mat& edges, const std::vector<cv
   // Larger blobs first (text glyphs and small clutter are small); a box cut by the image
   // border holds at most part of a code.
   const double size = std::min(1.0, short_side / scale_to_full / options.preferred_side_px);
-  const bool at_border = box.x <= 1 || box.y <= 1 || box.x + box.width >= small.cols - 1 ||
-                         box.y + box.height >= small.rows - 1;
+  const bool at_border =
+      box.x <= 1 || box.y <= 1 || box.x + box.width >= small.cols - 1 || box.y + box.height >= small.rows - 1;
   return fill * std::min(1.0, edge_density / 0.3) * contrast * squareness * size * (at_border ? 0.5 : 1.0);
 }
 
@@ -206,7 +205,8 @@ std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates)
 namespace {
 
 double WallMs() {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 }  // namespace
@@ -227,11 +227,13 @@ double FrameWork::LeftMs() const {
 }
 
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                   const std::vector<CropAttempt>& attempts, FrameWork* work, std::vector<MarkerObservation>* found) {
+                   const std::vector<CropAttempt>& attempts, FrameWork* work,
+                   std::vector<MarkerObservation>* found) {
   for (const cv::Rect& region : regions) {
     if (region.width < 8 || region.height < 8) continue;
-    const bool covered = std::any_of(found->begin(), found->end(),
-                                     [&](const MarkerObservation& o) { return ObservationInside(o, region); });
+    const bool covered = std::any_of(found->begin(), found->end(), [&](const MarkerObservation& o) {
+      return ObservationInside(o, region);
+    });
     if (covered) continue;
     const cv::Mat crop = gray(region);
     for (const CropAttempt& attempt : attempts) {
@@ -245,7 +247,8 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
   }
 }
 
-std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray, const std::vector<MarkerObservation>& raw,
+std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray,
+                                                  const std::vector<MarkerObservation>& raw,
                                                   bool refine_corners, double min_side_px) {
   std::vector<MarkerObservation> out;
   for (MarkerObservation obs : raw) {

@@ -4,13 +4,12 @@
 // Pixel convention: the centre of pixel (c, r) is at (c, r) (OpenCV).
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <functional>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <opencv2/core.hpp>
 
 #include "geometry/types.h"
 
@@ -44,15 +43,15 @@ void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<Marke
 
 // Candidate regions that may hold a 2-D code ([George]: Canny edges, dilation, the
 // bounding box of every blob contour, nested ones included, scored by size, aspect ratio,
-// fill, edge density, contrast and not touching the image border), best first, padded by a quiet-zone margin and clipped to the image. Regions
-// are searched on a copy downscaled to at most `work_width_px` wide.
+// fill, edge density, contrast and not touching the image border), best first, padded by a quiet-zone margin
+// and clipped to the image. Regions are searched on a copy downscaled to at most `work_width_px` wide.
 struct CandidateOptions {
   int work_width_px = 640;
-  double min_side_px = 16.0;       // in full-resolution pixels
+  double min_side_px = 16.0;         // in full-resolution pixels
   double preferred_side_px = 100.0;  // smaller boxes score proportionally less
-  double max_aspect = 4.0;         // longer / shorter side of the box
-  double min_edge_density = 0.06;  // Canny pixels / box area (at work resolution)
-  double margin_fraction = 0.25;   // padding added on each side, fraction of the box side
+  double max_aspect = 4.0;           // longer / shorter side of the box
+  double min_edge_density = 0.06;    // Canny pixels / box area (at work resolution)
+  double margin_fraction = 0.25;     // padding added on each side, fraction of the box side
   int max_regions = 16;
 };
 struct CandidateRegion {
@@ -100,12 +99,14 @@ class FrameWork {
 // until one decodes something (appended to *found in full-image pixels); every attempt
 // asks work->Allow() first.
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                   const std::vector<CropAttempt>& attempts, FrameWork* work, std::vector<MarkerObservation>* found);
+                   const std::vector<CropAttempt>& attempts, FrameWork* work,
+                   std::vector<MarkerObservation>* found);
 
 // The last step of every detector: refines each quad (if options.refine_corners; the
 // quality is the refinement's inlier fraction, 0 when it fails and the decoder's
 // corners are kept), drops invalid quads (QuadIsValid) and duplicates.
-std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray, const std::vector<MarkerObservation>& raw,
+std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray,
+                                                  const std::vector<MarkerObservation>& raw,
                                                   bool refine_corners, double min_side_px);
 
 // CPU time of the calling thread since construction, in milliseconds (benchmarks).

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
 #include <opencv2/imgproc.hpp>
 
 #include "detect/common.h"
@@ -50,8 +49,8 @@ class DataMatrixDetector : public MarkerDetector {
     std::vector<MarkerObservation> found;
     // Pass 1: Waymark's own candidates (the L finder and the timing pattern), each rectified
     // and decoded on its own small patch (detect/quads.h).
-    for (const DataMatrixCandidate& candidate :
-         DataMatrixCandidates(FindDarkQuads(gray, options_.min_side_px), options_.max_datamatrix_candidates)) {
+    for (const DataMatrixCandidate& candidate : DataMatrixCandidates(
+             FindDarkQuads(gray, options_.min_side_px), options_.max_datamatrix_candidates)) {
       const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
       const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
         return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
@@ -64,10 +63,11 @@ class DataMatrixDetector : public MarkerDetector {
       // a symbol touching other dark things): zxing on the candidate regions holding no
       // symbol yet, then on small ones upscaled.
       const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
-      RunSecondPass(gray, regions,
-                    {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
-                     [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
-                    &work, &found);
+      RunSecondPass(
+          gray, regions,
+          {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
+           [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
+          &work, &found);
     }
     skipped_ = work.skipped();
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
@@ -115,7 +115,8 @@ std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeo
   // No deadline unless one is given: a timeout would make the result depend on the machine.
   const bool timed = std::isfinite(timeout_ms);
   if (timed && timeout_ms < 1.0) return out;  // libdmtx's timeout granularity is 1 ms
-  DmtxTime deadline = timed ? dmtxTimeAdd(dmtxTimeNow(), static_cast<long>(std::ceil(timeout_ms))) : DmtxTime{};
+  DmtxTime deadline =
+      timed ? dmtxTimeAdd(dmtxTimeNow(), static_cast<long>(std::ceil(timeout_ms))) : DmtxTime{};
   while (DmtxRegion* region = dmtxRegionFindNext(scan.decode, timed ? &deadline : nullptr)) {
     if (DmtxMessage* message = dmtxDecodeMatrixRegion(scan.decode, region, DmtxUndefined)) {
       MarkerObservation obs;
@@ -161,15 +162,16 @@ Eigen::Vector2d Apply(const cv::Matx33d& h, const Eigen::Vector2d& p) {
 
 }  // namespace
 
-std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCandidate& candidate) {
+std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray,
+                                                       const DataMatrixCandidate& candidate) {
   CV_Assert(gray.type() == CV_8UC1);
-  const int side = std::clamp(static_cast<int>(std::lround(QuadMeanSide(candidate.corners_px))), kPatchMinSidePx,
-                              kPatchMaxSidePx);
+  const int side = std::clamp(static_cast<int>(std::lround(QuadMeanSide(candidate.corners_px))),
+                              kPatchMinSidePx, kPatchMaxSidePx);
   const int margin = static_cast<int>(std::lround(kPatchMarginFraction * side));
   const int size = side + 2 * margin;
   const double lo = margin - 0.5, hi = margin + side - 0.5;  // outer edges in pixel-centre coordinates
-  std::vector<cv::Point2f> patch_pts = {{float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)},
-                                        {float(lo), float(hi)}};
+  std::vector<cv::Point2f> patch_pts = {
+      {float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
   std::vector<cv::Point2f> frame_pts;
   for (const Eigen::Vector2d& c : candidate.corners_px) frame_pts.emplace_back(float(c.x()), float(c.y()));
   const cv::Matx33d patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
@@ -213,7 +215,8 @@ std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, cons
           if (DmtxMessage* message = dmtxDecodeMatrixRegion(scan.decode, region, DmtxUndefined)) {
             MarkerObservation obs;
             obs.key.family = kFamilyDataMatrix;
-            obs.key.id = TextToId(std::string(reinterpret_cast<const char*>(message->output), message->outputIdx));
+            obs.key.id =
+                TextToId(std::string(reinterpret_cast<const char*>(message->output), message->outputIdx));
             obs.corners_px = DmtxCorners(*region, size, 1);
             out.push_back(std::move(obs));
             dmtxMessageDestroy(&message);

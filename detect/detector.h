@@ -22,10 +22,9 @@
 #pragma once
 
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "geometry/types.h"
 
@@ -59,9 +58,9 @@ struct DetectorOptions {
   // resolution). 4 keeps the benchmark's cluttered 1280x960 frame near 10 ms of CPU on one
   // core (bench/detection_bench.cc); smaller, farther tags need 2, several times slower.
   double apriltag_decimate = 4.0;
-  double apriltag_blur_sigma = 0.0;   // quad_sigma
+  double apriltag_blur_sigma = 0.0;  // quad_sigma
   int apriltag_max_bits_corrected = 1;
-  int threads = 1;                    // libapriltag worker threads
+  int threads = 1;  // libapriltag worker threads
 
   // True if usable; otherwise false with the reason in *why (when why != nullptr).
   bool Check(std::string* why) const;
@@ -86,7 +85,8 @@ std::vector<std::string> SupportedFamilies();
 
 // A detector for one family. Throws std::invalid_argument for an unknown family or
 // options that fail Check().
-std::unique_ptr<MarkerDetector> CreateDetector(const std::string& family, const DetectorOptions& options = {});
+std::unique_ptr<MarkerDetector> CreateDetector(const std::string& family,
+                                               const DetectorOptions& options = {});
 
 // One detector running several families on each image; duplicates (same key, same place)
 // are dropped. Throws like CreateDetector, and for an empty or repeated family list.

@@ -6,11 +6,11 @@
 #include <stdexcept>
 
 #include "detect/apriltag.h"
-#include "util/check.h"
 #include "detect/common.h"
 #include "detect/datamatrix.h"
-#include "detect/qr.h"
 #include "detect/detector.h"
+#include "detect/qr.h"
+#include "util/check.h"
 
 namespace waymark {
 
@@ -95,7 +95,8 @@ std::unique_ptr<MarkerDetector> CreateMultiDetector(const std::vector<std::strin
   std::set<std::string> seen;
   std::vector<std::unique_ptr<MarkerDetector>> detectors;
   for (const std::string& family : families) {
-    if (!seen.insert(family).second) throw std::invalid_argument("marker family '" + family + "' given twice");
+    if (!seen.insert(family).second)
+      throw std::invalid_argument("marker family '" + family + "' given twice");
     detectors.push_back(CreateDetector(family, options));
   }
   return std::make_unique<MultiDetector>(std::move(detectors));

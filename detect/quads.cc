@@ -4,9 +4,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <optional>
-
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 namespace waymark {
 namespace {
@@ -164,7 +163,8 @@ std::vector<T> Deduplicate(const std::vector<T>& sorted, int max_count, QuadOf q
     if (static_cast<int>(kept.size()) >= max_count) break;
     const Quad2d& q = quad_of(c);
     const bool duplicate = std::any_of(kept.begin(), kept.end(), [&](const T& k) {
-      return (QuadCenter(quad_of(k)) - QuadCenter(q)).norm() < 0.5 * std::min(QuadMeanSide(quad_of(k)), QuadMeanSide(q));
+      return (QuadCenter(quad_of(k)) - QuadCenter(q)).norm() <
+             0.5 * std::min(QuadMeanSide(quad_of(k)), QuadMeanSide(q));
     });
     if (!duplicate) kept.push_back(c);
   }
@@ -228,7 +228,8 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
       small = gray;
     }
     cv::Mat dark;
-    cv::adaptiveThreshold(small, dark, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, kBoxPx, kDarkerBy);
+    cv::adaptiveThreshold(small, dark, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, kBoxPx,
+                          kDarkerBy);
     std::vector<std::vector<cv::Point>> contours;
     std::vector<cv::Vec4i> hierarchy;
     cv::findContours(dark, contours, hierarchy, cv::RETR_CCOMP, cv::CHAIN_APPROX_SIMPLE);
@@ -274,7 +275,8 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
 
 }  // namespace
 
-std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates) {
+std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads,
+                                                      int max_candidates) {
   std::vector<DataMatrixCandidate> all;
   for (const DarkQuad& q : quads) {
     std::optional<DataMatrixCandidate> best;
@@ -287,7 +289,8 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
       // The L's solidity, and among orientations of one quad the one whose other two sides
       // alternate most (the timing pattern).
       const int runs = std::min(std::min(q.side_runs[t1], q.side_runs[t2]), kRunsForFullScore);
-      const double score = std::min(q.side_dark[s1], q.side_dark[s2]) * (0.8 + 0.2 * runs / kRunsForFullScore);
+      const double score =
+          std::min(q.side_dark[s1], q.side_dark[s2]) * (0.8 + 0.2 * runs / kRunsForFullScore);
       if (best && best->score >= score) continue;
       DataMatrixCandidate c;
       // The L's corner is the upright symbol's bottom-left: TL, TR, BR, BL = k+1, k+2, k+3, k.
@@ -307,10 +310,12 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
   std::stable_sort(all.begin(), all.end(), [](const DataMatrixCandidate& a, const DataMatrixCandidate& b) {
     return a.score > b.score;
   });
-  return Deduplicate(all, max_candidates, [](const DataMatrixCandidate& c) -> const Quad2d& { return c.corners_px; });
+  return Deduplicate(all, max_candidates,
+                     [](const DataMatrixCandidate& c) -> const Quad2d& { return c.corners_px; });
 }
 
-std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px, int max_candidates) {
+std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px,
+                                     int max_candidates) {
   std::vector<std::pair<double, Quad2d>> all;
   for (const DarkQuad& q : quads) {
     if (QuadMeanSide(q.corners_px) > max_side_px) continue;

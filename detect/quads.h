@@ -16,9 +16,8 @@
 #pragma once
 
 #include <array>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "detect/common.h"
 
@@ -29,7 +28,7 @@ struct DarkQuad {
   std::array<double, 4> side_dark;  // side j runs from corner j to corner j+1
   std::array<int, 4> side_runs;
   double interior_spread = 0.0;  // gray-level spread inside / the border's contrast
-  double scale = 1.0;  // the level it was found at
+  double scale = 1.0;            // the level it was found at
 };
 
 // Every dark component's quad with each side at least `min_side_px` (and at most 3.5 times
@@ -65,11 +64,13 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
 // text with control bytes (ECI designators, which libdmtx passes through).
 // Corners in frame pixels, docs/design.md order, not refined.
 // Implemented in detect/datamatrix.cc with the rest of the libdmtx glue.
-std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCandidate& candidate);
+std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray,
+                                                       const DataMatrixCandidate& candidate);
 
 // The quads with four solid sides and a varied interior (spread >= 0.2) whose mean side is at
 // most `max_side_px`: where an AprilTag (black border) may be. Best first, at most
 // `max_candidates`, duplicates dropped.
-std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px, int max_candidates);
+std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px,
+                                     int max_candidates);
 
 }  // namespace waymark

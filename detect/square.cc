@@ -1,21 +1,20 @@
 #include "detect/square.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <stdexcept>
 
-#include <Eigen/Eigenvalues>
-#include <opencv2/imgproc.hpp>
-
-#include "util/format.h"
 #include "geometry/square_marker.h"
+#include "util/format.h"
 
 namespace waymark {
 namespace {
 
-constexpr int kMaxFirstLines = 16;  // strongest lines tried as the solid side
+constexpr int kMaxFirstLines = 16;     // strongest lines tried as the solid side
 constexpr double kSampleStepM = 0.02;  // refinement samples along a side
 
 bool Fail(std::string* why, const std::string& reason) {
@@ -48,13 +47,15 @@ bool SquareDetectorOptions::Check(std::string* why) const {
   std::string tape_why;
   if (!CheckSquareTape(tape, side_m, &tape_why)) return Fail(why, "square detector: " + tape_why);
   if (!(ceiling_height_m > 0.0 && std::isfinite(ceiling_height_m))) {
-    return Fail(why, "square detector: ceiling height: expected > 0 m, got " + FormatDouble(ceiling_height_m));
+    return Fail(why,
+                "square detector: ceiling height: expected > 0 m, got " + FormatDouble(ceiling_height_m));
   }
   if (!(rectified_mm_per_px > 0.0) || !(rectified_half_extent_m > 0.0) ||
       rectified_half_extent_m * 1000.0 / rectified_mm_per_px > 2000.0) {
     return Fail(why, "square detector: the rectified image must be 1 to 4001 px wide");
   }
-  if (diff_threshold < 1 || diff_threshold > 254) return Fail(why, "square detector: diff_threshold: expected 1..254");
+  if (diff_threshold < 1 || diff_threshold > 254)
+    return Fail(why, "square detector: diff_threshold: expected 1..254");
   if (hough_votes < 1) return Fail(why, "square detector: hough_votes: expected >= 1");
   if (!(distance_gate > 0.0 && distance_gate < 0.5) || !(angle_gate_deg > 0.0 && angle_gate_deg < 45.0)) {
     return Fail(why, "square detector: gates: expected 0 < distance_gate < 0.5, 0 < angle_gate_deg < 45");
@@ -73,7 +74,8 @@ SquareDetector::SquareDetector(const Camera& camera, const SquareDetectorOptions
   map_y_.create(rect_size_, rect_size_, CV_32F);
   for (int i = 0; i < rect_size_; ++i) {
     for (int j = 0; j < rect_size_; ++j) {
-      const std::optional<Eigen::Vector2d> px = camera_.Project(Eigen::Vector3d((j - half) * s, (i - half) * s, z));
+      const std::optional<Eigen::Vector2d> px =
+          camera_.Project(Eigen::Vector3d((j - half) * s, (i - half) * s, z));
       map_x_.at<float>(i, j) = px ? static_cast<float>(px->x()) : -10.0f;
       map_y_.at<float>(i, j) = px ? static_cast<float>(px->y()) : -10.0f;
     }
@@ -83,14 +85,16 @@ SquareDetector::SquareDetector(const Camera& camera, const SquareDetectorOptions
 cv::Mat SquareDetector::Diff(const cv::Mat& on, const cv::Mat& off) const {
   if (on.empty() || off.empty()) throw std::invalid_argument("LED pair: empty image");
   if (on.size() != off.size()) {
-    throw std::invalid_argument("LED pair: the on image is " + std::to_string(on.cols) + "x" + std::to_string(on.rows) +
-                                " but the off image is " + std::to_string(off.cols) + "x" + std::to_string(off.rows));
+    throw std::invalid_argument("LED pair: the on image is " + std::to_string(on.cols) + "x" +
+                                std::to_string(on.rows) + " but the off image is " +
+                                std::to_string(off.cols) + "x" + std::to_string(off.rows));
   }
-  if (on.type() != CV_8UC1 || off.type() != CV_8UC1) throw std::invalid_argument("LED pair: expected 8-bit gray images");
+  if (on.type() != CV_8UC1 || off.type() != CV_8UC1)
+    throw std::invalid_argument("LED pair: expected 8-bit gray images");
   if (on.cols != camera_.width() || on.rows != camera_.height()) {
-    throw std::invalid_argument("LED pair: images are " + std::to_string(on.cols) + "x" + std::to_string(on.rows) +
-                                " but camera " + camera_.name() + " is " + std::to_string(camera_.width()) + "x" +
-                                std::to_string(camera_.height()));
+    throw std::invalid_argument("LED pair: images are " + std::to_string(on.cols) + "x" +
+                                std::to_string(on.rows) + " but camera " + camera_.name() + " is " +
+                                std::to_string(camera_.width()) + "x" + std::to_string(camera_.height()));
   }
   cv::Mat diff;
   cv::subtract(on, off, diff);  // saturates at 0
@@ -125,7 +129,9 @@ cv::Mat SquareDetector::TopHat(const cv::Mat& diff) const {
   return tophat;
 }
 
-cv::Mat SquareDetector::RectifiedTopHat(const cv::Mat& on, const cv::Mat& off) const { return TopHat(Diff(on, off)); }
+cv::Mat SquareDetector::RectifiedTopHat(const cv::Mat& on, const cv::Mat& off) const {
+  return TopHat(Diff(on, off));
+}
 
 Eigen::Vector2d SquareDetector::ToImage(const Eigen::Vector2d& plane) const {
   const std::optional<Eigen::Vector2d> px =
@@ -133,7 +139,8 @@ Eigen::Vector2d SquareDetector::ToImage(const Eigen::Vector2d& plane) const {
   return px ? *px : Eigen::Vector2d(std::nan(""), std::nan(""));
 }
 
-double SquareDetector::LongestRun(const cv::Mat& tophat, const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
+double SquareDetector::LongestRun(const cv::Mat& tophat, const Eigen::Vector2d& a,
+                                  const Eigen::Vector2d& b) const {
   const double s = options_.rectified_mm_per_px * 1e-3, w = options_.tape.tape_width_m;
   const double half = (rect_size_ - 1) / 2;
   const double length = (b - a).norm(), end = 1.5 * w;
@@ -147,7 +154,8 @@ double SquareDetector::LongestRun(const cv::Mat& tophat, const Eigen::Vector2d& 
     bool on = false;
     for (int k = -across; k <= across && !on; ++k) {
       const Eigen::Vector2d p = q + (k * s) * n;
-      const int j = static_cast<int>(std::lround(p.x() / s + half)), i = static_cast<int>(std::lround(p.y() / s + half));
+      const int j = static_cast<int>(std::lround(p.x() / s + half)),
+                i = static_cast<int>(std::lround(p.y() / s + half));
       on = i >= 0 && j >= 0 && i < tophat.rows && j < tophat.cols && tophat.at<std::uint8_t>(i, j) != 0;
     }
     run = on ? run + step : 0.0;
@@ -189,8 +197,14 @@ int SquareDetector::RefineLine(const cv::Mat& diff, const Eigen::Vector2d& a, co
         ok = false;
         break;
       }
-      std::vector<double> border = {vs[0], vs[1], vs[2], vs[3], vs[vs.size() - 1], vs[vs.size() - 2],
-                                    vs[vs.size() - 3], vs[vs.size() - 4]};
+      std::vector<double> border = {vs[0],
+                                    vs[1],
+                                    vs[2],
+                                    vs[3],
+                                    vs[vs.size() - 1],
+                                    vs[vs.size() - 2],
+                                    vs[vs.size() - 3],
+                                    vs[vs.size() - 4]};
       std::nth_element(border.begin(), border.begin() + 4, border.end());
       const double background = border[4];
       const double peak = *std::max_element(vs.begin(), vs.end()) - background;
@@ -253,7 +267,8 @@ std::vector<SquareDetection> SquareDetector::Detect(const cv::Mat& on, const cv:
   const cv::Mat tophat = TopHat(diff);
   std::vector<cv::Vec3f> found;
   cv::HoughLines(tophat, found, 1.0, M_PI / 180.0, options_.hough_votes);
-  std::stable_sort(found.begin(), found.end(), [](const cv::Vec3f& a, const cv::Vec3f& b) { return a[2] > b[2]; });
+  std::stable_sort(found.begin(), found.end(),
+                   [](const cv::Vec3f& a, const cv::Vec3f& b) { return a[2] > b[2]; });
   const double s = options_.rectified_mm_per_px * 1e-3, c = (rect_size_ - 1) / 2;
   std::vector<Line> lines;
   for (const cv::Vec3f& l : found) {
@@ -325,7 +340,8 @@ std::vector<SquareDetection> SquareDetector::Detect(const cv::Mat& on, const cv:
         }
         for (int k = 0; k < 4 && ok; ++k) {
           const Line& prev = sides[(k + 3) % 4];
-          const std::optional<Eigen::Vector2d> p = IntersectLines(prev.theta, prev.rho, sides[k].theta, sides[k].rho);
+          const std::optional<Eigen::Vector2d> p =
+              IntersectLines(prev.theta, prev.rho, sides[k].theta, sides[k].rho);
           ok = p.has_value() && (*p - before[k]).norm() < 0.25 * d;
           if (ok) q[k] = *p;
         }
@@ -333,8 +349,7 @@ std::vector<SquareDetection> SquareDetector::Detect(const cv::Mat& on, const cv:
       }
       for (int k = 0; k < 4; ++k) {
         detection.corners_px[k] = ToImage(q[k]);
-        if (!detection.corners_px[k].allFinite() ||
-            !camera_.info().InImage(detection.corners_px[k])) {
+        if (!detection.corners_px[k].allFinite() || !camera_.info().InImage(detection.corners_px[k])) {
           return {};
         }
       }

@@ -41,12 +41,11 @@
 // of each side is survived (the Hough votes of what is left, and the solid side's remaining run).
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <opencv2/core.hpp>
 
 #include "geometry/camera.h"
 #include "geometry/types.h"
@@ -54,18 +53,18 @@
 namespace waymark {
 
 struct SquareDetectorOptions {
-  double side_m = 2.0;              // d, between the tape's centrelines
-  SquareTape tape;                  // tape width and dash pattern (solid side: taken from the image)
-  double ceiling_height_m = 2.0;    // Z: ceiling above the camera, along its optical axis
+  double side_m = 2.0;            // d, between the tape's centrelines
+  SquareTape tape;                // tape width and dash pattern (solid side: taken from the image)
+  double ceiling_height_m = 2.0;  // Z: ceiling above the camera, along its optical axis
   double rectified_mm_per_px = 10.0;
   double rectified_half_extent_m = 4.0;  // the rectified image covers +- this around the axis
-  int diff_threshold = 20;          // gray levels of on - off
+  int diff_threshold = 20;               // gray levels of on - off
   // Vote threshold (rectified pixels on a line). The paper's 80 (of its ~200 px side) is for its
   // tape; a dashed side of ours (half its length taped) with half of it hidden has ~50 votes.
   int hough_votes = 40;
-  double distance_gate = 0.10;      // of d
+  double distance_gate = 0.10;  // of d
   double angle_gate_deg = 10.0;
-  bool refine = true;               // step 6
+  bool refine = true;  // step 6
 
   // True if usable; otherwise false with the reason in *why (when why != nullptr).
   bool Check(std::string* why) const;

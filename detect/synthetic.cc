@@ -4,11 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/objdetect.hpp>
+#include <stdexcept>
 
 #include "detect/apriltag.h"
 
@@ -140,7 +139,8 @@ Quad2d MakeQuad(const Eigen::Vector2d& center_px, double side_px, double angle_r
   const double s = std::sin(angle_rad);
   Quad2d quad;
   for (int i = 0; i < 4; ++i) {
-    quad[i] = center_px + Eigen::Vector2d(c * local[i].x() - s * local[i].y(), s * local[i].x() + c * local[i].y());
+    quad[i] =
+        center_px + Eigen::Vector2d(c * local[i].x() - s * local[i].y(), s * local[i].x() + c * local[i].y());
   }
   return quad;
 }

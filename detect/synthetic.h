@@ -5,9 +5,8 @@
 // centres), and each pixel is the average of 4x4 sub-pixel samples (anti-aliased edges).
 #pragma once
 
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "detect/common.h"
 

@@ -47,7 +47,8 @@ std::string TextToId(const std::string& bytes) {
   return out;
 }
 
-std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology symbology, const ZxingPass& pass) {
+std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology symbology,
+                                             const ZxingPass& pass) {
   CV_Assert(gray.type() == CV_8UC1);
   ZXing::DecodeHints hints;
   hints.setFormats(symbology == ZxingSymbology::kQrCode ? ZXing::BarcodeFormat::QRCode

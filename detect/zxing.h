@@ -4,10 +4,9 @@
 // here by -0.5 to OpenCV's pixel centres; the detectors refine them.
 #pragma once
 
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "geometry/types.h"
 
@@ -24,7 +23,8 @@ struct ZxingPass {
 // Decoded symbols of one symbology in `gray` (8-bit, one channel), with family set to
 // "qr" or "datamatrix", id to the decoded text (UTF-8; see TextToId), corners as zxing
 // gives them and no quality. Undecodable symbols are not returned.
-std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology symbology, const ZxingPass& pass);
+std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology symbology,
+                                             const ZxingPass& pass);
 
 // `bytes` if they are valid UTF-8, else the bytes read as ISO-8859-1 (the default
 // character set of QR and DataMatrix) re-encoded as UTF-8. Ids are always valid UTF-8.

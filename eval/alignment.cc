@@ -1,9 +1,8 @@
 #include "eval/alignment.h"
 
+#include <Eigen/SVD>
 #include <limits>
 #include <stdexcept>
-
-#include <Eigen/SVD>
 
 namespace waymark::eval {
 namespace {
@@ -41,8 +40,8 @@ UmeyamaFit<kDim> Umeyama(const std::vector<Eigen::Matrix<double, kDim, 1>>& src,
   for (int i = 0; i < kDim; ++i) rank += d(i) > tolerance ? 1 : 0;
   if (d(0) <= 0.0 || rank < kDim - 1) {
     throw DegenerateAlignmentError("degenerate point configuration (all points equal" +
-                             std::string(kDim == 3 ? " or on one line" : "") +
-                             "): the alignment is not defined; use --align none or more poses");
+                                   std::string(kDim == 3 ? " or on one line" : "") +
+                                   "): the alignment is not defined; use --align none or more poses");
   }
   Vector s_diag = Vector::Ones();
   if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) s_diag(kDim - 1) = -1.0;

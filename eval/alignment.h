@@ -28,11 +28,10 @@
 // for kSE3) throw DegenerateAlignmentError, as evo refuses them too.
 #pragma once
 
+#include <Eigen/Core>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/types.h"
 

@@ -40,7 +40,8 @@ void DetectionCheck::Add(const DetectionCheck& other) {
   worst_corner_px.insert(worst_corner_px.end(), other.worst_corner_px.begin(), other.worst_corner_px.end());
 }
 
-DetectionCheck CheckDetections(const std::vector<DetectionFrame>& detected, const std::vector<DetectionFrame>& truth,
+DetectionCheck CheckDetections(const std::vector<DetectionFrame>& detected,
+                               const std::vector<DetectionFrame>& truth,
                                const DetectionCheckOptions& options) {
   std::map<std::pair<double, std::string>, const DetectionFrame*> by_frame;
   for (const DetectionFrame& frame : detected) by_frame[{frame.stamp_s, frame.camera}] = &frame;

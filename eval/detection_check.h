@@ -30,7 +30,8 @@ struct DetectionCheck {
 };
 
 // Frames are matched by (stamp, camera), codes by key.
-DetectionCheck CheckDetections(const std::vector<DetectionFrame>& detected, const std::vector<DetectionFrame>& truth,
+DetectionCheck CheckDetections(const std::vector<DetectionFrame>& detected,
+                               const std::vector<DetectionFrame>& truth,
                                const DetectionCheckOptions& options = {});
 
 }  // namespace waymark::eval

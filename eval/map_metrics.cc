@@ -1,14 +1,13 @@
 #include "eval/map_metrics.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <regex>
 #include <set>
 #include <stdexcept>
-
-#include <Eigen/Cholesky>
-#include <Eigen/SVD>
 
 namespace waymark::eval {
 namespace {
@@ -19,7 +18,8 @@ void CheckUniqueKeys(const MarkerMap& map, const char* which) {
   std::set<MarkerKey> seen;
   for (const MapMarker& marker : map.markers) {
     if (!seen.insert(marker.key).second) {
-      throw std::invalid_argument(std::string(which) + " map holds marker " + marker.key.ToString() + " twice");
+      throw std::invalid_argument(std::string(which) + " map holds marker " + marker.key.ToString() +
+                                  " twice");
     }
   }
 }
@@ -128,7 +128,8 @@ Sim3Alignment AlignByPoses(const std::vector<SE3d>& T_est_marker, const std::vec
   alignment.R_gt_est = svd.matrixU() * s_diag.asDiagonal() * svd.matrixV().transpose();
   const double n = static_cast<double>(T_est_marker.size());
   for (size_t i = 0; i < T_est_marker.size(); ++i) {
-    alignment.t_gt_est += (T_gt_marker[i].translation() - alignment.R_gt_est * T_est_marker[i].translation()) / n;
+    alignment.t_gt_est +=
+        (T_gt_marker[i].translation() - alignment.R_gt_est * T_est_marker[i].translation()) / n;
   }
   return alignment;
 }
@@ -159,7 +160,8 @@ MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt) {
     result.components.push_back(c);
   }
   result.markers = all_position_m.size();
-  if (result.markers == 0) throw std::runtime_error("no marker is in both maps (compare the families and ids)");
+  if (result.markers == 0)
+    throw std::runtime_error("no marker is in both maps (compare the families and ids)");
   result.position_rmse_m = Rms(all_position_m);
   result.orientation_rmse_deg = Rms(all_orientation_deg);
   result.missing_in_estimate = KeysMissingFrom(gt, est);

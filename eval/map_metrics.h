@@ -22,8 +22,8 @@
 #include <string>
 #include <vector>
 
-#include "geometry/types.h"
 #include "eval/alignment.h"
+#include "geometry/types.h"
 
 namespace waymark::eval {
 
@@ -38,12 +38,12 @@ struct MarkerError {
   double orientation_error_deg = 0.0;
 };
 
-enum class MapAlignmentMethod { kPositions, kPoses, kNone };  // kNone: no marker in common
+enum class MapAlignmentMethod { kPositions, kPoses, kNone };    // kNone: no marker in common
 const char* MapAlignmentMethodName(MapAlignmentMethod method);  // "positions", "poses", "none"
 
 struct ComponentResult {
   int component = 0;
-  size_t markers = 0;  // matched with ground truth
+  size_t markers = 0;        // matched with ground truth
   size_t markers_total = 0;  // in the estimated map
   MapAlignmentMethod method = MapAlignmentMethod::kNone;
   Sim3Alignment alignment;  // scale 1
@@ -55,10 +55,10 @@ struct MapEvalResult {
   size_t markers = 0;  // matched
   double position_rmse_m = 0.0;
   double orientation_rmse_deg = 0.0;
-  std::vector<ComponentResult> components;  // by component number
-  std::vector<MarkerError> per_marker;      // by component, then in the estimated map's order
-  std::vector<MarkerKey> missing_in_estimate;      // in the ground truth only
-  std::vector<MarkerKey> missing_in_groundtruth;   // in the estimate only
+  std::vector<ComponentResult> components;        // by component number
+  std::vector<MarkerError> per_marker;            // by component, then in the estimated map's order
+  std::vector<MarkerKey> missing_in_estimate;     // in the ground truth only
+  std::vector<MarkerKey> missing_in_groundtruth;  // in the estimate only
 };
 
 // RMS errors of the matched markers whose id matches a pattern, and of the others, from one
@@ -93,8 +93,8 @@ MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt);
 struct PredictedComponentError {
   int component = 0;
   size_t markers = 0;
-  bool joint = false;         // the covariance factor was used (else independent markers)
-  double rms_m = 0.0;         // in the map's frame (its gauge: anchors, priors or first frame)
+  bool joint = false;          // the covariance factor was used (else independent markers)
+  double rms_m = 0.0;          // in the map's frame (its gauge: anchors, priors or first frame)
   double aligned_rms_m = 0.0;  // after the rigid alignment
 };
 std::vector<PredictedComponentError> PredictMapError(const MarkerMap& map);

@@ -1,8 +1,9 @@
 #include "eval/report.h"
-#include "util/format.h"
 
 #include <cstdio>
 #include <sstream>
+
+#include "util/format.h"
 
 namespace waymark::eval {
 namespace {
@@ -33,16 +34,17 @@ json AlignmentToJson(const Sim3Alignment& alignment) {
 std::string MarkdownRow(const std::string& name, const ErrorStats& s, int digits) {
   std::ostringstream row;
   row << "| " << name << " | " << FormatFixed(s.rmse, digits) << " | " << FormatFixed(s.mean, digits) << " | "
-      << FormatFixed(s.median, digits) << " | " << FormatFixed(s.std, digits) << " | " << FormatFixed(s.min, digits) << " | "
-      << FormatFixed(s.max, digits) << " | " << s.count << " |\n";
+      << FormatFixed(s.median, digits) << " | " << FormatFixed(s.std, digits) << " | "
+      << FormatFixed(s.min, digits) << " | " << FormatFixed(s.max, digits) << " | " << s.count << " |\n";
   return row.str();
 }
 
 std::string TableLine(const std::string& name, const ErrorStats& s, int digits) {
   char buffer[256];
   std::snprintf(buffer, sizeof(buffer), "%-22s %10s %10s %10s %10s %10s %6zu\n", name.c_str(),
-                FormatFixed(s.rmse, digits).c_str(), FormatFixed(s.mean, digits).c_str(), FormatFixed(s.median, digits).c_str(),
-                FormatFixed(s.std, digits).c_str(), FormatFixed(s.max, digits).c_str(), s.count);
+                FormatFixed(s.rmse, digits).c_str(), FormatFixed(s.mean, digits).c_str(),
+                FormatFixed(s.median, digits).c_str(), FormatFixed(s.std, digits).c_str(),
+                FormatFixed(s.max, digits).c_str(), s.count);
   return buffer;
 }
 
@@ -58,17 +60,20 @@ std::string TrajectoryMarkdown(const EvalReportInput& input) {
      << "| metric | rmse | mean | median | std | min | max | n |\n|---|---|---|---|---|---|---|---|\n"
      << MarkdownRow("ATE translation (m)", e.ate.translation_m, 4)
      << MarkdownRow("ATE rotation (deg)", e.ate.rotation_deg, 3)
-     << MarkdownRow("abs. error x (m)", e.ate.axes.x_m, 4) << MarkdownRow("abs. error y (m)", e.ate.axes.y_m, 4)
+     << MarkdownRow("abs. error x (m)", e.ate.axes.x_m, 4)
+     << MarkdownRow("abs. error y (m)", e.ate.axes.y_m, 4)
      << MarkdownRow("abs. error z (m)", e.ate.axes.z_m, 4)
      << MarkdownRow("abs. error yaw (deg)", e.ate.axes.yaw_deg, 3);
   if (e.rpe) {
-    const std::string delta = FormatFixed(e.rpe->options.delta, e.rpe->options.unit == RpeUnit::kFrames ? 0 : 3) +
-                              " " + RpeUnitName(e.rpe->options.unit);
+    const std::string delta =
+        FormatFixed(e.rpe->options.delta, e.rpe->options.unit == RpeUnit::kFrames ? 0 : 3) + " " +
+        RpeUnitName(e.rpe->options.unit);
     md << MarkdownRow("RPE translation (m) / " + delta, e.rpe->translation_m, 4)
        << MarkdownRow("RPE rotation (deg) / " + delta, e.rpe->rotation_deg, 3);
   }
   if (e.pe_te) {
-    md << MarkdownRow("PE planar (m)", e.pe_te->position_m, 4) << MarkdownRow("PE 3-D (m)", e.pe_te->position_3d_m, 4)
+    md << MarkdownRow("PE planar (m)", e.pe_te->position_m, 4)
+       << MarkdownRow("PE 3-D (m)", e.pe_te->position_3d_m, 4)
        << MarkdownRow("TE heading (deg)", e.pe_te->heading_deg, 3);
   }
   md << "\nATE equals evo's APE (translation part) with the same association and alignment.\n";
@@ -76,7 +81,8 @@ std::string TrajectoryMarkdown(const EvalReportInput& input) {
     md << "PE/TE: predicted poses from `" << input.predicted_path << "` (" << e.predicted_poses << " poses, "
        << e.pe_te->position_m.count << " correction instants), "
        << (e.options.align_predicted ? "aligned like the estimate" : "not aligned (map frame = world frame)")
-       << "; PE = " << FormatFixed(e.pe_te->position_m.mean, 4) << " m, TE = " << FormatFixed(e.pe_te->heading_deg.mean, 3)
+       << "; PE = " << FormatFixed(e.pe_te->position_m.mean, 4)
+       << " m, TE = " << FormatFixed(e.pe_te->heading_deg.mean, 3)
        << " deg (means over the instants, [Bach] eq. 15).\n";
   }
   return md.str();
@@ -88,16 +94,18 @@ std::string MapMarkdown(const EvalReportInput& input) {
   md << "## Map\n\n- estimate: `" << input.map_path << "`\n- ground truth: `" << input.gt_map_path << "`\n"
      << "- matched markers: " << m.markers << "; position RMS " << FormatFixed(m.position_rmse_m, 4)
      << " m; orientation RMS " << FormatFixed(m.orientation_rmse_deg, 3) << " deg\n\n"
-     << "| component | markers | aligned by | position RMS (m) | orientation RMS (deg) |\n|---|---|---|---|---|\n";
+     << "| component | markers | aligned by | position RMS (m) | orientation RMS (deg) "
+        "|\n|---|---|---|---|---|\n";
   for (const ComponentResult& c : m.components) {
     md << "| " << c.component << " | " << c.markers << " of " << c.markers_total << " | "
-       << MapAlignmentMethodName(c.method) << " | " << (c.markers > 0 ? FormatFixed(c.position_rmse_m, 4) : "n/a") << " | "
+       << MapAlignmentMethodName(c.method) << " | "
+       << (c.markers > 0 ? FormatFixed(c.position_rmse_m, 4) : "n/a") << " | "
        << (c.markers > 0 ? FormatFixed(c.orientation_rmse_deg, 3) : "n/a") << " |\n";
   }
   md << "\n| marker | component | position error (m) | orientation error (deg) |\n|---|---|---|---|\n";
   for (const MarkerError& e : m.per_marker) {
-    md << "| `" << e.key.ToString() << "` | " << e.component << " | " << FormatFixed(e.position_error_m, 4) << " | "
-       << FormatFixed(e.orientation_error_deg, 3) << " |\n";
+    md << "| `" << e.key.ToString() << "` | " << e.component << " | " << FormatFixed(e.position_error_m, 4)
+       << " | " << FormatFixed(e.orientation_error_deg, 3) << " |\n";
   }
   const auto list = [&md](const char* title, const std::vector<MarkerKey>& keys) {
     if (keys.empty()) return;
@@ -145,12 +153,10 @@ Json TrajectoryEvaluationToJson(const TrajectoryEvaluation& e) {
                   {"rotation_deg", StatsToJson(e.rpe->rotation_deg)}};
   }
   if (e.pe_te) {
-    out["pe_te"] = {{"instants", e.pe_te->position_m.count},
-                    {"predicted_poses", e.predicted_poses},
-                    {"aligned", e.options.align_predicted},
-                    {"pe_m", StatsToJson(e.pe_te->position_m)},
-                    {"pe_3d_m", StatsToJson(e.pe_te->position_3d_m)},
-                    {"te_deg", StatsToJson(e.pe_te->heading_deg)}};
+    out["pe_te"] = {
+        {"instants", e.pe_te->position_m.count},          {"predicted_poses", e.predicted_poses},
+        {"aligned", e.options.align_predicted},           {"pe_m", StatsToJson(e.pe_te->position_m)},
+        {"pe_3d_m", StatsToJson(e.pe_te->position_3d_m)}, {"te_deg", StatsToJson(e.pe_te->heading_deg)}};
   }
   return out;
 }
@@ -215,18 +221,20 @@ std::string EvalReportToMarkdown(const EvalReportInput& input) {
 std::string EvalSummaryTable(const EvalReportInput& input) {
   std::string out;
   char header[256];
-  std::snprintf(header, sizeof(header), "%-22s %10s %10s %10s %10s %10s %6s\n", "metric", "rmse", "mean", "median",
-                "std", "max", "n");
+  std::snprintf(header, sizeof(header), "%-22s %10s %10s %10s %10s %10s %6s\n", "metric", "rmse", "mean",
+                "median", "std", "max", "n");
   out += header;
   if (const TrajectoryEvaluation* e = input.trajectory) {
-    out += TableLine("ATE trans (m)", e->ate.translation_m, 4) + TableLine("ATE rot (deg)", e->ate.rotation_deg, 3);
+    out += TableLine("ATE trans (m)", e->ate.translation_m, 4) +
+           TableLine("ATE rot (deg)", e->ate.rotation_deg, 3);
     out += TableLine("|x| (m)", e->ate.axes.x_m, 4) + TableLine("|y| (m)", e->ate.axes.y_m, 4) +
            TableLine("|z| (m)", e->ate.axes.z_m, 4) + TableLine("|yaw| (deg)", e->ate.axes.yaw_deg, 3);
     if (e->rpe) {
       out += TableLine("RPE trans (m)", e->rpe->translation_m, 4) +
              TableLine("RPE rot (deg)", e->rpe->rotation_deg, 3);
     }
-    if (e->pe_te) out += TableLine("PE (m)", e->pe_te->position_m, 4) + TableLine("TE (deg)", e->pe_te->heading_deg, 3);
+    if (e->pe_te)
+      out += TableLine("PE (m)", e->pe_te->position_m, 4) + TableLine("TE (deg)", e->pe_te->heading_deg, 3);
   }
   if (const MapEvalResult* m = input.map) {
     char line[256];

@@ -15,9 +15,8 @@
 //            "per_marker": [...], "missing_in_estimate": [...], "missing_in_groundtruth": [...]}}
 #pragma once
 
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"

@@ -1,9 +1,10 @@
 #include "eval/stats.h"
-#include "util/stats.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+
+#include "util/stats.h"
 
 namespace waymark::eval {
 

@@ -1,5 +1,4 @@
 #include "eval/svg_plot.h"
-#include "util/format.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,6 +7,8 @@
 #include <map>
 #include <sstream>
 #include <stdexcept>
+
+#include "util/format.h"
 
 namespace waymark::eval {
 namespace {
@@ -25,11 +26,16 @@ std::string Label(double value) { return FormatSignificant(std::abs(value) < 1e-
 std::string Escape(const std::string& text) {
   std::string out;
   for (const char c : text) {
-    if (c == '<') out += "&lt;";
-    else if (c == '>') out += "&gt;";
-    else if (c == '&') out += "&amp;";
-    else if (c == '"') out += "&quot;";
-    else out += c;
+    if (c == '<')
+      out += "&lt;";
+    else if (c == '>')
+      out += "&gt;";
+    else if (c == '&')
+      out += "&amp;";
+    else if (c == '"')
+      out += "&quot;";
+    else
+      out += c;
   }
   return out;
 }
@@ -66,26 +72,33 @@ struct Bounds {
 Frame TopViewFrame(const Bounds& b) {
   const double cx = 0.5 * (b.min_x + b.max_x), cy = 0.5 * (b.min_y + b.max_y);
   const double plot_w = kWidthPx - kLeftPx - kRightPx;
-  double half_x = std::max(0.55 * (b.max_x - b.min_x), 0.5), half_y = std::max(0.55 * (b.max_y - b.min_y), 0.5);
+  double half_x = std::max(0.55 * (b.max_x - b.min_x), 0.5),
+         half_y = std::max(0.55 * (b.max_y - b.min_y), 0.5);
   // Grow the shorter side so that metres per pixel match on both axes.
-  if (half_x / plot_w > half_y / kTopViewHeightPx) half_y = half_x / plot_w * kTopViewHeightPx;
-  else half_x = half_y / kTopViewHeightPx * plot_w;
-  return {cx - half_x, cx + half_x, cy - half_y, cy + half_y, kLeftPx, kTopViewTopPx, plot_w, kTopViewHeightPx};
+  if (half_x / plot_w > half_y / kTopViewHeightPx)
+    half_y = half_x / plot_w * kTopViewHeightPx;
+  else
+    half_x = half_y / kTopViewHeightPx * plot_w;
+  return {cx - half_x, cx + half_x,   cy - half_y, cy + half_y,
+          kLeftPx,     kTopViewTopPx, plot_w,      kTopViewHeightPx};
 }
 
-void DrawAxes(const Frame& f, const std::string& x_title, const std::string& y_title, std::ostringstream& svg) {
+void DrawAxes(const Frame& f, const std::string& x_title, const std::string& y_title,
+              std::ostringstream& svg) {
   svg << "<rect x=\"" << Num(f.left_px) << "\" y=\"" << Num(f.top_px) << "\" width=\"" << Num(f.width_px)
       << "\" height=\"" << Num(f.height_px) << "\" fill=\"white\" stroke=\"#444\"/>\n";
   const double step_x = TickStep(f.max_x - f.min_x), step_y = TickStep(f.max_y - f.min_y);
   for (double x = std::ceil(f.min_x / step_x) * step_x; x <= f.max_x; x += step_x) {
-    svg << "<line x1=\"" << Num(f.PxX(x)) << "\" y1=\"" << Num(f.top_px) << "\" x2=\"" << Num(f.PxX(x)) << "\" y2=\""
-        << Num(f.top_px + f.height_px) << "\" stroke=\"#e4e4e4\"/>\n<text x=\"" << Num(f.PxX(x)) << "\" y=\""
-        << Num(f.top_px + f.height_px + 14) << "\" text-anchor=\"middle\">" << Label(x) << "</text>\n";
+    svg << "<line x1=\"" << Num(f.PxX(x)) << "\" y1=\"" << Num(f.top_px) << "\" x2=\"" << Num(f.PxX(x))
+        << "\" y2=\"" << Num(f.top_px + f.height_px) << "\" stroke=\"#e4e4e4\"/>\n<text x=\"" << Num(f.PxX(x))
+        << "\" y=\"" << Num(f.top_px + f.height_px + 14) << "\" text-anchor=\"middle\">" << Label(x)
+        << "</text>\n";
   }
   for (double y = std::ceil(f.min_y / step_y) * step_y; y <= f.max_y; y += step_y) {
-    svg << "<line x1=\"" << Num(f.left_px) << "\" y1=\"" << Num(f.PxY(y)) << "\" x2=\"" << Num(f.left_px + f.width_px)
-        << "\" y2=\"" << Num(f.PxY(y)) << "\" stroke=\"#e4e4e4\"/>\n<text x=\"" << Num(f.left_px - 4) << "\" y=\""
-        << Num(f.PxY(y) + 4) << "\" text-anchor=\"end\">" << Label(y) << "</text>\n";
+    svg << "<line x1=\"" << Num(f.left_px) << "\" y1=\"" << Num(f.PxY(y)) << "\" x2=\""
+        << Num(f.left_px + f.width_px) << "\" y2=\"" << Num(f.PxY(y)) << "\" stroke=\"#e4e4e4\"/>\n<text x=\""
+        << Num(f.left_px - 4) << "\" y=\"" << Num(f.PxY(y) + 4) << "\" text-anchor=\"end\">" << Label(y)
+        << "</text>\n";
   }
   svg << "<text x=\"" << Num(f.left_px + f.width_px / 2) << "\" y=\"" << Num(f.top_px + f.height_px + 30)
       << "\" text-anchor=\"middle\">" << Escape(x_title) << "</text>\n<text x=\"14\" y=\""
@@ -98,7 +111,8 @@ void DrawPolyline(const Frame& f, const std::vector<Eigen::Vector2d>& points, co
   if (points.empty()) return;
   const size_t stride = std::max<size_t>(1, points.size() / kMaxPolylinePoints);
   svg << "<polyline fill=\"none\" stroke=\"" << color << "\" stroke-width=\"1.5\" points=\"";
-  for (size_t i = 0; i < points.size(); i += stride) svg << Num(f.PxX(points[i].x())) << "," << Num(f.PxY(points[i].y())) << " ";
+  for (size_t i = 0; i < points.size(); i += stride)
+    svg << Num(f.PxX(points[i].x())) << "," << Num(f.PxY(points[i].y())) << " ";
   svg << Num(f.PxX(points.back().x())) << "," << Num(f.PxY(points.back().y())) << "\"/>\n";
 }
 
@@ -111,8 +125,9 @@ std::vector<Eigen::Vector2d> Xy(const Trajectory& trajectory) {
 void DrawMarkers(const Frame& f, const std::vector<PlotMarker>& markers, std::ostringstream& svg) {
   for (const PlotMarker& m : markers) {
     if (m.p_true && m.p_est) {
-      svg << "<line x1=\"" << Num(f.PxX(m.p_true->x())) << "\" y1=\"" << Num(f.PxY(m.p_true->y())) << "\" x2=\""
-          << Num(f.PxX(m.p_est->x())) << "\" y2=\"" << Num(f.PxY(m.p_est->y())) << "\" stroke=\"#d62728\" stroke-width=\"0.8\"/>\n";
+      svg << "<line x1=\"" << Num(f.PxX(m.p_true->x())) << "\" y1=\"" << Num(f.PxY(m.p_true->y()))
+          << "\" x2=\"" << Num(f.PxX(m.p_est->x())) << "\" y2=\"" << Num(f.PxY(m.p_est->y()))
+          << "\" stroke=\"#d62728\" stroke-width=\"0.8\"/>\n";
     }
     if (m.p_true) {
       svg << "<rect x=\"" << Num(f.PxX(m.p_true->x()) - 4) << "\" y=\"" << Num(f.PxY(m.p_true->y()) - 4)
@@ -121,9 +136,10 @@ void DrawMarkers(const Frame& f, const std::vector<PlotMarker>& markers, std::os
     }
     if (m.p_est) {
       const double x = f.PxX(m.p_est->x()), y = f.PxY(m.p_est->y());
-      svg << "<path d=\"M" << Num(x - 4) << "," << Num(y - 4) << " L" << Num(x + 4) << "," << Num(y + 4) << " M"
-          << Num(x - 4) << "," << Num(y + 4) << " L" << Num(x + 4) << "," << Num(y - 4)
-          << "\" stroke=\"#d62728\" stroke-width=\"1.5\"><title>" << Escape(m.label) << " (estimate)</title></path>\n";
+      svg << "<path d=\"M" << Num(x - 4) << "," << Num(y - 4) << " L" << Num(x + 4) << "," << Num(y + 4)
+          << " M" << Num(x - 4) << "," << Num(y + 4) << " L" << Num(x + 4) << "," << Num(y - 4)
+          << "\" stroke=\"#d62728\" stroke-width=\"1.5\"><title>" << Escape(m.label)
+          << " (estimate)</title></path>\n";
     }
   }
 }
@@ -131,9 +147,9 @@ void DrawMarkers(const Frame& f, const std::vector<PlotMarker>& markers, std::os
 void DrawLegend(double x, double y, const std::vector<std::pair<std::string, std::string>>& entries,
                 std::ostringstream& svg) {
   for (const auto& [color, text] : entries) {
-    svg << "<line x1=\"" << Num(x) << "\" y1=\"" << Num(y - 4) << "\" x2=\"" << Num(x + 18) << "\" y2=\"" << Num(y - 4)
-        << "\" stroke=\"" << color << "\" stroke-width=\"3\"/>\n<text x=\"" << Num(x + 22) << "\" y=\"" << Num(y) << "\">"
-        << Escape(text) << "</text>\n";
+    svg << "<line x1=\"" << Num(x) << "\" y1=\"" << Num(y - 4) << "\" x2=\"" << Num(x + 18) << "\" y2=\""
+        << Num(y - 4) << "\" stroke=\"" << color << "\" stroke-width=\"3\"/>\n<text x=\"" << Num(x + 22)
+        << "\" y=\"" << Num(y) << "\">" << Escape(text) << "</text>\n";
     x += 30 + 7.0 * static_cast<double>(text.size());
   }
 }
@@ -160,7 +176,9 @@ void DrawTopView(const PlotInput& input, std::ostringstream& svg) {
   DrawPolyline(frame, est_xy, "#1f77b4", svg);
   DrawMarkers(frame, input.markers, svg);
   DrawLegend(kLeftPx, kTopViewTopPx - 8,
-             {{"#2ca02c", "ground truth"}, {"#1f77b4", "estimate (aligned)"}, {"#d62728", "markers: estimate x, true []"}},
+             {{"#2ca02c", "ground truth"},
+              {"#1f77b4", "estimate (aligned)"},
+              {"#d62728", "markers: estimate x, true []"}},
              svg);
 }
 
@@ -174,8 +192,14 @@ void DrawErrorPanel(const TrajectoryEvaluation& e, std::ostringstream& svg) {
     t0 = std::min(t0, e.pe_te->stamps_s.front());
     t1 = std::max(t1, e.pe_te->stamps_s.back());
   }
-  const Frame f{0.0, t1 > t0 ? t1 - t0 : 1.0, 0.0, max_error_m > 0.0 ? 1.1 * max_error_m : 1.0,
-                kLeftPx, kErrorTopPx, kWidthPx - kLeftPx - kRightPx, kErrorHeightPx};
+  const Frame f{0.0,
+                t1 > t0 ? t1 - t0 : 1.0,
+                0.0,
+                max_error_m > 0.0 ? 1.1 * max_error_m : 1.0,
+                kLeftPx,
+                kErrorTopPx,
+                kWidthPx - kLeftPx - kRightPx,
+                kErrorHeightPx};
   char axis_title[96];
   std::snprintf(axis_title, sizeof(axis_title), "time (s) since t0 = %.3f s", t0);
   DrawAxes(f, axis_title, "error (m)", svg);
@@ -202,7 +226,8 @@ std::vector<PlotMarker> PlotMarkersFromMaps(const MarkerMap* est, const Sim3Alig
     for (const MapMarker& m : truth->markers) by_key[m.key].p_true = m.T_world_marker.translation();
   }
   if (est) {
-    for (const MapMarker& m : est->markers) by_key[m.key].p_est = alignment.Apply(m.T_world_marker.translation());
+    for (const MapMarker& m : est->markers)
+      by_key[m.key].p_est = alignment.Apply(m.T_world_marker.translation());
   }
   std::vector<PlotMarker> markers;
   for (auto& [key, marker] : by_key) {
@@ -232,7 +257,8 @@ std::vector<PlotMarker> PlotMarkersFromMapEval(const MarkerMap& est, const Marke
 
 std::string RenderSvg(const PlotInput& input) {
   const bool with_errors = input.trajectory != nullptr;
-  const double height_px = with_errors ? kErrorTopPx + kErrorHeightPx + 45 : kTopViewTopPx + kTopViewHeightPx + 45;
+  const double height_px =
+      with_errors ? kErrorTopPx + kErrorHeightPx + 45 : kTopViewTopPx + kTopViewHeightPx + 45;
   std::ostringstream svg;
   svg << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" width=\""
       << Num(kWidthPx) << "\" height=\"" << Num(height_px) << "\" viewBox=\"0 0 " << Num(kWidthPx) << " "

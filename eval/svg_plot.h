@@ -7,15 +7,14 @@
 // All coordinates are in the ground truth's world frame.
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-
-#include "geometry/types.h"
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"
+#include "geometry/types.h"
 
 namespace waymark::eval {
 

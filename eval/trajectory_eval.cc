@@ -1,8 +1,9 @@
 #include "eval/trajectory_eval.h"
-#include "util/check.h"
 
 #include <cmath>
 #include <stdexcept>
+
+#include "util/check.h"
 
 namespace waymark::eval {
 
@@ -34,7 +35,8 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
   evaluation.gt_associated = std::move(associated.gt);
   evaluation.est_aligned = evaluation.alignment.Apply(associated.est);
   evaluation.ate = ComputeAte(evaluation.gt_associated, evaluation.est_aligned);
-  if (options.rpe) evaluation.rpe = ComputeRpe(evaluation.gt_associated, evaluation.est_aligned, *options.rpe);
+  if (options.rpe)
+    evaluation.rpe = ComputeRpe(evaluation.gt_associated, evaluation.est_aligned, *options.rpe);
 
   if (predicted) {
     evaluation.predicted_poses = predicted->size();
@@ -43,8 +45,8 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
   return evaluation;
 }
 
-PeTeResult EvaluatePredicted(const Trajectory& gt, const Trajectory& predicted, const TrajectoryEvalOptions& options,
-                             const Sim3Alignment& alignment) {
+PeTeResult EvaluatePredicted(const Trajectory& gt, const Trajectory& predicted,
+                             const TrajectoryEvalOptions& options, const Sim3Alignment& alignment) {
   const AssociatedTrajectories instants = Associate(gt, predicted, options.max_dt_s, "predicted poses");
   return ComputePeTe(instants.gt, options.align_predicted ? alignment.Apply(instants.est) : instants.est);
 }

@@ -10,10 +10,10 @@
 
 #include <optional>
 
-#include "geometry/types.h"
 #include "eval/alignment.h"
 #include "eval/association.h"
 #include "eval/trajectory_metrics.h"
+#include "geometry/types.h"
 
 namespace waymark::eval {
 
@@ -30,9 +30,9 @@ struct TrajectoryEvaluation {
   TrajectoryEvalOptions options;
   size_t gt_poses = 0;
   size_t est_poses = 0;
-  Sim3Alignment alignment;         // estimate world -> ground-truth world
-  Trajectory gt_associated;        // the ground-truth pose of each pair
-  Trajectory est_aligned;          // the estimate's pose of each pair, aligned
+  Sim3Alignment alignment;   // estimate world -> ground-truth world
+  Trajectory gt_associated;  // the ground-truth pose of each pair
+  Trajectory est_aligned;    // the estimate's pose of each pair, aligned
   AteResult ate;
   std::optional<RpeResult> rpe;
   size_t predicted_poses = 0;
@@ -42,8 +42,8 @@ struct TrajectoryEvaluation {
 // PE / TE of step 4 alone: `predicted` associated to `gt` with options.max_dt_s, moved by
 // `alignment` only when options.align_predicted. Throws std::runtime_error when no predicted
 // pose associates.
-PeTeResult EvaluatePredicted(const Trajectory& gt, const Trajectory& predicted, const TrajectoryEvalOptions& options,
-                             const Sim3Alignment& alignment);
+PeTeResult EvaluatePredicted(const Trajectory& gt, const Trajectory& predicted,
+                             const TrajectoryEvalOptions& options, const Sim3Alignment& alignment);
 
 // Throws std::invalid_argument for bad options, std::runtime_error when nothing associates,
 // the alignment is degenerate or the RPE delta leaves no pair.

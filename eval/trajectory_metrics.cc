@@ -1,9 +1,10 @@
 #include "eval/trajectory_metrics.h"
-#include "util/check.h"
 
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+
+#include "util/check.h"
 
 namespace waymark::eval {
 namespace {
@@ -62,7 +63,8 @@ RpeUnit ParseRpeUnit(const std::string& name) {
 
 bool RpeOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(IsFinitePositive(delta), "RPE delta must be a positive number");
-  WAYMARK_CHECK_OPTION(unit != RpeUnit::kFrames || delta == std::floor(delta), "RPE delta in frames must be an integer");
+  WAYMARK_CHECK_OPTION(unit != RpeUnit::kFrames || delta == std::floor(delta),
+                       "RPE delta in frames must be an integer");
   return true;
 }
 
@@ -93,8 +95,9 @@ RpeResult ComputeRpe(const Trajectory& gt, const Trajectory& est, const RpeOptio
   result.index_pairs = RpeIndexPairs(est, options);
   if (result.index_pairs.empty()) {
     std::ostringstream why_empty;
-    why_empty << "RPE: delta " << options.delta << " " << RpeUnitName(options.unit) << " leaves no pose pair among "
-              << est.size() << " associated poses; try a smaller --rpe-delta";
+    why_empty << "RPE: delta " << options.delta << " " << RpeUnitName(options.unit)
+              << " leaves no pose pair among " << est.size()
+              << " associated poses; try a smaller --rpe-delta";
     throw std::runtime_error(why_empty.str());
   }
   for (const auto& [i, j] : result.index_pairs) {
@@ -118,7 +121,8 @@ PeTeResult ComputePeTe(const Trajectory& gt, const Trajectory& predicted) {
     result.stamps_s.push_back(gt[k].stamp_s);
     result.position_errors_m.push_back(d.head<2>().norm());
     errors_3d_m.push_back(d.norm());
-    result.heading_errors_deg.push_back(kRadToDeg * std::abs(WrapAngle(predicted[k].T.yaw() - gt[k].T.yaw())));
+    result.heading_errors_deg.push_back(kRadToDeg *
+                                        std::abs(WrapAngle(predicted[k].T.yaw() - gt[k].T.yaw())));
   }
   result.position_m = ComputeStats(result.position_errors_m);
   result.position_3d_m = ComputeStats(errors_3d_m);

@@ -27,8 +27,8 @@
 #include <string>
 #include <vector>
 
-#include "geometry/types.h"
 #include "eval/stats.h"
+#include "geometry/types.h"
 
 namespace waymark::eval {
 
@@ -46,7 +46,7 @@ AxisErrors ComputeAxisErrors(const Trajectory& gt, const Trajectory& est);
 struct AteResult {
   ErrorStats translation_m;
   ErrorStats rotation_deg;
-  AxisErrors axes;  // per-axis absolute errors of the same pairs
+  AxisErrors axes;               // per-axis absolute errors of the same pairs
   std::vector<double> stamps_s;  // of the ground-truth pose of each pair
   std::vector<double> translation_errors_m;
   std::vector<double> rotation_errors_deg;
@@ -56,8 +56,8 @@ struct AteResult {
 AteResult ComputeAte(const Trajectory& gt, const Trajectory& est);
 
 enum class RpeUnit { kFrames, kMetres };
-const char* RpeUnitName(RpeUnit unit);           // "frames", "m"
-RpeUnit ParseRpeUnit(const std::string& name);   // throws std::invalid_argument
+const char* RpeUnitName(RpeUnit unit);          // "frames", "m"
+RpeUnit ParseRpeUnit(const std::string& name);  // throws std::invalid_argument
 
 struct RpeOptions {
   double delta = 1.0;  // frames (a positive integer) or metres (> 0)

@@ -20,14 +20,14 @@
 // not excite a parameter (no turn, no code) leaves it at 0 instead of making the problem singular.
 #pragma once
 
-#include <cmath>
-
-#include <Eigen/Core>
 #include <ceres/autodiff_cost_function.h>
 
-#include "geometry/pose.h"
+#include <Eigen/Core>
+#include <cmath>
+
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
+#include "geometry/pose.h"
 
 namespace waymark {
 
@@ -136,7 +136,9 @@ struct OdometryCalibrationPrior {
     for (int i = 0; i < 3; ++i) residuals[i] = (c[i] - T(mean[i])) * T(inverse_sigma[i]);
     return true;
   }
-  static ceres::CostFunction* Create(const Eigen::Vector3d& sigma) { return Create(Eigen::Vector3d::Zero(), sigma); }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& sigma) {
+    return Create(Eigen::Vector3d::Zero(), sigma);
+  }
   static ceres::CostFunction* Create(const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma) {
     return new ceres::AutoDiffCostFunction<OdometryCalibrationPrior, 3, kOdometryCalibrationSize>(
         new OdometryCalibrationPrior(mean, sigma));

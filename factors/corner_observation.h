@@ -20,8 +20,8 @@
 // and projected by the model as the point (n, 1). The pixel error keeps growing the further a
 // corner moves behind the camera, so the cost stays high there and smooth; no real observation
 // lies within 10 cm of its camera's plane (z_s that large also keeps n, and the distortion
-// polynomial evaluated at it, moderate a little behind the camera: the Jacobians stay accurate). Residuals returns false only for a
-// non-finite depth (residuals untouched).
+// polynomial evaluated at it, moderate a little behind the camera: the Jacobians stay accurate). Residuals
+// returns false only for a non-finite depth (residuals untouched).
 #pragma once
 
 #include <Eigen/Core>
@@ -31,10 +31,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "geometry/camera.h"
-#include "geometry/types.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
+#include "geometry/camera.h"
+#include "geometry/types.h"
 
 namespace waymark {
 

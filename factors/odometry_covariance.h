@@ -23,9 +23,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "factors/sqrt_information.h"
 #include "geometry/pose.h"
 #include "geometry/types.h"
-#include "factors/sqrt_information.h"
 
 namespace waymark {
 

@@ -19,9 +19,9 @@
 #include <Eigen/Core>
 #include <array>
 
-#include "geometry/types.h"
 #include "factors/corner_observation.h"
 #include "factors/pose_block.h"
+#include "geometry/types.h"
 
 namespace waymark {
 

@@ -16,9 +16,9 @@
 #include <Eigen/Core>
 #include <cmath>
 
-#include "geometry/pose.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
+#include "geometry/pose.h"
 
 namespace waymark {
 

@@ -15,9 +15,9 @@
 
 #include <Eigen/Core>
 
-#include "geometry/pose.h"
 #include "factors/pose_block.h"
 #include "factors/sqrt_information.h"
+#include "geometry/pose.h"
 
 namespace waymark {
 

@@ -7,14 +7,14 @@
 // information, Info = L L^T, as L r; that equals r^T Info r only when Info is diagonal.)
 #pragma once
 
-#include "util/format.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+
+#include "util/format.h"
 
 namespace waymark {
 

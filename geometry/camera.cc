@@ -44,7 +44,8 @@ double EquisolidRho(const std::vector<double>& d, double theta, double* slope = 
 
 // The radial map of either fisheye model: image radius (normalized) of a ray theta off-axis.
 double FisheyeRho(CameraModel model, const std::vector<double>& d, double theta, double* slope = nullptr) {
-  return model == CameraModel::kEquisolid ? EquisolidRho(d, theta, slope) : EquidistantThetaD(d, theta, slope);
+  return model == CameraModel::kEquisolid ? EquisolidRho(d, theta, slope)
+                                          : EquidistantThetaD(d, theta, slope);
 }
 
 // First root of a function that is positive at `lo`, searched on the given grid of points
@@ -183,9 +184,8 @@ std::optional<Eigen::Vector3d> Camera::Unproject(const Eigen::Vector2d& px) cons
   if (!px.allFinite()) return std::nullopt;
   const auto& k = info_.intrinsics;
   const Eigen::Vector2d xy_d((px.x() - k[2]) / k[0], (px.y() - k[3]) / k[1]);
-  const std::optional<Eigen::Vector2d> xy = info_.model == CameraModel::kPinholeRadtan
-                                                ? UndistortRadtan(xy_d)
-                                                : UndistortFisheye(xy_d);
+  const std::optional<Eigen::Vector2d> xy =
+      info_.model == CameraModel::kPinholeRadtan ? UndistortRadtan(xy_d) : UndistortFisheye(xy_d);
   if (!xy) return std::nullopt;
   return Eigen::Vector3d(xy->x(), xy->y(), 1.0);
 }
@@ -228,7 +228,9 @@ std::optional<Eigen::Vector2d> Camera::UndistortFisheye(const Eigen::Vector2d& x
   const double theta_d = xy_d.norm();
   if (theta_d == 0.0) return Eigen::Vector2d::Zero();
   const double theta_max = std::atan(max_radius_);
-  const auto theta_map = [&d, model](double theta, double* slope) { return FisheyeRho(model, d, theta, slope); };
+  const auto theta_map = [&d, model](double theta, double* slope) {
+    return FisheyeRho(model, d, theta, slope);
+  };
   if (FisheyeRho(model, d, theta_max) < theta_d) return std::nullopt;
   const std::optional<double> theta = SolveIncreasing(theta_map, theta_d, 0.0, theta_max);
   if (!theta) return std::nullopt;

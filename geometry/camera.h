@@ -29,10 +29,9 @@
 // further out than 90 degrees off-axis has no ray.
 #pragma once
 
+#include <Eigen/Core>
 #include <cmath>
 #include <optional>
-
-#include <Eigen/Core>
 
 #include "geometry/types.h"
 
@@ -106,7 +105,8 @@ bool ProjectPoint(CameraModel model, const T* intrinsics, const T* distortion, c
     DistortRadtan(distortion, x, y, &xd, &yd);
   } else {
     const T u = x * x + y * y;
-    const T s = model == CameraModel::kEquisolid ? EquisolidScale(distortion, u) : EquidistantScale(distortion, u);
+    const T s =
+        model == CameraModel::kEquisolid ? EquisolidScale(distortion, u) : EquidistantScale(distortion, u);
     xd = x * s;
     yd = y * s;
   }

@@ -1,16 +1,15 @@
 #include "geometry/marker_pose.h"
-#include "util/check.h"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <opencv2/calib3d.hpp>
 #include <sstream>
 #include <stdexcept>
 
-#include <Eigen/Cholesky>
-#include <opencv2/calib3d.hpp>
-
 #include "geometry/types.h"
+#include "util/check.h"
 
 namespace waymark {
 namespace {
@@ -32,8 +31,7 @@ std::string PointString(const Eigen::Vector2d& p) {
 // r_k = project(T_camera_marker * corner_marker_k) - corner_px_k and, if J is given,
 // dr/d[dr, dt] for the right perturbation. False if a corner does not project.
 bool ReprojectionResiduals(const Corners2& corners_px, const std::array<Eigen::Vector3d, 4>& corners_marker,
-                           const Camera& camera, const SE3d& T_camera_marker, Residuals8* r,
-                           Jacobian86* J) {
+                           const Camera& camera, const SE3d& T_camera_marker, Residuals8* r, Jacobian86* J) {
   const Eigen::Matrix3d R = T_camera_marker.rotation_matrix();
   for (int k = 0; k < 4; ++k) {
     Eigen::Matrix<double, 2, 3> J_px_p;
@@ -53,8 +51,9 @@ double Rms(const Residuals8& r) { return std::sqrt(r.squaredNorm() / 4.0); }
 
 // Levenberg-Marquardt on the reprojection error from T_start; nullopt if the start does
 // not project.
-std::optional<SE3d> RefinePose(const Corners2& corners_px, const std::array<Eigen::Vector3d, 4>& corners_marker,
-                               const Camera& camera, const SE3d& T_start, int max_iterations) {
+std::optional<SE3d> RefinePose(const Corners2& corners_px,
+                               const std::array<Eigen::Vector3d, 4>& corners_marker, const Camera& camera,
+                               const SE3d& T_start, int max_iterations) {
   SE3d T = T_start;
   Residuals8 r;
   Jacobian86 J;
@@ -69,7 +68,8 @@ std::optional<SE3d> RefinePose(const Corners2& corners_px, const std::array<Eige
     const SE3d T_new = T.BoxPlus(delta);
     Residuals8 r_new;
     Jacobian86 J_new;
-    if (delta.allFinite() && ReprojectionResiduals(corners_px, corners_marker, camera, T_new, &r_new, &J_new) &&
+    if (delta.allFinite() &&
+        ReprojectionResiduals(corners_px, corners_marker, camera, T_new, &r_new, &J_new) &&
         r_new.squaredNorm() < cost) {
       const double decrease = cost - r_new.squaredNorm();
       T = T_new;
@@ -93,8 +93,8 @@ Corners2 NormalizedCorners(const Corners2& corners_px, const Camera& camera, dou
     if (!corners_px[k].allFinite()) Fail("corner " + std::to_string(k) + " is not finite");
     const std::optional<Eigen::Vector3d> ray = camera.Unproject(corners_px[k]);
     if (!ray) {
-      Fail("corner " + std::to_string(k) + " " + PointString(corners_px[k]) + " is outside the field of view of camera `" +
-           camera.name() + "`");
+      Fail("corner " + std::to_string(k) + " " + PointString(corners_px[k]) +
+           " is outside the field of view of camera `" + camera.name() + "`");
     }
     corners_normalized[k] = ray->head<2>();
   }
@@ -116,7 +116,8 @@ Corners2 NormalizedCorners(const Corners2& corners_px, const Camera& camera, dou
     Fail("degenerate corners (area " + std::to_string(area_px2) + " px^2, expected at least " +
          std::to_string(min_area_px2) + ")");
   }
-  if (negative == 4) Fail("corners are in mirrored order (expected top-left, top-right, bottom-right, bottom-left)");
+  if (negative == 4)
+    Fail("corners are in mirrored order (expected top-left, top-right, bottom-right, bottom-left)");
   if (positive != 4) Fail("corners do not form a convex quadrilateral");
   return corners_normalized;
 }
@@ -173,7 +174,8 @@ MarkerPoseEstimate EstimateMarkerPose(const Corners2& corners_px, double size_m,
                                       const MarkerPoseOptions& options) {
   std::string why;
   if (!options.Check(&why)) Fail("options: " + why);
-  if (!(std::isfinite(size_m) && size_m > 0.0)) Fail("size_m: expected a number > 0, got " + std::to_string(size_m));
+  if (!(std::isfinite(size_m) && size_m > 0.0))
+    Fail("size_m: expected a number > 0, got " + std::to_string(size_m));
   const double sigma_px = options.sigma_px.value_or(camera.info().pixel_sigma.value_or(1.0));
   if (!(std::isfinite(sigma_px) && sigma_px > 0.0)) Fail("camera pixel_sigma: expected a number > 0");
 
@@ -181,7 +183,8 @@ MarkerPoseEstimate EstimateMarkerPose(const Corners2& corners_px, double size_m,
   const std::array<Eigen::Vector3d, 4> corners_marker = MarkerCorners(size_m);
   MarkerPoseEstimate estimate;
   for (const SE3d& T_start : IppeCandidates(corners_normalized, size_m)) {
-    const std::optional<SE3d> T = RefinePose(corners_px, corners_marker, camera, T_start, options.max_iterations);
+    const std::optional<SE3d> T =
+        RefinePose(corners_px, corners_marker, camera, T_start, options.max_iterations);
     if (!T) continue;
     estimate.solutions.push_back({*T, MarkerReprojectionRms(corners_px, size_m, camera, *T)});
   }
@@ -189,10 +192,10 @@ MarkerPoseEstimate EstimateMarkerPose(const Corners2& corners_px, double size_m,
   std::sort(estimate.solutions.begin(), estimate.solutions.end(),
             [](const MarkerPoseSolution& a, const MarkerPoseSolution& b) { return a.rms_px < b.rms_px; });
 
-  estimate.error_ratio = estimate.solutions.size() < 2
-                             ? std::numeric_limits<double>::infinity()
-                             : FlooredRatio(estimate.solutions[1].rms_px, estimate.solutions[0].rms_px,
-                                            options.error_floor_px);
+  estimate.error_ratio =
+      estimate.solutions.size() < 2
+          ? std::numeric_limits<double>::infinity()
+          : FlooredRatio(estimate.solutions[1].rms_px, estimate.solutions[0].rms_px, options.error_floor_px);
   estimate.ambiguous = estimate.error_ratio < options.ambiguity_ratio;
 
   Residuals8 r;

@@ -21,12 +21,11 @@
 //     of T_camera_marker:  Sigma = sigma_px^2 (J^T J)^-1, J = d r / d delta (8 x 6).
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/camera.h"
 #include "geometry/pose.h"
@@ -56,7 +55,7 @@ struct MarkerPoseEstimate {
   std::vector<MarkerPoseSolution> solutions;  // one or two, best (lowest rms_px) first
   double error_ratio = 0.0;                   // see the header comment; +inf with one solution
   bool ambiguous = false;
-  Matrix6d covariance = Matrix6d::Zero();     // of solutions[0], [rx ry rz tx ty tz], right perturbation
+  Matrix6d covariance = Matrix6d::Zero();  // of solutions[0], [rx ry rz tx ty tz], right perturbation
 
   const MarkerPoseSolution& best() const { return solutions.front(); }
 };

@@ -32,7 +32,7 @@ void RejectNestedRepetition(const std::string& pattern) {
   for (size_t i = 0; i < pattern.size(); ++i) {
     const char c = pattern[i];
     if (c == '\\') {
-      ++i;  // an escaped character
+      ++i;                  // an escaped character
     } else if (c == '[') {  // a class: up to its closing ']' (a leading ']' or '^]' is literal)
       size_t j = i + 1;
       if (j < pattern.size() && pattern[j] == '^') ++j;
@@ -81,8 +81,8 @@ std::regex CompilePattern(const std::string& pattern) {
   try {
     return std::regex(pattern, std::regex::ECMAScript);
   } catch (const std::regex_error& e) {
-    throw std::runtime_error("payload: pattern: invalid ECMAScript regular expression `" + pattern + "`: " +
-                             e.what());
+    throw std::runtime_error("payload: pattern: invalid ECMAScript regular expression `" + pattern +
+                             "`: " + e.what());
   }
 }
 
@@ -141,9 +141,12 @@ bool StoreField(const std::string& name, const std::string& value, PayloadData* 
 
 }  // namespace
 
-void ValidatePayloadSpec(const PayloadSpec& spec) { CheckFields(spec, CompilePattern(spec.pattern).mark_count()); }
+void ValidatePayloadSpec(const PayloadSpec& spec) {
+  CheckFields(spec, CompilePattern(spec.pattern).mark_count());
+}
 
-PayloadParser::PayloadParser(PayloadSpec spec) : spec_(std::move(spec)), regex_(CompilePattern(spec_.pattern)) {
+PayloadParser::PayloadParser(PayloadSpec spec)
+    : spec_(std::move(spec)), regex_(CompilePattern(spec_.pattern)) {
   CheckFields(spec_, regex_.mark_count());
 }
 

@@ -1,8 +1,7 @@
 #include "geometry/pose.h"
 
-#include <cmath>
-
 #include <Eigen/LU>
+#include <cmath>
 
 namespace waymark {
 namespace {

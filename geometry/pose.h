@@ -18,9 +18,9 @@
 // block is converted with factors/pose_block.h's ManifoldToBodyTangentJacobian.
 #pragma once
 
-#include <cmath>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace waymark {
 
@@ -91,9 +91,7 @@ class SE3d {
                 Eigen::Vector3d(x, y, z));
   }
   // Product-map exponential (see the header comment): Exp([dr, dt]) = (exp(dr), dt).
-  static SE3d Exp(const Vector6d& delta) {
-    return SE3d(ExpSO3(delta.head<3>()), delta.tail<3>());
-  }
+  static SE3d Exp(const Vector6d& delta) { return SE3d(ExpSO3(delta.head<3>()), delta.tail<3>()); }
 
   const Eigen::Quaterniond& rotation() const { return q_; }
   const Eigen::Vector3d& translation() const { return t_; }

@@ -10,7 +10,8 @@
 namespace waymark {
 namespace {
 
-constexpr SquareSide kSides[4] = {SquareSide::kTop, SquareSide::kRight, SquareSide::kBottom, SquareSide::kLeft};
+constexpr SquareSide kSides[4] = {SquareSide::kTop, SquareSide::kRight, SquareSide::kBottom,
+                                  SquareSide::kLeft};
 
 int SideIndex(SquareSide side) { return static_cast<int>(side); }
 
@@ -48,18 +49,22 @@ std::array<int, 2> SquareSideCorners(SquareSide side) {
 }
 
 bool CheckSquareTape(const SquareTape& tape, double side_m, std::string* why) {
-  if (!(std::isfinite(side_m) && side_m > 0.0)) return Fail(why, "square side: expected > 0 m, got " + FormatDouble(side_m));
+  if (!(std::isfinite(side_m) && side_m > 0.0))
+    return Fail(why, "square side: expected > 0 m, got " + FormatDouble(side_m));
   if (!(std::isfinite(tape.tape_width_m) && tape.tape_width_m > 0.0 && tape.tape_width_m <= 0.25 * side_m)) {
-    return Fail(why, "tape_width_m: expected > 0 and <= side / 4 (" + FormatDouble(0.25 * side_m) + " m), got " +
-                         FormatDouble(tape.tape_width_m));
+    return Fail(why, "tape_width_m: expected > 0 and <= side / 4 (" + FormatDouble(0.25 * side_m) +
+                         " m), got " + FormatDouble(tape.tape_width_m));
   }
-  if (!(std::isfinite(tape.dash_m) && tape.dash_m > 0.0)) return Fail(why, "dash_m: expected > 0, got " + FormatDouble(tape.dash_m));
-  if (!(std::isfinite(tape.gap_m) && tape.gap_m > 0.0)) return Fail(why, "gap_m: expected > 0, got " + FormatDouble(tape.gap_m));
+  if (!(std::isfinite(tape.dash_m) && tape.dash_m > 0.0))
+    return Fail(why, "dash_m: expected > 0, got " + FormatDouble(tape.dash_m));
+  if (!(std::isfinite(tape.gap_m) && tape.gap_m > 0.0))
+    return Fail(why, "gap_m: expected > 0, got " + FormatDouble(tape.gap_m));
   if (2.0 * tape.dash_m + tape.gap_m > side_m + tape.tape_width_m) {
     return Fail(why, "dash_m, gap_m: expected room for two dashes and a gap on a side of " +
                          FormatDouble(side_m + tape.tape_width_m) + " m");
   }
-  if (SideIndex(tape.solid_side) < 0 || SideIndex(tape.solid_side) > 3) return Fail(why, "solid_side: not a side");
+  if (SideIndex(tape.solid_side) < 0 || SideIndex(tape.solid_side) > 3)
+    return Fail(why, "solid_side: not a side");
   return true;
 }
 
@@ -109,8 +114,10 @@ std::array<Eigen::Vector2d, 4> SolidFirstToMarkerOrder(const std::array<Eigen::V
   return corners;
 }
 
-std::optional<SquareMatch> IdentifySquare(const MarkerMap& map, const Camera& camera, const SE3d& T_world_camera,
-                                          const std::array<Eigen::Vector2d, 4>& solid_first_px, double gate_px) {
+std::optional<SquareMatch> IdentifySquare(const MarkerMap& map, const Camera& camera,
+                                          const SE3d& T_world_camera,
+                                          const std::array<Eigen::Vector2d, 4>& solid_first_px,
+                                          double gate_px) {
   const SE3d T_camera_world = T_world_camera.inverse();
   constexpr double kInf = std::numeric_limits<double>::infinity();
   std::optional<SquareMatch> best;
@@ -118,14 +125,18 @@ std::optional<SquareMatch> IdentifySquare(const MarkerMap& map, const Camera& ca
   for (size_t i = 0; i < map.markers.size(); ++i) {
     const MapMarker& marker = map.markers[i];
     if (marker.key.family != kFamilySquare || !marker.has_pose) continue;
-    const std::array<Eigen::Vector2d, 4> corners = SolidFirstToMarkerOrder(solid_first_px, TapeOf(marker).solid_side);
+    const std::array<Eigen::Vector2d, 4> corners =
+        SolidFirstToMarkerOrder(solid_first_px, TapeOf(marker).solid_side);
     const std::array<Eigen::Vector3d, 4> object = MarkerCorners(marker.size_m);
     double sum_sq = 0.0;
     bool visible = true;
     for (int k = 0; k < 4 && visible; ++k) {
-      const std::optional<Eigen::Vector2d> px = camera.Project(T_camera_world * (marker.T_world_marker * object[k]));
-      if (!px) visible = false;
-      else sum_sq += (*px - corners[k]).squaredNorm();
+      const std::optional<Eigen::Vector2d> px =
+          camera.Project(T_camera_world * (marker.T_world_marker * object[k]));
+      if (!px)
+        visible = false;
+      else
+        sum_sq += (*px - corners[k]).squaredNorm();
     }
     if (!visible) continue;
     const double rms = std::sqrt(0.25 * sum_sq);

@@ -23,12 +23,11 @@
 // turns them into the marker's own order for a given solid side.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/camera.h"
 #include "geometry/pose.h"
@@ -82,12 +81,14 @@ std::array<Eigen::Vector2d, 4> SolidFirstToMarkerOrder(const std::array<Eigen::V
 // its RMS corner distance is within gate_px and no other square's is (else nullopt: none fits,
 // or two do and the prior cannot tell them apart).
 struct SquareMatch {
-  size_t index = 0;                              // into map.markers
-  std::array<Eigen::Vector2d, 4> corners_px;     // in the square's own corner order
-  double rms_px = 0.0;                           // its RMS corner distance
-  double next_rms_px = 0.0;                      // the next best square's (+inf if none)
+  size_t index = 0;                           // into map.markers
+  std::array<Eigen::Vector2d, 4> corners_px;  // in the square's own corner order
+  double rms_px = 0.0;                        // its RMS corner distance
+  double next_rms_px = 0.0;                   // the next best square's (+inf if none)
 };
-std::optional<SquareMatch> IdentifySquare(const MarkerMap& map, const Camera& camera, const SE3d& T_world_camera,
-                                          const std::array<Eigen::Vector2d, 4>& solid_first_px, double gate_px);
+std::optional<SquareMatch> IdentifySquare(const MarkerMap& map, const Camera& camera,
+                                          const SE3d& T_world_camera,
+                                          const std::array<Eigen::Vector2d, 4>& solid_first_px,
+                                          double gate_px);
 
 }  // namespace waymark

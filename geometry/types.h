@@ -3,6 +3,7 @@
 // Conventions (frames, corner order, units) are those of docs/design.md.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <filesystem>
 #include <map>
@@ -10,8 +11,6 @@
 #include <string>
 #include <tuple>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/pose.h"
 
@@ -131,7 +130,7 @@ struct CameraInfo {
   std::array<double, 4> intrinsics{};  // fx, fy, cx, cy
   std::vector<double> distortion;      // radtan: k1 k2 p1 p2 k3; equidistant, equisolid: k1 k2 k3 k4
   SE3d T_robot_camera;
-  std::optional<double> pixel_sigma;   // corner noise, px
+  std::optional<double> pixel_sigma;  // corner noise, px
 
   // Number of distortion coefficients the model takes (5 or 4).
   static size_t DistortionSize(CameraModel model) { return model == CameraModel::kPinholeRadtan ? 5 : 4; }
@@ -143,8 +142,8 @@ struct CameraInfo {
 enum class MotionModel { kPlanar, kFree };
 
 struct OdometrySigma {
-  double trans_per_m = 0.0;   // translation noise per metre travelled
-  double rot_per_rad = 0.0;   // rotation noise per radian turned
+  double trans_per_m = 0.0;  // translation noise per metre travelled
+  double rot_per_rad = 0.0;  // rotation noise per radian turned
 };
 
 // Coordinates printed inside a code's payload (dataset.yaml `payload`).
@@ -179,7 +178,7 @@ struct DatasetConfig {
 
 // Warnings counted while reading (docs/design.md: rejected, never silently used).
 struct ReadWarnings {
-  std::map<std::string, long> counts;  // reason -> count
+  std::map<std::string, long> counts;       // reason -> count
   std::vector<std::string> first_messages;  // the first few, with file and line
   void Add(const std::string& reason, const std::string& message);
   long Total() const;
@@ -190,7 +189,7 @@ struct Dataset {
   std::filesystem::path dir;
   DatasetConfig config;
   std::map<std::string, CameraInfo> cameras;  // by name
-  Trajectory odometry;                         // T_odom_robot
+  Trajectory odometry;                        // T_odom_robot
   std::vector<DetectionFrame> detections;
   std::vector<ImageEntry> images;
   std::optional<MarkerMap> known_markers;

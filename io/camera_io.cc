@@ -20,10 +20,11 @@ std::string CheckIntrinsicsRange(const double* intrinsics, int width, int height
     return "expected focal lengths up to " + FormatDouble(kMaxFocalLengthPx) + " px, got " +
            FormatDouble(std::max(intrinsics[0], intrinsics[1]));
   }
-  if (std::abs(intrinsics[2] - 0.5 * width) > 1.5 * width || std::abs(intrinsics[3] - 0.5 * height) > 1.5 * height) {
+  if (std::abs(intrinsics[2] - 0.5 * width) > 1.5 * width ||
+      std::abs(intrinsics[3] - 0.5 * height) > 1.5 * height) {
     return "expected the principal point within one image size of the " + std::to_string(width) + "x" +
-           std::to_string(height) + " image, got (" + FormatDouble(intrinsics[2]) + ", " + FormatDouble(intrinsics[3]) +
-           ")";
+           std::to_string(height) + " image, got (" + FormatDouble(intrinsics[2]) + ", " +
+           FormatDouble(intrinsics[3]) + ")";
   }
   return "";
 }
@@ -31,7 +32,8 @@ std::string CheckIntrinsicsRange(const double* intrinsics, int width, int height
 std::string CheckDistortionRange(const std::vector<double>& distortion) {
   for (const double k : distortion) {
     if (std::abs(k) > kMaxDistortionCoefficient) {
-      return "expected coefficients within +-" + FormatDouble(kMaxDistortionCoefficient) + ", got " + FormatDouble(k);
+      return "expected coefficients within +-" + FormatDouble(kMaxDistortionCoefficient) + ", got " +
+             FormatDouble(k);
     }
   }
   return "";
@@ -83,7 +85,8 @@ CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path&
   if (!(intrinsics[0] > 0.0 && intrinsics[1] > 0.0)) {
     ThrowYamlError(path, intrinsics_node, "intrinsics: expected positive focal lengths fx, fy");
   }
-  if (const std::string why = CheckIntrinsicsRange(intrinsics.data(), camera.width, camera.height); !why.empty()) {
+  if (const std::string why = CheckIntrinsicsRange(intrinsics.data(), camera.width, camera.height);
+      !why.empty()) {
     ThrowYamlError(path, intrinsics_node, "intrinsics: " + why);
   }
   for (int i = 0; i < 4; ++i) camera.intrinsics[i] = intrinsics[i];
@@ -104,8 +107,9 @@ CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path&
   if (const YAML::Node sigma = root["pixel_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
     camera.pixel_sigma = YamlNumber(path, sigma, "pixel_sigma");
     if (!(*camera.pixel_sigma > 0.0 && *camera.pixel_sigma <= kMaxPixelSigmaPx)) {
-      ThrowYamlError(path, sigma, "pixel_sigma: expected a positive number of pixels up to " +
-                                      FormatDouble(kMaxPixelSigmaPx) + ", got " + FormatDouble(*camera.pixel_sigma));
+      ThrowYamlError(path, sigma,
+                     "pixel_sigma: expected a positive number of pixels up to " +
+                         FormatDouble(kMaxPixelSigmaPx) + ", got " + FormatDouble(*camera.pixel_sigma));
     }
   }
   YamlWarnUnknownKeys(
@@ -145,7 +149,8 @@ void CheckWritable(const CameraInfo& camera) {
   }
   if (!camera.T_robot_camera.IsFinite()) throw std::invalid_argument(name + "T_robot_camera not finite");
   if (const std::string why = CheckIntrinsicsRange(camera.intrinsics.data(), camera.width, camera.height) +
-                              CheckDistortionRange(camera.distortion) + CheckCameraOffset(camera.T_robot_camera);
+                              CheckDistortionRange(camera.distortion) +
+                              CheckCameraOffset(camera.T_robot_camera);
       !why.empty()) {
     throw std::invalid_argument(name + why);
   }

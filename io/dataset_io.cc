@@ -8,13 +8,13 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "io/camera_io.h"
 #include "geometry/payload.h"
+#include "io/camera_io.h"
 #include "io/detections_io.h"
-#include "io/util.h"
-#include "io/yaml_util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
+#include "io/yaml_util.h"
 
 namespace waymark {
 namespace {
@@ -88,8 +88,9 @@ PayloadSpec ReadPayload(const fs::path& path, const YAML::Node& node) {
   if (const YAML::Node z = node["default_z_m"]; z.IsDefined() && !z.IsNull()) {
     spec.default_z_m = YamlNumber(path, z, "payload.default_z_m");
     if (std::abs(*spec.default_z_m) > kMaxCoordinateM) {
-      ThrowYamlError(path, z, "payload.default_z_m: expected a coordinate within +-" + FormatDouble(kMaxCoordinateM) +
-                                  " m, got " + FormatDouble(*spec.default_z_m));
+      ThrowYamlError(path, z,
+                     "payload.default_z_m: expected a coordinate within +-" + FormatDouble(kMaxCoordinateM) +
+                         " m, got " + FormatDouble(*spec.default_z_m));
     }
   }
   if (const std::string why = CheckPayloadSpec(spec); !why.empty())

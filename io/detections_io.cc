@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "io/util.h"
 #include "io/json_util.h"
+#include "io/util.h"
 
 namespace waymark {
 namespace {
@@ -116,17 +116,17 @@ std::optional<MarkerObservation> ParseMarker(const JsonSource& source, const nlo
     const std::array<Eigen::Vector2d, 4>& c = marker.corners_px;
     const double margin_px = 0.5 * std::min((c[2] - c[0]).norm(), (c[3] - c[1]).norm());
     for (const Eigen::Vector2d& corner_px : marker.corners_px) {
-      if (corner_px.x() >= -margin_px && corner_px.y() >= -margin_px && corner_px.x() <= camera->width + margin_px &&
-          corner_px.y() <= camera->height + margin_px) {
+      if (corner_px.x() >= -margin_px && corner_px.y() >= -margin_px &&
+          corner_px.x() <= camera->width + margin_px && corner_px.y() <= camera->height + margin_px) {
         continue;
       }
       if (warnings) {
-        warnings->Add(
-            "corner outside image",
-            JsonErrorText(source, JsonField(field, "corners_px"),
-                          "corner (" + FormatDouble(corner_px.x()) + ", " + FormatDouble(corner_px.y()) +
-                              ") outside the " + std::to_string(camera->width) + "x" +
-                              std::to_string(camera->height) + " image by more than half the code's diagonal, marker ignored"));
+        warnings->Add("corner outside image",
+                      JsonErrorText(source, JsonField(field, "corners_px"),
+                                    "corner (" + FormatDouble(corner_px.x()) + ", " +
+                                        FormatDouble(corner_px.y()) + ") outside the " +
+                                        std::to_string(camera->width) + "x" + std::to_string(camera->height) +
+                                        " image by more than half the code's diagonal, marker ignored"));
       }
       return std::nullopt;
     }
@@ -152,9 +152,9 @@ void DropDuplicateMarkers(const JsonSource& source, DetectionFrame* frame, ReadW
   for (const auto& [key, n] : count) {
     if (n < 2) continue;
     if (warnings) {
-      warnings->Add("duplicate marker in frame",
-                    JsonErrorText(source, "markers",
-                                  key.ToString() + " seen " + std::to_string(n) + " times in one frame, all ignored"));
+      warnings->Add("duplicate marker in frame", JsonErrorText(source, "markers",
+                                                               key.ToString() + " seen " + std::to_string(n) +
+                                                                   " times in one frame, all ignored"));
     }
     frame->markers.erase(std::remove_if(frame->markers.begin(), frame->markers.end(),
                                         [&key = key](const MarkerObservation& m) { return m.key == key; }),

@@ -6,9 +6,9 @@
 #include <set>
 #include <stdexcept>
 
-#include "io/util.h"
-#include "io/json_util.h"
 #include "geometry/square_marker.h"
+#include "io/json_util.h"
+#include "io/util.h"
 
 namespace waymark {
 namespace {
@@ -34,8 +34,8 @@ Matrix6d ParseCovariance(const JsonSource& source, const nlohmann::json& value, 
 
 // covariance_factor: 6 k numbers, row-major 6 x k, with covariance - F F^T PSD (within 1e-6 of
 // the largest variance).
-CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann::json& value, const std::string& field,
-                                       const std::optional<Matrix6d>& covariance) {
+CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann::json& value,
+                                       const std::string& field, const std::optional<Matrix6d>& covariance) {
   if (!value.is_array() || value.empty() || value.size() % 6 != 0) {
     ThrowJsonError(source, field, "expected a non-empty array of 6 k numbers (row-major 6 x k)");
   }
@@ -49,7 +49,8 @@ CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann:
   const Matrix6d residual = *covariance - factor * factor.transpose();
   const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Matrix6d>(residual).eigenvalues().minCoeff();
   if (min_eigenvalue < -1e-6 * covariance->diagonal().maxCoeff()) {
-    ThrowJsonError(source, field, "expected covariance - F F^T positive semi-definite (F F^T exceeds the covariance)");
+    ThrowJsonError(source, field,
+                   "expected covariance - F F^T positive semi-definite (F F^T exceeds the covariance)");
   }
   return factor;
 }
@@ -136,7 +137,8 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
     if (marker.key.family != kFamilySquare) {
       ThrowJsonError(source, JsonField(field, "square"), "only a marker of family square has a tape");
     }
-    marker.square_tape = ParseSquareTape(source, *square, JsonField(field, "square"), marker.size_m, warnings);
+    marker.square_tape =
+        ParseSquareTape(source, *square, JsonField(field, "square"), marker.size_m, warnings);
   } else if (marker.key.family == kFamilySquare) {
     std::string why;
     if (!CheckSquareTape(SquareTape{}, marker.size_m, &why)) {
@@ -186,8 +188,8 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
       const long k = marker.covariance_factor->cols();
       if (factor_columns && *factor_columns != k) {
         ThrowJsonError(source, JsonField(field, "covariance_factor"),
-                       "expected 6 x " + std::to_string(*factor_columns) + " like the markers before, got 6 x " +
-                           std::to_string(k));
+                       "expected 6 x " + std::to_string(*factor_columns) +
+                           " like the markers before, got 6 x " + std::to_string(k));
       }
       factor_columns = k;
     }
@@ -223,7 +225,8 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
   if (marker.covariance_factor) {
     nlohmann::ordered_json factor = nlohmann::ordered_json::array();
     for (int r = 0; r < 6; ++r) {
-      for (int c = 0; c < marker.covariance_factor->cols(); ++c) factor.push_back((*marker.covariance_factor)(r, c));
+      for (int c = 0; c < marker.covariance_factor->cols(); ++c)
+        factor.push_back((*marker.covariance_factor)(r, c));
     }
     json["covariance_factor"] = factor;
   }
@@ -254,7 +257,8 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
     throw std::invalid_argument(name + "fixed or with a covariance but without a pose");
   if (marker.square_tape) {
     std::string why;
-    if (marker.key.family != kFamilySquare) throw std::invalid_argument(name + "a tape on a marker not of family square");
+    if (marker.key.family != kFamilySquare)
+      throw std::invalid_argument(name + "a tape on a marker not of family square");
     if (!CheckSquareTape(*marker.square_tape, marker.size_m, &why)) throw std::invalid_argument(name + why);
   }
   if (marker.covariance && !marker.covariance->allFinite())

@@ -1,6 +1,4 @@
 #include "io/util.h"
-#include "io/json_util.h"
-#include "io/yaml_util.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -22,6 +20,9 @@
 #include <random>
 #include <sstream>
 #include <system_error>
+
+#include "io/json_util.h"
+#include "io/yaml_util.h"
 
 namespace waymark {
 namespace {
@@ -213,7 +214,8 @@ int RemoveStaleTemporaryDirectories(const std::filesystem::path& dir, const std:
     const size_t at = name.rfind(prefix);
     if (at == std::string::npos || (at != 0 && name[0] != '.')) continue;
     const std::string pid_text = name.substr(at + prefix.size());
-    if (pid_text.empty() || pid_text.size() > 10 || pid_text.find_first_not_of("0123456789") != std::string::npos) {
+    if (pid_text.empty() || pid_text.size() > 10 ||
+        pid_text.find_first_not_of("0123456789") != std::string::npos) {
       continue;
     }
     if (!entry.is_directory(ec) || entry.is_symlink(ec)) continue;
@@ -280,8 +282,8 @@ long LineOfOffset(std::string_view text, size_t offset) {
 
 std::string CheckMarkerSize(double size_m) {
   if (size_m >= kMinMarkerSizeM && size_m <= kMaxMarkerSizeM) return "";
-  return "expected a size between " + FormatDouble(kMinMarkerSizeM) + " and " + FormatDouble(kMaxMarkerSizeM) +
-         " m, got " + FormatDouble(size_m);
+  return "expected a size between " + FormatDouble(kMinMarkerSizeM) + " and " +
+         FormatDouble(kMaxMarkerSizeM) + " m, got " + FormatDouble(size_m);
 }
 
 bool MakePoseFromFile(const Eigen::Vector3d& t, const Eigen::Vector4d& q_xyzw, SE3d* T, std::string* why) {
@@ -643,7 +645,8 @@ class LineRecorder {
 
 // A SAX pass over `text`: checks syntax, number range and depth, and fills `lines` if not
 // null. Returns the error (its 1-based line within `text` and its message) if any.
-std::optional<std::pair<long, std::string>> CheckJson(std::string_view text, std::map<std::string, long>* lines) {
+std::optional<std::pair<long, std::string>> CheckJson(std::string_view text,
+                                                      std::map<std::string, long>* lines) {
   size_t furthest = 0;
   LineRecorder recorder(text, &furthest, lines);
   const char* begin = text.data();

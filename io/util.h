@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "geometry/pose.h"
-#include "util/format.h"
 #include "geometry/types.h"
+#include "util/format.h"
 
 namespace waymark {
 
@@ -103,7 +103,6 @@ inline constexpr double kMaxPixelSigmaPx = 1e3;
 // "" when kMinMarkerSizeM <= size_m <= kMaxMarkerSizeM, else the message
 // "expected a size between 1e-04 and 100 m, got 9223372036854775808".
 std::string CheckMarkerSize(double size_m);
-
 
 // The whole token as a finite double ("+" allowed, no spaces, no nan/inf); nullopt otherwise.
 std::optional<double> ParseFiniteDouble(std::string_view token);

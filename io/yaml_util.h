@@ -1,13 +1,13 @@
 // Strict YAML field readers (yaml-cpp) for Waymark's formats; see io/util.h.
 #pragma once
 
+#include <yaml-cpp/yaml.h>
+
 #include <filesystem>
 #include <optional>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <yaml-cpp/yaml.h>
 
 #include "io/util.h"
 

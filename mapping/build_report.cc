@@ -35,8 +35,9 @@ OutlierTally TallyOutliers(const std::vector<RejectedObservation>& outliers) {
   std::map<std::string, size_t> by_reason, by_code;
   for (const RejectedObservation& o : outliers) {
     const std::string reason = o.reason.substr(0, o.reason.find(':'));
-    ++by_reason[reason.rfind("id conflicts with ", 0) == 0 ? "id conflicts with a code mapped at the same place"
-                                                            : reason];
+    ++by_reason[reason.rfind("id conflicts with ", 0) == 0
+                    ? "id conflicts with a code mapped at the same place"
+                    : reason];
     ++by_code[o.key.ToString()];
   }
   tally.by_reason.assign(by_reason.begin(), by_reason.end());
@@ -51,18 +52,20 @@ std::string FormatOdometryCalibration(const MapBuildResult& result) {
   const Eigen::Vector3d& c = *result.odometry_calibration;
   const std::optional<Eigen::Matrix3d>& covariance = result.odometry_calibration_covariance;
   const auto sigma = [&](int i, double scale) {
-    return covariance ? " +- " + FormatSignificant(scale * std::sqrt(std::max(0.0, (*covariance)(i, i))), 2) : std::string();
+    return covariance ? " +- " + FormatSignificant(scale * std::sqrt(std::max(0.0, (*covariance)(i, i))), 2)
+                      : std::string();
   };
   std::ostringstream out;
   out << "odometry calibration (" << (result.odometry_calibration_given ? "given" : "estimated")
-      << "): heading drift " << FormatSignificant(c[0] * 180.0 / M_PI, 3) << sigma(0, 180.0 / M_PI) << " deg/m, turn scale "
-      << FormatSignificant(100.0 * c[1], 3) << sigma(1, 100.0) << " %, distance scale " << FormatSignificant(100.0 * c[2], 3) << sigma(2, 100.0)
-      << " %";
+      << "): heading drift " << FormatSignificant(c[0] * 180.0 / M_PI, 3) << sigma(0, 180.0 / M_PI)
+      << " deg/m, turn scale " << FormatSignificant(100.0 * c[1], 3) << sigma(1, 100.0)
+      << " %, distance scale " << FormatSignificant(100.0 * c[2], 3) << sigma(2, 100.0) << " %";
   if (!result.odometry_calibration_given) {
-    out << " (reuse for this robot: --odometry-calibration " << FormatSignificant(c[0], 6) << "," << FormatSignificant(c[1], 6) << ","
-        << FormatSignificant(c[2], 6);
+    out << " (reuse for this robot: --odometry-calibration " << FormatSignificant(c[0], 6) << ","
+        << FormatSignificant(c[1], 6) << "," << FormatSignificant(c[2], 6);
     if (covariance) {
-      for (int i = 0; i < 3; ++i) out << "," << FormatSignificant(std::sqrt(std::max(0.0, (*covariance)(i, i))), 3);
+      for (int i = 0; i < 3; ++i)
+        out << "," << FormatSignificant(std::sqrt(std::max(0.0, (*covariance)(i, i))), 3);
     }
     out << ")";
   }
@@ -71,35 +74,36 @@ std::string FormatOdometryCalibration(const MapBuildResult& result) {
 
 std::string FormatBuildSummary(const MapBuildResult& result) {
   std::ostringstream out;
-  out << "map: " << result.map.markers.size() << " markers in " << result.components.size() << " component(s), "
-      << result.frames << " frames, " << result.observations << " observations used\n";
+  out << "map: " << result.map.markers.size() << " markers in " << result.components.size()
+      << " component(s), " << result.frames << " frames, " << result.observations << " observations used\n";
   for (const ComponentSummary& c : result.components) {
     out << "  component " << c.component << ": " << c.markers << " markers, " << c.frames << " frames ("
         << c.trajectory_poses << " poses in its trajectory), gauge: " << c.gauge << "\n";
   }
   for (const CameraReprojection& r : result.reprojection) {
     out << "  reprojection " << r.camera << ": RMS " << FormatSignificant(r.rms_px, 4) << " px, median "
-        << FormatSignificant(r.median_px, 4) << " px over " << r.observations
-        << " observations\n";
+        << FormatSignificant(r.median_px, 4) << " px over " << r.observations << " observations\n";
   }
   out << "outliers rejected: " << result.outliers.size() << "\n";
   AppendOutlierTallies(result.outliers, out);
   const size_t shown = std::min<size_t>(result.outliers.size(), 10);
   for (size_t i = 0; i < shown; ++i) {
     const RejectedObservation& o = result.outliers[i];
-    out << "  " << o.key.ToString() << " at t = " << FormatSignificant(o.stamp_s, 12) << " s (" << o.camera << "): " << o.reason;
+    out << "  " << o.key.ToString() << " at t = " << FormatSignificant(o.stamp_s, 12) << " s (" << o.camera
+        << "): " << o.reason;
     if (o.rms_px > 0.0) out << ", " << FormatSignificant(o.rms_px, 4) << " px";
     out << "\n";
   }
   if (shown < result.outliers.size()) out << "  ... and " << result.outliers.size() - shown << " more\n";
   out << "unmapped codes: " << result.unmapped.size() << "\n";
   for (const UnmappedMarker& u : result.unmapped) out << "  " << u.key.ToString() << ": " << u.reason << "\n";
-  out << "time: init " << FormatSignificant(result.init_time_s, 3) << " s, solve " << FormatSignificant(result.solver_time_s, 3)
-      << " s, covariance " << FormatSignificant(result.covariance_time_s, 3) << " s\n";
+  out << "time: init " << FormatSignificant(result.init_time_s, 3) << " s, solve "
+      << FormatSignificant(result.solver_time_s, 3) << " s, covariance "
+      << FormatSignificant(result.covariance_time_s, 3) << " s\n";
   if (!result.phases.empty()) out << "phases: " << FormatPhases(result.phases) << "\n";
-  out << "solver: " << FormatSignificant(result.solver_time_s, 4) << " s, " << result.iterations << " iterations, cost "
-      << FormatSignificant(result.initial_cost, 8) << " -> " << FormatSignificant(result.final_cost, 8) << ", "
-      << result.termination << "\n";
+  out << "solver: " << FormatSignificant(result.solver_time_s, 4) << " s, " << result.iterations
+      << " iterations, cost " << FormatSignificant(result.initial_cost, 8) << " -> "
+      << FormatSignificant(result.final_cost, 8) << ", " << result.termination << "\n";
   out << "covariance: " << (result.covariance_computed ? "computed" : "not computed") << "\n";
   if (result.odometry_calibration) out << FormatOdometryCalibration(result) << "\n";
   for (const std::string& note : result.notes) out << "note: " << note << "\n";

@@ -1,9 +1,9 @@
 #include "mapping/build_stats.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <sstream>
-
-#include <sys/resource.h>
 
 namespace waymark {
 

@@ -20,7 +20,8 @@ double PeakRssMb();
 // Appends a PhaseTime to `phases` at each Lap: the time since the previous Lap (or construction).
 class PhaseClock {
  public:
-  explicit PhaseClock(std::vector<PhaseTime>* phases) : phases_(phases), last_(std::chrono::steady_clock::now()) {}
+  explicit PhaseClock(std::vector<PhaseTime>* phases)
+      : phases_(phases), last_(std::chrono::steady_clock::now()) {}
   void Lap(const std::string& phase);
 
  private:

@@ -1,11 +1,11 @@
 #include "mapping/global_problem.h"
 
+#include <ceres/covariance.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
-
-#include <ceres/covariance.h>
 
 #include "factors/odometry_se2_factor.h"
 #include "factors/odometry_se3_factor.h"
@@ -28,7 +28,8 @@ class ProgressCallback : public ceres::IterationCallback {
   ProgressCallback(const std::function<void(const std::string&)>& progress, std::string stage)
       : progress_(progress), stage_(std::move(stage)) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
-    progress_(stage_ + ": iteration " + std::to_string(s.iteration) + ", cost " + FormatSignificant(s.cost, 8));
+    progress_(stage_ + ": iteration " + std::to_string(s.iteration) + ", cost " +
+              FormatSignificant(s.cost, 8));
     return ceres::SOLVER_CONTINUE;
   }
 
@@ -51,15 +52,16 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     }
     if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
     AddCornerResidual(problem_.get(), survey_.motion, survey_.cameras.at(obs.camera),
-                      survey_.markers[obs.marker].size_m, obs.corners_px, &robot_[obs.frame], &marker_[obs.marker],
-                      loss);
+                      survey_.markers[obs.marker].size_m, obs.corners_px, &robot_[obs.frame],
+                      &marker_[obs.marker], loss);
   }
   if (loss != nullptr && active.empty()) delete loss;
   AddOdometry();
   AddPriorsAndGauge(markers_used, gauges);
   covariance_markers_.clear();
   for (int m : markers_used) {
-    if (!problem_->IsParameterBlockConstant(marker_[m].data())) covariance_markers_.push_back(marker_[m].data());
+    if (!problem_->IsParameterBlockConstant(marker_[m].data()))
+      covariance_markers_.push_back(marker_[m].data());
   }
   // Measured on corridor loops (docs/mapping.md, speed): Cholesky of the normal equations with
   // SuiteSparse (CHOLMOD, AMD) is on par with EIGEN_SPARSE and beats SPARSE_SCHUR with the codes
@@ -70,8 +72,8 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
   // Ceres damps the normal equations by diag(J^T J) / radius, and with the default every solve
   // crept along the loop's weakly constrained drift modes: each step was accepted with a model
   // fit of 1.00, the radius tripled, and the iteration count grew with the loop (640 m: 40 + 20
-  // iterations -> 8 + 3, maps equal within 11 um on the accuracy scenarios). A relative cost change of 1e-6 ends the
-  // robust solves, which only decide the outliers. The final solve runs to 1e-10: stopping it at
+  // iterations -> 8 + 3, maps equal within 11 um on the accuracy scenarios). A relative cost change of 1e-6
+  // ends the robust solves, which only decide the outliers. The final solve runs to 1e-10: stopping it at
   // 1e-6 moves the maps by up to 0.08 mm now for one iteration, and left sparse-code maps up to
   // 50 % worse with the default radius (corridor d = 4 m seed 3: 45 -> 69 mm).
   ceres::Solver::Options solver_options;
@@ -123,8 +125,8 @@ size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
   for (int m : outlying) {
     const SurveyMarker& marker = survey_.markers[m];
     if (marker.known && marker.known->fixed) continue;
-    const std::optional<SE3d> T = MarkerByConsensus(survey_, cameras, init_.views, T_world_robot, m,
-                                                    options_.initializer.cauchy_scale);
+    const std::optional<SE3d> T =
+        MarkerByConsensus(survey_, cameras, init_.views, T_world_robot, m, options_.initializer.cauchy_scale);
     if (!T) continue;
     const SE3d before = Marker(m);
     if ((T->translation() - before.translation()).norm() > 1e-3 || RotationAngleBetween(*T, before) > 1e-3) {
@@ -163,13 +165,14 @@ void GlobalProblem::AddOdometry() {
   for (const OdometryLink& link : survey_.odometry_links) {
     if (!FramePlaced(link.frame_a) || !FramePlaced(link.frame_b)) continue;
     for (int f : {link.frame_a, link.frame_b}) {
-      if (!problem_->HasParameterBlock(robot_[f].data())) AddRobotBlock(problem_.get(), survey_.motion, &robot_[f]);
+      if (!problem_->HasParameterBlock(robot_[f].data()))
+        AddRobotBlock(problem_.get(), survey_.motion, &robot_[f]);
     }
     if (options_.calibrate_odometry) {
       AddCalibratedOdometry(link);
     } else if (survey_.motion == MotionModel::kPlanar) {
-      problem_->AddResidualBlock(OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2), nullptr,
-                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+      problem_->AddResidualBlock(OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2),
+                                 nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data());
     } else {
       problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, link.covariance_se3), nullptr,
                                  robot_[link.frame_a].data(), robot_[link.frame_b].data());
@@ -199,7 +202,8 @@ void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
 
 void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {
   gauges->assign(init_.components, "");
-  std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0), payloads_z(init_.components, 0);
+  std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0),
+      payloads_z(init_.components, 0);
   for (int m : markers_used) {
     const SurveyMarker& marker = survey_.markers[m];
     const int c = init_.marker_component[m];
@@ -208,8 +212,9 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
       problem_->SetParameterBlockConstant(marker_[m].data());
       ++anchors[c];
     } else if (marker.known && marker.known->covariance) {
-      problem_->AddResidualBlock(PosePriorSE3Factor::Create(marker.known->T_world_marker, *marker.known->covariance),
-                                 nullptr, marker_[m].data());
+      problem_->AddResidualBlock(
+          PosePriorSE3Factor::Create(marker.known->T_world_marker, *marker.known->covariance), nullptr,
+          marker_[m].data());
       ++anchors[c];
     }
   }
@@ -221,12 +226,13 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
     const PayloadData& p = *marker.payload;
     if (p.z_m && !planar) {
       problem_->AddResidualBlock(
-          PositionPriorFactor<3>::Create(Eigen::Vector3d(*p.x_m, *p.y_m, *p.z_m), options_.payload_sigma_m), nullptr,
-          marker_[m].data());
+          PositionPriorFactor<3>::Create(Eigen::Vector3d(*p.x_m, *p.y_m, *p.z_m), options_.payload_sigma_m),
+          nullptr, marker_[m].data());
       ++payloads_z[c];
     } else {
-      problem_->AddResidualBlock(PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m),
-                                 nullptr, marker_[m].data());
+      problem_->AddResidualBlock(
+          PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m), nullptr,
+          marker_[m].data());
     }
     if (p.yaw_rad) {
       problem_->AddResidualBlock(YawPriorFactor::Create(*p.yaw_rad, options_.payload_yaw_sigma_rad), nullptr,
@@ -237,7 +243,8 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
   for (int c = 0; c < init_.components; ++c) {
     int first = -1;
     for (size_t f = 0; f < survey_.frames.size() && first < 0; ++f) {
-      if (init_.frame_component[f] == c && problem_->HasParameterBlock(robot_[f].data())) first = static_cast<int>(f);
+      if (init_.frame_component[f] == c && problem_->HasParameterBlock(robot_[f].data()))
+        first = static_cast<int>(f);
     }
     if (anchors[c] > 0) {
       (*gauges)[c] = std::to_string(anchors[c]) + " anchor(s) from markers.json";
@@ -250,8 +257,8 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
         // (printed, or payload.default_z_m) fix height and tilt themselves.
         Vector6d variances;
         variances << 1.0, 1.0, 1.0, 1e4, 1e4, 1e-6;
-        problem_->AddResidualBlock(PosePriorSE3Factor::Create(Robot(first), Matrix6d(variances.asDiagonal())), nullptr,
-                                   robot_[first].data());
+        problem_->AddResidualBlock(PosePriorSE3Factor::Create(Robot(first), Matrix6d(variances.asDiagonal())),
+                                   nullptr, robot_[first].data());
       }
     } else if (first >= 0) {
       problem_->SetParameterBlockConstant(robot_[first].data());
@@ -312,7 +319,8 @@ bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matri
   if (factor_rank <= 0) return true;
   CovarianceFactorOptions factor_options;
   factor_options.rank = factor_rank;
-  const auto rows = MarkerCovarianceFactors(information, covariance_markers_, poses, marginals, factor_options);
+  const auto rows =
+      MarkerCovarianceFactors(information, covariance_markers_, poses, marginals, factor_options);
   for (size_t i = 0; rows && i < markers.size(); ++i) (*factors)[markers[i]] = (*rows)[i];
   return true;
 }

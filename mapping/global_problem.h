@@ -4,6 +4,8 @@
 // re-placement of outlying markers, and the covariances from one factorization of H.
 #pragma once
 
+#include <ceres/ceres.h>
+
 #include <array>
 #include <functional>
 #include <map>
@@ -12,8 +14,6 @@
 #include <set>
 #include <string>
 #include <vector>
-
-#include <ceres/ceres.h>
 
 #include "factors/calibrated_odometry_factor.h"
 #include "factors/pose_block.h"
@@ -59,7 +59,8 @@ class GlobalProblem {
     return Eigen::Vector3d(calibration_[0], calibration_[1], calibration_[2]);
   }
   bool CalibrationEstimated() const {
-    return problem_->HasParameterBlock(calibration_.data()) && !problem_->IsParameterBlockConstant(calibration_.data());
+    return problem_->HasParameterBlock(calibration_.data()) &&
+           !problem_->IsParameterBlockConstant(calibration_.data());
   }
 
   // Re-places the codes with an observation above the outlier gate by consensus over their

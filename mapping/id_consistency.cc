@@ -1,5 +1,4 @@
 #include "mapping/id_consistency.h"
-#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +6,7 @@
 
 #include "geometry/marker_pose.h"
 #include "mapping/residuals.h"
+#include "util/check.h"
 
 namespace waymark {
 namespace {
@@ -33,8 +33,9 @@ std::vector<double> PathLengths(const Survey& survey) {
     const SurveyFrame& frame = survey.frames[f];
     if (!frame.T_odom_robot) continue;
     if (last >= 0 && survey.frames[last].segment == frame.segment) {
-      path_m[f] = path_m[last] +
-                  (frame.T_odom_robot->translation() - survey.frames[last].T_odom_robot->translation()).norm();
+      path_m[f] =
+          path_m[last] +
+          (frame.T_odom_robot->translation() - survey.frames[last].T_odom_robot->translation()).norm();
     }
     last = static_cast<int>(f);
   }
@@ -72,14 +73,15 @@ bool Consistent(const OdomView& a, const OdomView& b, const IdCheckOptions& opti
 
 // Judges the views of one code in one segment (header comment); returns the seed's support.
 // The views not found inconsistent are added to *kept.
-int JudgeViews(const std::vector<OdomView>& views, const IdCheckOptions& options, std::vector<int>* inconsistent,
-               std::vector<int>* kept) {
+int JudgeViews(const std::vector<OdomView>& views, const IdCheckOptions& options,
+               std::vector<int>* inconsistent, std::vector<int>* kept) {
   if (views.size() == 1) kept->push_back(views[0].observation);
   if (views.size() < 2) return static_cast<int>(views.size());
   const size_t stride = (views.size() + options.max_reference_views - 1) / options.max_reference_views;
   std::vector<int> support(views.size(), 0);
   for (size_t i = 0; i < views.size(); ++i) {
-    for (size_t j = 0; j < views.size(); j += stride) support[i] += Consistent(views[i], views[j], options) ? 1 : 0;
+    for (size_t j = 0; j < views.size(); j += stride)
+      support[i] += Consistent(views[i], views[j], options) ? 1 : 0;
     if (stride > 1 && i % stride != 0) ++support[i];  // itself, when not among the references
   }
   const size_t seed = std::max_element(support.begin(), support.end()) - support.begin();

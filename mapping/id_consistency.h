@@ -17,8 +17,8 @@
 // positions) the views kept in one segment are inconsistent when they are a lone view and
 // another segment's seed has support >= 3, or when another segment's seed has 8 times their
 // seed's support. (A code revisited after a carry in a few frames only loses those views: a
-// component wrongly split is reported, one wrongly joined through a swapped id is not.) Views in frames without odometry are not judged (the global
-// solve's robust loss and outlier gate still see them).
+// component wrongly split is reported, one wrongly joined through a swapped id is not.) Views in frames
+// without odometry are not judged (the global solve's robust loss and outlier gate still see them).
 #pragma once
 
 #include <map>
@@ -32,8 +32,8 @@ namespace waymark {
 
 struct IdCheckOptions {
   double base_gate_m = 0.25;
-  double drift_per_m = 0.05;     // odometry drift allowance per metre of path between views
-  double range_fraction = 0.05;  // single-view centre error allowance, fraction of the range
+  double drift_per_m = 0.05;         // odometry drift allowance per metre of path between views
+  double range_fraction = 0.05;      // single-view centre error allowance, fraction of the range
   size_t max_reference_views = 200;  // support is counted against at most this many views
   bool Check(std::string* why) const;
 };

@@ -1,13 +1,12 @@
 #include "mapping/initializer.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
 #include <set>
 #include <sstream>
-
-#include <Eigen/Dense>
 
 #include "mapping/residuals.h"
 
@@ -44,8 +43,9 @@ SE3d Planarize(MotionModel motion, const SE3d& T) {
 
 // PnP of a frame against its placed codes (held constant), Cauchy loss; the start when the
 // frame sees no placed code.
-SE3d RefineFrame(const Survey& survey, const std::map<std::string, Camera>& cameras, const Initialization& init,
-                 int frame, const SE3d& T_world_robot, const InitializerOptions& options) {
+SE3d RefineFrame(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                 const Initialization& init, int frame, const SE3d& T_world_robot,
+                 const InitializerOptions& options) {
   std::vector<PnpView> pnp;
   for (int o : survey.frames[frame].observations) {
     const SurveyObservation& obs = survey.observations[o];
@@ -125,17 +125,19 @@ void PlaceFromLocalMaps(const Survey& survey, const std::vector<SE3d>& T_world_r
   }
   init->marker_link_quality.assign(survey.markers.size(), 0.0);
   for (const LocalMapLink& link : init->links) {
-    if (link.marker >= 0) init->marker_link_quality[link.marker] = std::max(init->marker_link_quality[link.marker], link.quality);
+    if (link.marker >= 0)
+      init->marker_link_quality[link.marker] = std::max(init->marker_link_quality[link.marker], link.quality);
   }
 }
 
 // Every placed code re-fused over all its views at the current frame poses.
-void RefineMarkers(const Survey& survey, const std::map<std::string, Camera>& cameras, const LocalMapOptions& options,
-                   Initialization* init) {
+void RefineMarkers(const Survey& survey, const std::map<std::string, Camera>& cameras,
+                   const LocalMapOptions& options, Initialization* init) {
   for (size_t m = 0; m < survey.markers.size(); ++m) {
     if (!init->T_world_marker[m]) continue;
-    const std::optional<FusedPose> fused = FuseInWorld(survey, cameras, init->views, init->T_world_robot,
-                                                       static_cast<int>(m), init->T_world_marker[m], 2, options);
+    const std::optional<FusedPose> fused =
+        FuseInWorld(survey, cameras, init->views, init->T_world_robot, static_cast<int>(m),
+                    init->T_world_marker[m], 2, options);
     if (fused) init->T_world_marker[m] = fused->T_frame_marker;
   }
 }
@@ -149,7 +151,8 @@ void RefineFrames(const Survey& survey, const std::map<std::string, Camera>& cam
   }
   for (size_t f = 0; f < survey.frames.size(); ++f) {
     if (!init->T_world_robot[f] || roots.count(static_cast<int>(f)) > 0) continue;
-    init->T_world_robot[f] = RefineFrame(survey, cameras, *init, static_cast<int>(f), *init->T_world_robot[f], options);
+    init->T_world_robot[f] =
+        RefineFrame(survey, cameras, *init, static_cast<int>(f), *init->T_world_robot[f], options);
   }
 }
 
@@ -187,7 +190,8 @@ std::pair<double, double> AnchorSigmas(const MapMarker& known) {
 // How far the anchors are from T * (their initialized poses): sum over anchors of
 // rho(|dp|^2 / s_p^2 + angle^2 / s_r^2), rho the Cauchy loss of scale 3 (a rough survey has some
 // priors far off); fixed anchors weigh as priors of 1 mm / 1 mrad.
-double AnchorMisfit(const Survey& survey, const Initialization& init, const std::vector<int>& anchors, const SE3d& T) {
+double AnchorMisfit(const Survey& survey, const Initialization& init, const std::vector<int>& anchors,
+                    const SE3d& T) {
   constexpr double kFixedSigmaM = 1e-3, kFixedSigmaRad = 1e-3, kScale2 = 9.0;
   double cost = 0.0;
   for (int m : anchors) {
@@ -204,8 +208,8 @@ double AnchorMisfit(const Survey& survey, const Initialization& init, const std:
 
 // The rotation R and translation t minimizing sum w_i |R a_i + t - b_i|^2 (Kabsch with weights);
 // nullopt when the points are (nearly) collinear, which leaves a rotation free.
-std::optional<SE3d> WeightedKabsch(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
-                                   const std::vector<double>& w) {
+std::optional<SE3d> WeightedKabsch(const std::vector<Eigen::Vector3d>& a,
+                                   const std::vector<Eigen::Vector3d>& b, const std::vector<double>& w) {
   double w_sum = 0.0;
   Eigen::Vector3d a_mean = Eigen::Vector3d::Zero(), b_mean = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < a.size(); ++i) {
@@ -303,7 +307,8 @@ std::optional<SE3d> PriorAlignment(const Survey& survey, const Initialization& i
       }
     }
     SE3d T = Fit2d(a, b);
-    if (!planar && dz_count > 0) T = SE3d(T.rotation(), T.translation() + Eigen::Vector3d(0, 0, dz_sum / dz_count));
+    if (!planar && dz_count > 0)
+      T = SE3d(T.rotation(), T.translation() + Eigen::Vector3d(0, 0, dz_sum / dz_count));
     return T;
   }
   *how = "first frame held fixed";
@@ -360,7 +365,8 @@ void MergeWorldComponents(const Survey& survey, Initialization* init) {
   }
   for (int& c : init->frame_component) c = c >= 0 ? number[target[c]] : c;
   for (int& c : init->marker_component) c = c >= 0 ? number[target[c]] : c;
-  for (LocalMap& map : init->local_maps) map.component = map.component >= 0 ? number[target[map.component]] : -1;
+  for (LocalMap& map : init->local_maps)
+    map.component = map.component >= 0 ? number[target[map.component]] : -1;
   init->gauge = gauge;
   init->components = next;
 }
@@ -448,7 +454,8 @@ void FindComponents(const Survey& survey, Initialization* init) {
   const size_t num_frames = survey.frames.size();
   DisjointSets sets(num_frames + survey.markers.size());
   for (size_t o = 0; o < survey.observations.size(); ++o) {
-    if (init->views[o].usable) sets.Join(survey.observations[o].frame, num_frames + survey.observations[o].marker);
+    if (init->views[o].usable)
+      sets.Join(survey.observations[o].frame, num_frames + survey.observations[o].marker);
   }
   for (const OdometryLink& link : survey.odometry_links) sets.Join(link.frame_a, link.frame_b);
   std::vector<bool> has_marker(num_frames + survey.markers.size(), false);
@@ -502,7 +509,8 @@ Initialization Initialize(const Survey& survey, const InitializerOptions& option
   MergeWorldComponents(survey, &init);
   init.notes = DescribeInitialization(survey, init);
   if (init.components < connected) {
-    init.notes.push_back(std::to_string(connected) + " groups of codes that share no observation are one map: " +
+    init.notes.push_back(std::to_string(connected) +
+                         " groups of codes that share no observation are one map: " +
                          "their anchors or priors put them in one world frame");
   }
   init.notes.push_back(DescribeLocalMapGraph(graph));
@@ -519,13 +527,15 @@ std::vector<std::string> DescribeInitialization(const Survey& survey, const Init
   std::set<int> unstable, unresolved;
   for (const LocalMap& map : init.local_maps) {
     for (const auto& [m, fused] : map.codes) {
-      if (!fused.stable) unstable.insert(m);
-      else if (!fused.resolved) unresolved.insert(m);
+      if (!fused.stable)
+        unstable.insert(m);
+      else if (!fused.resolved)
+        unresolved.insert(m);
     }
   }
   std::ostringstream line;
-  line << "initialization: " << init.local_maps.size() << " local maps joined by " << code_links << " code and "
-       << odometry_links << " odometry links";
+  line << "initialization: " << init.local_maps.size() << " local maps joined by " << code_links
+       << " code and " << odometry_links << " odometry links";
   if (!init.tree.empty()) line << " (weakest link sigma " << 1000.0 / weakest << " mm)";
   std::vector<std::string> notes{line.str()};
   const auto list = [&](const std::set<int>& markers, const std::string& what) {

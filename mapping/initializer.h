@@ -53,43 +53,43 @@
 namespace waymark {
 
 struct InitializerOptions {
-  double ambiguity_ratio = 3.0;     // TagSLAM's gate on the two IPPE solutions' errors
-  double cauchy_scale = 3.0;        // robust scale, whitened units, for the frame PnP and fusion
+  double ambiguity_ratio = 3.0;  // TagSLAM's gate on the two IPPE solutions' errors
+  double cauchy_scale = 3.0;     // robust scale, whitened units, for the frame PnP and fusion
   int pnp_iterations = 20;
-  int refine_rounds = 2;            // frames by PnP, then codes fused again (header comment)
+  int refine_rounds = 2;  // frames by PnP, then codes fused again (header comment)
   // Local maps; its ambiguity_ratio and cauchy_scale are taken from the two fields above.
   LocalMapOptions local_maps;
-  LocalMapGraphOptions graph;       // their placement (mapping/local_map_graph.h)
+  LocalMapGraphOptions graph;  // their placement (mapping/local_map_graph.h)
 };
 
 // The single view of one observation.
 struct SingleView {
   bool usable = false;
-  std::string why;                    // when not usable
-  std::vector<SE3d> T_robot_marker;   // one or two solutions, best first
+  std::string why;                   // when not usable
+  std::vector<SE3d> T_robot_marker;  // one or two solutions, best first
   double error_ratio = 0.0;
   double rms_px = 0.0;
-  double area_px2 = 0.0;              // image area of the quad
+  double area_px2 = 0.0;  // image area of the quad
 };
 
 struct Initialization {
-  std::vector<SingleView> views;                    // per observation
-  std::vector<int> frame_component;                 // per frame, -1 without
-  std::vector<int> marker_component;                // per marker, -1 without
+  std::vector<SingleView> views;      // per observation
+  std::vector<int> frame_component;   // per frame, -1 without
+  std::vector<int> marker_component;  // per marker, -1 without
   int components = 0;
   std::vector<std::optional<SE3d>> T_world_robot;   // per frame
   std::vector<std::optional<SE3d>> T_world_marker;  // per marker
   std::vector<std::string> gauge;                   // per component: how its frame was fixed
   // Local maps and their stitching (mapping/local_maps.h).
   std::vector<LocalMap> local_maps;
-  std::vector<LocalMapLink> links;                  // every candidate link
-  std::vector<int> tree;                            // indices into `links`: the spanning forest
-  std::vector<double> marker_link_quality;          // per marker: best quality of a link through it, 0 if none
+  std::vector<LocalMapLink> links;          // every candidate link
+  std::vector<int> tree;                    // indices into `links`: the spanning forest
+  std::vector<double> marker_link_quality;  // per marker: best quality of a link through it, 0 if none
   // The odometry's systematic errors estimated with the placement (mapping/local_map_graph.h):
   // [k_rad_per_m, turn_scale, distance_scale] of factors/calibrated_odometry_factor.h.
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
-  std::vector<std::string> notes;                   // facts for the build summary
-  std::vector<PhaseTime> phases;                    // single views, local maps, graph, refinement
+  std::vector<std::string> notes;  // facts for the build summary
+  std::vector<PhaseTime> phases;   // single views, local maps, graph, refinement
 };
 
 // Lines for the build summary: local maps, links in the tree (code / odometry), the weakest

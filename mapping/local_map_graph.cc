@@ -1,22 +1,22 @@
 #include "mapping/local_map_graph.h"
-#include "util/check.h"
-#include "util/format.h"
+
+#include <ceres/ceres.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <memory>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
 
-#include <ceres/ceres.h>
-
+#include "factors/calibrated_odometry_factor.h"
 #include "factors/odometry_se3_factor.h"
 #include "factors/pose_block.h"
-#include "factors/calibrated_odometry_factor.h"
+#include "util/check.h"
+#include "util/format.h"
 
 namespace waymark {
 namespace {
@@ -106,7 +106,8 @@ class Graph {
       : maps_(T_world_ref.size()),
         codes_(T_world_code.size()),
         prior_mean_(options.given_calibration_sigma ? *options.given_calibration : Eigen::Vector3d::Zero()),
-        prior_sigma_(options.given_calibration_sigma.value_or(Eigen::Vector3d::Constant(options.calibration_sigma))) {
+        prior_sigma_(
+            options.given_calibration_sigma.value_or(Eigen::Vector3d::Constant(options.calibration_sigma))) {
     ceres::Problem::Options problem_options;
     problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     problem_ = std::make_unique<ceres::Problem>(problem_options);
@@ -166,7 +167,9 @@ class Graph {
 
   SE3d Map(int i) const { return SE3FromBlock(maps_[i].data()); }
   SE3d Code(int i) const { return SE3FromBlock(codes_[i].data()); }
-  Eigen::Vector3d Calibration() const { return Eigen::Vector3d(calibration_[0], calibration_[1], calibration_[2]); }
+  Eigen::Vector3d Calibration() const {
+    return Eigen::Vector3d(calibration_[0], calibration_[1], calibration_[2]);
+  }
 
  private:
   std::vector<Block> maps_, codes_;
@@ -192,8 +195,8 @@ struct Stage {
 
 // Stage 1 of the header comment; marks the inlier sightings.
 Stage SolveInstancesApart(const std::vector<LocalMap>& maps, const std::vector<LocalMapLink>& odometry,
-                          std::vector<Sighting>* sightings, const std::vector<Instance>& instances, bool planar,
-                          const LocalMapGraphOptions& options) {
+                          std::vector<Sighting>* sightings, const std::vector<Instance>& instances,
+                          bool planar, const LocalMapGraphOptions& options) {
   const int num_maps = static_cast<int>(maps.size());
   Stage stage;
   LowestRoot groups(num_maps);
@@ -209,7 +212,8 @@ Stage SolveInstancesApart(const std::vector<LocalMap>& maps, const std::vector<L
   for (size_t pass = 0; pass < 2; ++pass) {
     std::vector<std::optional<SE3d>> code_start(instances.size());
     for (const Sighting& s : *sightings) {
-      if (placed[s.map] && !code_start[s.instance]) code_start[s.instance] = stage.T_world_ref[s.map] * s.fused->T_frame_marker;
+      if (placed[s.map] && !code_start[s.instance])
+        code_start[s.instance] = stage.T_world_ref[s.map] * s.fused->T_frame_marker;
     }
     for (const Sighting& s : *sightings) {
       if (!placed[s.map] && code_start[s.instance]) {
@@ -222,8 +226,8 @@ Stage SolveInstancesApart(const std::vector<LocalMap>& maps, const std::vector<L
     const Sighting& best = (*sightings)[instance.best];
     stage.T_world_code.push_back(stage.T_world_ref[best.map] * best.fused->T_frame_marker);
   }
-  Graph graph(stage.T_world_ref, stage.T_world_code, options.given_calibration.value_or(Eigen::Vector3d::Zero()),
-              options);
+  Graph graph(stage.T_world_ref, stage.T_world_code,
+              options.given_calibration.value_or(Eigen::Vector3d::Zero()), options);
   for (const LocalMapLink& link : odometry) graph.AddOdometry(link, options);
   if (options.CalibrationHeld()) graph.HoldCalibrationConstant();
   for (const Sighting& s : *sightings) graph.AddSighting(s, s.instance, true);
@@ -235,7 +239,8 @@ Stage SolveInstancesApart(const std::vector<LocalMap>& maps, const std::vector<L
   for (size_t k = 0; k < instances.size(); ++k) stage.T_world_code[k] = graph.Code(static_cast<int>(k));
   stage.calibration = graph.Calibration();
   for (Sighting& s : *sightings) {
-    s.inlier = SightingChi2(s, stage.T_world_ref[s.map], stage.T_world_code[s.instance]) <= options.inlier_chi2;
+    s.inlier =
+        SightingChi2(s, stage.T_world_ref[s.map], stage.T_world_code[s.instance]) <= options.inlier_chi2;
   }
   return stage;
 }
@@ -291,7 +296,8 @@ constexpr size_t kMaxClosurePartners = 16;
 // stage-1 maps and instances of the chain by the best dk on a grid; returns the dk of the
 // longest chain searched (0 when none).
 double SearchHeadingDrift(const std::vector<LocalMap>& maps, const std::vector<Sighting>& sightings,
-                          const std::vector<Instance>& instances, const LocalMapGraphOptions& options, Stage* stage) {
+                          const std::vector<Instance>& instances, const LocalMapGraphOptions& options,
+                          Stage* stage) {
   std::map<int, std::vector<int>> chains;  // chain -> maps in order
   for (size_t i = 0; i < maps.size(); ++i) chains[maps[i].chain].push_back(static_cast<int>(i));
   // Each instance's pose in the frame of the map of its best sighting.
@@ -358,8 +364,9 @@ struct Placement {
   int candidates = 0;  // instance pairs considered for the forest
 };
 
-Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage, const std::vector<Instance>& instances,
-                        bool planar, const LocalMapGraphOptions& options) {
+Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage,
+                        const std::vector<Instance>& instances, bool planar,
+                        const LocalMapGraphOptions& options) {
   const int num_maps = static_cast<int>(maps.size());
   std::vector<int> group_of_root(num_maps, -1);
   int num_groups = 0;
@@ -388,7 +395,8 @@ Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage, c
     }
     int hub = -1;
     for (const auto& [g, k] : best_of_group) {
-      if (hub < 0 || instances[k].sigma < instances[hub].sigma || (instances[k].sigma == instances[hub].sigma && k < hub)) {
+      if (hub < 0 || instances[k].sigma < instances[hub].sigma ||
+          (instances[k].sigma == instances[hub].sigma && k < hub)) {
         hub = k;
       }
     }
@@ -411,7 +419,8 @@ Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage, c
   Placement placement;
   placement.candidates = static_cast<int>(between.size());
   for (int i = 0; i < num_maps; ++i) {
-    placement.T_world_ref.push_back(Flatten(planar, T_world_group[group_of_root[stage.group[i]]] * stage.T_world_ref[i]));
+    placement.T_world_ref.push_back(
+        Flatten(planar, T_world_group[group_of_root[stage.group[i]]] * stage.T_world_ref[i]));
   }
   for (size_t k = 0; k < instances.size(); ++k) {
     placement.T_world_code.push_back(T_world_group[group(static_cast<int>(k))] * stage.T_world_code[k]);
@@ -448,14 +457,14 @@ bool LocalMapGraphOptions::Check(std::string* why) const {
                        "local map graph: calibration_sigma and the odometry floors must be finite and > 0");
   WAYMARK_CHECK_OPTION(!given_calibration || OdometryCalibrationValid(*given_calibration),
                        "local map graph: " + std::string(kOdometryCalibrationRule));
-  WAYMARK_CHECK_OPTION(!given_calibration_sigma ||
-                           (given_calibration && OdometryCalibrationSigmaValid(*given_calibration_sigma)),
-                       "local map graph: given_calibration_sigma needs given_calibration, and must be three finite "
-                       "numbers > 0");
+  WAYMARK_CHECK_OPTION(
+      !given_calibration_sigma ||
+          (given_calibration && OdometryCalibrationSigmaValid(*given_calibration_sigma)),
+      "local map graph: given_calibration_sigma needs given_calibration, and must be three finite "
+      "numbers > 0");
   WAYMARK_CHECK_OPTION(max_iterations >= 1, "local map graph: max_iterations must be >= 1");
   return true;
 }
-
 
 LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::vector<LocalMapLink>& links,
                                  bool planar, const LocalMapGraphOptions& options) {
@@ -469,7 +478,8 @@ LocalMapGraph SolveLocalMapGraph(const std::vector<LocalMap>& maps, const std::v
   std::vector<Instance> instances;
   FindInstances(maps, options.near_path_m, &sightings, &instances);
   Stage stage = SolveInstancesApart(maps, odometry, &sightings, instances, planar, options);
-  const double dk = options.CalibrationHeld() ? 0.0 : SearchHeadingDrift(maps, sightings, instances, options, &stage);
+  const double dk =
+      options.CalibrationHeld() ? 0.0 : SearchHeadingDrift(maps, sightings, instances, options, &stage);
 
   stage.calibration[0] += dk;
   const Placement placement = PlaceAndMerge(maps, stage, instances, planar, options);
@@ -514,9 +524,9 @@ std::string DescribeLocalMapGraph(const LocalMapGraph& graph) {
          std::to_string(graph.instances) + " code instances from " + std::to_string(graph.sightings) +
          " sightings (" + std::to_string(graph.outlying_sightings) + " outlying), loop closures " +
          std::to_string(graph.closures_accepted) + " accepted / " + std::to_string(graph.closures_rejected) +
-         " rejected by the gate; odometry calibration k " + num(graph.odometry_calibration[0] * 180.0 / M_PI) +
-         " deg/m, turn scale " + num(graph.odometry_calibration[1]) + ", distance scale " +
-         num(graph.odometry_calibration[2]);
+         " rejected by the gate; odometry calibration k " +
+         num(graph.odometry_calibration[0] * 180.0 / M_PI) + " deg/m, turn scale " +
+         num(graph.odometry_calibration[1]) + ", distance scale " + num(graph.odometry_calibration[2]);
 }
 
 }  // namespace waymark

@@ -66,11 +66,10 @@
 // runs as usual.
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/pose.h"
 #include "mapping/local_maps.h"
@@ -79,16 +78,16 @@ namespace waymark {
 
 struct LocalMapGraphOptions {
   double near_path_m = 20.0;
-  double search_max_rad_per_m = 0.02;  // heading-drift search range (+-), rad per metre
-  double search_step_rad = 0.05;       // its step, as heading change over the chain
-  double search_truncation_m = 5.0;    // closure mismatch above this counts as this
+  double search_max_rad_per_m = 0.02;     // heading-drift search range (+-), rad per metre
+  double search_step_rad = 0.05;          // its step, as heading change over the chain
+  double search_truncation_m = 5.0;       // closure mismatch above this counts as this
   double search_sigma_rad_per_m = 0.002;  // how far stage 1's k may be off (search prior)
-  double inlier_chi2 = 36.0;      // sighting inlier gate after stage 1 (6 whitened residuals)
+  double inlier_chi2 = 36.0;              // sighting inlier gate after stage 1 (6 whitened residuals)
   double gate_m = 0.5;
   double gate_per_m = 0.05;
   double gate_rad = 0.2;
   double gate_rad_per_m = 0.002;
-  double calibration_sigma = 0.05;  // prior on every entry of c
+  double calibration_sigma = 0.05;                         // prior on every entry of c
   std::optional<Eigen::Vector3d> given_calibration;        // c held at this (header comment),
   std::optional<Eigen::Vector3d> given_calibration_sigma;  // or its prior's mean with this sigma
   double odometry_floor_m = 1e-3;
@@ -99,10 +98,10 @@ struct LocalMapGraphOptions {
 };
 
 struct LocalMapGraph {
-  std::vector<SE3d> T_world_ref;                                // per map
+  std::vector<SE3d> T_world_ref;                                   // per map
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();  // c of the header comment
-  int groups = 0;                                               // after stage 1
-  int instances = 0;          // code instances (nodes of stage 1)
+  int groups = 0;                                                  // after stage 1
+  int instances = 0;                                               // code instances (nodes of stage 1)
   int sightings = 0;
   int outlying_sightings = 0;  // above inlier_chi2 after stage 1
   int closures_accepted = 0;   // instances merged into their code's first one

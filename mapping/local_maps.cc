@@ -1,5 +1,4 @@
 #include "mapping/local_maps.h"
-#include "util/check.h"
 
 #include <algorithm>
 #include <array>
@@ -7,11 +6,10 @@
 #include <numeric>
 #include <queue>
 
-
-
 #include "factors/pose_block.h"
 #include "mapping/initializer.h"
 #include "mapping/residuals.h"
+#include "util/check.h"
 
 namespace waymark {
 namespace {
@@ -193,18 +191,20 @@ SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool 
 }
 
 bool LocalMapOptions::Check(std::string* why) const {
-  WAYMARK_CHECK_OPTION(IsFinitePositive(max_travel_m) && IsFinitePositive(max_turn_rad) &&
-                           IsFinitePositive(ambiguity_ratio) && IsFinitePositive(flip_chi2) &&
-                           IsFinitePositive(cauchy_scale) && IsFinitePositive(max_rms_sigma) &&
-                           IsFinitePositive(max_position_sigma_m) && IsFiniteAtLeast(odometry_systematic, 0.0),
-                       "local map options must be finite and > 0 (odometry_systematic >= 0)");
-  WAYMARK_CHECK_OPTION(max_frames >= 1 && max_iterations >= 1, "local map max_frames and max_iterations must be >= 1");
+  WAYMARK_CHECK_OPTION(
+      IsFinitePositive(max_travel_m) && IsFinitePositive(max_turn_rad) && IsFinitePositive(ambiguity_ratio) &&
+          IsFinitePositive(flip_chi2) && IsFinitePositive(cauchy_scale) && IsFinitePositive(max_rms_sigma) &&
+          IsFinitePositive(max_position_sigma_m) && IsFiniteAtLeast(odometry_systematic, 0.0),
+      "local map options must be finite and > 0 (odometry_systematic >= 0)");
+  WAYMARK_CHECK_OPTION(max_frames >= 1 && max_iterations >= 1,
+                       "local map max_frames and max_iterations must be >= 1");
   return true;
 }
 
 double RankingSigma(const FusedPose& fused) {
-  const double sigma = std::sqrt(std::max(0.0, fused.covariance.block<3, 3>(3, 3).trace() +
-                                                   kLinkLeverM * kLinkLeverM * fused.covariance.block<3, 3>(0, 0).trace()));
+  const double sigma =
+      std::sqrt(std::max(0.0, fused.covariance.block<3, 3>(3, 3).trace() +
+                                  kLinkLeverM * kLinkLeverM * fused.covariance.block<3, 3>(0, 0).trace()));
   if (!fused.stable) return sigma * kUnstablePenalty;
   if (!fused.resolved) return sigma * kAmbiguousPenalty;
   return sigma;
@@ -263,7 +263,8 @@ namespace {
 // Index of the odometry link ending at each frame, -1 without.
 std::vector<int> PreviousLinks(const Survey& survey) {
   std::vector<int> prev(survey.frames.size(), -1);
-  for (size_t i = 0; i < survey.odometry_links.size(); ++i) prev[survey.odometry_links[i].frame_b] = static_cast<int>(i);
+  for (size_t i = 0; i < survey.odometry_links.size(); ++i)
+    prev[survey.odometry_links[i].frame_b] = static_cast<int>(i);
   return prev;
 }
 
@@ -322,8 +323,8 @@ FusionView MakeFusionView(const Camera& camera, const SE3d& T_frame_robot, const
 namespace {
 
 // Fuses every code seen in one local map at the map's current frame poses.
-void FuseCodes(const Survey& survey, const std::map<std::string, Camera>& cameras, const std::vector<SingleView>& views,
-               const LocalMapOptions& options, LocalMap* map) {
+void FuseCodes(const Survey& survey, const std::map<std::string, Camera>& cameras,
+               const std::vector<SingleView>& views, const LocalMapOptions& options, LocalMap* map) {
   map->codes.clear();
   std::map<int, std::vector<std::pair<int, int>>> seen;  // marker -> (entry in map, observation)
   for (size_t i = 0; i < map->frames.size(); ++i) {
@@ -348,7 +349,8 @@ void FuseCodes(const Survey& survey, const std::map<std::string, Camera>& camera
       seeds.push_back(map->T_ref_robot[seed_entry] * T_robot_marker);
     }
     const bool unambiguous = views[seed_obs].error_ratio >= options.ambiguity_ratio;
-    std::optional<FusedPose> fused = FuseMarkerViews(fusion, survey.markers[m].size_m, seeds, unambiguous, options);
+    std::optional<FusedPose> fused =
+        FuseMarkerViews(fusion, survey.markers[m].size_m, seeds, unambiguous, options);
     if (!fused) {  // keeps the map linked; marked unstable so that links avoid it
       fused = FusedPose();
       fused->T_frame_marker = seeds.front();
@@ -367,7 +369,8 @@ LocalMapLink CodeLink(const std::vector<LocalMap>& maps, int a, int b, int marke
   link.marker = marker;
   link.T_a_b = fa.T_frame_marker * fb.T_frame_marker.inverse();
   const Eigen::Vector3d q = fb.T_frame_marker.inverse().translation();
-  const double position2 = std::pow(PointSigma(fa.covariance, q), 2) + std::pow(PointSigma(fb.covariance, q), 2);
+  const double position2 =
+      std::pow(PointSigma(fa.covariance, q), 2) + std::pow(PointSigma(fb.covariance, q), 2);
   const double rotation2 = fa.covariance.block<3, 3>(0, 0).trace() + fb.covariance.block<3, 3>(0, 0).trace();
   link.sigma_m = std::sqrt(std::max(0.0, position2 + kLinkLeverM * kLinkLeverM * rotation2));
   double penalty = 1.0;
@@ -388,11 +391,14 @@ std::optional<LocalMapLink> OdometryLinkBetween(const Survey& survey, const std:
   if (l < 0 || survey.odometry_links[l].frame_a != maps[a].frames.back()) return std::nullopt;
   const OdometryLink& step = survey.odometry_links[l];
   Matrix6d covariance = step.covariance_se3;
-  for (size_t i = 1; i < maps[a].frames.size(); ++i) covariance += survey.odometry_links[prev[maps[a].frames[i]]].covariance_se3;
+  for (size_t i = 1; i < maps[a].frames.size(); ++i)
+    covariance += survey.odometry_links[prev[maps[a].frames[i]]].covariance_se3;
   const double travel = maps[a].travel_m + step.T_a_b.translation().norm();
   const double turn = maps[a].turn_rad + RotationAngleBetween(SE3d::Identity(), step.T_a_b);
-  const double position2 = covariance.block<3, 3>(3, 3).trace() + std::pow(options.odometry_systematic * travel, 2);
-  const double rotation2 = covariance.block<3, 3>(0, 0).trace() + std::pow(options.odometry_systematic * turn, 2);
+  const double position2 =
+      covariance.block<3, 3>(3, 3).trace() + std::pow(options.odometry_systematic * travel, 2);
+  const double rotation2 =
+      covariance.block<3, 3>(0, 0).trace() + std::pow(options.odometry_systematic * turn, 2);
   LocalMapLink link;
   link.map_a = a;
   link.map_b = b;
@@ -428,7 +434,8 @@ void NumberChains(const Survey& survey, std::vector<LocalMap>* maps) {
 }  // namespace
 
 std::vector<LocalMap> BuildLocalMaps(const Survey& survey, const std::map<std::string, Camera>& cameras,
-                                     const std::vector<SingleView>& views, const std::vector<int>& frame_component,
+                                     const std::vector<SingleView>& views,
+                                     const std::vector<int>& frame_component,
                                      const LocalMapOptions& options) {
   std::string why;
   if (!options.Check(&why)) throw std::runtime_error("initializer options: " + why);
@@ -443,13 +450,15 @@ std::vector<LocalMapLink> FindLocalMapLinks(const Survey& survey, const std::vec
   std::vector<LocalMapLink> links;
   std::map<int, std::vector<std::pair<double, int>>> holders;  // marker -> (own sigma, map)
   for (size_t i = 0; i < maps.size(); ++i) {
-    for (const auto& [m, fused] : maps[i].codes) holders[m].emplace_back(RankingSigma(fused), static_cast<int>(i));
+    for (const auto& [m, fused] : maps[i].codes)
+      holders[m].emplace_back(RankingSigma(fused), static_cast<int>(i));
   }
   for (auto& [m, list] : holders) {
     std::sort(list.begin(), list.end());
     const size_t hubs = std::min<size_t>(2, list.size());
     for (size_t h = 0; h < hubs; ++h) {
-      for (size_t i = h + 1; i < list.size(); ++i) links.push_back(CodeLink(maps, list[h].second, list[i].second, m));
+      for (size_t i = h + 1; i < list.size(); ++i)
+        links.push_back(CodeLink(maps, list[h].second, list[i].second, m));
     }
   }
   const std::vector<int> prev = PreviousLinks(survey);
@@ -469,7 +478,8 @@ std::vector<LocalMapLink> FindLocalMapLinks(const Survey& survey, const std::vec
 std::vector<int> SpanningForest(int num_maps, const std::vector<LocalMapLink>& links) {
   std::vector<int> order(links.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return links[a].quality > links[b].quality; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return links[a].quality > links[b].quality; });
   std::vector<int> parent(num_maps);
   std::iota(parent.begin(), parent.end(), 0);
   const auto find = [&](int i) {
@@ -487,7 +497,7 @@ std::vector<int> SpanningForest(int num_maps, const std::vector<LocalMapLink>& l
 }
 
 std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& links,
-                                                const std::vector<int>& forest, bool planar) {
+                                 const std::vector<int>& forest, bool planar) {
   std::vector<std::vector<int>> adjacent(num_maps);
   for (int l : forest) {
     adjacent[links[l].map_a].push_back(l);
@@ -507,7 +517,8 @@ std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& 
         const LocalMapLink& link = links[l];
         const int j = link.map_a == i ? link.map_b : link.map_a;
         if (T_world_ref[j]) continue;
-        T_world_ref[j] = flatten(link.map_a == i ? *T_world_ref[i] * link.T_a_b : *T_world_ref[i] * link.T_a_b.inverse());
+        T_world_ref[j] =
+            flatten(link.map_a == i ? *T_world_ref[i] * link.T_a_b : *T_world_ref[i] * link.T_a_b.inverse());
         pending.push(j);
       }
     }

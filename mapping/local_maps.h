@@ -33,8 +33,9 @@
 //   T_A_B = T_A_m * T_B_m^-1
 // whose error is that of both fused poses: with q = T_B_m^-1 * 0 (B's reference in the marker
 // frame) and D(q) = [-Hat(q), I] (marker-frame point error for a perturbation [dr, dt]),
-//   sigma_position^2 = tr(D Sigma_A D^T) + tr(D Sigma_B D^T),  sigma_rotation^2 = tr(Sigma_A,rr) + tr(Sigma_B,rr)
-//   sigma_link = sqrt(sigma_position^2 + (kLinkLeverM sigma_rotation)^2),  quality = 1 / sigma_link (1/m)
+//   sigma_position^2 = tr(D Sigma_A D^T) + tr(D Sigma_B D^T),  sigma_rotation^2 = tr(Sigma_A,rr) +
+//   tr(Sigma_B,rr) sigma_link = sqrt(sigma_position^2 + (kLinkLeverM sigma_rotation)^2),  quality = 1 /
+//   sigma_link (1/m)
 // i.e. the error of B's frame at its origin and 1 m away. Consecutive local maps are also
 // linked by odometry, sigma from the summed odometry covariance plus a systematic allowance
 // (odometry_systematic times the distance travelled and the angle turned). An ambiguous (not
@@ -69,12 +70,12 @@ inline constexpr double kUnstablePenalty = 1e4;
 
 struct LocalMapOptions {
   double max_travel_m = 0.5;
-  double max_turn_rad = 1.6;       // about 90 degrees
+  double max_turn_rad = 1.6;  // about 90 degrees
   int max_frames = 60;
-  double ambiguity_ratio = 3.0;    // single-view gate (geometry/marker_pose.h)
-  double flip_chi2 = 9.0;          // fused gate: alt_chi2 - chi2 for a resolved flip
-  double cauchy_scale = 3.0;       // whitened units
-  double max_rms_sigma = 3.0;      // residual RMS per coordinate, in sigmas, above which a code is unstable
+  double ambiguity_ratio = 3.0;  // single-view gate (geometry/marker_pose.h)
+  double flip_chi2 = 9.0;        // fused gate: alt_chi2 - chi2 for a resolved flip
+  double cauchy_scale = 3.0;     // whitened units
+  double max_rms_sigma = 3.0;    // residual RMS per coordinate, in sigmas, above which a code is unstable
   double max_position_sigma_m = 0.05;
   double odometry_systematic = 0.03;  // allowance per metre travelled and per radian turned
   int max_iterations = 15;
@@ -91,16 +92,16 @@ struct FusionView {
 
 struct FusedPose {
   SE3d T_frame_marker;
-  Matrix6d covariance = Matrix6d::Identity();  // right perturbation [rx ry rz tx ty tz]
-  double chi2 = 0.0;                            // at the winner, whitened
+  Matrix6d covariance = Matrix6d::Identity();                 // right perturbation [rx ry rz tx ty tz]
+  double chi2 = 0.0;                                          // at the winner, whitened
   double alt_chi2 = std::numeric_limits<double>::infinity();  // other branch, +inf if none
   double robust_cost = 0.0;
-  int views = 0;            // views that project at the winner
-  double rms_sigma = 0.0;   // residual RMS per coordinate, in sigmas (about 1 for pure noise)
+  int views = 0;           // views that project at the winner
+  double rms_sigma = 0.0;  // residual RMS per coordinate, in sigmas (about 1 for pure noise)
   double position_sigma_m = 0.0;
-  bool resolved = false;    // flip branch decided (header comment)
+  bool resolved = false;  // flip branch decided (header comment)
   bool stable = false;
-  std::string why;          // when not stable
+  std::string why;  // when not stable
 };
 
 // The fusion view of one observation whose robot is at T_frame_robot.
@@ -131,9 +132,9 @@ SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool 
 
 struct LocalMap {
   int component = -1;
-  std::vector<int> frames;                 // first one is the reference
-  std::vector<SE3d> T_ref_robot;           // per entry of `frames`
-  std::map<int, FusedPose> codes;          // marker -> fused pose in the ref frame
+  std::vector<int> frames;         // first one is the reference
+  std::vector<SE3d> T_ref_robot;   // per entry of `frames`
+  std::map<int, FusedPose> codes;  // marker -> fused pose in the ref frame
   double travel_m = 0.0;
   double turn_rad = 0.0;
   // Chains: maps following one another by odometry (each map's first frame has an odometry link
@@ -157,8 +158,8 @@ struct LocalMapLink {
 
 // Local maps of every component (frames with component -1 belong to none), in time order.
 std::vector<LocalMap> BuildLocalMaps(const Survey& survey, const std::map<std::string, Camera>& cameras,
-                                     const std::vector<SingleView>& views, const std::vector<int>& frame_component,
-                                     const LocalMapOptions& options);
+                                     const std::vector<SingleView>& views,
+                                     const std::vector<int>& frame_component, const LocalMapOptions& options);
 
 // Code links (each map to the code's two best maps) and odometry links between consecutive maps.
 std::vector<LocalMapLink> FindLocalMapLinks(const Survey& survey, const std::vector<LocalMap>& maps,
@@ -170,7 +171,7 @@ std::vector<int> SpanningForest(int num_maps, const std::vector<LocalMapLink>& l
 // T_world_ref of every map from the forest: the first map (lowest index) of each tree is the
 // identity, the others follow its links outwards. Planarized when `planar`.
 std::vector<SE3d> PlaceLocalMaps(int num_maps, const std::vector<LocalMapLink>& links,
-                                                const std::vector<int>& forest, bool planar);
+                                 const std::vector<int>& forest, bool planar);
 
 // sqrt(tr Sigma_tt + kLinkLeverM^2 tr Sigma_rr) of a fused pose, times kUnstablePenalty when
 // unstable or kAmbiguousPenalty when its flip is not resolved: ranks a code's local maps.

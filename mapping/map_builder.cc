@@ -1,5 +1,4 @@
 #include "mapping/map_builder.h"
-#include "util/check.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +11,7 @@
 #include "mapping/global_problem.h"
 #include "mapping/outlier_rejection.h"
 #include "mapping/residuals.h"
+#include "util/check.h"
 #include "util/stats.h"
 
 namespace waymark {
@@ -39,7 +39,8 @@ void FillReprojection(const Survey& survey, const GlobalProblem& problem, const 
 }
 
 void FillOutputs(const Survey& survey, const Initialization& init, const GlobalProblem& problem,
-                 const std::vector<int>& kept, const std::vector<std::string>& gauges, MapBuildResult* result) {
+                 const std::vector<int>& kept, const std::vector<std::string>& gauges,
+                 MapBuildResult* result) {
   std::set<int> mapped;
   std::vector<std::set<int>> component_frames(init.components);
   for (int o : kept) {
@@ -58,7 +59,8 @@ void FillOutputs(const Survey& survey, const Initialization& init, const GlobalP
   for (int c = 0; c < init.components; ++c) {
     ComponentSummary summary;
     summary.component = c;
-    summary.markers = std::count_if(mapped.begin(), mapped.end(), [&](int m) { return init.marker_component[m] == c; });
+    summary.markers =
+        std::count_if(mapped.begin(), mapped.end(), [&](int m) { return init.marker_component[m] == c; });
     summary.frames = component_frames[c].size();
     summary.gauge = gauges[c];
     result->components.push_back(summary);
@@ -81,14 +83,18 @@ void FillOutputs(const Survey& survey, const Initialization& init, const GlobalP
 bool MapBuildOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(ingest.Check(why) && id_check.Check(why), nullptr);
   WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_sigma), "calibration_sigma must be finite and > 0");
-  WAYMARK_CHECK_OPTION(IsFinitePositive(cauchy_scale) && IsFinitePositive(outlier_chi2) &&
-                           IsFinitePositive(payload_sigma_m) && IsFinitePositive(payload_yaw_sigma_rad),
-                       "cauchy_scale, outlier_chi2, payload_sigma_m and payload_yaw_sigma_rad must be finite and > 0");
-  WAYMARK_CHECK_OPTION(!odometry_calibration || calibrate_odometry, "a given odometry calibration needs calibrate_odometry");
-  WAYMARK_CHECK_OPTION(!odometry_calibration || OdometryCalibrationValid(*odometry_calibration), kOdometryCalibrationRule);
-  WAYMARK_CHECK_OPTION(!odometry_calibration_sigma ||
-                           (odometry_calibration && OdometryCalibrationSigmaValid(*odometry_calibration_sigma)),
-                       "odometry_calibration_sigma needs odometry_calibration, and must be three finite numbers > 0");
+  WAYMARK_CHECK_OPTION(
+      IsFinitePositive(cauchy_scale) && IsFinitePositive(outlier_chi2) && IsFinitePositive(payload_sigma_m) &&
+          IsFinitePositive(payload_yaw_sigma_rad),
+      "cauchy_scale, outlier_chi2, payload_sigma_m and payload_yaw_sigma_rad must be finite and > 0");
+  WAYMARK_CHECK_OPTION(!odometry_calibration || calibrate_odometry,
+                       "a given odometry calibration needs calibrate_odometry");
+  WAYMARK_CHECK_OPTION(!odometry_calibration || OdometryCalibrationValid(*odometry_calibration),
+                       kOdometryCalibrationRule);
+  WAYMARK_CHECK_OPTION(
+      !odometry_calibration_sigma ||
+          (odometry_calibration && OdometryCalibrationSigmaValid(*odometry_calibration_sigma)),
+      "odometry_calibration_sigma needs odometry_calibration, and must be three finite numbers > 0");
   WAYMARK_CHECK_OPTION(replace_rounds >= 0, "replace_rounds must be >= 0");
   WAYMARK_CHECK_OPTION(min_frames >= 1 && max_iterations >= 1 && num_threads >= 1,
                        "min_frames, max_iterations and num_threads must be >= 1");
@@ -127,8 +133,9 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
   clock.Lap("id check");
   for (int o : inconsistent) {
     const SurveyObservation& obs = survey.observations[o];
-    result.outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0,
-                               "id inconsistent with the code's other views along the odometry (misdecoded?)"});
+    result.outliers.push_back(
+        {survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0,
+         "id inconsistent with the code's other views along the odometry (misdecoded?)"});
   }
   const Survey checked = WithoutObservations(survey, inconsistent);
   InitializerOptions initializer = options.initializer;
@@ -143,8 +150,8 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
   return OptimizeSurvey(checked, init, options, std::move(result));
 }
 
-MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
-                              MapBuildResult result) {
+MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
+                              const MapBuildOptions& options, MapBuildResult result) {
   const auto progress = [&](const std::string& line) {
     if (options.progress) options.progress(line);
   };
@@ -164,8 +171,9 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     return kept;
   };
   const auto record = [&](const std::string& stage, const ceres::Solver::Summary& summary) {
-    result.solves.push_back({stage, static_cast<int>(summary.iterations.size()), summary.total_time_in_seconds,
-                             summary.linear_solver_time_in_seconds, summary.jacobian_evaluation_time_in_seconds,
+    result.solves.push_back({stage, static_cast<int>(summary.iterations.size()),
+                             summary.total_time_in_seconds, summary.linear_solver_time_in_seconds,
+                             summary.jacobian_evaluation_time_in_seconds,
                              summary.residual_evaluation_time_in_seconds});
   };
   ceres::Solver::Summary robust = problem.Solve(in_front(active), true, &gauges);
@@ -183,8 +191,8 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, 
     robust.initial_cost = first_cost;
     iterations += static_cast<int>(robust.iterations.size());
   }
-  const std::vector<int> kept =
-      RejectOutliers(survey, problem, RemoveDuplicateCodes(survey, init, problem, active, &result), options, &result);
+  const std::vector<int> kept = RejectOutliers(
+      survey, problem, RemoveDuplicateCodes(survey, init, problem, active, &result), options, &result);
   clock.Lap("re-placing and outliers");
   const ceres::Solver::Summary final_summary = problem.Solve(kept, false, &gauges);
   record("final", final_summary);

@@ -24,12 +24,11 @@
 // [rx ry rz tx ty tz] (factors/pose_block.h).
 #pragma once
 
+#include <Eigen/Core>
 #include <functional>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/types.h"
 #include "mapping/build_stats.h"
@@ -46,12 +45,12 @@ struct MapBuildOptions {
   // before initialization and reported (mapping/id_consistency.h).
   bool check_ids = true;
   IdCheckOptions id_check;
-  double cauchy_scale = 3.0;     // whitened units (sigmas)
-  double outlier_chi2 = 40.0;    // on the 8 whitened residuals of one observation
+  double cauchy_scale = 3.0;   // whitened units (sigmas)
+  double outlier_chi2 = 40.0;  // on the 8 whitened residuals of one observation
   // After the robust solve, codes with outlying views are re-placed by consensus at the solved
   // frame poses and the robust solve repeated, up to this many times.
   int replace_rounds = 2;
-  int min_frames = 2;            // codes seen in fewer frames are reported, not mapped
+  int min_frames = 2;  // codes seen in fewer frames are reported, not mapped
   double payload_sigma_m = 0.01;
   double payload_yaw_sigma_rad = 0.02;
   // Estimate the odometry's systematic errors with the map (factors/calibrated_odometry_factor.h),
@@ -65,7 +64,7 @@ struct MapBuildOptions {
   std::optional<Eigen::Vector3d> odometry_calibration;
   std::optional<Eigen::Vector3d> odometry_calibration_sigma;
   int max_iterations = 200;
-  int num_threads = 1;           // Jacobian evaluation, linear solver, covariance Jacobian
+  int num_threads = 1;  // Jacobian evaluation, linear solver, covariance Jacobian
   bool compute_covariance = true;
   // Columns k of each marker's covariance_factor (mapping/map_covariance.h); 0: none.
   int covariance_factor_rank = 20;
@@ -77,7 +76,7 @@ struct RejectedObservation {
   MarkerKey key;
   double stamp_s = 0.0;
   std::string camera;
-  double rms_px = 0.0;   // after the robust solve; 0 when rejected before it
+  double rms_px = 0.0;  // after the robust solve; 0 when rejected before it
   std::string reason;
 };
 
@@ -120,18 +119,18 @@ struct MapBuildResult {
   std::vector<RejectedObservation> outliers;
   std::vector<UnmappedMarker> unmapped;
   size_t frames = 0;
-  size_t observations = 0;               // used in the final solve
-  double initial_cost = 0.0;             // of the robust solve
-  double final_cost = 0.0;               // of the final solve (half the sum of squares)
-  double init_time_s = 0.0;              // id check and initialization
-  double solver_time_s = 0.0;            // robust and final solves, outlier stages
+  size_t observations = 0;     // used in the final solve
+  double initial_cost = 0.0;   // of the robust solve
+  double final_cost = 0.0;     // of the final solve (half the sum of squares)
+  double init_time_s = 0.0;    // id check and initialization
+  double solver_time_s = 0.0;  // robust and final solves, outlier stages
   double covariance_time_s = 0.0;
   int iterations = 0;
   std::vector<SolveStageSummary> solves;  // in the order they ran
   // Every phase of the build (mapping/build_stats.h): ingest, id check, the initializer's
   // phases, solves, outlier stages, covariance; with the process's peak memory.
   std::vector<PhaseTime> phases;
-  std::string termination;               // Ceres' final termination type and message
+  std::string termination;  // Ceres' final termination type and message
   bool covariance_computed = false;
   // The odometry's systematic errors c = [k_rad_per_m, turn_scale, distance_scale]
   // (factors/calibrated_odometry_factor.h) of the final solve: estimated (from a given prior or
@@ -150,7 +149,7 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
 
 // Stages (2) to (5) from a given initialization (e.g. one built by hand in a test); `result`
 // carries what earlier stages reported.
-MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init, const MapBuildOptions& options,
-                              MapBuildResult result = {});
+MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
+                              const MapBuildOptions& options, MapBuildResult result = {});
 
 }  // namespace waymark

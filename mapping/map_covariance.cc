@@ -48,7 +48,8 @@ double FitFactorToMarginal(const Matrix6d& marginal, CovarianceFactor* factor) {
     return 0.0;
   }
   const Eigen::MatrixXd M = llt.matrixL().solve(*factor);  // L^-1 F_i
-  const double lambda_max = Eigen::SelfAdjointEigenSolver<Matrix6d>(M * M.transpose()).eigenvalues().maxCoeff();
+  const double lambda_max =
+      Eigen::SelfAdjointEigenSolver<Matrix6d>(M * M.transpose()).eigenvalues().maxCoeff();
   if (lambda_max <= 1.0) return 1.0;
   const double scale = (1.0 - 1e-9) / std::sqrt(lambda_max);
   *factor *= scale;
@@ -71,7 +72,8 @@ std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
   }
   const auto apply = [&](const Eigen::MatrixXd& X) {  // Sigma X, body tangent
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(information.size(), X.cols());
-    for (size_t i = 0; i < count; ++i) rhs.middleRows<6>(columns[i]) = B[i].transpose() * X.middleRows<6>(6 * i);
+    for (size_t i = 0; i < count; ++i)
+      rhs.middleRows<6>(columns[i]) = B[i].transpose() * X.middleRows<6>(6 * i);
     const Eigen::MatrixXd Z = information.Solve(rhs);
     Eigen::MatrixXd Y(X.rows(), X.cols());
     for (size_t i = 0; i < count; ++i) Y.middleRows<6>(6 * i) = B[i] * Z.middleRows<6>(columns[i]);
@@ -88,8 +90,9 @@ std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
 }
 
 std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
-    ceres::Problem* problem, const std::vector<const double*>& marker_blocks, const std::vector<SE3d>& T_world_marker,
-    const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options) {
+    ceres::Problem* problem, const std::vector<const double*>& marker_blocks,
+    const std::vector<SE3d>& T_world_marker, const std::vector<Matrix6d>& marginal,
+    const CovarianceFactorOptions& options) {
   try {
     const InformationFactor information(problem, {});
     return MarkerCovarianceFactors(information, marker_blocks, T_world_marker, marginal, options);

@@ -51,8 +51,9 @@ struct CovarianceFactorOptions {
 // `covariance`, body tangent) and poses T_i. nullopt when H is not positive definite (a free
 // gauge) or the inputs disagree in length. k = min(rank, 6 N).
 std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(
-    ceres::Problem* problem, const std::vector<const double*>& marker_blocks, const std::vector<SE3d>& T_world_marker,
-    const std::vector<Matrix6d>& marginal, const CovarianceFactorOptions& options);
+    ceres::Problem* problem, const std::vector<const double*>& marker_blocks,
+    const std::vector<SE3d>& T_world_marker, const std::vector<Matrix6d>& marginal,
+    const CovarianceFactorOptions& options);
 
 // The same with the factorization of H made once for the marginals (mapping/marginal_covariance.h).
 std::optional<std::vector<CovarianceFactor>> MarkerCovarianceFactors(

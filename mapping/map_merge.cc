@@ -53,7 +53,8 @@ void RenumberComponents(const MarkerMap& existing, MapBuildResult* result) {
 
 }  // namespace
 
-MapBuildResult MergeSurveyIntoMap(const MarkerMap& existing, const Dataset& survey, const MapBuildOptions& options) {
+MapBuildResult MergeSurveyIntoMap(const MarkerMap& existing, const Dataset& survey,
+                                  const MapBuildOptions& options) {
   Dataset merged = survey;
   merged.known_markers = KnownMarkers(existing, survey);
   MapBuildResult result = BuildMap(merged, options);
@@ -64,8 +65,9 @@ MapBuildResult MergeSurveyIntoMap(const MarkerMap& existing, const Dataset& surv
     result.map.markers.push_back(old);
     ++carried;
   }
-  result.notes.push_back("merge: " + std::to_string(existing.markers.size() - carried) + " code(s) of the map " +
-                         "re-observed, " + std::to_string(carried) + " carried over unchanged");
+  result.notes.push_back("merge: " + std::to_string(existing.markers.size() - carried) +
+                         " code(s) of the map " + "re-observed, " + std::to_string(carried) +
+                         " carried over unchanged");
   return result;
 }
 

@@ -17,6 +17,7 @@
 namespace waymark {
 
 // Throws like BuildMap.
-MapBuildResult MergeSurveyIntoMap(const MarkerMap& existing, const Dataset& survey, const MapBuildOptions& options = {});
+MapBuildResult MergeSurveyIntoMap(const MarkerMap& existing, const Dataset& survey,
+                                  const MapBuildOptions& options = {});
 
 }  // namespace waymark

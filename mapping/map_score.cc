@@ -1,7 +1,4 @@
 #include "mapping/map_score.h"
-#include "util/check.h"
-#include "util/stats.h"
-#include "util/format.h"
 
 #include <ceres/problem.h>
 #include <ceres/solver.h>
@@ -15,12 +12,15 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "geometry/camera.h"
 #include "factors/marker_reprojection_factor.h"
 #include "factors/pose_block.h"
+#include "geometry/camera.h"
 #include "mapping/initializer.h"
 #include "mapping/residuals.h"
 #include "mapping/survey.h"
+#include "util/check.h"
+#include "util/format.h"
+#include "util/stats.h"
 
 namespace waymark {
 namespace {
@@ -252,8 +252,9 @@ MarkerMap MapWithSolved(const Survey& survey, const MarkerMap& map, const Poses&
 }
 
 std::string StatsLine(const std::string& label, const ReprojectionStats& s) {
-  return "  " + label + ": RMS " + FormatFixed(s.rms_px, 3) + " px, median " + FormatFixed(s.median_px, 3) + " px, max " +
-         FormatFixed(s.max_px, 3) + " px over " + std::to_string(s.observations) + " observations\n";
+  return "  " + label + ": RMS " + FormatFixed(s.rms_px, 3) + " px, median " + FormatFixed(s.median_px, 3) +
+         " px, max " + FormatFixed(s.max_px, 3) + " px over " + std::to_string(s.observations) +
+         " observations\n";
 }
 
 }  // namespace

@@ -1,15 +1,15 @@
 #include "mapping/marginal_covariance.h"
 
+#include <ceres/crs_matrix.h>
+
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/OrderingMethods>
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
-#include <ceres/crs_matrix.h>
 
 namespace waymark {
 namespace {
@@ -35,7 +35,8 @@ SparseMatrix WithBlockPattern(const SparseMatrix& H, const std::vector<std::pair
 // Z = (L D L^T)^{-1} on the pattern of the strictly lower, column-sorted unit factor L.
 class SelectedInverse {
  public:
-  SelectedInverse(const SparseMatrix& L, const Eigen::VectorXd& d) : L_(L), z_diag_(d.size()), z_(L.nonZeros()) {
+  SelectedInverse(const SparseMatrix& L, const Eigen::VectorXd& d)
+      : L_(L), z_diag_(d.size()), z_(L.nonZeros()) {
     const int* outer = L_.outerIndexPtr();
     const int* rows = L_.innerIndexPtr();
     const double* values = L_.valuePtr();
@@ -59,8 +60,8 @@ class SelectedInverse {
     const int* end = L_.innerIndexPtr() + L_.outerIndexPtr()[column + 1];
     const int* found = std::lower_bound(begin, end, row);
     if (found == end || *found != row) {
-      throw std::logic_error("marginal covariance: entry (" + std::to_string(row) + ", " + std::to_string(column) +
-                             ") outside the pattern of L");
+      throw std::logic_error("marginal covariance: entry (" + std::to_string(row) + ", " +
+                             std::to_string(column) + ") outside the pattern of L");
     }
     return z_[found - L_.innerIndexPtr()];
   }
@@ -151,11 +152,13 @@ bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInform
   return true;
 }
 
-InformationFactor::InformationFactor(ceres::Problem* problem, const std::vector<const double*>& marginal_blocks,
+InformationFactor::InformationFactor(ceres::Problem* problem,
+                                     const std::vector<const double*>& marginal_blocks,
                                      const MarginalCovarianceOptions& options) {
   ProblemInformation information;
   if (!EvaluateInformation(problem, options.num_threads, &information)) {
-    throw std::runtime_error("marginal covariance: the Jacobian could not be evaluated at the current values");
+    throw std::runtime_error(
+        "marginal covariance: the Jacobian could not be evaluated at the current values");
   }
   for (const auto& [block, first] : information.first_column) {
     columns_[block] = {first, problem->ParameterBlockTangentSize(block)};

@@ -18,13 +18,13 @@
 // The result equals ceres::Covariance's GetCovarianceBlockInTangentSpace (to round-off).
 #pragma once
 
-#include <map>
-#include <utility>
-#include <vector>
+#include <ceres/problem.h>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
-#include <ceres/problem.h>
+#include <map>
+#include <utility>
+#include <vector>
 
 namespace waymark {
 
@@ -81,7 +81,7 @@ class InformationFactor {
   std::vector<Columns> marginal_columns_;
   Eigen::SparseMatrix<double> L_;  // strictly lower, unit diagonal implied, permuted order
   Eigen::VectorXd d_;
-  Eigen::VectorXi permuted_of_;    // column a of H is column permuted_of_[a] of L
+  Eigen::VectorXi permuted_of_;  // column a of H is column permuted_of_[a] of L
   bool positive_definite_ = false;
 };
 
@@ -90,6 +90,7 @@ class InformationFactor {
 // (a free gauge), leaving *covariance empty. Throws std::runtime_error on a block that is not
 // in the problem or is constant.
 bool MarginalCovariances(ceres::Problem* problem, const std::vector<const double*>& blocks,
-                         std::vector<Eigen::MatrixXd>* covariance, const MarginalCovarianceOptions& options = {});
+                         std::vector<Eigen::MatrixXd>* covariance,
+                         const MarginalCovarianceOptions& options = {});
 
 }  // namespace waymark

@@ -11,7 +11,8 @@
 namespace waymark {
 
 // Observations usable in the optimization: a usable single view, both ends placed.
-std::vector<int> UsableObservations(const Survey& survey, const Initialization& init, MapBuildResult* result) {
+std::vector<int> UsableObservations(const Survey& survey, const Initialization& init,
+                                    MapBuildResult* result) {
   std::vector<int> active;
   for (size_t o = 0; o < survey.observations.size(); ++o) {
     const SurveyObservation& obs = survey.observations[o];
@@ -24,8 +25,8 @@ std::vector<int> UsableObservations(const Survey& survey, const Initialization& 
     if (reason.empty()) {
       active.push_back(static_cast<int>(o));
     } else {
-      result->outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0,
-                                  reason});
+      result->outliers.push_back(
+          {survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, 0.0, reason});
     }
   }
   return active;
@@ -51,8 +52,9 @@ std::vector<std::pair<size_t, size_t>> NearbyPairs(const std::vector<SE3d>& T_wo
   return pairs;
 }
 
-std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization& init, const GlobalProblem& problem,
-                                      const std::vector<int>& active, MapBuildResult* result) {
+std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization& init,
+                                      const GlobalProblem& problem, const std::vector<int>& active,
+                                      MapBuildResult* result) {
   std::map<int, std::vector<int>> observations_of;  // marker -> active observations
   for (int o : active) observations_of[survey.observations[o].marker].push_back(o);
   std::vector<int> markers;
@@ -66,7 +68,8 @@ std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization
   std::set<int> dropped;
   for (const auto& [i, j] : NearbyPairs(T_world_marker, largest_gate_m)) {
     const int a = markers[i], b = markers[j];
-    if (init.marker_component[a] != init.marker_component[b] || dropped.count(a) || dropped.count(b)) continue;
+    if (init.marker_component[a] != init.marker_component[b] || dropped.count(a) || dropped.count(b))
+      continue;
     const double gate_m = 0.5 * std::max(survey.markers[a].size_m, survey.markers[b].size_m);
     const SE3d& T_world_a = T_world_marker[i];
     const SE3d& T_world_b = T_world_marker[j];
@@ -80,7 +83,8 @@ std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization
     if (survey.markers[loser].known && survey.markers[loser].known->fixed) continue;
     dropped.insert(loser);
     for (int o : observations_of[loser]) {
-      result->outliers.push_back({survey.markers[loser].key, survey.frames[survey.observations[o].frame].stamp_s,
+      result->outliers.push_back({survey.markers[loser].key,
+                                  survey.frames[survey.observations[o].frame].stamp_s,
                                   survey.observations[o].camera, 0.0,
                                   "id conflicts with " + survey.markers[winner].key.ToString() +
                                       ", mapped at the same place (misdecoded?)"});
@@ -94,8 +98,9 @@ std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization
 }
 
 // Stage 3: drops outliers, then codes seen in fewer than min_frames frames.
-std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& problem, const std::vector<int>& active,
-                                const MapBuildOptions& options, MapBuildResult* result) {
+std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& problem,
+                                const std::vector<int>& active, const MapBuildOptions& options,
+                                MapBuildResult* result) {
   std::vector<int> inliers;
   std::vector<std::set<int>> frames_of_marker(survey.markers.size());
   for (int o : active) {
@@ -103,8 +108,8 @@ std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& probl
     const double s = problem.SquaredError(o);
     if (s > options.outlier_chi2) {
       const double rms_px = std::sqrt(s / 4.0) * CornerSigmaPx(survey.cameras.at(obs.camera));
-      result->outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s, obs.camera, rms_px,
-                                  "reprojection error above the outlier gate"});
+      result->outliers.push_back({survey.markers[obs.marker].key, survey.frames[obs.frame].stamp_s,
+                                  obs.camera, rms_px, "reprojection error above the outlier gate"});
       continue;
     }
     inliers.push_back(o);
@@ -119,8 +124,9 @@ std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& probl
   for (size_t m = 0; m < survey.markers.size(); ++m) {
     const size_t n = frames_of_marker[m].size();
     if (static_cast<int>(n) >= options.min_frames || (survey.markers[m].known && n > 0)) continue;
-    result->unmapped.push_back({survey.markers[m].key, n == 0 ? "no usable observation"
-                                                              : "seen in " + std::to_string(n) + " frame(s) only"});
+    result->unmapped.push_back(
+        {survey.markers[m].key,
+         n == 0 ? "no usable observation" : "seen in " + std::to_string(n) + " frame(s) only"});
   }
   return kept;
 }

@@ -24,11 +24,13 @@ std::vector<std::pair<size_t, size_t>> NearbyPairs(const std::vector<SE3d>& T_wo
 // larger code's size, faces within 60 degrees) cannot both be right: one is another code read
 // under a wrong id (the same code misdecoded alike in several frames, which the id check cannot
 // see). The code with fewer observations loses them, reported. Returns the observations kept.
-std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization& init, const GlobalProblem& problem,
-                                      const std::vector<int>& active, MapBuildResult* result);
+std::vector<int> RemoveDuplicateCodes(const Survey& survey, const Initialization& init,
+                                      const GlobalProblem& problem, const std::vector<int>& active,
+                                      MapBuildResult* result);
 
 // Drops the observations above the outlier gate, then codes seen in fewer than min_frames
 // frames; reports both in result->outliers / unmapped. Returns the observations kept.
-std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& problem, const std::vector<int>& active,
-                                const MapBuildOptions& options, MapBuildResult* result);
+std::vector<int> RejectOutliers(const Survey& survey, const GlobalProblem& problem,
+                                const std::vector<int>& active, const MapBuildOptions& options,
+                                MapBuildResult* result);
 }  // namespace waymark

@@ -6,15 +6,15 @@
 // (factors/pose_block.h). Marker blocks hold T_world_marker as SE(3) blocks.
 #pragma once
 
-#include <array>
-
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 
-#include "geometry/types.h"
+#include <array>
+
 #include "factors/marker_reprojection_factor.h"
 #include "factors/planar_marker_reprojection_factor.h"
 #include "factors/pose_block.h"
+#include "geometry/types.h"
 
 namespace waymark {
 
@@ -49,8 +49,9 @@ inline void AddMarkerBlock(ceres::Problem* problem, PoseBlock* block) {
 }
 
 // The 8 reprojection residuals of one code in one image (blocks must be declared first).
-inline ceres::ResidualBlockId AddCornerResidual(ceres::Problem* problem, MotionModel motion, const CameraInfo& camera,
-                                                double size_m, const std::array<Eigen::Vector2d, 4>& corners_px,
+inline ceres::ResidualBlockId AddCornerResidual(ceres::Problem* problem, MotionModel motion,
+                                                const CameraInfo& camera, double size_m,
+                                                const std::array<Eigen::Vector2d, 4>& corners_px,
                                                 PoseBlock* robot_block, PoseBlock* marker_block,
                                                 ceres::LossFunction* loss) {
   const double sigma_px = CornerSigmaPx(camera);

@@ -1,5 +1,4 @@
 #include "mapping/survey.h"
-#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,9 +7,10 @@
 #include <stdexcept>
 #include <utility>
 
+#include "factors/odometry_covariance.h"
 #include "geometry/camera.h"
 #include "geometry/marker_pose.h"
-#include "factors/odometry_covariance.h"
+#include "util/check.h"
 #include "util/format.h"
 
 namespace waymark {
@@ -134,7 +134,9 @@ struct OdometryClock {
   double offset_s = 0.0;
   double max_gap_s = 1.0;
 
-  std::optional<SE3d> PoseAt(double t) const { return InterpolateTrajectory(odometry, t + offset_s, max_gap_s); }
+  std::optional<SE3d> PoseAt(double t) const {
+    return InterpolateTrajectory(odometry, t + offset_s, max_gap_s);
+  }
   int SegmentAt(double t) const {
     return sample_segment[std::max(0L, SampleAtOrBefore(odometry, t + offset_s))];
   }
@@ -244,7 +246,8 @@ struct ViewPair {
 
 // The pairs of ComputeViewGeometry's views: each view with its next kMaxPairsPerView views
 // of the code from other frames at most window_s later.
-std::vector<ViewPair> MakeViewPairs(const Survey& survey, const std::vector<std::vector<ViewGeometry>>& per_marker,
+std::vector<ViewPair> MakeViewPairs(const Survey& survey,
+                                    const std::vector<std::vector<ViewGeometry>>& per_marker,
                                     double window_s) {
   std::vector<ViewPair> pairs;
   for (const std::vector<ViewGeometry>& views : per_marker) {
@@ -252,12 +255,14 @@ std::vector<ViewPair> MakeViewPairs(const Survey& survey, const std::vector<std:
       const ViewGeometry& a = views[i];
       for (size_t j = i + 1; j < views.size() && j <= i + kMaxPairsPerView; ++j) {
         const ViewGeometry& b = views[j];
-        if (survey.frames[b.frame].stamp_s - survey.frames[a.frame].stamp_s > window_s || b.frame == a.frame) continue;
+        if (survey.frames[b.frame].stamp_s - survey.frames[a.frame].stamp_s > window_s || b.frame == a.frame)
+          continue;
         ViewPair pair;
         pair.frame_a = a.frame;
         pair.frame_b = b.frame;
         pair.views_distance_m = (b.p_marker_robot - a.p_marker_robot).norm();
-        if (!a.ambiguous && !b.ambiguous) pair.views_angle_rad = LogSO3(a.q_marker_robot.conjugate() * b.q_marker_robot).norm();
+        if (!a.ambiguous && !b.ambiguous)
+          pair.views_angle_rad = LogSO3(a.q_marker_robot.conjugate() * b.q_marker_robot).norm();
         pair.sigma_m = kViewSigmaM + kViewSigmaPerRange * 0.5 * (a.range_m + b.range_m);
         pairs.push_back(pair);
       }
@@ -278,8 +283,8 @@ double PairCost(const ViewPair& pair, const SE3d& M_a_b) {
 }
 
 // Mean pair cost C(delta) over the pairs with odometry at both ends in one segment.
-double MeanOffsetCost(const Survey& survey, const OdometryClock& clock, const std::vector<ViewPair>& view_pairs,
-                      size_t* pairs) {
+double MeanOffsetCost(const Survey& survey, const OdometryClock& clock,
+                      const std::vector<ViewPair>& view_pairs, size_t* pairs) {
   struct FrameOdometry {
     bool done = false;
     std::optional<SE3d> T_odom_robot;
@@ -391,7 +396,8 @@ bool IngestOptions::Check(std::string* why) const {
                        "odometry_time_offset_s must be finite");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_time_offset_s, 0.0), "max_time_offset_s must be finite and >= 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(offset_window_s), "offset_window_s must be finite and > 0");
-  WAYMARK_CHECK_OPTION(time_offset_min_gain >= 0.0 && time_offset_min_gain < 1.0, "time_offset_min_gain must be in [0, 1)");
+  WAYMARK_CHECK_OPTION(time_offset_min_gain >= 0.0 && time_offset_min_gain < 1.0,
+                       "time_offset_min_gain must be in [0, 1)");
   return true;
 }
 

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "geometry/camera.h"
-#include "geometry/pose.h"
 #include "geometry/marker_pose.h"
+#include "geometry/pose.h"
 #include "geometry/types.h"
 
 namespace waymark {

@@ -81,8 +81,8 @@ StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& c
   return StepStatus::kOk;
 }
 
-StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
-                           const CrossCovariance& cross) {
+StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance,
+                           const MarkerKey& key, const CrossCovariance& cross) {
   if (mean.size() != dim() || !mean.allFinite()) return StepStatus::kInvalidInput;
   const StepStatus status =
       WriteCovariance(covariance, {CrossEntry{key, cross, ++updates_}}, Eigen::MatrixXd(dim(), 0));
@@ -91,9 +91,9 @@ StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& c
   return StepStatus::kOk;
 }
 
-StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
-                           const CrossCovariance& cross, const Matrix6d& marker_covariance,
-                           const CovarianceFactor& factor) {
+StepStatus EkfState::Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance,
+                           const MarkerKey& key, const CrossCovariance& cross,
+                           const Matrix6d& marker_covariance, const CovarianceFactor& factor) {
   if (factor.cols() == 0) return Reset(mean, covariance, key, cross);
   if (mean.size() != dim() || !mean.allFinite() || cross.rows() != dim()) return StepStatus::kInvalidInput;
   const Eigen::LLT<Matrix6d> llt(marker_covariance);
@@ -119,8 +119,8 @@ StepStatus EkfState::Propagate(const Eigen::VectorXd& mean_new, const Eigen::Mat
   if (mean_new.size() != dim() || !mean_new.allFinite()) return StepStatus::kInvalidInput;
   std::vector<CrossEntry> cross = cross_;
   for (CrossEntry& entry : cross) entry.cross = F * entry.cross;
-  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose(), std::move(cross),
-                                            F * cross_factor_);
+  const StepStatus status = WriteCovariance(F * covariance_ * F.transpose() + G * Qu * G.transpose(),
+                                            std::move(cross), F * cross_factor_);
   if (status != StepStatus::kOk) return status;
   mean_ = BoxPlus(mean_new, Eigen::VectorXd::Zero(dim()), yaw_index());
   return StepStatus::kOk;
@@ -144,10 +144,12 @@ std::optional<EkfState::Gain> EkfState::ComputeGain(const Linearization& lin) co
     gain.D_m = marker.covariance - marker.factor * marker.factor.transpose();
     gain.A_m = H_m * marker.factor;
     Eigen::MatrixXd C_Hmt = Cross(marker.key) * H_m.transpose();
-    if (gain.A_m.cols() > 0 && cross_factor_.cols() == gain.A_m.cols()) C_Hmt += cross_factor_ * gain.A_m.transpose();
+    if (gain.A_m.cols() > 0 && cross_factor_.cols() == gain.A_m.cols())
+      C_Hmt += cross_factor_ * gain.A_m.transpose();
     const Eigen::MatrixXd H_C_Hmt = lin.H * C_Hmt;
     gain.PHt += C_Hmt;
-    gain.S += H_C_Hmt + H_C_Hmt.transpose() + H_m * gain.D_m * H_m.transpose() + gain.A_m * gain.A_m.transpose();
+    gain.S +=
+        H_C_Hmt + H_C_Hmt.transpose() + H_m * gain.D_m * H_m.transpose() + gain.A_m * gain.A_m.transpose();
   }
   gain.S = 0.5 * (gain.S + gain.S.transpose());
   gain.llt.compute(gain.S);
@@ -156,7 +158,8 @@ std::optional<EkfState::Gain> EkfState::ComputeGain(const Linearization& lin) co
 }
 
 std::vector<EkfState::CrossEntry> EkfState::UpdatedCross(const Eigen::MatrixXd& K, const Linearization& lin,
-                                                         const Gain& gain, Eigen::MatrixXd* cross_factor) const {
+                                                         const Gain& gain,
+                                                         Eigen::MatrixXd* cross_factor) const {
   std::vector<CrossEntry> cross = cross_;
   for (CrossEntry& entry : cross) entry.cross -= K * (lin.H * entry.cross);
   *cross_factor = cross_factor_;

@@ -134,7 +134,8 @@ class EkfState {
   // The same when the marker has a factor F_m: with cross = A Sigma_m (A = cross Sigma_m^-1),
   // C_m = A D_m and C_xi = A F_m. kInvalidInput when Sigma_m is not positive definite.
   StepStatus Reset(const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const MarkerKey& key,
-                   const CrossCovariance& cross, const Matrix6d& marker_covariance, const CovarianceFactor& factor);
+                   const CrossCovariance& cross, const Matrix6d& marker_covariance,
+                   const CovarianceFactor& factor);
   // C_m, zero when the marker is not kept.
   CrossCovariance Cross(const MarkerKey& key) const;
   size_t considered_markers() const { return cross_.size(); }

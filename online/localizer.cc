@@ -1,5 +1,4 @@
 #include "online/localizer.h"
-#include "util/check.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -11,6 +10,7 @@
 #include "geometry/square_marker.h"
 #include "online/chi_square.h"
 #include "online/marker_measurement.h"
+#include "util/check.h"
 
 namespace waymark {
 
@@ -22,15 +22,17 @@ bool LocalizerOptions::Check(std::string* why) const {
                        "localizer options: gate_probability must be in (0, 1)");
   WAYMARK_CHECK_OPTION(IsFinitePositive(default_pixel_sigma_px),
                        "localizer options: default_pixel_sigma_px must be finite and > 0");
-  WAYMARK_CHECK_OPTION(loose_noise.size() == StateDim(motion),
-                       "localizer options: loose_noise must have " + std::to_string(StateDim(motion)) +
-                           " variances for this motion model");
+  WAYMARK_CHECK_OPTION(loose_noise.size() == StateDim(motion), "localizer options: loose_noise must have " +
+                                                                   std::to_string(StateDim(motion)) +
+                                                                   " variances for this motion model");
   WAYMARK_CHECK_OPTION(loose_noise.allFinite() && (loose_noise.array() > 0.0).all(),
                        "localizer options: loose_noise must be finite and > 0");
-  WAYMARK_CHECK_OPTION(lost_after_rejected_frames >= 1 && relocalize_after_agreeing >= 1,
-                       "localizer options: lost_after_rejected_frames and relocalize_after_agreeing must be >= 1");
-  WAYMARK_CHECK_OPTION(agree_trans_m > 0.0 && agree_rot_rad > 0.0 && max_position_sigma_m > 0.0,
-                       "localizer options: agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
+  WAYMARK_CHECK_OPTION(
+      lost_after_rejected_frames >= 1 && relocalize_after_agreeing >= 1,
+      "localizer options: lost_after_rejected_frames and relocalize_after_agreeing must be >= 1");
+  WAYMARK_CHECK_OPTION(
+      agree_trans_m > 0.0 && agree_rot_rad > 0.0 && max_position_sigma_m > 0.0,
+      "localizer options: agree_trans_m, agree_rot_rad and max_position_sigma_m must be > 0");
   WAYMARK_CHECK_OPTION(clear_max_rms_sigmas > 0.0 && clear_max_range_sizes > 0.0,
                        "localizer options: clear_max_rms_sigmas and clear_max_range_sizes must be > 0");
   WAYMARK_CHECK_OPTION(tight_iterations >= 1, "localizer options: tight_iterations must be >= 1");
@@ -243,12 +245,15 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   std::vector<ExpectedCode> expected;
   if (had_track && options_.visibility.enabled) {
     const Camera& camera = camera_it->second;
-    const Eigen::Vector3d camera_world = (T_world_robot_predicted * camera.info().T_robot_camera).translation();
+    const Eigen::Vector3d camera_world =
+        (T_world_robot_predicted * camera.info().T_robot_camera).translation();
     const std::vector<size_t>& near =
         near_codes_[frame.camera].Around(code_index_, camera, camera_world, options_.visibility);
-    expected = PredictExpectedCodes(state_, camera, map_, code_index_, options_.visibility, component_, &near);
+    expected =
+        PredictExpectedCodes(state_, camera, map_, code_index_, options_.visibility, component_, &near);
   }
-  const bool learn = tracking_ == TrackingStatus::kTracking && negative_.llr() < options_.visibility.learn_below_llr;
+  const bool learn =
+      tracking_ == TrackingStatus::kTracking && negative_.llr() < options_.visibility.learn_below_llr;
   const long initializations = counters_.initializations;
   gated_.clear();
   int accepted = 0;
@@ -276,8 +281,9 @@ double Localizer::TestExpectedCodes(const CameraFrame& frame, const std::vector<
   int unexpected_hits = 0;
   for (const CorrectionResult& correction : result.corrections) {
     if (correction.outcome != CorrectionOutcome::kAccepted) continue;
-    const auto it = std::find_if(expected.begin(), expected.end(),
-                                 [&](const ExpectedCode& code) { return code.marker->key == correction.key; });
+    const auto it = std::find_if(expected.begin(), expected.end(), [&](const ExpectedCode& code) {
+      return code.marker->key == correction.key;
+    });
     if (it == expected.end())
       ++unexpected_hits;
     else
@@ -286,7 +292,8 @@ double Localizer::TestExpectedCodes(const CameraFrame& frame, const std::vector<
   for (size_t i = 0; i < expected.size(); ++i) {
     if (outcomes[i] == ExpectedOutcome::kHit) continue;
     for (const CodeSighting& sighting : frame.sightings) {
-      if (CoversExpected(expected[i], sighting.observation.corners_px)) outcomes[i] = ExpectedOutcome::kOccupied;
+      if (CoversExpected(expected[i], sighting.observation.corners_px))
+        outcomes[i] = ExpectedOutcome::kOccupied;
     }
     counters_.expected_missed += outcomes[i] == ExpectedOutcome::kMissed;
   }
@@ -339,8 +346,8 @@ constexpr double kSquareGatePx = 100.0;
 // The square of the map a detection with the id "*" is (geometry/square_marker.h): the only one in
 // the map, or the one the tracked pose predicts (IdentifySquare). Leaves it "*" (unknown to the
 // map, counted as such) when neither tells.
-void IdentifySquareObservation(const MarkerMap& map, const Camera* camera, const std::optional<SE3d>& T_world_robot,
-                               MarkerObservation* observation) {
+void IdentifySquareObservation(const MarkerMap& map, const Camera* camera,
+                               const std::optional<SE3d>& T_world_robot, MarkerObservation* observation) {
   if (observation->key.family != kFamilySquare || observation->key.id != kUnidentifiedSquareId) return;
   const MapMarker* only = nullptr;
   int squares = 0;
@@ -372,7 +379,8 @@ FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
   frame.sightings.reserve(detections.markers.size());
   const auto camera_it = cameras_.find(detections.camera);
   const Camera* camera = camera_it == cameras_.end() ? nullptr : &camera_it->second;
-  const std::optional<SE3d> T_world_robot = HasTrack() ? std::optional<SE3d>(state_.T_world_robot()) : std::nullopt;
+  const std::optional<SE3d> T_world_robot =
+      HasTrack() ? std::optional<SE3d>(state_.T_world_robot()) : std::nullopt;
   for (const MarkerObservation& observation : detections.markers) {
     CodeSighting sighting;
     sighting.observation = observation;
@@ -383,8 +391,8 @@ FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
   return AddFrame(frame);
 }
 
-const CodeSighting& Localizer::Solved(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
-                                      CodeSighting* storage) const {
+const CodeSighting& Localizer::Solved(const Camera& camera, const MapMarker& marker,
+                                      const CodeSighting& sighting, CodeSighting* storage) const {
   if (sighting.solved) return sighting;
   *storage = MakeCodeSighting(camera, sighting.observation, marker.size_m, options_.marker_pose);
   return *storage;
@@ -403,8 +411,8 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
   if (tracking_ == TrackingStatus::kUninitialized) {
     const CodeSighting& solved = Solved(camera, *marker, sighting, &storage);
     const bool usable = !solved.ambiguous || PlanarResolvesAmbiguity(camera, *marker, solved);
-    result.outcome =
-        usable && Initialize(camera, *marker, solved) ? CorrectionOutcome::kInitialized : CorrectionOutcome::kNotUsable;
+    result.outcome = usable && Initialize(camera, *marker, solved) ? CorrectionOutcome::kInitialized
+                                                                   : CorrectionOutcome::kNotUsable;
   } else if (tracking_ == TrackingStatus::kLost) {
     result.outcome = OfferHypothesis(camera, *marker, Solved(camera, *marker, sighting, &storage))
                          ? CorrectionOutcome::kInitialized
@@ -413,7 +421,8 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
     result = CorrectLoose(camera, *marker, Solved(camera, *marker, sighting, &storage));
   } else {
     result = CorrectTight(camera, *marker, sighting);
-    if (result.outcome == CorrectionOutcome::kAccepted && options_.attitude_source == AttitudeSource::kMarker) {
+    if (result.outcome == CorrectionOutcome::kAccepted &&
+        options_.attitude_source == AttitudeSource::kMarker) {
       const CodeSighting& solved = Solved(camera, *marker, sighting, &storage);
       if (!solved.T_camera_marker.empty() && !solved.ambiguous)
         state_.SetLevel(CodeHypothesis(camera, *marker, solved, 0).rotation_matrix());
@@ -430,7 +439,8 @@ CorrectionResult Localizer::ProcessSighting(const Camera& camera, const CodeSigh
   return result;
 }
 
-void Localizer::UpdateOdometryTilt(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) {
+void Localizer::UpdateOdometryTilt(const Camera& camera, const MapMarker& marker,
+                                   const CodeSighting& sighting) {
   if (options_.motion != MotionModel::kFree || options_.attitude_source != AttitudeSource::kOdometry ||
       !last_T_odom_robot_ || sighting.ambiguous || sighting.T_camera_marker.empty() || !sighting.covariance)
     return;
@@ -473,7 +483,8 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
   }
   const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
   const Vector8d z = StackCorners(sighting.observation.corners_px);
-  const MapUncertainty map_uncertainty = marker.covariance ? options_.map_uncertainty : MapUncertainty::kIgnore;
+  const MapUncertainty map_uncertainty =
+      marker.covariance ? options_.map_uncertainty : MapUncertainty::kIgnore;
   // Free model: the roll and pitch error (the odometry tilt's) enters R (OdometryTilt::WorldCovariance).
   std::optional<Eigen::Matrix3d> attitude_covariance;
   if (options_.motion == MotionModel::kFree && options_.attitude_source == AttitudeSource::kOdometry &&
@@ -483,11 +494,12 @@ CorrectionResult Localizer::CorrectTight(const Camera& camera, const MapMarker& 
   const MeasurementFunction linearize = [&](const EkfState& at) -> std::optional<Linearization> {
     const std::optional<CornerPrediction> p = PredictCorners(at, camera, marker);
     if (!p || !NearImage(camera.info(), p->px)) return std::nullopt;
-    Linearization lin{z - p->px, p->H,
-                      CornerNoise(sigma_px, *p,
-                                  map_uncertainty == MapUncertainty::kInNoise ? marker.covariance : std::nullopt,
-                                  attitude_covariance),
-                      std::nullopt};
+    Linearization lin{
+        z - p->px, p->H,
+        CornerNoise(sigma_px, *p,
+                    map_uncertainty == MapUncertainty::kInNoise ? marker.covariance : std::nullopt,
+                    attitude_covariance),
+        std::nullopt};
     if (map_uncertainty == MapUncertainty::kConsider)
       lin.consider = ConsideredMarker{marker.key, p->J_marker, *marker.covariance,
                                       marker.covariance_factor.value_or(CovarianceFactor(6, 0))};
@@ -531,9 +543,10 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
     fitted = PlanarPoseFromCorners(camera, marker, sighting, i);
     if (!fitted) return false;  // a corner behind the camera, no convergence, or a bad fit
   }
-  const CodeRobotPose code = fitted ? *fitted
-                                    : RobotPoseFromCode(marker, sighting.T_camera_marker[i], *sighting.covariance,
-                                                        camera.info().T_robot_camera, options_.motion);
+  const CodeRobotPose code =
+      fitted ? *fitted
+             : RobotPoseFromCode(marker, sighting.T_camera_marker[i], *sighting.covariance,
+                                 camera.info().T_robot_camera, options_.motion);
   if (!code.T_world_robot.IsFinite() || !code.covariance.allFinite() ||
       Eigen::LLT<Eigen::MatrixXd>(code.covariance).info() != Eigen::Success) {
     return false;
@@ -569,7 +582,8 @@ bool Localizer::IsClear(const Camera& camera, const MapMarker& marker, const Cod
          sighting.T_camera_marker[0].translation().norm() <= options_.clear_max_range_sizes * marker.size_m;
 }
 
-bool Localizer::Contradicts(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const {
+bool Localizer::Contradicts(const Camera& camera, const MapMarker& marker,
+                            const CodeSighting& sighting) const {
   if (sighting.T_camera_marker.empty()) return false;  // no pose: no evidence either way
   const int yaw_index = state_.yaw_index();
   const Eigen::MatrixXd& P = state_.covariance();
@@ -579,8 +593,10 @@ bool Localizer::Contradicts(const Camera& camera, const MapMarker& marker, const
   const double sigma_rad = std::sqrt(std::max(0.0, P(yaw_index, yaw_index)));
   const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
   for (size_t i = 0; i < candidates; ++i) {
-    const auto [trans_m, rot_rad] = Distance(state_.T_world_robot(), RestartPose(camera, marker, sighting, i));
-    if (trans_m <= options_.agree_trans_m + 3.0 * sigma_m && rot_rad <= options_.agree_rot_rad + 3.0 * sigma_rad)
+    const auto [trans_m, rot_rad] =
+        Distance(state_.T_world_robot(), RestartPose(camera, marker, sighting, i));
+    if (trans_m <= options_.agree_trans_m + 3.0 * sigma_m &&
+        rot_rad <= options_.agree_rot_rad + 3.0 * sigma_rad)
       return false;
   }
   return true;
@@ -590,7 +606,8 @@ bool Localizer::OfferHypothesis(const Camera& camera, const MapMarker& marker, c
   if (sighting.T_camera_marker.empty()) return false;
   const bool clear = IsClear(camera, marker, sighting);
   // Codes expected and not seen already doubt the track: the contradicting code needs no second sighting.
-  const bool doubted = tracking_ == TrackingStatus::kLost || negative_.llr() >= options_.visibility.suspect_llr;
+  const bool doubted =
+      tracking_ == TrackingStatus::kLost || negative_.llr() >= options_.visibility.suspect_llr;
   const int needed = !clear ? options_.relocalize_after_agreeing : doubted ? 1 : 2;
   const size_t candidates = sighting.ambiguous ? sighting.T_camera_marker.size() : 1;
   std::vector<Hypothesis> chained;

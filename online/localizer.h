@@ -111,7 +111,7 @@ struct LocalizerOptions {
   double max_position_sigma_m = 2.0;
   double clear_max_rms_sigmas = 3.0;    // a clear code: reprojection RMS <= this * sigma_px
   double clear_max_range_sizes = 40.0;  // and range <= this * size_m (4 m for a 10 cm code)
-  MarkerPoseOptions marker_pose;  // single-image poses computed by AddDetections
+  MarkerPoseOptions marker_pose;        // single-image poses computed by AddDetections
   MapUncertainty map_uncertainty = MapUncertainty::kConsider;
   int max_considered_markers = 16;  // kConsider: markers whose correlation is kept (most recent)
   // Codes the map puts in view but not detected (online/visibility.h; life cycle above).
@@ -177,13 +177,13 @@ struct LocalizerCounters {
   long not_usable = 0;
   long initializations = 0;  // first start and every relocalization
   long times_lost = 0;
-  long times_suspect = 0;    // kTracking -> kSuspect
-  long suspect_cleared = 0;  // kSuspect -> kTracking without a restart (false alarms)
+  long times_suspect = 0;            // kTracking -> kSuspect
+  long suspect_cleared = 0;          // kSuspect -> kTracking without a restart (false alarms)
   long suspect_by_missed_codes = 0;  // of times_suspect: by the negative-evidence test
   long lost_by_missed_codes = 0;     // of times_lost: likewise
   long expected_codes = 0;           // codes predicted in view (online/visibility.h)
   long expected_missed = 0;          // of those, not detected
-  long rejected_inputs = 0;  // time going backwards, invalid input, unknown camera
+  long rejected_inputs = 0;          // time going backwards, invalid input, unknown camera
 };
 
 class Localizer {
@@ -241,9 +241,11 @@ class Localizer {
                                                      const CodeSighting& sighting, size_t i) const;
   // The robot pose solution i implies for initialization and relocalization: the planar corner
   // fit when there is one, else CodeHypothesis.
-  SE3d RestartPose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i) const;
+  SE3d RestartPose(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting,
+                   size_t i) const;
   // Planar: the sighting is ambiguous but its solutions fit to one pose (header comment).
-  bool PlanarResolvesAmbiguity(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
+  bool PlanarResolvesAmbiguity(const Camera& camera, const MapMarker& marker,
+                               const CodeSighting& sighting) const;
   bool IsClear(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
   // True when every solution of the (solved) sighting is far from the track (header comment).
   bool Contradicts(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting) const;
@@ -286,13 +288,13 @@ class Localizer {
   };
   std::vector<Hypothesis> hypotheses_;
   std::vector<GatedSighting> gated_;  // this frame's gated codes (AddFrame)
-  double gate_loose_ = 0.0;  // chi-square quantiles of gate_probability
-  OdometryTilt odometry_tilt_;  // free model: the odometry frame's tilt (online/motion_model.h)
+  double gate_loose_ = 0.0;           // chi-square quantiles of gate_probability
+  OdometryTilt odometry_tilt_;        // free model: the odometry frame's tilt (online/motion_model.h)
   double gate_tight_ = 0.0;
   NegativeEvidenceTest negative_;
-  CodeIndex code_index_;  // of map_ (indices: a copied Localizer stays valid)
+  CodeIndex code_index_;                         // of map_ (indices: a copied Localizer stays valid)
   std::map<std::string, NearCodes> near_codes_;  // per camera
-  std::optional<int> component_;  // the map component the track is in (the last code used)
+  std::optional<int> component_;                 // the map component the track is in (the last code used)
 };
 
 }  // namespace waymark

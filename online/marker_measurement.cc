@@ -87,11 +87,13 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
   return out;
 }
 
-Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance,
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction,
+                     const std::optional<Matrix6d>& covariance,
                      const std::optional<Eigen::Matrix3d>& attitude_covariance) {
   Matrix8d R = Matrix8d::Identity() * (sigma_px * sigma_px);
   if (covariance) R += prediction.J_marker * (*covariance) * prediction.J_marker.transpose();
-  if (attitude_covariance) R += prediction.J_attitude * (*attitude_covariance) * prediction.J_attitude.transpose();
+  if (attitude_covariance)
+    R += prediction.J_attitude * (*attitude_covariance) * prediction.J_attitude.transpose();
   return R;
 }
 

@@ -12,8 +12,8 @@
 //       c_w = T_world_marker * c_m
 //       c_r = R_world_robot^T (c_w - t_world_robot)          (robot frame)
 //       c_c = T_camera_robot * c_r                            (camera frame, T_camera_robot =
-//       T_robot_camera^-1) h_j = project(c_c)                                    (geometry/camera.h, 2x3 Jacobian
-//       J_p)
+//       T_robot_camera^-1) h_j = project(c_c)                                    (geometry/camera.h, 2x3
+//       Jacobian J_p)
 //     with R_world_robot = Rz(yaw) R_level and t_world_robot = [x, y, 0] (planar) or [x, y, z]:
 //       d c_r / d t_world_robot = -R_world_robot^T
 //       d c_r / d yaw           = -R_world_robot^T Hat(e_z) (c_w - t_world_robot)
@@ -42,7 +42,7 @@ using Matrix8d = Eigen::Matrix<double, 8, 8>;
 // The robot pose a single code implies, with its covariance in state coordinates.
 struct CodeRobotPose {
   SE3d T_world_robot;
-  Eigen::MatrixXd covariance;  // dim x dim, error state of online/ekf_state.h
+  Eigen::MatrixXd covariance;    // dim x dim, error state of online/ekf_state.h
   CrossCovariance cross_marker;  // J_map Sigma_map (dim x 6): C_m of ekf_state.h; zero without
                                  // a map covariance
 };
@@ -85,7 +85,8 @@ std::optional<CornerPrediction> PredictCorners(const EkfState& state, const Came
 // R = sigma_px^2 I8 + J_marker Sigma_marker J_marker^T + J_attitude Sigma_phi J_attitude^T
 // (second term only with a marker covariance, third only with an attitude covariance: the free
 // model's roll and pitch are not in the state, OdometryTilt::WorldCovariance gives theirs).
-Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction, const std::optional<Matrix6d>& covariance,
+Matrix8d CornerNoise(double sigma_px, const CornerPrediction& prediction,
+                     const std::optional<Matrix6d>& covariance,
                      const std::optional<Eigen::Matrix3d>& attitude_covariance = std::nullopt);
 
 // The 8-vector of detected corners, docs/design.md order.

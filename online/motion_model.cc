@@ -1,5 +1,4 @@
 #include "online/motion_model.h"
-#include "util/check.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -7,6 +6,7 @@
 #include <string>
 
 #include "online/ekf_state.h"
+#include "util/check.h"
 
 namespace waymark {
 namespace {
@@ -20,7 +20,8 @@ double HeadingWalkVariance(const OdometryNoise& noise, double distance_m) {
 bool OdometryNoise::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sigma.trans_per_m, 0.0),
                        "odometry noise: trans_per_m must be a finite number >= 0");
-  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sigma.rot_per_rad, 0.0), "odometry noise: rot_per_rad must be a finite number >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sigma.rot_per_rad, 0.0),
+                       "odometry noise: rot_per_rad must be a finite number >= 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(heading_per_sqrt_m, 0.0),
                        "odometry noise: heading_per_sqrt_m must be a finite number >= 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(floor_trans_m) && IsFinitePositive(floor_rot_rad),
@@ -59,7 +60,8 @@ MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double 
   p.G = (Eigen::Matrix<double, 3, 2>() << c, -0.5 * d * s, s, 0.5 * d * c, 0.0, 1.0).finished();
   const double sigma_trans = noise.sigma.trans_per_m * std::abs(d) + noise.floor_trans_m;
   const double sigma_rot = noise.sigma.rot_per_rad * std::abs(a) + noise.floor_rot_rad;
-  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans, sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::abs(d)))
+  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans,
+                         sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::abs(d)))
              .asDiagonal();
   p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return p;
@@ -103,11 +105,13 @@ Eigen::Matrix<double, 3, 2> TangentBasis(const Eigen::Vector3d& u) {
 Eigen::Matrix3d LevelFromUp(const Eigen::Vector3d& up_robot) {
   const double pitch = std::atan2(-up_robot.x(), std::hypot(up_robot.y(), up_robot.z()));
   const double roll = std::atan2(up_robot.y(), up_robot.z());
-  return (Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+  return (Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
       .toRotationMatrix();
 }
 
-OdometryTilt::OdometryTilt(double prior_sigma_rad, double gate) : prior_sigma_rad_(prior_sigma_rad), gate_(gate) {
+OdometryTilt::OdometryTilt(double prior_sigma_rad, double gate)
+    : prior_sigma_rad_(prior_sigma_rad), gate_(gate) {
   Reset();
 }
 

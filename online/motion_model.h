@@ -42,7 +42,7 @@ struct OdometryNoise {
   // increment (1e-4 m was a third of it at 20 Hz and 0.3 m/s, +78 % variance: the filter was
   // pessimistic, mean NEES 1.9 with the true map; docs/online.md, consistency).
   double floor_trans_m = 1e-5;
-  double floor_rot_rad = 1e-4;  // per increment
+  double floor_rot_rad = 1e-4;        // per increment
   double heading_per_sqrt_m = 0.005;  // rad / sqrt(m), see above
 
   bool Check(std::string* why) const;
@@ -104,7 +104,8 @@ class OdometryTilt {
   // u_robot = R^T e_z moves by R^T Hat(e_z) phi = R_odom_robot^T B d, so with M = R_world_odom B
   // (R_world_odom = R_world_robot R_odom_robot^T):  phi = [M.row(1); -M.row(0); 0] d  (J, 3x2),
   // Sigma_phi = J P J^T (no yaw part).
-  Eigen::Matrix3d WorldCovariance(const Eigen::Matrix3d& R_world_robot, const Eigen::Matrix3d& R_odom_robot) const;
+  Eigen::Matrix3d WorldCovariance(const Eigen::Matrix3d& R_world_robot,
+                                  const Eigen::Matrix3d& R_odom_robot) const;
 
   const Eigen::Vector3d& up_odom() const { return up_odom_; }
   const Eigen::Matrix2d& covariance() const { return covariance_; }

@@ -1,10 +1,11 @@
 #include "online/visibility.h"
-#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
+
+#include "util/check.h"
 
 namespace waymark {
 
@@ -12,15 +13,18 @@ bool VisibilityOptions::Check(std::string* why) const {
   const auto probability = [](double p) { return p > 0.0 && p < 1.0; };
   WAYMARK_CHECK_OPTION(min_code_px > 0.0 && max_range_m > 0.0 && border_px >= 0.0,
                        "visibility options: min_code_px and max_range_m must be > 0, border_px >= 0");
-  WAYMARK_CHECK_OPTION(max_angle_deg > 0.0 && max_angle_deg < 90.0, "visibility options: max_angle_deg must be in (0, 90)");
-  WAYMARK_CHECK_OPTION(min_in_view >= 0.0 && min_in_view < 1.0, "visibility options: min_in_view must be in [0, 1)");
+  WAYMARK_CHECK_OPTION(max_angle_deg > 0.0 && max_angle_deg < 90.0,
+                       "visibility options: max_angle_deg must be in (0, 90)");
+  WAYMARK_CHECK_OPTION(min_in_view >= 0.0 && min_in_view < 1.0,
+                       "visibility options: min_in_view must be in [0, 1)");
   WAYMARK_CHECK_OPTION(probability(max_detection_probability) && min_detection_probability >= 0.0 &&
                            min_detection_probability < max_detection_probability &&
                            probability(blind_onset_probability) && probability(blind_stay_probability) &&
                            probability(hit_probability_if_wrong),
                        "visibility options: probabilities must be in (0, 1)");
-  WAYMARK_CHECK_OPTION(forget_trials >= 1.0 && code_prior_trials > 0.0 && decay_time_s > 0.0,
-                       "visibility options: forget_trials must be >= 1, code_prior_trials and decay_time_s > 0");
+  WAYMARK_CHECK_OPTION(
+      forget_trials >= 1.0 && code_prior_trials > 0.0 && decay_time_s > 0.0,
+      "visibility options: forget_trials must be >= 1, code_prior_trials and decay_time_s > 0");
   WAYMARK_CHECK_OPTION(suspect_llr > 0.0 && lost_llr >= suspect_llr && learn_below_llr >= 0.0,
                        "visibility options: need 0 < suspect_llr <= lost_llr and learn_below_llr >= 0");
   return true;
@@ -51,8 +55,8 @@ double QuadArea(const Vector8d& px) {
 // in front of the camera (optical axis z_world), facing it, near and large enough, at most
 // max_angle_deg off its normal. The cosine of the viewing angle.
 std::optional<double> Facing(const CodeIndex::Entry& code, const Eigen::Vector3d& camera_world,
-                             const Eigen::Vector3d& axis_world, const VisibilityOptions& options, double focal_px,
-                             double min_cos_angle) {
+                             const Eigen::Vector3d& axis_world, const VisibilityOptions& options,
+                             double focal_px, double min_cos_angle) {
   const Eigen::Vector3d to_camera = camera_world - code.centre_world;
   if (to_camera.dot(axis_world) >= 0.0) return std::nullopt;  // centre behind the camera
   const double facing_m = code.normal_world.dot(to_camera);
@@ -68,12 +72,13 @@ std::optional<double> Facing(const CodeIndex::Entry& code, const Eigen::Vector3d
 
 // 2x2 covariance of the code centre's pixel under the state's covariance and the marker's map
 // covariance: H_c = J_p [d p_c / d position, d p_c / d yaw] with p_c = T_camera_robot c_r,
-//   d c_r / d t_world_robot = -R_world_robot^T,  d c_r / d yaw = -R_world_robot^T Hat(e_z) (m_w - t_world_robot)
+//   d c_r / d t_world_robot = -R_world_robot^T,  d c_r / d yaw = -R_world_robot^T Hat(e_z) (m_w -
+//   t_world_robot)
 // (online/marker_measurement.h), and the marker's translation error et (right perturbation):
 //   d p_c / d et = R_camera_world R_world_marker.
 // nullopt when the centre does not project.
-std::optional<Eigen::Matrix2d> CentreCovariance(const EkfState& state, const Camera& camera, const MapMarker& marker,
-                                                const SE3d& T_camera_world) {
+std::optional<Eigen::Matrix2d> CentreCovariance(const EkfState& state, const Camera& camera,
+                                                const MapMarker& marker, const SE3d& T_camera_world) {
   const Eigen::Vector3d& centre_world = marker.T_world_marker.translation();
   Eigen::Matrix<double, 2, 3> J_p;
   if (!camera.Project(T_camera_world * centre_world, &J_p)) return std::nullopt;
@@ -86,7 +91,8 @@ std::optional<Eigen::Matrix2d> CentreCovariance(const EkfState& state, const Cam
   H.col(n) = -J_p * R_camera_world * Eigen::Vector3d::UnitZ().cross(from_robot_world);
   Eigen::Matrix2d covariance = H * state.covariance() * H.transpose();
   if (marker.covariance) {
-    const Eigen::Matrix<double, 2, 3> J_marker = J_p * R_camera_world * marker.T_world_marker.rotation_matrix();
+    const Eigen::Matrix<double, 2, 3> J_marker =
+        J_p * R_camera_world * marker.T_world_marker.rotation_matrix();
     covariance += J_marker * marker.covariance->bottomRightCorner<3, 3>() * J_marker.transpose();
   }
   return covariance;
@@ -128,19 +134,22 @@ std::vector<size_t> CodeIndex::Near(const Eigen::Vector3d& point_world, double r
 }
 
 const std::vector<size_t>& NearCodes::Around(const CodeIndex& codes, const Camera& camera,
-                                             const Eigen::Vector3d& camera_world, const VisibilityOptions& options) {
+                                             const Eigen::Vector3d& camera_world,
+                                             const VisibilityOptions& options) {
   if (!scan_point_world_ || (camera_world - *scan_point_world_).norm() > kRescanM) {
     const double focal_px = std::max(camera.info().intrinsics[0], camera.info().intrinsics[1]);
-    const double radius_m = std::min(options.max_range_m, codes.max_size_m() * focal_px / options.min_code_px);
+    const double radius_m =
+        std::min(options.max_range_m, codes.max_size_m() * focal_px / options.min_code_px);
     near_ = codes.Near(camera_world, radius_m + kRescanM);
     scan_point_world_ = camera_world;
   }
   return near_;
 }
 
-std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Camera& camera, const MarkerMap& map,
-                                               const CodeIndex& codes, const VisibilityOptions& options,
-                                               std::optional<int> component, const std::vector<size_t>* near) {
+std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Camera& camera,
+                                               const MarkerMap& map, const CodeIndex& codes,
+                                               const VisibilityOptions& options, std::optional<int> component,
+                                               const std::vector<size_t>* near) {
   std::vector<ExpectedCode> expected;
   const SE3d T_world_camera = state.T_world_robot() * camera.info().T_robot_camera;
   const SE3d T_camera_world = T_world_camera.inverse();
@@ -161,7 +170,8 @@ std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Came
     const std::array<Eigen::Vector3d, 4> corners_marker = MarkerCorners(marker.size_m);
     for (int j = 0; j < 4 && projects; ++j) {
       const Eigen::Vector3d corner_camera = T_camera_world * (marker.T_world_marker * corners_marker[j]);
-      const std::optional<Eigen::Vector2d> px = corner_camera.z() > 1e-3 ? camera.Project(corner_camera) : std::nullopt;
+      const std::optional<Eigen::Vector2d> px =
+          corner_camera.z() > 1e-3 ? camera.Project(corner_camera) : std::nullopt;
       projects = px.has_value();
       if (projects) code.px.segment<2>(2 * j) = *px;
     }
@@ -186,7 +196,8 @@ bool CoversExpected(const ExpectedCode& expected, const std::array<Eigen::Vector
     max_px = max_px.cwiseMax(expected.px.segment<2>(2 * j));
   }
   const Eigen::Vector2d grow = 0.5 * (max_px - min_px);
-  return (centre.array() >= (min_px - grow).array()).all() && (centre.array() <= (max_px + grow).array()).all();
+  return (centre.array() >= (min_px - grow).array()).all() &&
+         (centre.array() <= (max_px + grow).array()).all();
 }
 
 // ---------------------------------------------------------------- DetectionModel
@@ -267,7 +278,8 @@ double NegativeEvidenceTest::AddFrame(double stamp_s, const std::string& camera,
   const double blind = any_detection ? 0.0 : b_prior;
   const double p_right = std::max(blind + seeing, 1e-300);
   blind_[camera] = blind / p_right;
-  const double decay = has_stamp_ ? std::exp(-std::max(0.0, stamp_s - last_stamp_s_) / options_.decay_time_s) : 1.0;
+  const double decay =
+      has_stamp_ ? std::exp(-std::max(0.0, stamp_s - last_stamp_s_) / options_.decay_time_s) : 1.0;
   has_stamp_ = true;
   last_stamp_s_ = stamp_s;
   llr_ = std::max(0.0, decay * llr_ + log_wrong - std::log(p_right));
@@ -275,7 +287,8 @@ double NegativeEvidenceTest::AddFrame(double stamp_s, const std::string& camera,
     const double seeing_weight = 1.0 - blind_[camera];
     for (size_t i = 0; i < expected.size(); ++i) {
       if (outcomes[i] == ExpectedOutcome::kOccupied) continue;
-      model_.Learn(camera, expected[i], outcomes[i] == ExpectedOutcome::kHit, expected[i].in_view * seeing_weight);
+      model_.Learn(camera, expected[i], outcomes[i] == ExpectedOutcome::kHit,
+                   expected[i].in_view * seeing_weight);
     }
   }
   return llr_;

@@ -65,20 +65,20 @@
 namespace waymark {
 
 struct VisibilityOptions {
-  bool enabled = true;  // false: no negative information (the localizer as before)
-  double min_code_px = 12.0;     // smaller codes are never expected
-  double max_range_m = 20.0;     // farther codes are never expected (cheap pre-filter)
-  double max_angle_deg = 75.0;   // codes seen more obliquely are never expected
-  double border_px = 4.0;        // the quad must stay this far inside the image
-  double min_in_view = 0.05;     // P(in view) below this: not expected
+  bool enabled = true;          // false: no negative information (the localizer as before)
+  double min_code_px = 12.0;    // smaller codes are never expected
+  double max_range_m = 20.0;    // farther codes are never expected (cheap pre-filter)
+  double max_angle_deg = 75.0;  // codes seen more obliquely are never expected
+  double border_px = 4.0;       // the quad must stay this far inside the image
+  double min_in_view = 0.05;    // P(in view) below this: not expected
   double max_detection_probability = 0.9;
   // Codes whose learned p_code is below this are no evidence (they still teach the model): a
   // cell that straddles the detector's limit (range, blur) averages codes read and not read.
   double min_detection_probability = 0.6;
   double forget_trials = 500.0;  // memory of the per-cell counts (effective trials)
   double code_prior_trials = 4.0;
-  double blind_onset_probability = 0.005;  // per camera frame
-  double blind_stay_probability = 0.95;    // per camera frame (mean blind spell 20 frames)
+  double blind_onset_probability = 0.005;   // per camera frame
+  double blind_stay_probability = 0.95;     // per camera frame (mean blind spell 20 frames)
   double hit_probability_if_wrong = 0.001;  // a code passing the gate where a wrong pose predicts it
   double decay_time_s = 10.0;
   double learn_below_llr = 2.0;  // p_d learns only while S is below this (the track trusted)
@@ -92,9 +92,9 @@ struct VisibilityOptions {
 struct ExpectedCode {
   const MapMarker* marker = nullptr;
   Vector8d px = Vector8d::Zero();  // predicted corners
-  double in_view = 0.0;    // P(in view) under the state's covariance
-  double size_px = 0.0;    // sqrt of the predicted quad's area
-  double cos_angle = 1.0;  // between the code's normal and the ray to the camera
+  double in_view = 0.0;            // P(in view) under the state's covariance
+  double size_px = 0.0;            // sqrt of the predicted quad's area
+  double cos_angle = 1.0;          // between the code's normal and the ray to the camera
 };
 
 // The map's codes with a pose, laid out for the per-frame scan (centres and normals side by
@@ -125,8 +125,8 @@ class CodeIndex {
 class NearCodes {
  public:
   static constexpr double kRescanM = 1.0;
-  const std::vector<size_t>& Around(const CodeIndex& codes, const Camera& camera, const Eigen::Vector3d& camera_world,
-                                    const VisibilityOptions& options);
+  const std::vector<size_t>& Around(const CodeIndex& codes, const Camera& camera,
+                                    const Eigen::Vector3d& camera_world, const VisibilityOptions& options);
 
  private:
   std::optional<Eigen::Vector3d> scan_point_world_;
@@ -137,8 +137,8 @@ class NearCodes {
 // state's mean (header, step 1), in map order. With `component`, only the codes of that
 // component of the map (each has its own world frame).
 // `near` (optional): only these entries of `codes` (NearCodes::Around).
-std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Camera& camera, const MarkerMap& map,
-                                               const CodeIndex& codes,
+std::vector<ExpectedCode> PredictExpectedCodes(const EkfState& state, const Camera& camera,
+                                               const MarkerMap& map, const CodeIndex& codes,
                                                const VisibilityOptions& options,
                                                std::optional<int> component = std::nullopt,
                                                const std::vector<size_t>* near = nullptr);
@@ -182,7 +182,8 @@ class NegativeEvidenceTest {
   // were not expected, `any_detection` whether the frame reported any code. `learn`: the
   // frame may teach p_d. Returns S after the frame.
   double AddFrame(double stamp_s, const std::string& camera, const std::vector<ExpectedCode>& expected,
-                  const std::vector<ExpectedOutcome>& outcomes, int unexpected_hits, bool any_detection, bool learn);
+                  const std::vector<ExpectedOutcome>& outcomes, int unexpected_hits, bool any_detection,
+                  bool learn);
   // After a (re)initialization: S = 0, no camera believed blind. The learned p_d is kept.
   void Restart();
   double llr() const { return llr_; }

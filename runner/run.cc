@@ -1,5 +1,4 @@
 #include "runner/run.h"
-#include "util/check.h"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -11,8 +10,9 @@
 #include <stdexcept>
 #include <thread>
 
-#include "runner/image.h"
 #include "io/util.h"
+#include "runner/image.h"
+#include "util/check.h"
 
 namespace waymark {
 
@@ -52,10 +52,11 @@ std::string FormatPoseLine(const PoseOutput& pose, const std::string& camera, co
   }
   if (pose.T_world_robot && pose.covariance) {
     const Eigen::MatrixXd row_major = pose.covariance->transpose();  // column-major storage of P^T
-    line += ", \"covariance\": " + numbers(Eigen::Map<const Eigen::VectorXd>(row_major.data(), row_major.size()));
+    line +=
+        ", \"covariance\": " + numbers(Eigen::Map<const Eigen::VectorXd>(row_major.data(), row_major.size()));
   }
-  line += ", \"accepted\": " + std::to_string(counts.accepted) + ", \"gated\": " + std::to_string(counts.gated) +
-          ", \"unknown\": " + std::to_string(counts.unknown);
+  line += ", \"accepted\": " + std::to_string(counts.accepted) +
+          ", \"gated\": " + std::to_string(counts.gated) + ", \"unknown\": " + std::to_string(counts.unknown);
   if (latency_ms) line += ", \"latency_ms\": " + FormatDouble(std::round(*latency_ms * 1e3) / 1e3);
   return line + "}";
 }
@@ -92,10 +93,12 @@ bool LocalizeRunOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(localizer.Check(why), nullptr);
   WAYMARK_CHECK_OPTION(map_check_frames >= 1 && map_check_codes >= 1,
                        "localize options: map_check_frames and map_check_codes must be >= 1");
-  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(odometry_wait_s, 0.0), "localize options: odometry_wait_s must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(odometry_wait_s, 0.0),
+                       "localize options: odometry_wait_s must be finite and >= 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(late_frame_window_s, 0.0),
                        "localize options: late_frame_window_s must be finite and >= 0");
-  WAYMARK_CHECK_OPTION(std::isfinite(odometry_time_offset_s), "localize options: odometry_time_offset_s must be finite");
+  WAYMARK_CHECK_OPTION(std::isfinite(odometry_time_offset_s),
+                       "localize options: odometry_time_offset_s must be finite");
   WAYMARK_CHECK_OPTION(!detect_images || detector.Check(why), nullptr);
   return true;
 }
@@ -149,9 +152,12 @@ std::vector<CameraInfo> CameraList(const Dataset& dataset) {
 
 }  // namespace
 
-LocalizeStream::LocalizeStream(const Dataset& dataset, const MarkerMap& map, const LocalizeRunOptions& options,
+LocalizeStream::LocalizeStream(const Dataset& dataset, const MarkerMap& map,
+                               const LocalizeRunOptions& options,
                                std::function<void(const FrameOutput&)> on_frame)
-    : options_(options), on_frame_(std::move(on_frame)), localizer_(options.localizer, map, CameraList(dataset)) {
+    : options_(options),
+      on_frame_(std::move(on_frame)),
+      localizer_(options.localizer, map, CameraList(dataset)) {
   std::string why;
   if (!options_.Check(&why)) throw std::invalid_argument(why);
   for (const MapMarker& marker : map.markers) {
@@ -204,14 +210,15 @@ void LocalizeStream::AddVelocity(double stamp_s, double v_mps, double omega_radp
     const double dt_s = stamp_s - velocity_pose_->stamp_s;
     const double a = omega_radps * dt_s;  // the arc's chord: 2 v / omega sin(a / 2) (v dt when straight)
     const double d = std::abs(a) > 1e-9 ? 2.0 * v_mps / omega_radps * std::sin(0.5 * a) : v_mps * dt_s;
-    velocity_pose_ =
-        StampedSE3{stamp_s, velocity_pose_->T * SE2d(d * std::cos(0.5 * a), d * std::sin(0.5 * a), a).ToSE3()};
+    velocity_pose_ = StampedSE3{
+        stamp_s, velocity_pose_->T * SE2d(d * std::cos(0.5 * a), d * std::sin(0.5 * a), a).ToSE3()};
   }
   AddOdometry(stamp_s, velocity_pose_->T);
 }
 
 void LocalizeStream::AddFrame(const DetectionFrame& frame, double detection_ms) {
-  if (std::isfinite(frame.stamp_s)) latest_input_s_ = std::max(latest_input_s_.value_or(frame.stamp_s), frame.stamp_s);
+  if (std::isfinite(frame.stamp_s))
+    latest_input_s_ = std::max(latest_input_s_.value_or(frame.stamp_s), frame.stamp_s);
   pending_.push_back({frame, detection_ms});
   Drain(false);
 }
@@ -260,7 +267,8 @@ void LocalizeStream::ProcessFrame(const Pending& pending) {
       const double a = (frame.stamp_s - last_odometry_->stamp_s) / (next.stamp_s - last_odometry_->stamp_s);
       CountStatus(localizer_.AddOdometry(frame.stamp_s, InterpolateScrew(last_odometry_->T, next.T, a)),
                   "odometry interpolated to " + example);
-    } else if (!at_sample && (!last_odometry_ || (last_odometry_->stamp_s < frame.stamp_s && odometry_.empty()))) {
+    } else if (!at_sample &&
+               (!last_odometry_ || (last_odometry_->stamp_s < frame.stamp_s && odometry_.empty()))) {
       warnings_.Add(kWarnOutsideOdometry, example);  // before the first sample or after the last
     }
   }
@@ -300,7 +308,8 @@ void LocalizeStream::CheckMapMatches(bool at_end) const {
     return;
   std::ostringstream message;
   message << "none of the " << unknown_keys_.size() << " codes detected in " << frames_with_codes_
-          << " frames is in the map (first: " << (unknown_keys_.empty() ? "?" : unknown_keys_.begin()->ToString())
+          << " frames is in the map (first: "
+          << (unknown_keys_.empty() ? "?" : unknown_keys_.begin()->ToString())
           << "): is the map of another place?";
   throw std::runtime_error(message.str());
 }
@@ -323,15 +332,17 @@ void RealtimePacer::WaitFor(double stamp_s) {
   }
   // Each due time follows the previous one (not the first): the capped gaps add up, and the
   // duration converted is at most max_gap_s, far from the clock's range.
-  *target_wall_ += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap_s));
+  *target_wall_ +=
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap_s));
   if (*target_wall_ > std::chrono::steady_clock::now()) std::this_thread::sleep_until(*target_wall_);
 }
 
 std::string RealtimePacer::Summary() const {
   if (shortened_gaps_ == 0) return "";
   std::ostringstream text;
-  text << "--realtime: " << shortened_gaps_ << " stamp gap" << (shortened_gaps_ == 1 ? "" : "s") << " longer than "
-       << max_gap_s_ << " s " << (shortened_gaps_ == 1 ? "was" : "were") << " waited as " << max_gap_s_ << " s";
+  text << "--realtime: " << shortened_gaps_ << " stamp gap" << (shortened_gaps_ == 1 ? "" : "s")
+       << " longer than " << max_gap_s_ << " s " << (shortened_gaps_ == 1 ? "was" : "were") << " waited as "
+       << max_gap_s_ << " s";
   return text.str();
 }
 
@@ -351,7 +362,8 @@ struct RunEvent {
 };
 
 // The streams to merge: odometry first (it wins ties), then one per camera, each in file order.
-std::vector<std::vector<RunEvent>> BuildStreams(const Dataset& dataset, bool images, double odometry_offset_s) {
+std::vector<std::vector<RunEvent>> BuildStreams(const Dataset& dataset, bool images,
+                                                double odometry_offset_s) {
   std::vector<std::vector<RunEvent>> streams(1);
   for (size_t i = 0; i < dataset.odometry.size(); ++i)
     streams[0].push_back({RunEvent::kOdometry, dataset.odometry[i].stamp_s - odometry_offset_s, i});
@@ -366,7 +378,8 @@ std::vector<std::vector<RunEvent>> BuildStreams(const Dataset& dataset, bool ima
       stream_of(dataset.images[i].camera).push_back({RunEvent::kImage, dataset.images[i].stamp_s, i});
   } else {
     for (size_t i = 0; i < dataset.detections.size(); ++i)
-      stream_of(dataset.detections[i].camera).push_back({RunEvent::kDetections, dataset.detections[i].stamp_s, i});
+      stream_of(dataset.detections[i].camera)
+          .push_back({RunEvent::kDetections, dataset.detections[i].stamp_s, i});
   }
   return streams;
 }
@@ -379,7 +392,8 @@ void MergeStreams(const std::vector<std::vector<RunEvent>>& streams, Fn fn) {
     int best = -1;
     for (size_t s = 0; s < streams.size(); ++s) {
       if (next[s] >= streams[s].size()) continue;
-      if (best < 0 || streams[s][next[s]].stamp_s < streams[best][next[best]].stamp_s) best = static_cast<int>(s);
+      if (best < 0 || streams[s][next[s]].stamp_s < streams[best][next[best]].stamp_s)
+        best = static_cast<int>(s);
     }
     if (best < 0) return;
     fn(streams[best][next[best]++]);
@@ -389,13 +403,15 @@ void MergeStreams(const std::vector<std::vector<RunEvent>>& streams, Fn fn) {
 void CheckRunInputs(const Dataset& dataset, const LocalizeRunOptions& options) {
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument(why);
-  if (dataset.cameras.empty()) throw std::invalid_argument("dataset " + dataset.dir.string() + " has no camera");
+  if (dataset.cameras.empty())
+    throw std::invalid_argument("dataset " + dataset.dir.string() + " has no camera");
   if (options.detect_images && dataset.images.empty()) {
     throw std::invalid_argument("dataset " + dataset.dir.string() + ": no images (images.csv) to detect on");
   }
   if (!options.detect_images && dataset.detections.empty() && !dataset.images.empty()) {
-    throw std::invalid_argument("dataset " + dataset.dir.string() +
-                                ": no detections.jsonl, only images: detect on them (waymark localize --detect-images)");
+    throw std::invalid_argument(
+        "dataset " + dataset.dir.string() +
+        ": no detections.jsonl, only images: detect on them (waymark localize --detect-images)");
   }
 }
 
@@ -432,8 +448,10 @@ LocalizeRun RunLocalizer(const Dataset& dataset, const MarkerMap& map, const Loc
   LocalizeStream stream(dataset, map, options,
                         [&run](const LocalizeStream::FrameOutput& output) { CollectFrame(output, &run); });
   std::unique_ptr<MarkerDetector> detector;
-  if (options.detect_images) detector = CreateMultiDetector(DetectionFamilies(map, options.families), options.detector);
-  const std::vector<std::vector<RunEvent>> streams = BuildStreams(dataset, options.detect_images, options.odometry_time_offset_s);
+  if (options.detect_images)
+    detector = CreateMultiDetector(DetectionFamilies(map, options.families), options.detector);
+  const std::vector<std::vector<RunEvent>> streams =
+      BuildStreams(dataset, options.detect_images, options.odometry_time_offset_s);
   size_t total_frames = 0, frames = 0;
   for (size_t s = 1; s < streams.size(); ++s) total_frames += streams[s].size();
   RealtimePacer pacer;

@@ -10,9 +10,9 @@
 // lands exactly there:
 //   T_odom_robot(t) = T_i * Exp(a * Log(T_i^-1 * T_j)),  a = (t - t_i) / (t_j - t_i),
 // with Exp/Log of SE(3) (screw motion: exact for constant linear and angular velocity in the
-// body frame; InterpolateScrew in geometry/pose.h). The Localizer then sees the increments T_i -> T(t) -> T_j,
-// which compose to the recorded T_i^-1 T_j. A frame outside the odometry's time span is
-// corrected without a prediction to its instant (counted warning).
+// body frame; InterpolateScrew in geometry/pose.h). The Localizer then sees the increments T_i -> T(t) ->
+// T_j, which compose to the recorded T_i^-1 T_j. A frame outside the odometry's time span is corrected
+// without a prediction to its instant (counted warning).
 //
 // Bad data never stops a run: codes absent from the map, frames or odometry whose time goes
 // backwards, unreadable images are counted warnings. A map of another place (none of the codes
@@ -40,8 +40,8 @@
 namespace waymark {
 
 struct LocalizeRunOptions {
-  LocalizerOptions localizer;  // DefaultLocalizerOptions(dataset) is the usual start
-  bool detect_images = false;  // detect on images.csv instead of reading detections.jsonl
+  LocalizerOptions localizer;         // DefaultLocalizerOptions(dataset) is the usual start
+  bool detect_images = false;         // detect on images.csv instead of reading detections.jsonl
   std::vector<std::string> families;  // for images; empty: the map's families
   DetectorOptions detector;           // for images
   bool realtime = false;              // pace the input by its timestamps (sleeps)
@@ -74,16 +74,16 @@ struct FrameCounts {
 FrameCounts CountOutcomes(const FrameResult& result);
 
 struct LocalizeRun {
-  Trajectory trajectory;             // poses while tracking, one per camera frame (one per stamp)
-  Trajectory predicted;              // Localizer::predicted_before_correction() (one per stamp)
-  std::vector<PoseOutput> outputs;   // every frame, with status + covariance
-  std::vector<std::string> cameras;  // outputs[i]'s camera
+  Trajectory trajectory;                  // poses while tracking, one per camera frame (one per stamp)
+  Trajectory predicted;                   // Localizer::predicted_before_correction() (one per stamp)
+  std::vector<PoseOutput> outputs;        // every frame, with status + covariance
+  std::vector<std::string> cameras;       // outputs[i]'s camera
   std::vector<FrameCounts> frame_counts;  // outputs[i]'s corrections
   LocalizerCounters counters;
-  std::vector<double> latency_ms;  // per frame: detection (if any) + odometry + update
+  std::vector<double> latency_ms;     // per frame: detection (if any) + odometry + update
   std::vector<std::string> warnings;  // "reason: count (first: example)"
-  long frames_with_codes = 0;        // frames with at least one detected code
-  long frames_with_map_codes = 0;    // frames with at least one code of the map
+  long frames_with_codes = 0;         // frames with at least one detected code
+  long frames_with_map_codes = 0;     // frames with at least one code of the map
 };
 
 // LocalizerOptions for a dataset: motion model from dataset.yaml, OdometryNoise from its
@@ -187,12 +187,12 @@ class LocalizeStream {
   std::function<void(const FrameOutput&)> on_frame_;
   Localizer localizer_;
   std::deque<Pending> pending_;
-  std::deque<StampedSE3> odometry_;           // received, not yet fed
-  std::optional<StampedSE3> last_odometry_;   // last recorded sample fed (interpolation base)
-  std::optional<StampedSE3> velocity_pose_;   // AddVelocity: the integrated T_odom_robot
+  std::deque<StampedSE3> odometry_;          // received, not yet fed
+  std::optional<StampedSE3> last_odometry_;  // last recorded sample fed (interpolation base)
+  std::optional<StampedSE3> velocity_pose_;  // AddVelocity: the integrated T_odom_robot
   bool seen_odometry_ = false;
   std::optional<double> latest_input_s_;  // largest stamp received (frames and odometry)
-  std::set<MarkerKey> unknown_keys_;       // detected codes absent from the map
+  std::set<MarkerKey> unknown_keys_;      // detected codes absent from the map
   RunWarnings warnings_;
   long frames_with_codes_ = 0;
   long frames_with_map_codes_ = 0;

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds, and runs the whole test suite through ctest.
-#   scripts/test.sh              Release build in build/ (-Werror), every test
+#   scripts/test.sh              clang-format check, Release build in build/ (-Werror), every test
 #   scripts/test.sh --sanitize   the same suite built with AddressSanitizer and
 #                                UndefinedBehaviorSanitizer in build-sanitize/ (docs/reliability.md):
 #                                any sanitizer report fails its test
@@ -23,5 +23,6 @@ if [[ "${1:-}" == "--sanitize" ]]; then
   ctest --test-dir build-sanitize --output-on-failure -j "$jobs" "$@"
   exit 0
 fi
+scripts/format.sh --check
 scripts/build.sh -DWAYMARK_WERROR=ON
 ctest --test-dir build --output-on-failure -j "$jobs"

@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <random>
-#include <stdexcept>
-
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
+#include <stdexcept>
 
 namespace waymark::sim {
 namespace {
@@ -16,7 +15,8 @@ constexpr int kSub = 4;  // sub-pixel rays per axis on surface boundaries
 
 std::mt19937_64 Rng(std::uint64_t seed, std::uint64_t a, std::uint64_t b) {
   std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
-                    static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(a >> 32), static_cast<std::uint32_t>(b)};
+                    static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(a >> 32),
+                    static_cast<std::uint32_t>(b)};
   return std::mt19937_64(seq);
 }
 
@@ -51,14 +51,17 @@ bool IrOptions::Check(std::string* why) const {
   if (!(pair_gap_s >= 0.0) || !(person_speed_mps >= 0.0) || !(lamp_flicker >= 0.0)) {
     return Fail(why, "ir.pair_gap_s, ir.person_speed_mps, ir.lamp_flicker: expected >= 0");
   }
-  if (!(blur_sigma_px >= 0.0) || !(noise_sigma >= 0.0)) return Fail(why, "ir.blur_sigma_px, ir.noise_sigma: expected >= 0");
+  if (!(blur_sigma_px >= 0.0) || !(noise_sigma >= 0.0))
+    return Fail(why, "ir.blur_sigma_px, ir.noise_sigma: expected >= 0");
   return true;
 }
 
 void AddIrParams(ParamSet* p) {
   const IrOptions d;
-  p->AddDouble("ir.ambient", d.ambient, 0.0, 255.0, "gray level of a white surface in the room light (both frames)");
-  p->AddDouble("ir.led_gain", d.led_gain, 0.0, 1000.0, "tape brightness added by the LEDs, on-axis (gray levels)");
+  p->AddDouble("ir.ambient", d.ambient, 0.0, 255.0,
+               "gray level of a white surface in the room light (both frames)");
+  p->AddDouble("ir.led_gain", d.led_gain, 0.0, 1000.0,
+               "tape brightness added by the LEDs, on-axis (gray levels)");
   p->AddDouble("ir.led_exponent", d.led_exponent, -5.0, 20.0,
                "LED layout: cos(theta)^p (< 0: brighter off-axis, as the paper's tilted narrow LEDs)");
   p->AddDouble("ir.incidence_exponent", d.incidence_exponent, 0.0, 20.0, "tape reflection: cos(incidence)^q");
@@ -102,17 +105,20 @@ IrRenderer::IrRenderer(const World& world, const IrRoom& room, const IrOptions& 
     : room_(room), options_(options), seed_(seed) {
   std::string why;
   if (!options_.Check(&why)) throw std::invalid_argument(why);
-  if (!((room_.room_max - room_.room_min).minCoeff() > 0.0)) throw std::invalid_argument("ir: room without area");
+  if (!((room_.room_max - room_.room_min).minCoeff() > 0.0))
+    throw std::invalid_argument("ir: room without area");
   for (const SimMarker& m : world.markers) {
     if (m.key.family != kFamilySquare) continue;
     const SquareTape tape = m.square_tape.value_or(SquareTape{});
-    squares_.push_back({m.T_world_marker.inverse(), 0.5 * (m.size_m + tape.tape_width_m), SquareTapeRects(m.size_m, tape)});
+    squares_.push_back(
+        {m.T_world_marker.inverse(), 0.5 * (m.size_m + tape.tape_width_m), SquareTapeRects(m.size_m, tape)});
   }
   std::mt19937_64 rng = Rng(seed, 0x1e0b1eULL, 0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   for (int i = 0; i < options_.people; ++i) {
     const Eigen::Vector2d span = room_.room_max - room_.room_min;
-    const Eigen::Vector2d start = room_.room_min + Eigen::Vector2d(uniform(rng) * span.x(), uniform(rng) * span.y());
+    const Eigen::Vector2d start =
+        room_.room_min + Eigen::Vector2d(uniform(rng) * span.x(), uniform(rng) * span.y());
     const double a = 2.0 * M_PI * uniform(rng);
     walkers_.push_back({start, Eigen::Vector2d(std::cos(a), std::sin(a))});
   }
@@ -152,8 +158,9 @@ const std::vector<Eigen::Vector3f>& IrRenderer::PixelRays(const Camera& camera) 
   return ray_cache_.emplace(key, std::move(rays)).first->second;
 }
 
-IrRenderer::Hit IrRenderer::Shade(const Eigen::Vector3d& c, const Eigen::Vector3d& d_in, const Eigen::Vector3d& axis,
-                                  const std::vector<Eigen::Vector2d>& people, bool led_on, double lamp_level) const {
+IrRenderer::Hit IrRenderer::Shade(const Eigen::Vector3d& c, const Eigen::Vector3d& d_in,
+                                  const Eigen::Vector3d& axis, const std::vector<Eigen::Vector2d>& people,
+                                  bool led_on, double lamp_level) const {
   const Eigen::Vector3d d = d_in.normalized();
   const IrOptions& o = options_;
   // People: the nearest vertical cylinder the ray enters between the floor and its top.
@@ -161,14 +168,16 @@ IrRenderer::Hit IrRenderer::Shade(const Eigen::Vector3d& c, const Eigen::Vector3
   for (const Eigen::Vector2d& p : people) {
     const Eigen::Vector2d q = c.head<2>() - p;
     if (q.norm() <= o.person_radius_m) continue;  // the camera would be inside: nobody stands on the robot
-    const double a = d.head<2>().squaredNorm(), b = q.dot(d.head<2>()), cc = q.squaredNorm() - o.person_radius_m * o.person_radius_m;
+    const double a = d.head<2>().squaredNorm(), b = q.dot(d.head<2>()),
+                 cc = q.squaredNorm() - o.person_radius_m * o.person_radius_m;
     const double disc = b * b - a * cc;
     if (a <= 0.0 || disc < 0.0) continue;
     const double t = (-b - std::sqrt(disc)) / a;
     const double z = c.z() + t * d.z();
     if (t > 0.0 && t < t_best && z >= 0.0 && z <= o.person_height_m) t_best = t;
   }
-  const double t_ceiling = d.z() > 1e-9 ? (room_.ceiling_z - c.z()) / d.z() : std::numeric_limits<double>::infinity();
+  const double t_ceiling =
+      d.z() > 1e-9 ? (room_.ceiling_z - c.z()) / d.z() : std::numeric_limits<double>::infinity();
   if (t_best < t_ceiling) {
     double value = o.ambient * o.person_albedo;
     if (led_on) value += o.led_diffuse * o.person_albedo / std::max(1e-2, t_best * t_best);
@@ -177,7 +186,8 @@ IrRenderer::Hit IrRenderer::Shade(const Eigen::Vector3d& c, const Eigen::Vector3
   if (!std::isfinite(t_ceiling)) return {kWall, o.ambient * 0.7};
   const Eigen::Vector3d hit = c + t_ceiling * d;
   const double dist2 = t_ceiling * t_ceiling;
-  if ((hit.head<2>().array() < room_.room_min.array()).any() || (hit.head<2>().array() > room_.room_max.array()).any()) {
+  if ((hit.head<2>().array() < room_.room_min.array()).any() ||
+      (hit.head<2>().array() > room_.room_max.array()).any()) {
     return {kWall, o.ambient * 0.7 + (led_on ? o.led_diffuse * 0.7 / dist2 : 0.0)};
   }
   for (const Eigen::Vector2d& lamp : room_.lamps) {
@@ -246,7 +256,9 @@ cv::Mat IrRenderer::Render(const Camera& camera, const SE3d& T_world_camera, dou
             // Bilinear between the pixel-centre rays around the sub-pixel.
             const int c0 = dx < 0.0 ? col - 1 : col, r0 = dy < 0.0 ? r - 1 : r;
             const double fx = dx < 0.0 ? 1.0 + dx : dx, fy = dy < 0.0 ? 1.0 + dy : dy;
-            const auto at = [&](int rr, int cc) { return rays[static_cast<size_t>(rr) * width + cc].cast<double>(); };
+            const auto at = [&](int rr, int cc) {
+              return rays[static_cast<size_t>(rr) * width + cc].cast<double>();
+            };
             const Eigen::Vector3d ray = (1 - fy) * ((1 - fx) * at(r0, c0) + fx * at(r0, c0 + 1)) +
                                         fy * ((1 - fx) * at(r0 + 1, c0) + fx * at(r0 + 1, c0 + 1));
             if (!ray.allFinite()) continue;

@@ -29,13 +29,12 @@
 // Only the draws (people's starting points and directions, flicker, noise) depend on the seed.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <map>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <opencv2/core.hpp>
 
 #include "geometry/camera.h"
 #include "geometry/pose.h"
@@ -47,15 +46,16 @@ namespace waymark::sim {
 
 struct IrOptions {
   double fov_deg = 160.0;
-  double ambient = 40.0;          // gray level of a white surface in the room light alone
+  double ambient = 40.0;  // gray level of a white surface in the room light alone
   double ceiling_albedo = 0.8;
   double tape_albedo = 0.6;
   double person_albedo = 0.5;
-  double led_gain = 200.0;        // tape, on-axis, LED on (gray levels)
-  double led_exponent = -1.0;     // LED layout cos(theta)^p; < 0: brighter off-axis (the paper's tilted narrow LEDs)
+  double led_gain = 200.0;  // tape, on-axis, LED on (gray levels)
+  double led_exponent =
+      -1.0;  // LED layout cos(theta)^p; < 0: brighter off-axis (the paper's tilted narrow LEDs)
   double incidence_exponent = 0.5;
-  double led_diffuse = 60.0;      // diffuse LED light at 1 m on a white surface (gray levels)
-  int lamps = 2;                  // ceiling lamps near the first square
+  double led_diffuse = 60.0;  // diffuse LED light at 1 m on a white surface (gray levels)
+  int lamps = 2;              // ceiling lamps near the first square
   double lamp_radius_m = 0.15;
   double lamp_level = 250.0;
   double lamp_flicker = 0.05;
@@ -63,7 +63,7 @@ struct IrOptions {
   double person_radius_m = 0.25;
   double person_height_m = 1.7;
   double person_speed_mps = 1.2;
-  double pair_gap_s = 0.06;       // LED on for 60 ms, then the off frame
+  double pair_gap_s = 0.06;  // LED on for 60 ms, then the off frame
   double blur_sigma_px = 0.7;
   double noise_sigma = 2.0;
 

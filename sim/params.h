@@ -9,11 +9,11 @@
 // are errors (FormatError) that name the file, the line and the key.
 #pragma once
 
-#include "util/format.h"
-
 #include <filesystem>
 #include <string>
 #include <vector>
+
+#include "util/format.h"
 
 namespace waymark::sim {
 
@@ -67,6 +67,5 @@ class ParamSet {
 
   std::vector<Param> params_;
 };
-
 
 }  // namespace waymark::sim

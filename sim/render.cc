@@ -1,16 +1,15 @@
 #include "sim/render.h"
-#include "util/check.h"
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
-#include <opencv2/core/utility.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "detect/synthetic.h"
+#include "util/check.h"
 
 namespace waymark::sim {
 
@@ -76,7 +75,8 @@ Surface MakeSurface(SurfaceKind kind, int index, const SE3d& T_camera_world, con
 
 // Integer lattice hash -> [0, 1).
 float Hash(int ix, int iy, int salt) {
-  std::uint32_t h = static_cast<std::uint32_t>(ix) * 0x8da6b343u ^ static_cast<std::uint32_t>(iy) * 0xd8163841u ^
+  std::uint32_t h = static_cast<std::uint32_t>(ix) * 0x8da6b343u ^
+                    static_cast<std::uint32_t>(iy) * 0xd8163841u ^
                     static_cast<std::uint32_t>(salt) * 0xcb1ab31fu;
   h ^= h >> 13;
   h *= 0x5bd1e995u;
@@ -99,7 +99,8 @@ float ValueNoise(double x, double y, double cell_m, int salt) {
 float BackgroundAlbedo(const Surface& s, const Eigen::Vector3d& p_plane, double contrast) {
   const double x = p_plane.x(), y = p_plane.y();
   const int salt = static_cast<int>(s.kind) * 1000 + s.index;
-  const double texture = contrast * (ValueNoise(x, y, 0.06, salt) - 0.5 + ValueNoise(x, y, 0.45, salt + 7) - 0.5);
+  const double texture =
+      contrast * (ValueNoise(x, y, 0.06, salt) - 0.5 + ValueNoise(x, y, 0.45, salt + 7) - 0.5);
   switch (s.kind) {
     case SurfaceKind::kFloor: {
       const double jx = std::abs(x - 0.5 * std::round(x / 0.5)), jy = std::abs(y - 0.5 * std::round(y / 0.5));
@@ -134,10 +135,11 @@ CodeTexture MakeCodeTexture(const SimMarker& marker) {
   } else {
     throw std::invalid_argument("render: cannot draw family '" + family + "'");
   }
-  if (!(marker.size_m > 0.0)) throw std::invalid_argument("render: code " + marker.key.ToString() + " has no size");
+  if (!(marker.size_m > 0.0))
+    throw std::invalid_argument("render: code " + marker.key.ToString() + " has no size");
   CodeTexture texture;
-  cv::copyMakeBorder(symbol.modules, texture.modules, kExtraQuietModules, kExtraQuietModules, kExtraQuietModules,
-                     kExtraQuietModules, cv::BORDER_CONSTANT, cv::Scalar(255));
+  cv::copyMakeBorder(symbol.modules, texture.modules, kExtraQuietModules, kExtraQuietModules,
+                     kExtraQuietModules, kExtraQuietModules, cv::BORDER_CONSTANT, cv::Scalar(255));
   texture.symbol = symbol.symbol + cv::Point(kExtraQuietModules, kExtraQuietModules);
   texture.module_m = marker.size_m / symbol.symbol.width;
   texture.size_m = marker.size_m;
@@ -209,15 +211,18 @@ cv::Rect CodeBox(const Camera& camera, const std::vector<Eigen::Vector3f>& rays,
   double min_x = 1e18, min_y = 1e18, max_x = -1e18, max_y = -1e18;
   int behind = 0;
   for (int corner = 0; corner < 4; ++corner) {
-    behind += (T_camera_marker * Eigen::Vector3d(outline[corner].x(), outline[corner].y(), 0.0)).z() <= kMinDepth;
+    behind +=
+        (T_camera_marker * Eigen::Vector3d(outline[corner].x(), outline[corner].y(), 0.0)).z() <= kMinDepth;
   }
   if (behind == 4) return cv::Rect();  // wholly behind the camera
   if (behind > 0) {                    // straddles the camera plane
-    const SE3d T_camera_outline = T_camera_marker * SE3d(Eigen::Quaterniond::Identity(),
-                                                         Eigen::Vector3d(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0));
+    const SE3d T_camera_outline =
+        T_camera_marker *
+        SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0));
     const Eigen::AlignedBox2d view = WallViewBox(T_camera_outline, 0.5 * (x1 - x0), 0.5 * (y1 - y0));
     const auto& k = camera.info().intrinsics;
-    return view.isEmpty() ? cv::Rect() : RayBoxPixels(camera, rays, view, (kBoxPaddingPx + 1.0) / std::min(k[0], k[1]));
+    return view.isEmpty() ? cv::Rect()
+                          : RayBoxPixels(camera, rays, view, (kBoxPaddingPx + 1.0) / std::min(k[0], k[1]));
   }
   for (int edge = 0; edge < 4; ++edge) {
     for (int k = 0; k < kOutlineSamplesPerEdge; ++k) {
@@ -293,16 +298,18 @@ float Shade(const Eigen::Vector3d& ray_camera, const std::vector<const Surface*>
   return albedo;
 }
 
-
 }  // namespace
 
 bool RenderOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(supersample >= 1 && supersample <= 16, "render.supersample must be in [1, 16]");
-  WAYMARK_CHECK_OPTION(blur_sigma_px >= 0.0 && blur_sigma_px <= 20.0, "render.blur_sigma_px must be in [0, 20]");
+  WAYMARK_CHECK_OPTION(blur_sigma_px >= 0.0 && blur_sigma_px <= 20.0,
+                       "render.blur_sigma_px must be in [0, 20]");
   WAYMARK_CHECK_OPTION(noise_sigma >= 0.0 && noise_sigma <= 100.0, "render.noise_sigma must be in [0, 100]");
   WAYMARK_CHECK_OPTION(gradient >= 0.0 && gradient < 1.0, "render.gradient must be in [0, 1)");
-  WAYMARK_CHECK_OPTION(exposure_sigma >= 0.0 && exposure_sigma <= 2.0, "render.exposure_sigma must be in [0, 2]");
-  WAYMARK_CHECK_OPTION(texture_contrast >= 0.0 && texture_contrast <= 0.5, "render.texture_contrast must be in [0, 0.5]");
+  WAYMARK_CHECK_OPTION(exposure_sigma >= 0.0 && exposure_sigma <= 2.0,
+                       "render.exposure_sigma must be in [0, 2]");
+  WAYMARK_CHECK_OPTION(texture_contrast >= 0.0 && texture_contrast <= 0.5,
+                       "render.texture_contrast must be in [0, 0.5]");
   return true;
 }
 
@@ -310,7 +317,8 @@ void AddRenderParams(ParamSet* params) {
   const RenderOptions d;
   params->AddInt("render.supersample", d.supersample, 1, 16, "sub-pixel rays per axis on codes and edges");
   params->AddDouble("render.blur_sigma_px", d.blur_sigma_px, 0.0, 20.0, "Gaussian blur sigma (px); 0 = none");
-  params->AddDouble("render.noise_sigma", d.noise_sigma, 0.0, 100.0, "pixel noise sigma (gray levels of 255)");
+  params->AddDouble("render.noise_sigma", d.noise_sigma, 0.0, 100.0,
+                    "pixel noise sigma (gray levels of 255)");
   params->AddDouble("render.gradient", d.gradient, 0.0, 0.99,
                     "illumination change from the image centre to its side (relative)");
   params->AddDouble("render.exposure_sigma", d.exposure_sigma, 0.0, 2.0, "per-image log-exposure sigma");
@@ -385,14 +393,14 @@ FramePlanes MakeFramePlanes(const World& world, const std::vector<CodeTexture>& 
     planes.background.push_back(s);
   }
   planes.background.push_back(MakeSurface(SurfaceKind::kFloor, 0, T_camera_world, SE3d()));
-  planes.background.push_back(MakeSurface(SurfaceKind::kCeiling, 0, T_camera_world,
-                                          SE3d(Eigen::Quaterniond::Identity(),
-                                               Eigen::Vector3d(0.0, 0.0, ceiling_z_m))));
+  planes.background.push_back(
+      MakeSurface(SurfaceKind::kCeiling, 0, T_camera_world,
+                  SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, ceiling_z_m))));
   for (size_t i = 0; i < planes.background.size(); ++i) planes.background[i].id = static_cast<int>(i);
   for (size_t i = 0; i < world.markers.size(); ++i) {
     const SE3d T_camera_marker = T_camera_world * world.markers[i].T_world_marker;
-    Surface s = MakeSurface(SurfaceKind::kCode, static_cast<int>(i), T_camera_world,
-                            world.markers[i].T_world_marker);
+    Surface s =
+        MakeSurface(SurfaceKind::kCode, static_cast<int>(i), T_camera_world, world.markers[i].T_world_marker);
     if (s.t_plane_camera.z() <= 0.0) continue;  // seen from behind (or edge-on)
     s.box_px = CodeBox(camera, rays, textures[i], T_camera_marker);
     if (!s.box_px.empty()) planes.codes.push_back(s);
@@ -477,8 +485,8 @@ std::optional<Eigen::Vector3d> InterpolatedRay(const Camera& camera, const std::
 // [rect.x - 0.5 + i / n, + 1 / n) x [rect.y - 0.5 + j / n, + 1 / n) (stratified: on a regular grid a
 // nearly horizontal edge would move in steps of 1 / n px; jittered, it is right on average).
 cv::Mat SupersampledAlbedo(const Camera& camera, const std::vector<Eigen::Vector3f>& rays,
-                           const FramePlanes& planes, const std::vector<CodeTexture>& textures, double contrast,
-                           const cv::Rect& rect, int n) {
+                           const FramePlanes& planes, const std::vector<CodeTexture>& textures,
+                           double contrast, const cv::Rect& rect, int n) {
   cv::Mat fine(rect.height * n, rect.width * n, CV_32F, cv::Scalar(0.0f));
   const std::vector<const Surface*> codes = CodesIn(planes, rect);
   const int background_count = static_cast<int>(planes.background.size());
@@ -505,8 +513,8 @@ cv::Mat SupersampledAlbedo(const Camera& camera, const std::vector<Eigen::Vector
 cv::Mat HiddenByCodeBlur(const FramePlanes& planes, cv::Size size, int reach) {
   cv::Mat hidden(size, CV_8U, cv::Scalar(0));
   for (const Surface& s : planes.codes) {
-    const cv::Rect inner =
-        cv::Rect(s.box_px.x + reach, s.box_px.y + reach, s.box_px.width - 2 * reach, s.box_px.height - 2 * reach);
+    const cv::Rect inner = cv::Rect(s.box_px.x + reach, s.box_px.y + reach, s.box_px.width - 2 * reach,
+                                    s.box_px.height - 2 * reach);
     if (inner.width > 0 && inner.height > 0) hidden(inner & cv::Rect(cv::Point(), size)).setTo(1);
   }
   return hidden;
@@ -533,9 +541,9 @@ cv::Mat FinePixels(const FramePlanes& planes, const cv::Mat& surface_id) {
 
 // Albedo of every pixel for one ray through its centre (cached rays); the id of the surface
 // hit into *surface_id. Pixels marked in `skip` are left at 0 (id -1).
-void CentreRayAlbedo(const Camera& camera, const std::vector<Eigen::Vector3f>& rays, const FramePlanes& planes,
-                     const std::vector<CodeTexture>& textures, double contrast, const cv::Mat& skip,
-                     cv::Mat* albedo, cv::Mat* surface_id) {
+void CentreRayAlbedo(const Camera& camera, const std::vector<Eigen::Vector3f>& rays,
+                     const FramePlanes& planes, const std::vector<CodeTexture>& textures, double contrast,
+                     const cv::Mat& skip, cv::Mat* albedo, cv::Mat* surface_id) {
   const std::vector<const Surface*> no_codes;
   const int background_count = static_cast<int>(planes.background.size());
   ForEachTile(cv::Rect(0, 0, camera.width(), camera.height()), [&](const cv::Rect& tile) {
@@ -582,7 +590,8 @@ void FineAlbedo(const Camera& camera, const std::vector<Eigen::Vector3f>& rays, 
 
 }  // namespace
 
-cv::Mat Renderer::AlbedoImage(const Camera& camera, const SE3d& T_world_camera, bool skip_blurred_codes) const {
+cv::Mat Renderer::AlbedoImage(const Camera& camera, const SE3d& T_world_camera,
+                              bool skip_blurred_codes) const {
   const std::vector<Eigen::Vector3f>& rays = PixelRays(camera);
   const FramePlanes planes = MakeFramePlanes(world_, codes_, ceiling_z_m_, camera, rays, T_world_camera);
   const cv::Size size(camera.width(), camera.height());

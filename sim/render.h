@@ -39,7 +39,8 @@
 //   albedo   codes 0.06 dark / 0.85 light; walls, floor and ceiling a low-contrast value
 //            noise texture (two octaves, +-texture_contrast/2 each) on their plane, the floor
 //            with tile joints every 0.5 m
-//   light    I = 255 albedo e g(u) (applied after the blur: g varies over hundreds of pixels),  e = exp(N(0, exposure_sigma^2)) per image,
+//   light    I = 255 albedo e g(u) (applied after the blur: g varies over hundreds of pixels),  e = exp(N(0,
+//   exposure_sigma^2)) per image,
 //            g(u) = 1 + gradient (u - c) . (cos phi, sin phi) / (width / 2), phi ~ U[0, 2 pi)
 //            per image (c: image centre)
 //   blur     Gaussian, blur_sigma_px (0: none), an optical blur: it acts before the pixel
@@ -58,10 +59,9 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "geometry/camera.h"
 #include "geometry/pose.h"
@@ -72,11 +72,11 @@
 namespace waymark::sim {
 
 struct RenderOptions {
-  int supersample = 4;           // sub-pixel rays per axis on codes and edges
-  double blur_sigma_px = 0.7;    // Gaussian blur (optics, motion); 0 = none
-  double noise_sigma = 2.0;      // pixel noise, gray levels (of 255)
-  double gradient = 0.25;        // illumination change from the image centre to its side
-  double exposure_sigma = 0.15;  // per-image log-exposure spread
+  int supersample = 4;             // sub-pixel rays per axis on codes and edges
+  double blur_sigma_px = 0.7;      // Gaussian blur (optics, motion); 0 = none
+  double noise_sigma = 2.0;        // pixel noise, gray levels (of 255)
+  double gradient = 0.25;          // illumination change from the image centre to its side
+  double exposure_sigma = 0.15;    // per-image log-exposure spread
   double texture_contrast = 0.12;  // albedo amplitude of the wall/floor/ceiling texture
 
   // True if usable; otherwise false with the reason in *why (when why != nullptr).

@@ -3,10 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 #include <system_error>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include "io/dataset_io.h"
 #include "io/detections_io.h"
@@ -22,7 +21,8 @@ const SE3d& TruePoseAt(const Trajectory& truth, double stamp_s) {
   const auto it = std::lower_bound(truth.begin(), truth.end(), stamp_s,
                                    [](const StampedSE3& s, double t) { return s.stamp_s < t; });
   if (it == truth.end() || it->stamp_s != stamp_s) {
-    throw std::logic_error("render: camera frame at t=" + FormatDouble(stamp_s) + " is not a true-path sample");
+    throw std::logic_error("render: camera frame at t=" + FormatDouble(stamp_s) +
+                           " is not a true-path sample");
   }
   return it->T;
 }
@@ -124,7 +124,8 @@ RenderStats RenderIrRun(const SimResult& result, const IrOptions& options, std::
       const ImageEntry entry{t, frames[i].camera, path};
       std::error_code ec;
       fs::create_directories((dir / entry.path).parent_path(), ec);
-      const cv::Mat image = renderer.Render(camera, T_world_camera, t, on, 2 * static_cast<std::uint64_t>(i) + (on ? 0 : 1));
+      const cv::Mat image =
+          renderer.Render(camera, T_world_camera, t, on, 2 * static_cast<std::uint64_t>(i) + (on ? 0 : 1));
       if (ec || !cv::imwrite((dir / entry.path).string(), image)) {
         throw std::runtime_error((dir / entry.path).string() + ": cannot write image");
       }

@@ -20,7 +20,7 @@ namespace waymark::sim {
 
 struct RenderStats {
   long images = 0;
-  long codes = 0;  // ground-truth corner sets written
+  long codes = 0;        // ground-truth corner sets written
   double seconds = 0.0;  // wall time spent rendering and writing images
 };
 

@@ -529,9 +529,11 @@ ParamSet SquareCeilingParams() {
   p.AddInt("camera.width", 1280, 16, 10000, "image width");
   p.AddInt("camera.height", 1024, 16, 10000, "image height");
   p.AddDouble("camera.fov_deg", 160.0, 10.0, 180.0, "lens field of view (black beyond)");
-  p.AddDouble("camera.tilt_deg", 0.0, 0.0, 20.0, "true mount tilt off vertical; the calibration says upright");
+  p.AddDouble("camera.tilt_deg", 0.0, 0.0, 20.0,
+              "true mount tilt off vertical; the calibration says upright");
   p.AddDouble("camera.tilt_azimuth_deg", 0.0, -360.0, 360.0, "direction of the tilt (0: towards robot +x)");
-  p.AddDouble("camera.lens_error_k1", 0.0, -1.0, 1.0, "true lens k1 (equisolid polynomial); the calibration says 0");
+  p.AddDouble("camera.lens_error_k1", 0.0, -1.0, 1.0,
+              "true lens k1 (equisolid polynomial); the calibration says 0");
   p.AddDouble("camera.focal_error", 0.0, -0.5, 0.5, "true focal length / calibrated one - 1");
   p.AddDouble("path.half_side_m", 1.2, 0.0, 50.0, "loop: rectangle this far around the squares' centres");
   p.AddInt("path.loops", 1, 1, 100, "times round the loop");
@@ -546,7 +548,8 @@ Scene BuildSquareCeiling(const ParamSet& p) {
   world.name = "sim-square-ceiling";
   const int squares = static_cast<int>(p.Int("place.squares"));
   const double spacing = p.Double("place.square_spacing_m"), side = p.Double("place.square_side_m");
-  const double cam_h = p.Double("place.camera_height_m"), ceiling_z = cam_h + p.Double("place.ceiling_above_camera_m");
+  const double cam_h = p.Double("place.camera_height_m"),
+               ceiling_z = cam_h + p.Double("place.ceiling_above_camera_m");
   SquareTape tape;
   tape.tape_width_m = p.Double("place.tape_width_m");
   tape.dash_m = p.Double("place.dash_m");
@@ -563,7 +566,8 @@ Scene BuildSquareCeiling(const ParamSet& p) {
     m.key = {kFamilySquare, "S" + std::to_string(i)};
     m.size_m = side;
     // Facing down; marker x along world +x, y along world -y (seen from below, upright).
-    m.T_world_marker = SE3d(RotationFromZY({0, 0, -1}, {0, -1, 0}), Eigen::Vector3d(i * spacing, 0.0, ceiling_z));
+    m.T_world_marker =
+        SE3d(RotationFromZY({0, 0, -1}, {0, -1, 0}), Eigen::Vector3d(i * spacing, 0.0, ceiling_z));
     m.anchor = true;  // the squares' positions are known (the paper measures them)
     m.square_tape = tape;
     world.markers.push_back(m);
@@ -576,9 +580,11 @@ Scene BuildSquareCeiling(const ParamSet& p) {
   const int lamps = static_cast<int>(p.Int("ir.lamps"));
   for (int k = 0; k < lamps; ++k) {  // around the first square, 0.4 m outside its tape
     const double a = 2.0 * M_PI * k / std::max(1, lamps) + 0.3;
-    room.lamps.emplace_back((half + 0.4) * std::sqrt(2.0) * std::cos(a), (half + 0.4) * std::sqrt(2.0) * std::sin(a));
+    room.lamps.emplace_back((half + 0.4) * std::sqrt(2.0) * std::cos(a),
+                            (half + 0.4) * std::sqrt(2.0) * std::sin(a));
   }
-  AddRectangleWalls(room.room_min.x(), room.room_min.y(), room.room_max.x(), room.room_max.y(), ceiling_z, &world.occluders);
+  AddRectangleWalls(room.room_min.x(), room.room_min.y(), room.room_max.x(), room.room_max.y(), ceiling_z,
+                    &world.occluders);
   scene.ir_room = room;
 
   // The camera: equisolid, fx = focal / pixel pitch; truly tilted and with the lens' own error,
@@ -595,11 +601,13 @@ Scene BuildSquareCeiling(const ParamSet& p) {
   CameraInfo truth = nominal;
   truth.intrinsics[0] = truth.intrinsics[1] = f_px * (1.0 + p.Double("camera.focal_error"));
   truth.distortion[0] = p.Double("camera.lens_error_k1");
-  const double tilt = p.Double("camera.tilt_deg") * kDegToRad, azimuth = p.Double("camera.tilt_azimuth_deg") * kDegToRad;
+  const double tilt = p.Double("camera.tilt_deg") * kDegToRad,
+               azimuth = p.Double("camera.tilt_azimuth_deg") * kDegToRad;
   // Tilt the optical axis towards robot direction (cos azimuth, sin azimuth, 0).
   const Eigen::Vector3d tilt_axis(-std::sin(azimuth), std::cos(azimuth), 0.0);
-  truth.T_robot_camera = SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(tilt, tilt_axis)) * nominal.T_robot_camera.rotation(),
-                              nominal.T_robot_camera.translation());
+  truth.T_robot_camera =
+      SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(tilt, tilt_axis)) * nominal.T_robot_camera.rotation(),
+           nominal.T_robot_camera.translation());
   Camera{truth};  // checks the true calibration (throws std::runtime_error if unusable)
   world.cameras.push_back(truth);
   world.calibrated_cameras.push_back(nominal);

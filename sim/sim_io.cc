@@ -27,8 +27,7 @@ void CheckOutput(const fs::path& out_dir, bool force) {
 }  // namespace
 
 void WriteSimDataset(const SimResult& result, const ParamSet& params, std::uint64_t seed,
-                     const fs::path& out_dir, bool force,
-                     const std::function<void(const fs::path&)>& extra) {
+                     const fs::path& out_dir, bool force, const std::function<void(const fs::path&)>& extra) {
   CheckOutput(out_dir, force);
   fs::path target = fs::absolute(out_dir).lexically_normal();
   if (!target.has_filename()) target = target.parent_path();  // "out/" names "out"

@@ -28,7 +28,9 @@ inline bool FailCheck(std::string* why, const std::string& message) {
 
 // The rules most options share. NaN fails all of them.
 inline bool IsFinitePositive(double value) { return std::isfinite(value) && value > 0.0; }
-inline bool IsFiniteAtLeast(double value, double min_value) { return std::isfinite(value) && value >= min_value; }
+inline bool IsFiniteAtLeast(double value, double min_value) {
+  return std::isfinite(value) && value >= min_value;
+}
 inline bool IsFiniteInRange(double value, double min_value, double max_value) {
   return std::isfinite(value) && value >= min_value && value <= max_value;
 }
@@ -36,7 +38,7 @@ inline bool IsFiniteInRange(double value, double min_value, double max_value) {
 }  // namespace waymark
 
 // One rule of a Check(std::string* why): returns false with `message` when `condition` fails.
-#define WAYMARK_CHECK_OPTION(condition, message) \
-  do {                                           \
+#define WAYMARK_CHECK_OPTION(condition, message)                 \
+  do {                                                           \
     if (!(condition)) return ::waymark::FailCheck(why, message); \
   } while (false)

@@ -2,14 +2,13 @@
 // directory per test.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "io/util.h"
 
@@ -25,7 +24,8 @@ struct RunResult {
 inline RunResult RunWaymark(const std::string& arguments, const std::filesystem::path& scratch_dir,
                             const std::string& stdin_file = "") {
   const std::filesystem::path out = scratch_dir / "stdout.txt", err = scratch_dir / "stderr.txt";
-  std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
+  std::string command =
+      std::string(WAYMARK_BINARY) + " " + arguments + " >" + out.string() + " 2>" + err.string();
   if (!stdin_file.empty()) command += " <" + stdin_file;
   RunResult result;
   const int status = std::system(command.c_str());
@@ -37,9 +37,9 @@ inline RunResult RunWaymark(const std::string& arguments, const std::filesystem:
 
 // A fresh, empty temporary directory "waymark_<prefix>_<pid>[_<suffix>]".
 inline std::filesystem::path FreshTestDir(const std::string& prefix, const std::string& suffix = "") {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("waymark_" + prefix + "_" + std::to_string(::getpid()) +
-                                     (suffix.empty() ? "" : "_" + suffix));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() /
+      ("waymark_" + prefix + "_" + std::to_string(::getpid()) + (suffix.empty() ? "" : "_" + suffix));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

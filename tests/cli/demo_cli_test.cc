@@ -4,8 +4,6 @@
 // EKF and than odometry alone, a map error bound, detection working on the shipped images).
 // Bad input gives one line on stderr, exit 1, and no output directory.
 #include <gtest/gtest.h>
-
-#include "tests/cli/cli_test_util.h"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,9 +13,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "io/util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
+#include "tests/cli/cli_test_util.h"
 
 namespace waymark {
 namespace {
@@ -74,8 +73,9 @@ TEST_F(DemoCliTest, ShippedDataGivesTheTableWithOursBest) {
   const fs::path out = dir_ / "out";
   const RunResult demo = Run("demo --data " + DemoData().string() + " --out " + out.string());
   ASSERT_EQ(demo.exit_code, 0) << demo.err;
-  for (const char* text : {"odometry alone", "loosely coupled EKF", "ours (tight, corners)", "ATE RMSE",
-                           "map against the true code poses", "the map's covariances predicted", "detection ("}) {
+  for (const char* text :
+       {"odometry alone", "loosely coupled EKF", "ours (tight, corners)", "ATE RMSE",
+        "map against the true code poses", "the map's covariances predicted", "detection ("}) {
     EXPECT_NE(demo.out.find(text), std::string::npos) << text << " missing from\n" << demo.out;
   }
   EXPECT_NE(demo.err.find("demo: done"), std::string::npos) << demo.err;

@@ -10,13 +10,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <string>
-#include <thread>
-#include <vector>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <string>
+#include <thread>
+#include <vector>
 
 #include "detect/synthetic.h"
 #include "io/detections_io.h"
@@ -38,8 +37,8 @@ class DetectCli : public ::testing::Test {
 
   // Runs the binary; returns its exit status; stderr goes to dir_/stderr.txt.
   int Run(const std::string& arguments) {
-    const std::string command = std::string(WAYMARK_BINARY) + " detect " + arguments + " 2> " +
-                                (dir_ / "stderr.txt").string();
+    const std::string command =
+        std::string(WAYMARK_BINARY) + " detect " + arguments + " 2> " + (dir_ / "stderr.txt").string();
     const int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
@@ -106,7 +105,8 @@ TEST_F(DetectCli, DatasetDirectoryUsesRowsStampsAndCameras) {
   const fs::path data = dir_ / "ds";
   fs::create_directories(data / "cameras");
   fs::create_directories(data / "img");
-  std::ofstream(data / "dataset.yaml") << "format: waymark-dataset\nversion: 1\nmotion: planar\ncameras: [front]\n";
+  std::ofstream(data / "dataset.yaml")
+      << "format: waymark-dataset\nversion: 1\nmotion: planar\ncameras: [front]\n";
   std::ofstream(data / "cameras" / "front.yaml")
       << "model: pinhole-radtan\nwidth: 640\nheight: 480\nintrinsics: [500, 500, 320, 240]\n"
          "distortion: [0, 0, 0, 0, 0]\nT_robot_camera: {t: [0, 0, 0], q_xyzw: [0, 0, 0, 1]}\n";
@@ -125,7 +125,8 @@ TEST_F(DetectCli, DatasetDirectoryUsesRowsStampsAndCameras) {
 
 TEST_F(DetectCli, VideoFramesAreNumbered) {
   const fs::path video = dir_ / "clip.avi";
-  cv::VideoWriter writer(video.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0, cv::Size(640, 480));
+  cv::VideoWriter writer(video.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0,
+                         cv::Size(640, 480));
   if (!writer.isOpened()) GTEST_SKIP() << "this OpenCV cannot write MJPG/AVI";
   for (int i = 0; i < 3; ++i) {
     cv::Mat bgr;
@@ -148,11 +149,12 @@ TEST_F(DetectCli, VideoFramesAreNumbered) {
 // Issue 18, finding 3: an 8-bit PNG of 2000x1 (or 4000x1, 20000x4) ended `detect` with a raw
 // OpenCV assertion (resize.cpp, !dsize.empty()); now a normal empty result.
 TEST_F(DetectCli, OddImageShapesGiveAnEmptyResult) {
-  for (const cv::Size size : {cv::Size(2000, 1), cv::Size(4000, 1), cv::Size(20000, 4), cv::Size(1, 3000),
-                              cv::Size(1, 1)}) {
+  for (const cv::Size size :
+       {cv::Size(2000, 1), cv::Size(4000, 1), cv::Size(20000, 4), cv::Size(1, 3000), cv::Size(1, 1)}) {
     cv::Mat image(size, CV_8U);
     cv::randu(image, 0, 256);
-    const fs::path file = dir_ / ("odd_" + std::to_string(size.width) + "x" + std::to_string(size.height) + ".png");
+    const fs::path file =
+        dir_ / ("odd_" + std::to_string(size.width) + "x" + std::to_string(size.height) + ".png");
     ASSERT_TRUE(cv::imwrite(file.string(), image));
     const fs::path out = dir_ / "odd.jsonl";
     ASSERT_EQ(Run(file.string() + " --out " + out.string()), 0) << file << ": " << Stderr();
@@ -169,15 +171,18 @@ TEST_F(DetectCli, CorruptPngIsOneLineWithoutDecoderNoise) {
   // A wrong CRC in the header chunk, and a file cut in the middle of its pixels.
   std::vector<uchar> bad_crc = png;
   bad_crc[29] ^= 0xff;
-  std::ofstream(dir_ / "crc.png", std::ios::binary).write(reinterpret_cast<const char*>(bad_crc.data()), bad_crc.size());
-  std::ofstream(dir_ / "cut.png", std::ios::binary).write(reinterpret_cast<const char*>(png.data()), png.size() / 2);
+  std::ofstream(dir_ / "crc.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bad_crc.data()), bad_crc.size());
+  std::ofstream(dir_ / "cut.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(png.data()), png.size() / 2);
   // A PNG header declaring 100000 x 100000 pixels: refused before decoding.
   std::vector<uchar> huge(png.begin(), png.begin() + 33);
   for (int i = 0; i < 2; ++i) {
     const uint32_t side = 100000;
     for (int b = 0; b < 4; ++b) huge[16 + 4 * i + b] = static_cast<uchar>(side >> (24 - 8 * b));
   }
-  std::ofstream(dir_ / "huge.png", std::ios::binary).write(reinterpret_cast<const char*>(huge.data()), huge.size());
+  std::ofstream(dir_ / "huge.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(huge.data()), huge.size());
   for (const std::string name : {"crc.png", "cut.png", "huge.png"}) {
     EXPECT_EQ(Run((dir_ / name).string() + " --out " + (dir_ / "never.jsonl").string()), 1) << name;
     const std::string err = Stderr();
@@ -219,7 +224,9 @@ TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
   }
   // An annotate directory that existed is kept, and holds nothing after a failed run.
   fs::create_directories(dir_ / "kept");
-  EXPECT_EQ(Run((dir_ / "mixed").string() + " --out " + out.string() + " --annotate " + (dir_ / "kept").string()), 1);
+  EXPECT_EQ(
+      Run((dir_ / "mixed").string() + " --out " + out.string() + " --annotate " + (dir_ / "kept").string()),
+      1);
   EXPECT_TRUE(fs::exists(dir_ / "kept"));
   EXPECT_TRUE(fs::is_empty(dir_ / "kept"));
   EXPECT_EQ(Run((dir_ / "mixed" / "a.png").string()), 1);  // --out missing
@@ -262,8 +269,10 @@ cv::Mat HardFrame(int seed) {
     cv::rectangle(frame, box, cv::Scalar(rng.uniform(30, 230)), rng.uniform(0, 2) ? cv::FILLED : 3);
   }
   DrawSymbol(QrSymbol("hard/" + std::to_string(seed)), MakeQuad({250.0, 250.0}, 60.0, 0.4, 0.6), &frame);
-  DrawSymbol(DataMatrixSymbol("DM" + std::to_string(seed)), MakeQuad({700.0, 300.0}, 110.0, 0.785, 0.9), &frame);
-  DrawSymbol(DataMatrixSymbol("dm" + std::to_string(seed)), MakeQuad({1050.0, 650.0}, 70.0, 2.2, 0.8), &frame);
+  DrawSymbol(DataMatrixSymbol("DM" + std::to_string(seed)), MakeQuad({700.0, 300.0}, 110.0, 0.785, 0.9),
+             &frame);
+  DrawSymbol(DataMatrixSymbol("dm" + std::to_string(seed)), MakeQuad({1050.0, 650.0}, 70.0, 2.2, 0.8),
+             &frame);
   DrawSymbol(AprilTagSymbol("apriltag-36h11", seed), MakeQuad({300.0, 720.0}, 50.0, 0.3, 0.8), &frame);
   DrawSymbol(QrSymbol("inv/" + std::to_string(seed)), MakeQuad({700.0, 720.0}, 150.0, -0.2), &frame, 230, 25);
   cv::GaussianBlur(frame, frame, cv::Size(0, 0), 0.8);

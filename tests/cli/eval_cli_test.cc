@@ -1,5 +1,6 @@
 // End to end through the `waymark` binary: `waymark eval` on files written to a temporary
 // directory, checking the JSON fields, the Markdown and SVG outputs, and the one-line errors.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -9,17 +10,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
-#include <gtest/gtest.h>
-
-#include "tests/cli/cli_test_util.h"
-#include <nlohmann/json.hpp>
-
-#include "io/util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
+#include "tests/cli/cli_test_util.h"
 
 namespace waymark {
 namespace {
@@ -42,7 +40,8 @@ class EvalCliTest : public CliTest {
 // 1, 2, 3, 4 deg (mean 2.5).
 void WriteHandCase(const std::string& gt_path, const std::string& est_path) {
   const SE3d T0(Eigen::Matrix3d((Eigen::AngleAxisd(30 * kDeg, Eigen::Vector3d::UnitZ()) *
-                                 Eigen::AngleAxisd(10 * kDeg, Eigen::Vector3d::UnitX())).toRotationMatrix()),
+                                 Eigen::AngleAxisd(10 * kDeg, Eigen::Vector3d::UnitX()))
+                                    .toRotationMatrix()),
                 Eigen::Vector3d(10, 20, 0.5));
   const std::vector<Eigen::Vector3d> p = {{0, 0, 0}, {4, 0, 0}, {4, 2, 0}, {0, 2, 0}};
   const std::vector<Eigen::Vector3d> e = {{0.3, 0, 0.4}, {-0.3, 0, -0.4}, {0, 0, 0.4}, {0, 0, -0.4}};
@@ -64,9 +63,10 @@ TEST_F(EvalCliTest, TrajectoryWritesJsonMarkdownAndSvg) {
   WriteHandCase(Path("gt.tum"), Path("est.tum"));
   // Predicted poses: the truth at t = 1 moved 0.3 m in x and turned 2 deg (PE 0.3, TE 2).
   WriteTum(Path("pred.tum"), {{1.002, SE3d::FromXYZYaw(4.3, 0, 0, 92 * kDeg)}});
-  const RunResult r = Run("--est " + Path("est.tum") + " --gt " + Path("gt.tum") + " --rpe-delta 1 --predicted " +
-                          Path("pred.tum") + " --json " + Path("out/eval.json") + " --report " +
-                          Path("out/eval.md") + " --plot " + Path("out/eval.svg"));
+  const RunResult r =
+      Run("--est " + Path("est.tum") + " --gt " + Path("gt.tum") + " --rpe-delta 1 --predicted " +
+          Path("pred.tum") + " --json " + Path("out/eval.json") + " --report " + Path("out/eval.md") +
+          " --plot " + Path("out/eval.svg"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("ATE trans (m)"), std::string::npos) << r.out;
   const nlohmann::json j = nlohmann::json::parse(ReadTextFile(Path("out/eval.json")));
@@ -160,14 +160,16 @@ TEST_F(EvalCliTest, MapAgainstMap) {
 TEST_F(EvalCliTest, TrajectoryAndMapInOneCall) {
   WriteHandCase(Path("gt.tum"), Path("est.tum"));
   MarkerMap truth, estimate;
-  for (const auto& [id, x, y] : std::vector<std::tuple<std::string, double, double>>{{"a", 0, 0}, {"b", 3, 0}, {"c", 0, 2}}) {
+  for (const auto& [id, x, y] :
+       std::vector<std::tuple<std::string, double, double>>{{"a", 0, 0}, {"b", 3, 0}, {"c", 0, 2}}) {
     truth.markers.push_back(CliMarker(id, x, y, std::nullopt));
     estimate.markers.push_back(CliMarker(id, x + 0.5, y, 0));
   }
   WriteMap(Path("gt.json"), truth);
   WriteMap(Path("map.json"), estimate);
-  const RunResult r = Run("--est " + Path("est.tum") + " --gt " + Path("gt.tum") + " --map " + Path("map.json") +
-                          " --gt-map " + Path("gt.json") + " --json " + Path("both.json") + " --plot " + Path("both.svg"));
+  const RunResult r =
+      Run("--est " + Path("est.tum") + " --gt " + Path("gt.tum") + " --map " + Path("map.json") +
+          " --gt-map " + Path("gt.json") + " --json " + Path("both.json") + " --plot " + Path("both.svg"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = nlohmann::json::parse(ReadTextFile(Path("both.json")));
   EXPECT_NEAR(j["ate"]["rmse"].get<double>(), 0.452769256906871, 1e-9);
@@ -180,7 +182,8 @@ TEST_F(EvalCliTest, TrajectoryAndMapInOneCall) {
 TEST_F(EvalCliTest, MalformedTumNamesFileAndLineAndWritesNothing) {
   WriteHandCase(Path("gt.tum"), Path("est.tum"));
   AtomicWriteFile(Path("bad.tum"), "0 0 0 0 0 0 0 1\n1 0 0 zero 0 0 0 1\n");
-  const RunResult r = Run("--est " + Path("bad.tum") + " --gt " + Path("gt.tum") + " --json " + Path("x.json"));
+  const RunResult r =
+      Run("--est " + Path("bad.tum") + " --gt " + Path("gt.tum") + " --json " + Path("x.json"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find(Path("bad.tum") + ":2"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -188,18 +191,23 @@ TEST_F(EvalCliTest, MalformedTumNamesFileAndLineAndWritesNothing) {
 }
 
 TEST_F(EvalCliTest, NoPairsSaysSoAndSuggestsMaxDt) {
-  WriteTum(Path("gt.tum"), {{0.0, SE3d()}, {1.0, SE3d::FromXYZYaw(1, 0, 0, 0)}, {2.0, SE3d::FromXYZYaw(1, 1, 0, 0)}});
+  WriteTum(Path("gt.tum"),
+           {{0.0, SE3d()}, {1.0, SE3d::FromXYZYaw(1, 0, 0, 0)}, {2.0, SE3d::FromXYZYaw(1, 1, 0, 0)}});
   WriteTum(Path("late.tum"), {{50.0, SE3d()}, {51.0, SE3d::FromXYZYaw(1, 0, 0, 0)}});
-  const RunResult r = Run("--est " + Path("late.tum") + " --gt " + Path("gt.tum") + " --json " + Path("x.json"));
+  const RunResult r =
+      Run("--est " + Path("late.tum") + " --gt " + Path("gt.tum") + " --json " + Path("x.json"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("no pose pairs"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("--max-dt"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(Path("late.tum")), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(Path("x.json")));
   // A larger --max-dt is not a cure for a clock 50 s off, but a 0.5 s one is.
-  WriteTum(Path("offset.tum"), {{0.4, SE3d()}, {1.4, SE3d::FromXYZYaw(1, 0, 0, 0)}, {2.4, SE3d::FromXYZYaw(1, 1, 0, 0)}});
+  WriteTum(Path("offset.tum"),
+           {{0.4, SE3d()}, {1.4, SE3d::FromXYZYaw(1, 0, 0, 0)}, {2.4, SE3d::FromXYZYaw(1, 1, 0, 0)}});
   EXPECT_EQ(Run("--est " + Path("offset.tum") + " --gt " + Path("gt.tum")).exit_code, 1);
-  EXPECT_EQ(Run("--est " + Path("offset.tum") + " --gt " + Path("gt.tum") + " --max-dt 0.5 --align none").exit_code, 0);
+  EXPECT_EQ(
+      Run("--est " + Path("offset.tum") + " --gt " + Path("gt.tum") + " --max-dt 0.5 --align none").exit_code,
+      0);
 }
 
 TEST_F(EvalCliTest, BadArgumentsAndFiles) {
@@ -216,7 +224,8 @@ TEST_F(EvalCliTest, BadArgumentsAndFiles) {
   EXPECT_EQ(Run(both + " --markers " + Path("gt.tum")).exit_code, 1);  // --markers only draws: needs --plot
   EXPECT_EQ(Run(both + " --align-predicted").exit_code, 1);
   EXPECT_EQ(Run("--map " + Path("est.tum")).exit_code, 1);  // --gt-map missing
-  AtomicWriteFile(Path("broken.json"), "{\"format\": \"waymark-map\", \"version\": 1, \"markers\": [\n{\"family\": 3}]}\n");
+  AtomicWriteFile(Path("broken.json"),
+                  "{\"format\": \"waymark-map\", \"version\": 1, \"markers\": [\n{\"family\": 3}]}\n");
   r = Run("--map " + Path("broken.json") + " --gt-map " + Path("broken.json"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find(Path("broken.json")), std::string::npos) << r.err;

@@ -1,32 +1,29 @@
 // End to end through the `waymark` binary: `waymark sim corridor` -> `waymark map build` ->
 // `waymark localize` -> `waymark eval`; the live mode on the same data gives the same poses
 // line for line; bad inputs give one line on stderr and no output, or counted warnings.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <chrono>
 #include <map>
-#include <set>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
-#include "tests/cli/cli_test_util.h"
-
-#include <opencv2/imgcodecs.hpp>
-
 #include "detect/synthetic.h"
-#include "io/util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
+#include "tests/cli/cli_test_util.h"
 
 namespace waymark {
 namespace {
@@ -77,19 +74,20 @@ class LocalizeCliTest : public ::testing::Test {
   static std::vector<std::string> LiveLines() {
     std::vector<std::pair<std::pair<double, int>, std::string>> events;
     for (const StampedSE3& pose : ReadTum(Path("run") + "/odometry.tum")) {
-      const nlohmann::json line = {{"t", pose.stamp_s},
-                                   {"T_odom_robot",
-                                    {{"t", {pose.T.translation().x(), pose.T.translation().y(), pose.T.translation().z()}},
-                                     {"q_xyzw",
-                                      {pose.T.rotation().x(), pose.T.rotation().y(), pose.T.rotation().z(),
-                                       pose.T.rotation().w()}}}}};
+      const nlohmann::json line = {
+          {"t", pose.stamp_s},
+          {"T_odom_robot",
+           {{"t", {pose.T.translation().x(), pose.T.translation().y(), pose.T.translation().z()}},
+            {"q_xyzw",
+             {pose.T.rotation().x(), pose.T.rotation().y(), pose.T.rotation().z(), pose.T.rotation().w()}}}}};
       events.push_back({{pose.stamp_s, 0}, line.dump()});
     }
     int order = 1;
     for (const std::string& line : Lines(ReadTextFile(Path("run") + "/detections.jsonl"))) {
       events.push_back({{nlohmann::json::parse(line)["t"].get<double>(), order++}, line});
     }
-    std::stable_sort(events.begin(), events.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::stable_sort(events.begin(), events.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
     std::vector<std::string> lines;
     for (const auto& event : events) lines.push_back(event.second);
     return lines;
@@ -101,8 +99,9 @@ class LocalizeCliTest : public ::testing::Test {
 fs::path* LocalizeCliTest::dir_ = nullptr;
 
 TEST_F(LocalizeCliTest, SimMapLocalizeEval) {
-  const RunResult run = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("run.tum") +
-                            " --predicted " + Path("predicted.tum") + " --poses " + Path("poses.jsonl"));
+  const RunResult run =
+      Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("run.tum") +
+          " --predicted " + Path("predicted.tum") + " --poses " + Path("poses.jsonl"));
   ASSERT_EQ(run.exit_code, 0) << run.err;
   EXPECT_NE(run.out.find("tracking "), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("corrections: accepted "), std::string::npos) << run.out;
@@ -122,7 +121,8 @@ TEST_F(LocalizeCliTest, SimMapLocalizeEval) {
                              "/groundtruth/trajectory.tum --align se2 --predicted " + Path("predicted.tum"));
   ASSERT_EQ(eval.exit_code, 0) << eval.err;
   const double ate_m = Figure(eval.out, "ATE trans (m)");
-  std::cout << "corridor 4x3 seed 5, tight: ATE " << ate_m << " m, PE " << Figure(eval.out, "PE (m)") << " m\n";
+  std::cout << "corridor 4x3 seed 5, tight: ATE " << ate_m << " m, PE " << Figure(eval.out, "PE (m)")
+            << " m\n";
   EXPECT_GT(ate_m, 0.0);
   EXPECT_LT(ate_m, 0.03);
 
@@ -144,7 +144,8 @@ TEST_F(LocalizeCliTest, LiveGivesTheDatasetModesPosesAndSkipsMalformedLines) {
   std::string text;
   for (const std::string& line : input) text += line + "\n";
   AtomicWriteFile(Path("live.jsonl"), text);
-  const RunResult live = Run("localize " + Path("run") + " --map " + Path("map.json") + " --live", Path("live.jsonl"));
+  const RunResult live =
+      Run("localize " + Path("run") + " --map " + Path("map.json") + " --live", Path("live.jsonl"));
   ASSERT_EQ(live.exit_code, 0) << live.err;
   const std::vector<std::string> errors = Lines(live.err);
   ASSERT_GE(errors.size(), 3u) << live.err;
@@ -152,7 +153,8 @@ TEST_F(LocalizeCliTest, LiveGivesTheDatasetModesPosesAndSkipsMalformedLines) {
   EXPECT_EQ(errors[0].rfind("waymark localize: stdin:11: invalid JSON", 0), 0u) << errors[0];
   EXPECT_EQ(errors[1].rfind("waymark localize: stdin:21: markers[0]", 0), 0u) << errors[1];
   EXPECT_EQ(errors[2].rfind("waymark localize: stdin:31: invalid JSON: number overflow", 0), 0u) << errors[2];
-  EXPECT_EQ(errors[3], "waymark localize: stdin:41: invalid JSON: arrays and objects nested deeper than 32 levels");
+  EXPECT_EQ(errors[3],
+            "waymark localize: stdin:41: invalid JSON: arrays and objects nested deeper than 32 levels");
   EXPECT_NE(live.err.find("4 malformed lines skipped"), std::string::npos) << live.err;
 
   const std::vector<std::string> batch_lines = Lines(ReadTextFile(Path("batch.jsonl")));
@@ -175,7 +177,8 @@ TEST_F(LocalizeCliTest, LiveImageDetectionShedsWorkAndSaysSo) {
   cv::Mat image(480, 640, CV_8U, cv::Scalar(40));
   DrawSymbol(QrSymbol(map.markers[0].key.id), MakeQuad({320.0, 240.0}, 160.0, 0.1), &image, 235, 20);
   cv::imwrite(Path("inverted.png"), image);
-  const std::string line = "{\"t\": 0.5, \"camera\": \"left\", \"image\": \"" + Path("inverted.png") + "\"}\n";
+  const std::string line =
+      "{\"t\": 0.5, \"camera\": \"left\", \"image\": \"" + Path("inverted.png") + "\"}\n";
   AtomicWriteFile(Path("image_line.jsonl"), line);
   const std::string base = "localize " + Path("run") + " --map " + Path("map.json") + " --live";
   const RunResult tight = Run(base + " --detect-budget-ms 0.001", Path("image_line.jsonl"));
@@ -184,13 +187,15 @@ TEST_F(LocalizeCliTest, LiveImageDetectionShedsWorkAndSaysSo) {
       << tight.err;
   const RunResult unlimited = Run(base + " --detect-budget-ms 0", Path("image_line.jsonl"));
   ASSERT_EQ(unlimited.exit_code, 0) << unlimited.err;
-  EXPECT_NE(unlimited.err.find("detection: 1 images, 0 shed work under the 0 ms budget (0 second-pass attempts "
-                               "skipped)"),
-            std::string::npos)
+  EXPECT_NE(
+      unlimited.err.find("detection: 1 images, 0 shed work under the 0 ms budget (0 second-pass attempts "
+                         "skipped)"),
+      std::string::npos)
       << unlimited.err;
   const RunResult negative = Run(base + " --detect-budget-ms -1", Path("image_line.jsonl"));
   EXPECT_EQ(negative.exit_code, 1);
-  EXPECT_NE(negative.err.find("--detect-budget-ms: expected a value >= 0"), std::string::npos) << negative.err;
+  EXPECT_NE(negative.err.find("--detect-budget-ms: expected a value >= 0"), std::string::npos)
+      << negative.err;
   const RunResult offline = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
                                 Path("x.tum") + " --detect-budget-ms 5");
   EXPECT_EQ(offline.exit_code, 1);
@@ -212,7 +217,8 @@ TEST_F(LocalizeCliTest, LiveTimeGoingBackwardsIsCountedNotAPose) {
   const RunResult live =
       Run("localize " + Path("run") + " --map " + Path("map.json") + " --live", Path("backwards.jsonl"));
   ASSERT_EQ(live.exit_code, 0) << live.err;
-  EXPECT_NE(live.err.find("input older than the last one processed (ignored): 1"), std::string::npos) << live.err;
+  EXPECT_NE(live.err.find("input older than the last one processed (ignored): 1"), std::string::npos)
+      << live.err;
   bool found = false;
   for (const std::string& line : Lines(live.out)) {
     const nlohmann::json pose = nlohmann::json::parse(line);
@@ -253,7 +259,8 @@ TEST_F(LocalizeCliTest, LiveLateFramesAndOdometryTimeOffset) {
   std::string text;
   for (const std::string& line : delayed) text += line + "\n";
   AtomicWriteFile(Path("late.jsonl"), text);
-  const std::string command = "localize " + Path("run") + " --map " + Path("map.json") + " --live --odometry-time-offset 0.3";
+  const std::string command =
+      "localize " + Path("run") + " --map " + Path("map.json") + " --live --odometry-time-offset 0.3";
   const RunResult live = Run(command, Path("late.jsonl"));
   ASSERT_EQ(live.exit_code, 0) << live.err;
   const std::vector<std::string> batch_lines = Lines(ReadTextFile(Path("batch2.jsonl")));
@@ -324,8 +331,8 @@ TEST_F(LocalizeCliTest, MissingMapIsOneLineAndNoOutput) {
   const RunResult no_out = Run("localize " + Path("run") + " --map " + Path("map.json"));
   EXPECT_EQ(no_out.exit_code, 1);
   EXPECT_NE(no_out.err.find("--out"), std::string::npos) << no_out.err;
-  const RunResult bad_mode =
-      Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("never.tum") + " --mode x");
+  const RunResult bad_mode = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
+                                 Path("never.tum") + " --mode x");
   EXPECT_EQ(bad_mode.exit_code, 1);
   EXPECT_EQ(Lines(bad_mode.err).size(), 1u) << bad_mode.err;
   EXPECT_FALSE(fs::exists(Path("never.tum")));
@@ -342,15 +349,15 @@ TEST_F(LocalizeCliTest, SeveralOutputsAreAllOrNothing) {
   EXPECT_NE(impossible.err.find("afile/p.jsonl"), std::string::npos) << impossible.err;
   EXPECT_FALSE(fs::exists(Path("a/ok.tum")));
   EXPECT_FALSE(fs::exists(Path("a")));  // nor the directory made for it
-  const RunResult same = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("x.tum") +
-                             " --poses " + Path("x.tum"));
+  const RunResult same = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
+                             Path("x.tum") + " --poses " + Path("x.tum"));
   EXPECT_EQ(same.exit_code, 1);
   EXPECT_EQ(Lines(same.err).size(), 1u) << same.err;
   EXPECT_NE(same.err.find("--out and --poses name the same file"), std::string::npos) << same.err;
   EXPECT_FALSE(fs::exists(Path("x.tum")));
   // The same file through another spelling of its path.
-  const RunResult dots = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("y.tum") +
-                             " --predicted " + Path("run/../y.tum"));
+  const RunResult dots = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " +
+                             Path("y.tum") + " --predicted " + Path("run/../y.tum"));
   EXPECT_EQ(dots.exit_code, 1);
   EXPECT_NE(dots.err.find("--out and --predicted name the same file"), std::string::npos) << dots.err;
 }
@@ -390,7 +397,8 @@ TEST_F(LocalizeCliTest, HundredThousandMarkerMapEndToEnd) {
     MapMarker marker;
     marker.key = {"qr", "far-" + std::to_string(i)};
     marker.size_m = 0.12;
-    marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1000.0 + 0.5 * (i % 1000), 0.5 * (i / 1000), 1.0));
+    marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(),
+                                 Eigen::Vector3d(1000.0 + 0.5 * (i % 1000), 0.5 * (i / 1000), 1.0));
     marker.fixed = true;
     map.markers.push_back(marker);
   }
@@ -399,13 +407,16 @@ TEST_F(LocalizeCliTest, HundredThousandMarkerMapEndToEnd) {
   const RunResult info = Run("map info " + Path("big.json"));
   ASSERT_EQ(info.exit_code, 0) << info.err;
   EXPECT_NE(info.out.find(std::to_string(own + 100000)), std::string::npos) << info.out;
-  const RunResult small = Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("small.tum"));
+  const RunResult small =
+      Run("localize " + Path("run") + " --map " + Path("map.json") + " --out " + Path("small.tum"));
   ASSERT_EQ(small.exit_code, 0) << small.err;
   const auto big_start = std::chrono::steady_clock::now();
-  const RunResult big = Run("localize " + Path("run") + " --map " + Path("big.json") + " --out " + Path("big.tum"));
+  const RunResult big =
+      Run("localize " + Path("run") + " --map " + Path("big.json") + " --out " + Path("big.tum"));
   ASSERT_EQ(big.exit_code, 0) << big.err;
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - big_start).count();
-  std::cout << "100 000-marker map: map info + localize " << std::chrono::duration<double>(big_start - start).count()
+  std::cout << "100 000-marker map: map info + localize "
+            << std::chrono::duration<double>(big_start - start).count()
             << " s (info and small run), big localize " << seconds << " s\n";
   EXPECT_EQ(ReadTextFile(Path("big.tum")), ReadTextFile(Path("small.tum")));
   EXPECT_LT(seconds, 120.0);

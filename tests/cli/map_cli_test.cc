@@ -1,6 +1,7 @@
 // End to end through the `waymark` binary: `waymark sim` writes a small survey, `waymark map
 // build` maps it, `waymark map info` and `waymark map merge` read the result; bad inputs give
 // one line on stderr, a non-zero exit and no output file.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -8,18 +9,15 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
-#include "tests/cli/cli_test_util.h"
-
-#include "io/util.h"
+#include "eval/map_metrics.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
-#include "eval/map_metrics.h"
+#include "io/util.h"
+#include "tests/cli/cli_test_util.h"
 
 namespace waymark {
 namespace {
@@ -104,8 +102,8 @@ TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {
   extra.covariance_factor.reset();
   map.markers.push_back(extra);
   WriteMap(dir_ / "map_plus.json", map);
-  const RunResult merge = Run("map merge " + (dir_ / "map_plus.json").string() + " " + survey.string() + " --out " +
-                              (dir_ / "merged.json").string());
+  const RunResult merge = Run("map merge " + (dir_ / "map_plus.json").string() + " " + survey.string() +
+                              " --out " + (dir_ / "merged.json").string());
   ASSERT_EQ(merge.exit_code, 0) << merge.err;
   EXPECT_NE(merge.out.find("carried over unchanged"), std::string::npos) << merge.out;
   const MarkerMap merged = ReadMap(dir_ / "merged.json");
@@ -124,7 +122,8 @@ TEST_F(MapCliTest, ImagesOnlySurveyNeedsDetectImagesThenMaps) {
   EXPECT_NE(plain.exit_code, 0);
   EXPECT_NE(plain.err.find("--detect-images"), std::string::npos) << plain.err;
   EXPECT_FALSE(fs::exists(dir_ / "map.json"));
-  const RunResult families = Run("map build " + survey.string() + " --families qr --out " + (dir_ / "map.json").string());
+  const RunResult families =
+      Run("map build " + survey.string() + " --families qr --out " + (dir_ / "map.json").string());
   EXPECT_NE(families.exit_code, 0);
   EXPECT_NE(families.err.find("--families is for --detect-images"), std::string::npos) << families.err;
 
@@ -207,9 +206,9 @@ TEST_F(MapCliTest, OdometryCalibrationIsReportedAndCanBeGiven) {
   EXPECT_FALSE(report["odometry_calibration"]["given"].get<bool>());
   EXPECT_EQ(report["odometry_calibration"]["sigma"].size(), 3u);
 
-  const RunResult given = Run("map build " + survey.string() + " --out " + (dir_ / "map2.json").string() +
-                              " --report " + (dir_ / "report2.json").string() +
-                              " --odometry-calibration 0.003,-0.005,0");
+  const RunResult given =
+      Run("map build " + survey.string() + " --out " + (dir_ / "map2.json").string() + " --report " +
+          (dir_ / "report2.json").string() + " --odometry-calibration 0.003,-0.005,0");
   ASSERT_EQ(given.exit_code, 0) << given.err;
   EXPECT_NE(given.out.find("odometry calibration (given)"), std::string::npos) << given.out;
   const nlohmann::json report2 = nlohmann::json::parse(ReadTextFile(dir_ / "report2.json"));
@@ -283,7 +282,8 @@ TEST_F(MapCliTest, MissingOutputAndBadVerbAreErrors) {
   const RunResult verb = Run("map frobnicate");
   EXPECT_NE(verb.exit_code, 0);
   EXPECT_NE(verb.err.find("unknown verb"), std::string::npos) << verb.err;
-  const RunResult missing = Run("map build " + (dir_ / "nope").string() + " --out " + (dir_ / "m.json").string());
+  const RunResult missing =
+      Run("map build " + (dir_ / "nope").string() + " --out " + (dir_ / "m.json").string());
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_FALSE(fs::exists(dir_ / "m.json"));
 }

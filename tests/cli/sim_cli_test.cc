@@ -144,7 +144,8 @@ TEST_F(SimCliTest, RenderWritesImagesAndGroundTruthCorners) {
   ASSERT_EQ(o.exit_code, 0) << o.err;
   EXPECT_THAT(o.err, HasSubstr("ms per image"));
   const std::string images = Slurp(dir_ / "out" / "images.csv");
-  EXPECT_THAT(images, HasSubstr("t,camera,path\n0,left,images/left/000000.png\n0,right,images/right/000000.png\n"));
+  EXPECT_THAT(images,
+              HasSubstr("t,camera,path\n0,left,images/left/000000.png\n0,right,images/right/000000.png\n"));
   EXPECT_TRUE(fs::exists(dir_ / "out" / "images" / "left" / "000000.png"));
   const long lines = std::count(images.begin(), images.end(), '\n') - 1;
   const std::string corners = Slurp(dir_ / "out" / "groundtruth" / "corners.jsonl");
@@ -154,12 +155,14 @@ TEST_F(SimCliTest, RenderWritesImagesAndGroundTruthCorners) {
 TEST_F(SimCliTest, RenderOptionsAreChecked) {
   ExpectCleanFailure(Waymark("sim corridor --render-every 2 --out out"), "--render-every needs --render");
   ExpectCleanFailure(Waymark("sim corridor --render --render-every 0 --out out"), "--render-every");
-  ExpectCleanFailure(Waymark("sim corridor --render --set render.supersample=0 --out out"), "render.supersample");
+  ExpectCleanFailure(Waymark("sim corridor --render --set render.supersample=0 --out out"),
+                     "render.supersample");
 }
 
 TEST_F(SimCliTest, UnknownScenarioFailsCleanly) {
-  ExpectCleanFailure(Waymark("sim hallway --out out"),
-                     "unknown scenario 'hallway' (known: corridor, ceiling-grid, rooms, warehouse-drone, square-ceiling)");
+  ExpectCleanFailure(
+      Waymark("sim hallway --out out"),
+      "unknown scenario 'hallway' (known: corridor, ceiling-grid, rooms, warehouse-drone, square-ceiling)");
   ExpectCleanFailure(Waymark("sim --out out"), "missing scenario");
 }
 

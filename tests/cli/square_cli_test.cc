@@ -8,10 +8,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include "io/detections_io.h"
 #include "io/tum_io.h"
@@ -39,7 +38,8 @@ class SquareCli : public ::testing::Test {
   }
 
   static int Waymark(const std::string& arguments, const fs::path& err = "/dev/null") {
-    const std::string command = std::string(WAYMARK_BINARY) + " " + arguments + " > /dev/null 2> " + err.string();
+    const std::string command =
+        std::string(WAYMARK_BINARY) + " " + arguments + " > /dev/null 2> " + err.string();
     const int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
@@ -75,14 +75,16 @@ TEST_F(SquareCli, DetectsTheSquareInEveryPairAndLocalizes) {
     EXPECT_NE(frame.image->find("-on.png"), std::string::npos);
   }
   // Against the exact corners of the rendered pairs.
-  const std::vector<DetectionFrame> truth = ReadDetections(dir_ / "d" / "groundtruth" / "corners.jsonl", &warnings);
+  const std::vector<DetectionFrame> truth =
+      ReadDetections(dir_ / "d" / "groundtruth" / "corners.jsonl", &warnings);
   ASSERT_EQ(truth.size(), frames.size());
   double worst_px = 0.0;
   for (size_t i = 0; i < frames.size(); ++i) {
     ASSERT_EQ(truth[i].markers.size(), 1u);
     EXPECT_EQ(truth[i].stamp_s, frames[i].stamp_s);
     for (int k = 0; k < 4; ++k) {
-      worst_px = std::max(worst_px, (frames[i].markers[0].corners_px[k] - truth[i].markers[0].corners_px[k]).norm());
+      worst_px =
+          std::max(worst_px, (frames[i].markers[0].corners_px[k] - truth[i].markers[0].corners_px[k]).norm());
     }
   }
   EXPECT_LT(worst_px, 0.5);
@@ -147,7 +149,8 @@ TEST_F(SquareCli, NoPairsOrNoDatasetIsAnError) {
                         (dir_ / "out.jsonl").string() + " --families square",
                     dir_ / "stderr.txt"),
             1);
-  EXPECT_NE(Stderr().find("family square is detected in the LED pairs of a dataset"), std::string::npos) << Stderr();
+  EXPECT_NE(Stderr().find("family square is detected in the LED pairs of a dataset"), std::string::npos)
+      << Stderr();
   EXPECT_FALSE(fs::exists(dir_ / "out.jsonl"));
 }
 

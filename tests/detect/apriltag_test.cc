@@ -1,15 +1,15 @@
 // AprilTag detector on tags drawn from libapriltag's own code tables through known
 // homographies: ids exact, libapriltag's corner order and pixel offset converted to
 // docs/design.md order and OpenCV pixel centres in all four rotations, several families.
+#include "detect/apriltag.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
-#include "detect/apriltag.h"
-#include "detect/synthetic.h"
 #include "detect/detector.h"
+#include "detect/synthetic.h"
 
 namespace waymark {
 namespace {
@@ -98,7 +98,8 @@ TEST(DetectAprilTag, BlankNoiseAndBadInput) {
   }
   DetectorOptions coarse;
   coarse.apriltag_decimate = 4.0;
-  EXPECT_TRUE(CreateDetector("apriltag-36h11", coarse)->Detect(cv::Mat(20, 20, CV_8U, cv::Scalar(0))).empty());
+  EXPECT_TRUE(
+      CreateDetector("apriltag-36h11", coarse)->Detect(cv::Mat(20, 20, CV_8U, cv::Scalar(0))).empty());
   EXPECT_THROW(CreateDetector("apriltag-36h12"), std::invalid_argument);
 }
 

@@ -1,17 +1,17 @@
 // Shared detector pieces: quad validation, the family factory and its errors, options
 // checks, candidate regions, the edge-based corner refinement, and the multi-family detector.
+#include "detect/common.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
-
 #include <opencv2/imgproc.hpp>
 
-#include "detect/common.h"
+#include "detect/detector.h"
 #include "detect/refine.h"
 #include "detect/synthetic.h"
 #include "detect/zxing.h"
-#include "detect/detector.h"
 
 namespace waymark {
 namespace {

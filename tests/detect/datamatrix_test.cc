@@ -1,16 +1,16 @@
 // DataMatrix detector on synthetic symbols from libdmtx's encoder drawn through known
 // homographies: exact ids, docs/design.md corner order in all four rotations, sub-pixel
 // corners, libdmtx's own corners (y-up origin converted), nothing on blank or noise.
+#include "detect/datamatrix.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
-
 #include <opencv2/imgproc.hpp>
 
-#include "detect/datamatrix.h"
-#include "detect/synthetic.h"
 #include "detect/detector.h"
+#include "detect/synthetic.h"
 
 namespace waymark {
 namespace {

@@ -11,9 +11,9 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
+#include "detect/detector.h"
 #include "detect/synthetic.h"
 #include "detect/zxing.h"
-#include "detect/detector.h"
 
 namespace waymark {
 namespace {

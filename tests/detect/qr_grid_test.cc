@@ -1,10 +1,11 @@
 // The QR module grid and the sides fitted on dark outer modules (detect/qr_grid.h), on
 // synthetic codes drawn through known homographies (detect/synthetic.h).
+#include "detect/qr_grid.h"
+
 #include <gtest/gtest.h>
 
 #include <opencv2/imgproc.hpp>
 
-#include "detect/qr_grid.h"
 #include "detect/synthetic.h"
 
 namespace waymark {

@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
-#include "detect/synthetic.h"
 #include "detect/detector.h"
+#include "detect/synthetic.h"
 
 namespace waymark {
 namespace {

@@ -2,13 +2,13 @@
 // rotation and under perspective, with their corners and their orientation; solid-bordered
 // quads where AprilTags are; nothing from blank, noise or filled boxes; a candidate read by
 // libdmtx on its rectified patch.
+#include "detect/quads.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
-#include "detect/quads.h"
 #include "detect/synthetic.h"
 
 namespace waymark {
@@ -37,9 +37,11 @@ TEST(DetectQuads, DataMatrixCandidateInEveryRotationWithItsOrientation) {
       // cuts across the timing pattern's corner, can be a few modules off: the decoder finds
       // the symbol in the patch's quiet zone all the same.
       for (int k : {0, 2, 3}) {
-        EXPECT_LT((candidates[0].corners_px[k] - truth[k]).norm(), 3.0) << "rotation " << r << " corner " << k;
+        EXPECT_LT((candidates[0].corners_px[k] - truth[k]).norm(), 3.0)
+            << "rotation " << r << " corner " << k;
       }
-      EXPECT_LT((candidates[0].corners_px[1] - truth[1]).norm(), 0.35 * QuadMeanSide(truth)) << "rotation " << r;
+      EXPECT_LT((candidates[0].corners_px[1] - truth[1]).norm(), 0.35 * QuadMeanSide(truth))
+          << "rotation " << r;
       const auto read = ReadDataMatrixCandidate(image, candidates[0]);
       ASSERT_EQ(read.size(), 1u) << "rotation " << r << " squeeze " << squeeze;
       EXPECT_EQ(read[0].key.id, "Q7");
@@ -85,8 +87,8 @@ TEST(DetectQuads, BlankNoiseAndTextGiveNoCandidate) {
   EXPECT_TRUE(DataMatrixCandidates(FindDarkQuads(noise), 8).empty());
   cv::Mat text = Canvas();
   for (int i = 0; i < 8; ++i) {
-    cv::putText(text, "EXIT 12 aisle B L7", cv::Point(20, 50 + 55 * i), cv::FONT_HERSHEY_SIMPLEX, 1.0 + 0.2 * i,
-                cv::Scalar(20), 2);
+    cv::putText(text, "EXIT 12 aisle B L7", cv::Point(20, 50 + 55 * i), cv::FONT_HERSHEY_SIMPLEX,
+                1.0 + 0.2 * i, cv::Scalar(20), 2);
   }
   for (const DataMatrixCandidate& c : DataMatrixCandidates(FindDarkQuads(text), 8)) {
     EXPECT_TRUE(ReadDataMatrixCandidate(text, c).empty());

@@ -8,9 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <vector>
-
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "geometry/square_marker.h"
 #include "sim/ir_render.h"
@@ -46,7 +45,8 @@ class DetectSquareTest : public ::testing::Test {
     const sim::SimMarker& square = scene_->world.markers[0];
     std::array<Eigen::Vector2d, 4> px;
     const std::array<Eigen::Vector3d, 4> object = MarkerCorners(square.size_m);
-    for (int k = 0; k < 4; ++k) px[k] = *camera_->Project(T_world_camera.inverse() * (square.T_world_marker * object[k]));
+    for (int k = 0; k < 4; ++k)
+      px[k] = *camera_->Project(T_world_camera.inverse() * (square.T_world_marker * object[k]));
     return px;  // solid side top: its own order is solid first
   }
   // Hides the ceiling rectangle [x0, x1] x [y0, y1] (world) in the on image: the tape there
@@ -61,7 +61,8 @@ class DetectSquareTest : public ::testing::Test {
     for (int e = 0; e < 4; ++e) {
       for (int k = 0; k < 50; ++k) {
         const Eigen::Vector2d p = loop[e] + (loop[e + 1] - loop[e]) * (k / 50.0);
-        const Eigen::Vector2d px = *camera_->Project(T_world_camera.inverse() * Eigen::Vector3d(p.x(), p.y(), z));
+        const Eigen::Vector2d px =
+            *camera_->Project(T_world_camera.inverse() * Eigen::Vector3d(p.x(), p.y(), z));
         polygon.emplace_back(cvRound(px.x()), cvRound(px.y()));
       }
     }
@@ -90,7 +91,8 @@ TEST_F(DetectSquareTest, CornersWithinAFractionOfAPixel) {
     double x, y, yaw;
   };
   int index = 0;
-  for (const Place& place : {Place{0.0, 0.0, 0.0}, Place{0.8, -0.5, 1.0}, Place{-1.2, 1.1, 2.5}, Place{1.5, 1.4, -2.0}}) {
+  for (const Place& place :
+       {Place{0.0, 0.0, 0.0}, Place{0.8, -0.5, 1.0}, Place{-1.2, 1.1, 2.5}, Place{1.5, 1.4, -2.0}}) {
     const SE3d T_world_camera = CameraAt(place.x, place.y, place.yaw);
     const cv::Mat on = renderer_->Render(*camera_, T_world_camera, 0.0, true, 10 * index);
     const cv::Mat off = renderer_->Render(*camera_, T_world_camera, 0.0, false, 10 * index + 1);
@@ -116,15 +118,16 @@ TEST_F(DetectSquareTest, HalfOfEverySideHiddenIsSurvived) {
   const cv::Mat off = renderer_->Render(*camera_, T_world_camera, 0.0, false, 101);
   // The solid side is world y = -1 (marker +y); the others y = +1, x = -1, x = +1.
   Hide(T_world_camera, -1.1, -0.05, -1.1, -0.9, off, &on);  // solid: its left half
-  Hide(T_world_camera, 0.05, 1.1, 0.9, 1.1, off, &on);     // opposite: its right half
-  Hide(T_world_camera, -1.1, -0.9, 0.05, 1.1, off, &on);   // left side: one half
-  Hide(T_world_camera, 0.9, 1.1, -1.1, -0.05, off, &on);   // right side: the other half
+  Hide(T_world_camera, 0.05, 1.1, 0.9, 1.1, off, &on);      // opposite: its right half
+  Hide(T_world_camera, -1.1, -0.9, 0.05, 1.1, off, &on);    // left side: one half
+  Hide(T_world_camera, 0.9, 1.1, -1.1, -0.05, off, &on);    // right side: the other half
   const std::vector<SquareDetection> found = detector.Detect(on, off);
   ASSERT_EQ(found.size(), 1u);
   const std::array<Eigen::Vector2d, 4> truth = TrueCorners(T_world_camera);
   for (int k = 0; k < 4; ++k) {
     EXPECT_LE((found[0].corners_px[k] - truth[k]).norm(), 0.5)
-        << "corner " << k << " samples " << found[0].refined_samples[k] << " run " << found[0].longest_run_m[k];
+        << "corner " << k << " samples " << found[0].refined_samples[k] << " run "
+        << found[0].longest_run_m[k];
   }
 }
 

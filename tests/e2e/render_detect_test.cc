@@ -7,14 +7,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <string>
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "detect/detector.h"
 #include "io/dataset_io.h"
 #include "io/detections_io.h"
-#include "detect/detector.h"
 #include "io/util.h"
 #include "sim/render.h"
 
@@ -26,8 +25,9 @@ namespace fs = std::filesystem;
 TEST(RenderDetectTest, DetectionsMatchRenderedGroundTruth) {
   const fs::path dir = fs::temp_directory_path() / ("waymark-render-e2e-" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  const std::string command = std::string(WAYMARK_BINARY) + " sim rooms --seed 5 --render --render-every 80 --out " +
-                              dir.string() + " 2> " + (dir.string() + ".log");
+  const std::string command = std::string(WAYMARK_BINARY) +
+                              " sim rooms --seed 5 --render --render-every 80 --out " + dir.string() +
+                              " 2> " + (dir.string() + ".log");
   ASSERT_EQ(std::system(command.c_str()), 0) << ReadTextFile(dir.string() + ".log");
   const Dataset dataset = LoadDataset(dir);
   ASSERT_FALSE(dataset.images.empty());
@@ -70,10 +70,11 @@ TEST(RenderDetectTest, DetectionsMatchRenderedGroundTruth) {
     }
   }
   const double rate = wide > 0 ? static_cast<double>(matched) / wide : 0.0;
-  std::printf("%zu images, %ld codes wider than 40 px, %ld matched (ids exact, corners <= 0.5 px): %.1f %%; "
-              "worst corner error of a detected code %.3f px; %ld detections of codes not fully visible; "
-              "%ld with an id not in the world\n",
-              truth.size(), wide, matched, 100.0 * rate, worst_px, not_in_truth, wrong_id);
+  std::printf(
+      "%zu images, %ld codes wider than 40 px, %ld matched (ids exact, corners <= 0.5 px): %.1f %%; "
+      "worst corner error of a detected code %.3f px; %ld detections of codes not fully visible; "
+      "%ld with an id not in the world\n",
+      truth.size(), wide, matched, 100.0 * rate, worst_px, not_in_truth, wrong_id);
   EXPECT_GE(wide, 10);
   EXPECT_GE(rate, 0.98);
   EXPECT_EQ(wrong_id, 0);

@@ -22,23 +22,23 @@
 #include <string>
 #include <vector>
 
-#include "geometry/camera.h"
 #include "detect/detector.h"
+#include "geometry/camera.h"
 #include "sim/render.h"
 #include "sim/scenarios.h"
 
 namespace waymark::e2e {
 
-inline constexpr double kWideCodePx = 40.0;     // issue 3: codes wider than 40 px
+inline constexpr double kWideCodePx = 40.0;  // issue 3: codes wider than 40 px
 inline constexpr double kCornerTolerancePx = 0.5;
 inline constexpr std::uint64_t kRenderSeed = 11;
 
 struct FamilyTally {
-  long wide = 0;       // ground-truth codes over kWideCodePx
-  long matched = 0;    // of those: exact id, every corner within kCornerTolerancePx
-  long detected = 0;   // of those: exact id found (any corner error)
+  long wide = 0;          // ground-truth codes over kWideCodePx
+  long matched = 0;       // of those: exact id, every corner within kCornerTolerancePx
+  long detected = 0;      // of those: exact id found (any corner error)
   double worst_px = 0.0;  // largest corner error of a detected wide code
-  long misread = 0;    // detections whose id is not in the world
+  long misread = 0;       // detections whose id is not in the world
 };
 
 struct E2eRun {
@@ -65,15 +65,17 @@ inline sim::World Redrawn(sim::World world, const std::string& family) {
 }
 
 inline bool HasWideCode(const std::vector<MarkerObservation>& truth) {
-  return std::any_of(truth.begin(), truth.end(),
-                     [](const MarkerObservation& t) { return sim::ShortestSidePx(t.corners_px) > kWideCodePx; });
+  return std::any_of(truth.begin(), truth.end(), [](const MarkerObservation& t) {
+    return sim::ShortestSidePx(t.corners_px) > kWideCodePx;
+  });
 }
 
 // `count` frames with a wide code, evenly spread over the path's camera frames.
 inline std::vector<FrameAt> PickFrames(const sim::Scene& scene, const sim::ParamSet& params,
                                        const sim::Renderer& renderer, const std::vector<Camera>& cameras,
                                        size_t count) {
-  const long step = std::max(1L, std::lround(params.Double("rate.odometry_hz") / params.Double("rate.camera_hz")));
+  const long step =
+      std::max(1L, std::lround(params.Double("rate.odometry_hz") / params.Double("rate.camera_hz")));
   const Trajectory& path = scene.truth.T_world_robot;
   std::vector<FrameAt> candidates;
   for (size_t s = 0; s < path.size(); s += static_cast<size_t>(step)) {
@@ -94,7 +96,8 @@ inline std::vector<FrameAt> PickFrames(const sim::Scene& scene, const sim::Param
 // Tallies one image's detections against its ground truth.
 inline void Tally(const std::vector<MarkerObservation>& truth, const std::vector<MarkerObservation>& found,
                   const std::set<MarkerKey>& world_keys, std::map<std::string, FamilyTally>* families) {
-  for (const MarkerObservation& obs : found) (*families)[obs.key.family].misread += world_keys.count(obs.key) == 0;
+  for (const MarkerObservation& obs : found)
+    (*families)[obs.key.family].misread += world_keys.count(obs.key) == 0;
   for (const MarkerObservation& t : truth) {
     if (sim::ShortestSidePx(t.corners_px) <= kWideCodePx) continue;
     FamilyTally& tally = (*families)[t.key.family];
@@ -132,9 +135,10 @@ inline E2eRun RenderAndDetect(const std::string& scenario, const std::string& fa
   E2eRun run;
   for (const FrameAt& frame : PickFrames(scene, params, renderer, cameras, frames)) {
     const Camera& camera = cameras[frame.camera];
-    const cv::Mat image = renderer.Render(camera, frame.T_world_camera, kRenderSeed,
-                                          static_cast<std::uint64_t>(frame.number));
-    Tally(renderer.GroundTruth(camera, frame.T_world_camera), detector->Detect(image), world_keys, &run.families);
+    const cv::Mat image =
+        renderer.Render(camera, frame.T_world_camera, kRenderSeed, static_cast<std::uint64_t>(frame.number));
+    Tally(renderer.GroundTruth(camera, frame.T_world_camera), detector->Detect(image), world_keys,
+          &run.families);
     ++run.images;
   }
   return run;
@@ -144,10 +148,11 @@ inline E2eRun RenderAndDetect(const std::string& scenario, const std::string& fa
 inline void ExpectAccepted(const std::string& label, const E2eRun& run, long min_wide) {
   long wide = 0;
   for (const auto& [family, t] : run.families) {
-    std::printf("%-28s %-15s %3ld images: %ld/%ld wide codes matched (%.1f %%), %ld detected, worst corner "
-                "error %.3f px, %ld misread\n",
-                label.c_str(), family.c_str(), run.images, t.matched, t.wide,
-                t.wide > 0 ? 100.0 * t.matched / t.wide : 0.0, t.detected, t.worst_px, t.misread);
+    std::printf(
+        "%-28s %-15s %3ld images: %ld/%ld wide codes matched (%.1f %%), %ld detected, worst corner "
+        "error %.3f px, %ld misread\n",
+        label.c_str(), family.c_str(), run.images, t.matched, t.wide,
+        t.wide > 0 ? 100.0 * t.matched / t.wide : 0.0, t.detected, t.worst_px, t.misread);
     wide += t.wide;
     EXPECT_GE(static_cast<double>(t.matched), 0.98 * t.wide) << label << " " << family;
     EXPECT_EQ(t.misread, 0) << label << " " << family;

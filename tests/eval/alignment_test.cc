@@ -2,9 +2,9 @@
 // degenerate point sets.
 #include "eval/alignment.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 namespace waymark::eval {
 namespace {

@@ -2,12 +2,12 @@
 // duplicates, gaps, offset stamps, ties, the inclusive max-dt bound in double arithmetic.
 #include "eval/association.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <stdexcept>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace waymark::eval {
 namespace {
@@ -29,7 +29,8 @@ std::vector<StampPair> EvoReference(const Trajectory& gt, const Trajectory& est,
   for (size_t i = 0; i < shorter.size(); ++i) {
     size_t best = 0;
     for (size_t j = 1; j < longer.size(); ++j) {
-      if (std::abs(longer[j].stamp_s - shorter[i].stamp_s) < std::abs(longer[best].stamp_s - shorter[i].stamp_s)) {
+      if (std::abs(longer[j].stamp_s - shorter[i].stamp_s) <
+          std::abs(longer[best].stamp_s - shorter[i].stamp_s)) {
         best = j;
       }
     }
@@ -42,7 +43,8 @@ std::vector<StampPair> EvoReference(const Trajectory& gt, const Trajectory& est,
 
 std::string ToString(const std::vector<StampPair>& pairs) {
   std::string out;
-  for (const StampPair& p : pairs) out += "(" + std::to_string(p.gt_index) + "," + std::to_string(p.est_index) + ")";
+  for (const StampPair& p : pairs)
+    out += "(" + std::to_string(p.gt_index) + "," + std::to_string(p.est_index) + ")";
   return out;
 }
 

@@ -20,9 +20,11 @@ void MakePairs(Trajectory* gt, Trajectory* est) {
   for (int i = 0; i < 3; ++i) {
     const double yaw_rad = 0.5 * i;  // truth heading
     const SE3d T_gt = SE3d::FromXYZYaw(i, 2.0 * i, 1.0, yaw_rad);
-    const Eigen::Quaterniond q_est = Eigen::AngleAxisd(yaw_rad + offsets[i][3] * kDegToRad, Eigen::Vector3d::UnitZ()) *
-                                     Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX());
-    const SE3d T_est(q_est, T_gt.translation() + Eigen::Vector3d(offsets[i][0], offsets[i][1], offsets[i][2]));
+    const Eigen::Quaterniond q_est =
+        Eigen::AngleAxisd(yaw_rad + offsets[i][3] * kDegToRad, Eigen::Vector3d::UnitZ()) *
+        Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX());
+    const SE3d T_est(q_est,
+                     T_gt.translation() + Eigen::Vector3d(offsets[i][0], offsets[i][1], offsets[i][2]));
     gt->push_back({0.1 * i, T_gt});
     est->push_back({0.1 * i, T_est});
   }

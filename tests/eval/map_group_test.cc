@@ -17,12 +17,13 @@ MapMarker Marker(const std::string& id, const Eigen::Vector3d& t) {
 TEST(MapGroupTest, SplitsLoadsFromFloorCodes) {
   MarkerMap gt, est;
   const std::vector<std::pair<std::string, Eigen::Vector3d>> codes = {
-      {"0/0/0", {0, 0, 0}}, {"0/4/0", {4, 0, 0}}, {"0/0/3", {0, 3, 0}}, {"0/4/3", {4, 3, 0}},
-      {"1/A", {1, 1, 1}},   {"1/B", {3, 2, 1}}};
+      {"0/0/0", {0, 0, 0}}, {"0/4/0", {4, 0, 0}}, {"0/0/3", {0, 3, 0}},
+      {"0/4/3", {4, 3, 0}}, {"1/A", {1, 1, 1}},   {"1/B", {3, 2, 1}}};
   for (const auto& [id, t] : codes) {
     gt.markers.push_back(Marker(id, t));
     // Loads 3 cm off along z (both the same way), floor codes exact.
-    est.markers.push_back(Marker(id, t + (id[0] == '1' ? Eigen::Vector3d(0, 0, 0.03) : Eigen::Vector3d::Zero())));
+    est.markers.push_back(
+        Marker(id, t + (id[0] == '1' ? Eigen::Vector3d(0, 0, 0.03) : Eigen::Vector3d::Zero())));
   }
   const MapEvalResult result = EvaluateMap(est, gt);
   const GroupResult group = EvaluateGroup(result, "^1/");

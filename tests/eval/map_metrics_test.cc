@@ -2,16 +2,17 @@
 // in separate components that must be aligned separately.
 #include "eval/map_metrics.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 namespace waymark::eval {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-MapMarker Marker(const std::string& id, const SE3d& T_world_marker, std::optional<int> component = std::nullopt) {
+MapMarker Marker(const std::string& id, const SE3d& T_world_marker,
+                 std::optional<int> component = std::nullopt) {
   MapMarker m;
   m.key = {"apriltag-36h11", id};
   m.size_m = 0.16;
@@ -23,7 +24,8 @@ MapMarker Marker(const std::string& id, const SE3d& T_world_marker, std::optiona
 SE3d Wall(double x, double y, double z, double yaw_deg) {
   // A marker on a wall: z out of the face, horizontal; then turned about world z.
   const Eigen::Matrix3d R_facing = (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
-                                    Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX())).toRotationMatrix();
+                                    Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()))
+                                       .toRotationMatrix();
   return SE3d(R_facing, Eigen::Vector3d(x, y, z));
 }
 
@@ -63,7 +65,8 @@ MapCase MakeMapCase() {
   c.truth.markers.push_back(Marker("G", G));
   c.truth.markers.push_back(Marker("H", Wall(0, 0, 1, 0)));
   c.estimate.markers.push_back(Marker("F", T_b * F, 1));
-  c.estimate.markers.push_back(Marker("G", T_b * SE3d(G.rotation(), G.translation() + Eigen::Vector3d(0, 0.2, 0)), 1));
+  c.estimate.markers.push_back(
+      Marker("G", T_b * SE3d(G.rotation(), G.translation() + Eigen::Vector3d(0, 0.2, 0)), 1));
   c.estimate.markers.push_back(Marker("X", T_b * Wall(11, 0, 1, 0), 1));
   return c;
 }
@@ -208,7 +211,8 @@ TEST(MapMetricsTest, PredictedErrorRemovesSharedRigidMotion) {
   // leverage A_0 (A^T A)^-1 A_0^T's (y, y) entry, between 0 and 1.
   map.markers[0].covariance->bottomRightCorner<3, 3>() +=
       map.markers[0].T_world_marker.rotation().toRotationMatrix().transpose() *
-      Eigen::Vector3d(0.0, 0.006 * 0.006, 0.0).asDiagonal() * map.markers[0].T_world_marker.rotation().toRotationMatrix();
+      Eigen::Vector3d(0.0, 0.006 * 0.006, 0.0).asDiagonal() *
+      map.markers[0].T_world_marker.rotation().toRotationMatrix();
   p = PredictMapError(map);
   ASSERT_EQ(p.size(), 1u);
   EXPECT_GT(p[0].aligned_rms_m, 0.006 * std::sqrt(0.5 / 12));

@@ -5,12 +5,12 @@
 //   evo_ape tum reference/trajectory.tum odometry.tum -a [--t_max_diff 0.05]
 //   evo_rpe tum reference/trajectory.tum odometry.tum -a --delta 1 --delta_unit m
 // ), see tests/eval/evo_crosscheck.py; they are not outputs of this code.
-#include <filesystem>
-
 #include <gtest/gtest.h>
 
-#include "io/tum_io.h"
+#include <filesystem>
+
 #include "eval/trajectory_eval.h"
+#include "io/tum_io.h"
 
 namespace waymark::eval {
 namespace {

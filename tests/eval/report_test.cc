@@ -2,10 +2,10 @@
 // the stdout table, and the SVG (every element closed, everything drawn inside the canvas).
 #include "eval/report.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <regex>
-
-#include <gtest/gtest.h>
 
 #include "eval/svg_plot.h"
 
@@ -28,7 +28,8 @@ struct Maps {
 // Component 0: three markers shifted by (1, 0, 0); component 2: one marker the truth lacks.
 Maps MakeMaps() {
   Maps maps;
-  for (const auto& [id, x, y] : std::vector<std::tuple<std::string, double, double>>{{"a", 0, 0}, {"b", 4, 0}, {"c", 0, 3}}) {
+  for (const auto& [id, x, y] :
+       std::vector<std::tuple<std::string, double, double>>{{"a", 0, 0}, {"b", 4, 0}, {"c", 0, 3}}) {
     maps.truth.markers.push_back(Marker(id, x, y, std::nullopt));
     maps.estimate.markers.push_back(Marker(id, x + 1.0, y, 0));
   }
@@ -68,7 +69,8 @@ TEST(ReportTest, MapJsonFields) {
 void ExpectInsideCanvas(const std::string& svg, double width, double height) {
   const std::regex attribute("\\b(x|y|x1|x2|y1|y2|cx|cy)=\"(-?[0-9.]+)\"");
   int checked = 0;
-  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), attribute); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), attribute); it != std::sregex_iterator();
+       ++it) {
     const std::string name = (*it)[1];
     const double value = std::stod((*it)[2]);
     EXPECT_GE(value, 0.0) << name;

@@ -1,10 +1,10 @@
 // ATE, RPE and PE/TE on small cases worked out by hand (the numbers are in the comments),
 // through the same pipeline as `waymark eval` (association, alignment, metrics).
-#include "eval/trajectory_eval.h"
+#include <gtest/gtest.h>
 
 #include <cmath>
 
-#include <gtest/gtest.h>
+#include "eval/trajectory_eval.h"
 
 namespace waymark::eval {
 namespace {
@@ -34,7 +34,8 @@ struct HandCase {
 };
 
 Eigen::Matrix3d HandR0() {
-  return (Eigen::AngleAxisd(30 * kDeg, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(10 * kDeg, Eigen::Vector3d::UnitX()))
+  return (Eigen::AngleAxisd(30 * kDeg, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(10 * kDeg, Eigen::Vector3d::UnitX()))
       .toRotationMatrix();
 }
 
@@ -105,7 +106,9 @@ TEST(TrajectoryMetricsTest, WithoutAlignmentTheOffsetIsTheError) {
 //   E = ((-0.5, 0), 10 deg): 0.5 m, 10 deg.
 // Translation rmse sqrt((0.01 + 0.25)/2) = sqrt(0.13) = 0.360555127546399, mean 0.3;
 // rotation rmse sqrt(100/2) = 7.071067811865476, mean 5.
-Trajectory RpeGt() { return {{0, Pose(0, 0, 0, 0)}, {1, Pose(1, 0, 0, 90 * kDeg)}, {2, Pose(1, 1.5, 0, 90 * kDeg)}}; }
+Trajectory RpeGt() {
+  return {{0, Pose(0, 0, 0, 0)}, {1, Pose(1, 0, 0, 90 * kDeg)}, {2, Pose(1, 1.5, 0, 90 * kDeg)}};
+}
 Trajectory RpeEst() {
   return {{0, Pose(0, 0, 0, 0)}, {1, Pose(1.1, 0, 0, 90 * kDeg)}, {2, Pose(1.1, 1.0, 0, 100 * kDeg)}};
 }

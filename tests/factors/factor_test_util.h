@@ -16,10 +16,10 @@
 #include <string>
 #include <vector>
 
+#include "factors/pose_block.h"
 #include "geometry/camera.h"
 #include "geometry/pose.h"
 #include "geometry/types.h"
-#include "factors/pose_block.h"
 #include "tests/test_cameras.h"
 
 namespace waymark::testing {

@@ -191,7 +191,8 @@ TEST_P(ReprojectionByModel, GradientCheckTenRandomStates) {
 }
 
 // Squared norm of the factor's residuals with the marker at T_camera_marker (identity robot).
-double SquaredResidual(const ceres::CostFunction& cost, const CameraInfo& camera, const SE3d& T_camera_marker) {
+double SquaredResidual(const ceres::CostFunction& cost, const CameraInfo& camera,
+                       const SE3d& T_camera_marker) {
   double robot[7], marker[7];
   SE3ToBlock(SE3d(), robot);
   SE3ToBlock(camera.T_robot_camera * T_camera_marker, marker);
@@ -218,7 +219,8 @@ TEST_P(ReprojectionByModel, BehindTheCameraGivesAFiniteGrowingPenalty) {
   const std::unique_ptr<ceres::CostFunction> cost(
       MarkerReprojectionFactor::Create(camera, kSizeM, corners_px, kSigmaPx));
   const auto at_depth = [&](double z_m) {
-    return SquaredResidual(*cost, camera, SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05, 0.02, z_m)));
+    return SquaredResidual(*cost, camera,
+                           SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.05, 0.02, z_m)));
   };
   EXPECT_LT(at_depth(2.0), 1e-12);
   // Whitened squared error of the marker 0.3 and 0.6 m behind: over 100 px per corner, growing.

@@ -5,15 +5,16 @@
 // counterpart) is checked against its closed form r = 2 f sin(theta/2) on seed 002's camera,
 // and with a distortion polynomial.
 #include "geometry/camera.h"
-#include "tests/test_cameras.h"
-
-#include <cmath>
-#include <random>
-#include <vector>
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <opencv2/calib3d.hpp>
+#include <random>
+#include <vector>
+
+#include "tests/test_cameras.h"
 
 namespace waymark {
 namespace {
@@ -155,8 +156,8 @@ TEST(CameraTest, EquisolidMatchesClosedForm) {
   const Camera camera(EquisolidInfo());
   const double f = camera.info().intrinsics[0];
   for (const Eigen::Vector3d& p : RandomPoints(2000, std::tan(85.0 * M_PI / 180.0), 21)) {
-    const long double theta = std::atan2(std::hypot(static_cast<long double>(p.x()), p.y()),
-                                         static_cast<long double>(p.z()));
+    const long double theta =
+        std::atan2(std::hypot(static_cast<long double>(p.x()), p.y()), static_cast<long double>(p.z()));
     const long double r = 2.0L * f * std::sin(theta / 2.0L), a = std::atan2(p.y(), p.x());
     const std::optional<Eigen::Vector2d> px = camera.Project(p);
     ASSERT_TRUE(px.has_value());
@@ -255,7 +256,8 @@ TEST(CameraTest, FisheyeAgreesWithOpenCv) {
   }
 }
 
-void ExpectJacobianMatchesCentralDifferences(const Camera& camera, const std::vector<Eigen::Vector3d>& points) {
+void ExpectJacobianMatchesCentralDifferences(const Camera& camera,
+                                             const std::vector<Eigen::Vector3d>& points) {
   for (const Eigen::Vector3d& p : points) {
     Eigen::Matrix<double, 2, 3> J;
     ASSERT_TRUE(camera.Project(p, &J).has_value());
@@ -266,7 +268,8 @@ void ExpectJacobianMatchesCentralDifferences(const Camera& camera, const std::ve
       J_numeric.col(c) = (*camera.Project(p + dp) - *camera.Project(p - dp)) / (2.0 * h);
     }
     EXPECT_LE((J - J_numeric).norm(), 1e-5 * std::max(1.0, J.norm())) << "at " << p.transpose() << "\n"
-                                                                      << J << "\n" << J_numeric;
+                                                                      << J << "\n"
+                                                                      << J_numeric;
   }
 }
 
@@ -390,7 +393,8 @@ TEST(CameraTest, RadtanUnprojectsUpToTheFold) {
       worst = std::max(worst, (*ray - ray_true).norm());
     }
     // The distorted radius at the fold, then 2 % further out.
-    const Eigen::Vector2d px_fold = *camera.Project(Eigen::Vector3d(r_max * direction.x(), r_max * direction.y(), 1.0));
+    const Eigen::Vector2d px_fold =
+        *camera.Project(Eigen::Vector3d(r_max * direction.x(), r_max * direction.y(), 1.0));
     const Eigen::Vector2d xy_d_fold((px_fold.x() - k[2]) / k[0], (px_fold.y() - k[3]) / k[1]);
     const Eigen::Vector2d xy_d_out = 1.02 * xy_d_fold;
     EXPECT_FALSE(camera.Unproject(Eigen::Vector2d(k[0] * xy_d_out.x() + k[2], k[1] * xy_d_out.y() + k[3])))
@@ -404,7 +408,8 @@ TEST(CameraTest, UndistortedCameraHasUnboundedFieldOfView) {
   info.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
   const Camera camera(info);
   EXPECT_TRUE(std::isinf(camera.max_normalized_radius()));
-  const std::optional<Eigen::Vector3d> ray = camera.Unproject(Eigen::Vector2d(1506.9 * 3.0 + 641.176, 524.495));
+  const std::optional<Eigen::Vector3d> ray =
+      camera.Unproject(Eigen::Vector2d(1506.9 * 3.0 + 641.176, 524.495));
   ASSERT_TRUE(ray.has_value());
   EXPECT_NEAR(ray->x(), 3.0, 1e-12);
   EXPECT_NEAR(ray->y(), 0.0, 1e-12);

@@ -2,15 +2,16 @@
 // Monte-Carlo agreement of the predicted covariance with the empirical one, the planar
 // ambiguity flag, and every rejection of bad input.
 #include "geometry/marker_pose.h"
-#include "tests/test_cameras.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <random>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
+#include "tests/test_cameras.h"
 
 namespace waymark {
 namespace {
@@ -26,7 +27,8 @@ Camera FisheyeCamera() { return Camera(testing::TagslamFisheyeInfo()); }
 // x axis by tilt_x, its y axis by tilt_y and its z axis by spin (radians).
 SE3d CodePose(const Eigen::Vector3d& p_camera, double tilt_x, double tilt_y, double spin) {
   const Eigen::Matrix3d R_frontal = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
-  const Eigen::Matrix3d R = R_frontal * Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()).toRotationMatrix() *
+  const Eigen::Matrix3d R = R_frontal *
+                            Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()).toRotationMatrix() *
                             Eigen::AngleAxisd(tilt_y, Eigen::Vector3d::UnitY()).toRotationMatrix() *
                             Eigen::AngleAxisd(spin, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return SE3d(R, p_camera);
@@ -53,7 +55,8 @@ Corners AddNoise(Corners corners_px, double sigma_px, std::mt19937& rng) {
 }
 
 void ExpectExactRecovery(const Camera& camera, const SE3d& T_true, double size_m) {
-  const MarkerPoseEstimate estimate = EstimateMarkerPose(ProjectCorners(camera, T_true, size_m), size_m, camera);
+  const MarkerPoseEstimate estimate =
+      EstimateMarkerPose(ProjectCorners(camera, T_true, size_m), size_m, camera);
   ASSERT_FALSE(estimate.solutions.empty());
   const SE3d& T = estimate.best().T_camera_marker;
   EXPECT_LE(RotationAngleBetween(T, T_true), 1e-8) << T_true.translation().transpose();
@@ -78,7 +81,8 @@ TEST(MarkerPoseTest, ExactRecoveryFisheye) {
 
 // Predicted covariance (at the noiseless corners) against the empirical covariance of
 // estimates from noisy corners, in the right-perturbation tangent space of the truth.
-void ExpectCovarianceMatchesMonteCarlo(const Camera& camera, const SE3d& T_true, double size_m, unsigned seed) {
+void ExpectCovarianceMatchesMonteCarlo(const Camera& camera, const SE3d& T_true, double size_m,
+                                       unsigned seed) {
   constexpr double kSigmaPx = 0.5;
   constexpr int kDraws = 1000;
   MarkerPoseOptions options;
@@ -89,8 +93,10 @@ void ExpectCovarianceMatchesMonteCarlo(const Camera& camera, const SE3d& T_true,
   std::vector<Vector6d> deltas;
   Vector6d mean = Vector6d::Zero();
   for (int i = 0; i < kDraws; ++i) {
-    const MarkerPoseEstimate estimate = EstimateMarkerPose(AddNoise(corners_px, kSigmaPx, rng), size_m, camera, options);
-    ASSERT_LE(RotationAngleBetween(estimate.best().T_camera_marker, T_true), 0.1) << "picked the mirrored pose";
+    const MarkerPoseEstimate estimate =
+        EstimateMarkerPose(AddNoise(corners_px, kSigmaPx, rng), size_m, camera, options);
+    ASSERT_LE(RotationAngleBetween(estimate.best().T_camera_marker, T_true), 0.1)
+        << "picked the mirrored pose";
     deltas.push_back(T_true.BoxMinus(estimate.best().T_camera_marker));
     mean += deltas.back() / kDraws;
   }
@@ -98,8 +104,10 @@ void ExpectCovarianceMatchesMonteCarlo(const Camera& camera, const SE3d& T_true,
   for (const Vector6d& d : deltas) empirical += (d - mean) * (d - mean).transpose() / (kDraws - 1);
   for (int k = 0; k < 6; ++k) {
     const double ratio = empirical(k, k) / predicted(k, k);
-    EXPECT_GT(ratio, 0.8) << "axis " << k << " empirical " << empirical(k, k) << " predicted " << predicted(k, k);
-    EXPECT_LT(ratio, 1.25) << "axis " << k << " empirical " << empirical(k, k) << " predicted " << predicted(k, k);
+    EXPECT_GT(ratio, 0.8) << "axis " << k << " empirical " << empirical(k, k) << " predicted "
+                          << predicted(k, k);
+    EXPECT_LT(ratio, 1.25) << "axis " << k << " empirical " << empirical(k, k) << " predicted "
+                           << predicted(k, k);
     // The mean error is small next to the spread (no gross bias).
     EXPECT_LT(std::abs(mean(k)), 0.2 * std::sqrt(predicted(k, k))) << "axis " << k;
   }
@@ -190,8 +198,8 @@ TEST(MarkerPoseTest, BadInputIsRejectedWithAClearError) {
   expect_error(good, 0.0, {}, "size_m", camera);
   expect_error(good, std::nan(""), {}, "size_m", camera);
   // Collinear along a line through the principal point (radial distortion keeps it a line).
-  bad = {Eigen::Vector2d(641.176, 524.495), Eigen::Vector2d(691.176, 554.495), Eigen::Vector2d(741.176, 584.495),
-         Eigen::Vector2d(791.176, 614.495)};
+  bad = {Eigen::Vector2d(641.176, 524.495), Eigen::Vector2d(691.176, 554.495),
+         Eigen::Vector2d(741.176, 584.495), Eigen::Vector2d(791.176, 614.495)};
   expect_error(bad, 0.16, {}, "degenerate", camera);
   bad = {good[0], good[0], good[0], good[0]};
   expect_error(bad, 0.16, {}, "degenerate", camera);

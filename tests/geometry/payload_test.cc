@@ -2,11 +2,11 @@
 // identifier plus coordinates, malformed and hostile payloads, and spec validation.
 #include "geometry/payload.h"
 
-#include <cmath>
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
 
 namespace waymark {
 namespace {
@@ -102,9 +102,9 @@ TEST(PayloadTest, MatchingTextWithBadCoordinatesIsRejectedWithAReason) {
     EXPECT_THAT(why, HasSubstr("not a finite number")) << text;
   }
   const PayloadParser seed000(Seed000Spec());
-  for (const std::string text : {"ID=A;X=nan;Y=1", "ID=A;X=inf;Y=1", "ID=A;X=1e999;Y=1", "ID=A;X=;Y=1",
-                                 "ID=A;X= 1;Y=1", "ID=A;X=0x10;Y=1", "ID=A;X=1;Y=2;Z=up",
-                                 "ID=A;X=1;Y=2;YAW=north", "ID=A;X=++1;Y=1"}) {
+  for (const std::string text :
+       {"ID=A;X=nan;Y=1", "ID=A;X=inf;Y=1", "ID=A;X=1e999;Y=1", "ID=A;X=;Y=1", "ID=A;X= 1;Y=1",
+        "ID=A;X=0x10;Y=1", "ID=A;X=1;Y=2;Z=up", "ID=A;X=1;Y=2;YAW=north", "ID=A;X=++1;Y=1"}) {
     std::string why;
     EXPECT_FALSE(seed000.Parse(text, &why).has_value()) << text;
     EXPECT_THAT(why, HasSubstr("not a finite number")) << text;
@@ -170,12 +170,14 @@ TEST(PayloadTest, InvalidSpecsThrowClearErrors) {
   expect_error({"^(.*)/(.*)$", {"id", "z"}}, "`z` needs both");
   // Issue 18 (found by fuzz/payload_fuzz.cc): a repeated group that repeats inside takes
   // exponential time in std::regex; such patterns are refused, single repetitions are not.
-  expect_error({"^ID=(\\w+);X=([^;]*)+Y=(.*)$", {"id", "x", "y"}}, "a repeated group holds a repetition itself");
+  expect_error({"^ID=(\\w+);X=([^;]*)+Y=(.*)$", {"id", "x", "y"}},
+               "a repeated group holds a repetition itself");
   expect_error({"^((a+))*$", {"x", "y"}}, "a repeated group holds a repetition itself");
   expect_error({"^(?:a|b*){2,}(c)$", {"id"}}, "a repeated group holds a repetition itself");
-  EXPECT_NO_THROW(ValidatePayloadSpec({"^([a+]+)$", {"id"}}));          // '+' in a class is a character
-  EXPECT_NO_THROW(ValidatePayloadSpec({"^\\(a+\\)+$", {}}));  // escaped parentheses are characters
-  EXPECT_NO_THROW(ValidatePayloadSpec({"^(?:;Z=([^;]*))?(x{2,3})*$", {"a", "b"}}));  // bounded outer repetitions
+  EXPECT_NO_THROW(ValidatePayloadSpec({"^([a+]+)$", {"id"}}));  // '+' in a class is a character
+  EXPECT_NO_THROW(ValidatePayloadSpec({"^\\(a+\\)+$", {}}));    // escaped parentheses are characters
+  EXPECT_NO_THROW(
+      ValidatePayloadSpec({"^(?:;Z=([^;]*))?(x{2,3})*$", {"a", "b"}}));  // bounded outer repetitions
   // Also found by fuzz/payload_fuzz.cc: std::regex's compiler overflows an int on a huge count.
   expect_error({"^(a{77777777777777777777})$", {"id"}}, "a number of more than 6 digits");
   expect_error({"^(\\\\777777777777777777777)$", {"id"}}, "a number of more than 6 digits");

@@ -2,11 +2,11 @@
 // product map (BoxPlus / BoxMinus), SO(3) Exp / Log near 0 and near pi, yaw, WrapAngle.
 #include "geometry/pose.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace waymark {
 namespace {
@@ -20,8 +20,9 @@ SE3d RandomSE3(std::mt19937& rng) {
 }
 
 void ExpectSE3Near(const SE3d& a, const SE3d& b, double tol) {
-  EXPECT_LE((a.matrix() - b.matrix()).cwiseAbs().maxCoeff(), tol) << "\n" << a.matrix() << "\nvs\n"
-                                                                   << b.matrix();
+  EXPECT_LE((a.matrix() - b.matrix()).cwiseAbs().maxCoeff(), tol) << "\n"
+                                                                  << a.matrix() << "\nvs\n"
+                                                                  << b.matrix();
 }
 
 // Rodrigues' formula, written independently of ExpSO3.
@@ -81,7 +82,8 @@ TEST(GeometryTest, BoxPlusIsARightPerturbationInTheBodyFrame) {
   delta.setZero();
   delta(0) = 0.1;  // rotation about the body x axis = world +y
   const SE3d rolled = T_world_robot.BoxPlus(delta);
-  const Eigen::Matrix3d expected = T_world_robot.rotation_matrix() * Rodrigues(Eigen::Vector3d(0.1, 0.0, 0.0));
+  const Eigen::Matrix3d expected =
+      T_world_robot.rotation_matrix() * Rodrigues(Eigen::Vector3d(0.1, 0.0, 0.0));
   EXPECT_LE((rolled.rotation_matrix() - expected).norm(), 1e-14);
   EXPECT_LE((rolled.translation() - T_world_robot.translation()).norm(), 1e-15);
 }
@@ -147,7 +149,8 @@ TEST(GeometryTest, YawIsTheHeadingOfTheXAxis) {
   for (double yaw : {-3.0, -M_PI / 2.0, -0.1, 0.0, 0.7, M_PI / 2.0, 3.1}) {
     EXPECT_NEAR(SE3d::FromXYZYaw(1.0, 2.0, 3.0, yaw).yaw(), yaw, 1e-15);
     // A small roll about the robot's own x axis leaves the x axis, hence the yaw, unchanged.
-    const SE3d rolled = SE3d::FromXYZYaw(0.0, 0.0, 0.0, yaw) * SE3d::Exp((Vector6d() << 0.3, 0, 0, 0, 0, 0).finished());
+    const SE3d rolled =
+        SE3d::FromXYZYaw(0.0, 0.0, 0.0, yaw) * SE3d::Exp((Vector6d() << 0.3, 0, 0, 0, 0, 0).finished());
     EXPECT_NEAR(rolled.yaw(), yaw, 1e-14);
   }
   EXPECT_NEAR(SE3d::FromXYZYaw(0.0, 0.0, 0.0, M_PI).yaw(), M_PI, 1e-15);

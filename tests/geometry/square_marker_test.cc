@@ -1,12 +1,13 @@
 // Tests of geometry/square_marker.h: the tape's layout, the checks on its parameters, the corner
 // order, and telling several squares of one map apart by the pose prior.
 #include "geometry/square_marker.h"
-#include "tests/test_cameras.h"
-
-#include <cmath>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tests/test_cameras.h"
 
 namespace waymark {
 namespace {
@@ -142,10 +143,12 @@ SE3d UpwardCamera(double x, double y, double yaw) {
 }
 
 // What a detector would report: the square's corners at the true pose, solid side first.
-std::array<Eigen::Vector2d, 4> SolidFirst(const MapMarker& marker, const Camera& camera, const SE3d& T_world_camera) {
+std::array<Eigen::Vector2d, 4> SolidFirst(const MapMarker& marker, const Camera& camera,
+                                          const SE3d& T_world_camera) {
   std::array<Eigen::Vector2d, 4> px;
   const std::array<Eigen::Vector3d, 4> object = MarkerCorners(marker.size_m);
-  for (int k = 0; k < 4; ++k) px[k] = *camera.Project(T_world_camera.inverse() * (marker.T_world_marker * object[k]));
+  for (int k = 0; k < 4; ++k)
+    px[k] = *camera.Project(T_world_camera.inverse() * (marker.T_world_marker * object[k]));
   const int s = static_cast<int>(TapeOf(marker).solid_side);
   std::array<Eigen::Vector2d, 4> solid_first;
   for (int k = 0; k < 4; ++k) solid_first[k] = px[(k + s) % 4];
@@ -174,7 +177,8 @@ TEST(SquareMarkerTest, IdentifySquareByThePosePrior) {
     }
   }
   // A prior midway between the squares fits neither within 30 px.
-  const std::array<Eigen::Vector2d, 4> detected = SolidFirst(map.markers[0], camera, UpwardCamera(0.0, 0.0, 0.0));
+  const std::array<Eigen::Vector2d, 4> detected =
+      SolidFirst(map.markers[0], camera, UpwardCamera(0.0, 0.0, 0.0));
   EXPECT_FALSE(IdentifySquare(map, camera, UpwardCamera(2.0, 0.0, 0.0), detected, 30.0).has_value());
   // A gate so wide that both squares fit: ambiguous, refused.
   EXPECT_FALSE(IdentifySquare(map, camera, UpwardCamera(0.0, 0.0, 0.0), detected, 1e4).has_value());

@@ -108,8 +108,9 @@ TEST(CameraIoTest, PhysicallyMeaninglessValuesAreErrors) {
             "cameras/cam0.yaml:5: distortion: expected coefficients within +-100, got 1e+09");
   EXPECT_EQ(ParseError(GoodCameraWith("[1506.9,", "[1e9,")),
             "cameras/cam0.yaml:4: intrinsics: expected focal lengths up to 1e+06 px, got 1e+09");
-  EXPECT_THAT(ParseError(GoodCameraWith("641.176", "1e7")),
-              HasSubstr("cameras/cam0.yaml:4: intrinsics: expected the principal point within one image size"));
+  EXPECT_THAT(
+      ParseError(GoodCameraWith("641.176", "1e7")),
+      HasSubstr("cameras/cam0.yaml:4: intrinsics: expected the principal point within one image size"));
   EXPECT_EQ(ParseError(GoodCameraWith("pixel_sigma: 1.0", "pixel_sigma: 1e300")),
             "cameras/cam0.yaml:9: pixel_sigma: expected a positive number of pixels up to 1000, got 1e+300");
   CameraInfo camera = ParseCameraYaml(kGoodCamera, "cameras/cam0.yaml", "cam0");
@@ -170,7 +171,8 @@ TEST(CameraIoTest, ReadsEquisolid) {
   const CameraInfo camera = ParseCameraYaml(equisolid, "cameras/cam0.yaml", "cam0");
   EXPECT_EQ(camera.model, CameraModel::kEquisolid);
   EXPECT_EQ(camera.distortion, std::vector<double>({0.0, 0.0, 0.001, 0.0}));
-  EXPECT_EQ(ParseCameraYaml(FormatCameraYaml(camera), "cameras/cam0.yaml", "cam0").model, CameraModel::kEquisolid);
+  EXPECT_EQ(ParseCameraYaml(FormatCameraYaml(camera), "cameras/cam0.yaml", "cam0").model,
+            CameraModel::kEquisolid);
 }
 
 }  // namespace

@@ -11,9 +11,9 @@
 
 #include "io/camera_io.h"
 #include "io/detections_io.h"
-#include "io/util.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
+#include "io/util.h"
 
 namespace waymark {
 namespace {

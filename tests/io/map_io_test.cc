@@ -131,8 +131,10 @@ TEST(MapIoTest, PhysicallyMeaninglessValuesAreErrors) {
   EXPECT_THAT(ParseError(GoodMapWith("0.08", "9223372036854775808")),
               HasSubstr("map.json:3: markers[0].size_m: expected a size between 1e-04 and 100 m, got "
                         "9223372036854775808"));
-  EXPECT_THAT(ParseError(GoodMapWith("[1, 2, 3]", "[1, 2, 1e308]")),
-              HasSubstr("map.json:4: markers[0].T_world_marker.t: expected coordinates within +-1e+07 m, got 1e+308"));
+  EXPECT_THAT(
+      ParseError(GoodMapWith("[1, 2, 3]", "[1, 2, 1e308]")),
+      HasSubstr(
+          "map.json:4: markers[0].T_world_marker.t: expected coordinates within +-1e+07 m, got 1e+308"));
   MarkerMap map = ParseMap(kGoodMap, "map.json");
   map.markers[0].size_m = 1e6;
   EXPECT_THROW(FormatMap(map), std::invalid_argument);
@@ -172,16 +174,18 @@ TEST(MapIoTest, SquareTapeRoundTrip) {
 }
 
 TEST(MapIoTest, SquareTapeErrors) {
-  EXPECT_THAT(ParseError(SquareMapWith("\"left\"", "\"up\"")),
-              HasSubstr("map.json:5: markers[0].square.solid_side: expected top, right, bottom or left, got \"up\""));
+  EXPECT_THAT(
+      ParseError(SquareMapWith("\"left\"", "\"up\"")),
+      HasSubstr("map.json:5: markers[0].square.solid_side: expected top, right, bottom or left, got \"up\""));
   EXPECT_THAT(ParseError(SquareMapWith("\"tape_width_m\": 0.04", "\"tape_width_m\": 0.9")),
               HasSubstr("map.json:5: markers[0].square: tape_width_m: expected > 0 and <= side / 4"));
   EXPECT_THAT(ParseError(SquareMapWith("\"dash_m\": 0.15", "\"dash_m\": \"long\"")),
               HasSubstr("map.json:5: markers[0].square.dash_m: expected a number"));
   EXPECT_THAT(ParseError(SquareMapWith("\"square\": {", "\"square\": 3, \"x\": {")),
               HasSubstr("markers[0].square: expected an object"));
-  EXPECT_THAT(ParseError(SquareMapWith("\"family\": \"square\", \"id\": \"A\"", "\"family\": \"qr\", \"id\": \"A\"")),
-              HasSubstr("markers[0].square: only a marker of family square has a tape"));
+  EXPECT_THAT(
+      ParseError(SquareMapWith("\"family\": \"square\", \"id\": \"A\"", "\"family\": \"qr\", \"id\": \"A\"")),
+      HasSubstr("markers[0].square: only a marker of family square has a tape"));
   EXPECT_THAT(ParseError(SquareMapWith("\"size_m\": 1.5", "\"size_m\": 0.1")),
               HasSubstr("map.json:6: markers[1].size_m: too small for the default tape"));
 }
@@ -282,18 +286,23 @@ TEST(MapIoTest, CovarianceFactorRoundTripAndErrors) {
       "\"covariance\": [1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4, 0, 0, "
       "0, 0, 0, 0, 1e-4, 0, 0, 0, 0, 0, 0, 1e-4], ";
   const std::string factor_k1 = "\"covariance_factor\": [0.005, 0, 0, 0, 0, 0.001], ";
-  EXPECT_NO_THROW(ParseMap(GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,"), "m"));
-  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", covariance + "\"covariance_factor\": [1, 2, 3], \"fixed\": false,")),
+  EXPECT_NO_THROW(
+      ParseMap(GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,"), "m"));
+  EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,",
+                                     covariance + "\"covariance_factor\": [1, 2, 3], \"fixed\": false,")),
               HasSubstr("markers[0].covariance_factor: expected a non-empty array of 6 k numbers"));
   EXPECT_THAT(ParseError(GoodMapWith("\"fixed\": true,", factor_k1 + "\"fixed\": false,")),
               HasSubstr("markers[0].covariance_factor: expected a covariance with the covariance_factor"));
   EXPECT_THAT(
-      ParseError(GoodMapWith("\"fixed\": true,", covariance + "\"covariance_factor\": [0.02, 0, 0, 0, 0, 0], \"fixed\": false,")),
+      ParseError(GoodMapWith("\"fixed\": true,",
+                             covariance + "\"covariance_factor\": [0.02, 0, 0, 0, 0, 0], \"fixed\": false,")),
       HasSubstr("markers[0].covariance_factor: expected covariance - F F^T positive semi-definite"));
   std::string two = GoodMapWith("\"fixed\": true,", covariance + factor_k1 + "\"fixed\": false,");
-  two.replace(two.find("\"size_m\": 0.16"), 14,
-              "\"size_m\": 0.16, " + covariance + "\"covariance_factor\": [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]");
-  EXPECT_THAT(ParseError(two), HasSubstr("markers[1].covariance_factor: expected 6 x 1 like the markers before, got 6 x 2"));
+  two.replace(
+      two.find("\"size_m\": 0.16"), 14,
+      "\"size_m\": 0.16, " + covariance + "\"covariance_factor\": [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]");
+  EXPECT_THAT(ParseError(two),
+              HasSubstr("markers[1].covariance_factor: expected 6 x 1 like the markers before, got 6 x 2"));
 
   map.markers[1].covariance_factor = CovarianceFactor(6, 0);
   EXPECT_THROW(FormatMap(map), std::invalid_argument);

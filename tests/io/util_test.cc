@@ -1,22 +1,22 @@
 #include "io/util.h"
-#include "io/json_util.h"
-#include "io/yaml_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
-#include <ctime>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 
-#include <sys/wait.h>
-#include <unistd.h>
+#include "io/json_util.h"
+#include "io/yaml_util.h"
 
 namespace waymark {
 namespace {
@@ -97,18 +97,21 @@ TEST(AtomicWriteFileTest, SeveralFilesAllOrNothing) {
   AtomicWriteFile(dir / "keep.txt", "old");
   AtomicWriteFile(dir / "afile", "a plain file");
   // The second path is impossible: the first is not written, nor its new directory made.
-  EXPECT_THROW(AtomicWriteFiles({{dir / "new" / "a.txt", "a"}, {dir / "keep.txt", "new"}, {dir / "afile" / "b", "b"}}),
-               std::runtime_error);
+  EXPECT_THROW(
+      AtomicWriteFiles({{dir / "new" / "a.txt", "a"}, {dir / "keep.txt", "new"}, {dir / "afile" / "b", "b"}}),
+      std::runtime_error);
   EXPECT_FALSE(fs::exists(dir / "new"));
   EXPECT_EQ(ReadTextFile(dir / "keep.txt"), "old");
   // The same file twice, however spelled: refused before anything is written.
-  EXPECT_THROW(AtomicWriteFiles({{dir / "x.txt", "1"}, {dir / "new" / ".." / "x.txt", "2"}}), std::invalid_argument);
+  EXPECT_THROW(AtomicWriteFiles({{dir / "x.txt", "1"}, {dir / "new" / ".." / "x.txt", "2"}}),
+               std::invalid_argument);
   EXPECT_FALSE(fs::exists(dir / "x.txt"));
   try {
     CheckDistinctOutputs({{"--out", (dir / "x.txt").string()}, {"--poses", (dir / "." / "x.txt").string()}});
     FAIL() << "expected std::invalid_argument";
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()), "--out and --poses name the same file '" + (dir / "." / "x.txt").string() + "'");
+    EXPECT_EQ(std::string(e.what()),
+              "--out and --poses name the same file '" + (dir / "." / "x.txt").string() + "'");
   }
   AtomicWriteFiles({{dir / "new" / "a.txt", "a"}, {dir / "keep.txt", "new"}});
   EXPECT_EQ(ReadTextFile(dir / "new" / "a.txt"), "a");
@@ -122,8 +125,8 @@ TEST(AtomicWriteFileTest, StaleTemporariesOfDeadWritersAreRemoved) {
   long pid = 0;
   EXPECT_TRUE(IsTemporaryFileName(".map.json.tmp-1234-9f8e7d6c5b4a3210", &pid));
   EXPECT_EQ(pid, 1234);
-  for (const char* name : {"map.json.tmp-1234-ab", ".map.json.tmp--ab", ".map.json.tmp-12x-ab", ".map.json.tmp-12-",
-                           ".map.json.tmp-12-XYZ", ".tmp-12-ab", ".map.json"}) {
+  for (const char* name : {"map.json.tmp-1234-ab", ".map.json.tmp--ab", ".map.json.tmp-12x-ab",
+                           ".map.json.tmp-12-", ".map.json.tmp-12-XYZ", ".tmp-12-ab", ".map.json"}) {
     EXPECT_FALSE(IsTemporaryFileName(name, &pid)) << name;
   }
   const fs::path dir = MakeTempDir("stale");

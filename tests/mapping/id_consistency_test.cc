@@ -2,9 +2,9 @@
 // known (sim::SimResult::true_keys).
 #include "mapping/id_consistency.h"
 
-#include <set>
-
 #include <gtest/gtest.h>
+
+#include <set>
 
 #include "mapping/initializer.h"
 #include "sim/simulator.h"
@@ -83,7 +83,8 @@ TEST(IdConsistencyTest, WithoutObservationsRenumbers) {
     for (int o : out.markers[m].observations) EXPECT_EQ(out.observations[o].marker, static_cast<int>(m));
   }
   EXPECT_EQ(out.observations[0].corners_px[0], survey.observations[1].corners_px[0]);
-  EXPECT_THROW(WithoutObservations(survey, {static_cast<int>(survey.observations.size())}), std::out_of_range);
+  EXPECT_THROW(WithoutObservations(survey, {static_cast<int>(survey.observations.size())}),
+               std::out_of_range);
 }
 
 TEST(IdConsistencyTest, RejectsBadOptions) {

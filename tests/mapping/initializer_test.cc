@@ -2,9 +2,9 @@
 // whose first view is flipped, and disconnected groups.
 #include "mapping/initializer.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "geometry/marker_pose.h"
 #include "tests/mapping/synthetic_wall.h"
@@ -76,7 +76,8 @@ class SurveyBuilder {
     known.size_m = survey_.markers[m].size_m;
     known.T_world_marker = T_world_marker;
     Vector6d variances;
-    variances << Eigen::Vector3d::Constant(sigma_rad * sigma_rad), Eigen::Vector3d::Constant(sigma_m * sigma_m);
+    variances << Eigen::Vector3d::Constant(sigma_rad * sigma_rad),
+        Eigen::Vector3d::Constant(sigma_m * sigma_m);
     known.covariance = Matrix6d(variances.asDiagonal());
     survey_.markers[m].known = known;
   }
@@ -95,7 +96,8 @@ SurveyBuilder DriveTowardsCode(unsigned seed) {
   std::mt19937 rng(seed);
   SurveyBuilder builder;
   const int code = builder.AddCode("A", WallCode(Eigen::Vector3d(3.2, 0.5, 0.35), 25.0 * kDeg), 0.08);
-  for (int i = 0; i < 20; ++i) builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.0, 0.0, 0.0), {code}, true, &rng);
+  for (int i = 0; i < 20; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.0, 0.0, 0.0), {code}, true, &rng);
   return builder;
 }
 
@@ -104,7 +106,8 @@ bool FirstViewFlipped(const SurveyBuilder& builder) {
   const Survey& survey = builder.survey();
   const Camera camera(survey.cameras.at("cam0"));
   const MarkerPoseEstimate estimate = EstimateMarkerPose(survey.observations[0].corners_px, 0.08, camera);
-  const SE3d T_world_marker = builder.robot(0) * camera.info().T_robot_camera * estimate.best().T_camera_marker;
+  const SE3d T_world_marker =
+      builder.robot(0) * camera.info().T_robot_camera * estimate.best().T_camera_marker;
   return RotationAngleBetween(T_world_marker, builder.code(0)) > 20.0 * kDeg;
 }
 
@@ -158,7 +161,8 @@ TEST(InitializerTest, OtherFlipBranchTurnsAFlippedCodeBack) {
   const Eigen::Quaterniond mirror(Eigen::AngleAxisd(-50.0 * kDeg, Eigen::Vector3d::UnitZ()));
   const SE3d flipped(mirror * truth.rotation(), truth.translation());
   const LocalMapOptions options;
-  const std::optional<SE3d> back = OtherFlipBranch(survey, cameras, views, T_world_robot, 0, flipped, options);
+  const std::optional<SE3d> back =
+      OtherFlipBranch(survey, cameras, views, T_world_robot, 0, flipped, options);
   ASSERT_TRUE(back.has_value());
   EXPECT_LT(RotationAngleBetween(*back, truth), 3.0 * kDeg);
   EXPECT_LT((back->translation() - truth.translation()).norm(), 0.02);
@@ -188,9 +192,11 @@ TEST(InitializerTest, DisconnectedGroupsBecomeComponents) {
   const int a = builder.AddCode("A", WallCode(Eigen::Vector3d(2.0, 0.2, 0.35), 0.0), 0.10);
   const int b = builder.AddCode("B", WallCode(Eigen::Vector3d(2.0, -0.3, 0.35), 10.0 * kDeg), 0.10);
   const int c = builder.AddCode("C", WallCode(Eigen::Vector3d(12.0, 0.0, 0.35), 0.0), 0.10);
-  for (int i = 0; i < 5; ++i) builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.0, 0.0, 0.0), {a, b}, i > 0, &rng);
+  for (int i = 0; i < 5; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.0, 0.0, 0.0), {a, b}, i > 0, &rng);
   builder.AddFrame(SE3d::FromXYZYaw(5.0, 5.0, 0.0, 0.0), {}, false, &rng);  // sees nothing, no odometry
-  for (int i = 0; i < 5; ++i) builder.AddFrame(SE3d::FromXYZYaw(10.0 + 0.05 * i, 0.0, 0.0, 0.0), {c}, i > 0, &rng);
+  for (int i = 0; i < 5; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(10.0 + 0.05 * i, 0.0, 0.0, 0.0), {c}, i > 0, &rng);
   const Initialization init = Initialize(builder.survey());
   EXPECT_EQ(init.components, 2);
   EXPECT_EQ(init.marker_component, (std::vector<int>{0, 0, 1}));
@@ -206,7 +212,8 @@ TEST(InitializerTest, DisconnectedGroupsBecomeComponents) {
   const SE3d truth_6_c = builder.robot(6).inverse() * builder.code(c);
   EXPECT_LT((T_robot6_c.translation() - truth_6_c.translation()).norm(), 0.05);
   // Codes A and B 0.5 m apart (a near-frontal code's orientation is loose; its position is not).
-  const Eigen::Vector3d a_to_b = init.T_world_marker[b]->translation() - init.T_world_marker[a]->translation();
+  const Eigen::Vector3d a_to_b =
+      init.T_world_marker[b]->translation() - init.T_world_marker[a]->translation();
   EXPECT_LT((a_to_b - (builder.code(b).translation() - builder.code(a).translation())).norm(), 0.02);
   EXPECT_FALSE(init.notes.empty());
 }
@@ -237,10 +244,14 @@ TEST(InitializerTest, GroupsWithPriorsAreOneComponentInTheWorldFrame) {
   builder.SetPrior(b, off(builder.code(b), -0.2, 0.2, -0.05), 0.1, 0.5);
   builder.SetPrior(c, off(builder.code(c), 0.25, 0.15, 0.06), 0.1, 0.5);
   builder.SetPrior(d, off(builder.code(d), -0.3, -0.2, -0.08), 0.1, 0.5);
-  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.1 * i, 0.0, 0.02 * i), {a, b}, false, &rng);
-  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(10.0 + 0.05 * i, 0.0, 0.0, 0.0), {c}, false, &rng);
-  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(20.0, 5.0 + 0.05 * i, 0.0, 0.0), {d}, false, &rng);
-  for (int i = 0; i < 4; ++i) builder.AddFrame(SE3d::FromXYZYaw(30.0 + 0.05 * i, 0.0, 0.0, 0.0), {e}, false, &rng);
+  for (int i = 0; i < 4; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(0.05 * i, 0.1 * i, 0.0, 0.02 * i), {a, b}, false, &rng);
+  for (int i = 0; i < 4; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(10.0 + 0.05 * i, 0.0, 0.0, 0.0), {c}, false, &rng);
+  for (int i = 0; i < 4; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(20.0, 5.0 + 0.05 * i, 0.0, 0.0), {d}, false, &rng);
+  for (int i = 0; i < 4; ++i)
+    builder.AddFrame(SE3d::FromXYZYaw(30.0 + 0.05 * i, 0.0, 0.0, 0.0), {e}, false, &rng);
   const Initialization init = Initialize(builder.survey());
   ASSERT_EQ(init.components, 2);
   EXPECT_EQ(init.marker_component, (std::vector<int>{0, 0, 0, 0, 1}));
@@ -257,7 +268,8 @@ TEST(InitializerTest, GroupsWithPriorsAreOneComponentInTheWorldFrame) {
     EXPECT_LT((init.T_world_robot[f]->translation() - builder.robot(f).translation()).norm(), 1.0) << f;
   }
   // Inside the group of A and B the geometry is the images', not the priors'.
-  const Eigen::Vector3d a_to_b = init.T_world_marker[b]->translation() - init.T_world_marker[a]->translation();
+  const Eigen::Vector3d a_to_b =
+      init.T_world_marker[b]->translation() - init.T_world_marker[a]->translation();
   EXPECT_LT((a_to_b - (builder.code(b).translation() - builder.code(a).translation())).norm(), 0.02);
   EXPECT_FALSE(init.notes.empty());
 }

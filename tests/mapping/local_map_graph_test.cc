@@ -1,11 +1,11 @@
 #include "mapping/local_map_graph.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace waymark {
 namespace {
@@ -45,7 +45,8 @@ Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
   const SE3d T_ref0_world = SE2d(radius_m, 0.0, M_PI / 2).ToSE3().inverse();
   for (int i = 0; i < kMaps; ++i) {
     const double angle = 2.0 * M_PI * i / kMaps;
-    const SE3d T_world_ref = SE2d(radius_m * std::cos(angle), radius_m * std::sin(angle), angle + M_PI / 2).ToSE3();
+    const SE3d T_world_ref =
+        SE2d(radius_m * std::cos(angle), radius_m * std::sin(angle), angle + M_PI / 2).ToSE3();
     loop.T_world_ref.push_back(T_ref0_world * T_world_ref);
     // The code on the outer wall, 1 m out, facing the centre, 0.5 m up.
     const SE3d T_ref_code(Eigen::Quaterniond(Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX())),
@@ -63,8 +64,9 @@ Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
     map.codes.emplace(i, Sighting(T_ref_world * loop.T_world_code[i], &rng));
     if (i > 0) map.codes.emplace(i - 1, Sighting(T_ref_world * loop.T_world_code[i - 1], &rng));
     if (i == kMaps - 1) {
-      const SE3d T_world_code0(loop.T_world_code[0].rotation(),
-                               loop.T_world_code[0].translation() + Eigen::Vector3d(closure_offset_m, 0.0, 0.0));
+      const SE3d T_world_code0(
+          loop.T_world_code[0].rotation(),
+          loop.T_world_code[0].translation() + Eigen::Vector3d(closure_offset_m, 0.0, 0.0));
       map.codes.emplace(0, Sighting(T_ref_world * T_world_code0, &rng));
     }
     loop.maps.push_back(map);
@@ -148,7 +150,8 @@ TEST(LocalMapGraphTest, ManyFramesWithoutOdometryStayLinearAndArePlacedRight) {
     map.chain = i;
     map.frames.push_back(i);
     map.T_ref_robot.push_back(SE3d::Identity());
-    for (int c = 0; c < 3; ++c) map.codes.emplace(c, Sighting(truth.back().inverse() * T_world_code[c], &rng));
+    for (int c = 0; c < 3; ++c)
+      map.codes.emplace(c, Sighting(truth.back().inverse() * T_world_code[c], &rng));
     maps.push_back(map);
   }
   const LocalMapGraph graph = SolveLocalMapGraph(maps, {}, false);

@@ -2,12 +2,12 @@
 // rejection, link quality, the maximum-quality spanning forest and its placement.
 #include "mapping/local_maps.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
-
-#include <gtest/gtest.h>
 
 #include "tests/mapping/synthetic_wall.h"
 
@@ -33,7 +33,8 @@ Views MakeViews(const Camera& camera, const std::vector<SE3d>& T_world_robot, co
   views.corners.reserve(T_world_robot.size());
   for (const SE3d& T_world_robot_i : T_world_robot) {
     const Eigen::Vector3d jitter(noise(*rng), noise(*rng), noise(*rng));
-    const SE3d T_moved(T_world_marker.rotation(), T_world_marker.translation() + jitter_m * jitter.normalized());
+    const SE3d T_moved(T_world_marker.rotation(),
+                       T_world_marker.translation() + jitter_m * jitter.normalized());
     const SE3d T_world_camera = T_world_robot_i * camera.info().T_robot_camera;
     std::array<Eigen::Vector2d, 4> corners;
     const auto corners_marker = MarkerCorners(size_m);
@@ -54,7 +55,8 @@ Views MakeViews(const Camera& camera, const std::vector<SE3d>& T_world_robot, co
 // A robot at the origin turning in place from -10 to +10 degrees, n frames.
 std::vector<SE3d> TurningRobot(int n) {
   std::vector<SE3d> poses;
-  for (int i = 0; i < n; ++i) poses.push_back(SE3d::FromXYZYaw(0.0, 0.0, 0.0, (-10.0 + 20.0 * i / (n - 1)) * kDeg));
+  for (int i = 0; i < n; ++i)
+    poses.push_back(SE3d::FromXYZYaw(0.0, 0.0, 0.0, (-10.0 + 20.0 * i / (n - 1)) * kDeg));
   return poses;
 }
 
@@ -66,7 +68,8 @@ TEST(LocalMapsTest, FusesViewsAndRejectsAnUnstableCode) {
   LocalMapOptions options;
 
   const Views steady = MakeViews(camera, robots, T_world_marker, 0.10, 0.5, 0.0, &rng);
-  const std::optional<FusedPose> fused = FuseMarkerViews(steady.fusion, 0.10, {T_world_marker}, false, options);
+  const std::optional<FusedPose> fused =
+      FuseMarkerViews(steady.fusion, 0.10, {T_world_marker}, false, options);
   ASSERT_TRUE(fused.has_value());
   EXPECT_EQ(fused->views, 20);
   EXPECT_TRUE(fused->stable) << fused->why;
@@ -79,7 +82,8 @@ TEST(LocalMapsTest, FusesViewsAndRejectsAnUnstableCode) {
 
   // The same code moving by 3 cm between views: its corners vary far beyond the noise.
   const Views moving = MakeViews(camera, robots, T_world_marker, 0.10, 0.5, 0.03, &rng);
-  const std::optional<FusedPose> unstable = FuseMarkerViews(moving.fusion, 0.10, {T_world_marker}, false, options);
+  const std::optional<FusedPose> unstable =
+      FuseMarkerViews(moving.fusion, 0.10, {T_world_marker}, false, options);
   ASSERT_TRUE(unstable.has_value());
   EXPECT_FALSE(unstable->stable);
   EXPECT_GT(unstable->rms_sigma, options.max_rms_sigma);
@@ -108,7 +112,8 @@ TEST(LocalMapsTest, BothFlipBranchesAreTriedAndTheTrueOneWins) {
                          T_world_marker.rotation(),
                      T_world_marker.translation());
   LocalMapOptions options;
-  const std::optional<FusedPose> fused = FuseMarkerViews(views.fusion, 0.08, {flipped, T_world_marker}, false, options);
+  const std::optional<FusedPose> fused =
+      FuseMarkerViews(views.fusion, 0.08, {flipped, T_world_marker}, false, options);
   ASSERT_TRUE(fused.has_value());
   EXPECT_LT(RotationAngleBetween(fused->T_frame_marker, T_world_marker), 3.0 * kDeg);
   EXPECT_TRUE(std::isfinite(fused->alt_chi2));
@@ -220,9 +225,11 @@ TEST(LocalMapsTest, RobotPnpRecoversAPerturbedPose) {
   const SE3d start = SE3d::FromXYZYaw(0.25, -0.1, 0.0, 2.0 * kDeg);
   for (const double sigma_px : {0.0, 0.5}) {
     std::vector<Views> views;
-    for (const SE3d& code : codes) views.push_back(MakeViews(camera, {T_world_robot}, code, 0.1, sigma_px, 0.0, &rng));
+    for (const SE3d& code : codes)
+      views.push_back(MakeViews(camera, {T_world_robot}, code, 0.1, sigma_px, 0.0, &rng));
     std::vector<PnpView> pnp;
-    for (size_t i = 0; i < codes.size(); ++i) pnp.push_back({&camera, &views[i].corners[0], 0.5, 0.1, codes[i]});
+    for (size_t i = 0; i < codes.size(); ++i)
+      pnp.push_back({&camera, &views[i].corners[0], 0.5, 0.1, codes[i]});
     const SE3d refined = RefineRobotPose(pnp, start, true, 3.0, 50);
     // Exact without noise; with 0.5 px, two 10 cm codes 2 m away fix the pose to about 2 cm.
     const double tolerance_m = sigma_px == 0.0 ? 1e-6 : 0.03;

@@ -1,14 +1,14 @@
 // Map learning on simulated surveys with exact ground truth (sim/), measured with eval/.
-#include "mapping/build_report.h"
 #include "mapping/map_builder.h"
+
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <set>
 
-#include <gtest/gtest.h>
-
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"
+#include "mapping/build_report.h"
 #include "sim/simulator.h"
 
 namespace waymark {
@@ -85,8 +85,10 @@ TrueWheelCalibration TrueCalibration(const std::string& scenario) {
   const sim::ParamSet p = sim::ScenarioParams(scenario);
   const double left = 1.0 + p.Double("odometry.wheel_radius_error_left");
   const double right = 1.0 + p.Double("odometry.wheel_radius_error_right");
-  const double nominal_track_m = p.Double("robot.track_width_m") * (1.0 + p.Double("odometry.track_width_error"));
-  return {(1.0 / right - 1.0 / left) / nominal_track_m, 1.0 / (1.0 + p.Double("odometry.track_width_error")) - 1.0};
+  const double nominal_track_m =
+      p.Double("robot.track_width_m") * (1.0 + p.Double("odometry.track_width_error"));
+  return {(1.0 / right - 1.0 / left) / nominal_track_m,
+          1.0 / (1.0 + p.Double("odometry.track_width_error")) - 1.0};
 }
 
 // A loop survey estimates the wheel errors (reported with sigmas); a survey of rooms joined by
@@ -150,8 +152,8 @@ TEST(MapBuilderTest, CovarianceMatchesMonteCarloSpread) {
   double squared_error = 0.0, predicted_variance = 0.0;
   long n = 0;
   for (std::uint64_t seed = 10; seed < 14; ++seed) {
-    const sim::SimResult sim = Simulate("corridor", seed, {"place.loop_length_m=4", "place.loop_width_m=3",
-                                                           "place.spacing_m=0.5"});
+    const sim::SimResult sim =
+        Simulate("corridor", seed, {"place.loop_length_m=4", "place.loop_width_m=3", "place.spacing_m=0.5"});
     const MapBuildResult result = BuildMap(sim.dataset);
     ASSERT_TRUE(result.covariance_computed);
     for (const MapMarker& m : result.map.markers) {
@@ -184,13 +186,14 @@ TEST(MapBuilderTest, MisdecodedIdsAreSetAsideAndReported) {
     misdecoded_sum += bad_error.position_rmse_m;
     EXPECT_EQ(bad_error.missing_in_groundtruth.size(), 0u) << "a misread id was mapped, seed " << seed;
     EXPECT_EQ(bad_result.components.size(), 1u);
-    const size_t id_outliers = std::count_if(bad_result.outliers.begin(), bad_result.outliers.end(), [](const auto& o) {
-      return o.reason.find("misdecoded?") != std::string::npos;
-    });
+    const size_t id_outliers =
+        std::count_if(bad_result.outliers.begin(), bad_result.outliers.end(),
+                      [](const auto& o) { return o.reason.find("misdecoded?") != std::string::npos; });
     EXPECT_GE(id_outliers, static_cast<size_t>(0.8 * bad.stats.misdecoded)) << "seed " << seed;
     EXPECT_NE(FormatBuildSummary(bad_result).find("by code:"), std::string::npos);
   }
-  std::cerr << "mean marker RMS clean " << clean_sum / 3 << " m, 10 % misdecoded " << misdecoded_sum / 3 << " m\n";
+  std::cerr << "mean marker RMS clean " << clean_sum / 3 << " m, 10 % misdecoded " << misdecoded_sum / 3
+            << " m\n";
   EXPECT_LE(misdecoded_sum, 1.2 * clean_sum);
 }
 

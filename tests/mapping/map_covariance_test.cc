@@ -33,14 +33,15 @@ TEST(MapCovarianceTest, TopEigenFactorFindsTheLargestEigenpairs) {
   const Eigen::MatrixXd Sigma = V * lambda.asDiagonal() * V.transpose();
   CovarianceFactorOptions options;
   options.rank = k;
-  const Eigen::MatrixXd F = TopEigenFactor([&](const Eigen::MatrixXd& X) { return Eigen::MatrixXd(Sigma * X); }, n,
-                                           options);
+  const Eigen::MatrixXd F =
+      TopEigenFactor([&](const Eigen::MatrixXd& X) { return Eigen::MatrixXd(Sigma * X); }, n, options);
   ASSERT_EQ(F.cols(), k);
   const Eigen::MatrixXd best = V.leftCols(k) * lambda.head(k).asDiagonal() * V.leftCols(k).transpose();
   EXPECT_LT((F * F.transpose() - best).norm(), 1e-6 * best.norm());
   // The rest is PSD: F F^T <= Sigma.
-  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sigma - F * F.transpose()).eigenvalues().minCoeff(),
-            -1e-9);
+  EXPECT_GT(
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sigma - F * F.transpose()).eigenvalues().minCoeff(),
+      -1e-9);
   options.rank = n + 10;  // capped at n: the whole matrix
   const Eigen::MatrixXd F_all =
       TopEigenFactor([&](const Eigen::MatrixXd& X) { return Eigen::MatrixXd(Sigma * X); }, n, options);
@@ -60,7 +61,9 @@ TEST(MapCovarianceTest, FitFactorToMarginalKeepsTheRestPositiveSemiDefinite) {
   const double scale = FitFactorToMarginal(marginal, &outside);
   EXPECT_LT(scale, 1.0);
   const double min_eigenvalue =
-      Eigen::SelfAdjointEigenSolver<Matrix6d>(marginal - outside * outside.transpose()).eigenvalues().minCoeff();
+      Eigen::SelfAdjointEigenSolver<Matrix6d>(marginal - outside * outside.transpose())
+          .eigenvalues()
+          .minCoeff();
   EXPECT_GT(min_eigenvalue, -1e-9);
   EXPECT_LT(min_eigenvalue, 1e-6);  // scaled just enough: touches the boundary
 }
@@ -85,10 +88,11 @@ TEST(MapCovarianceTest, FullRankFactorIsTheJointCovariance) {
   }
   const Matrix6d prior = Matrix6d::Identity() * 1e-4;
   problem.AddResidualBlock(PosePriorSE3Factor::Create(random_pose(), prior), nullptr, blocks[0].data());
-  problem.AddResidualBlock(PosePriorSE3Factor::Create(random_pose(), prior * 100.0), nullptr, blocks[2].data());
+  problem.AddResidualBlock(PosePriorSE3Factor::Create(random_pose(), prior * 100.0), nullptr,
+                           blocks[2].data());
   for (int i = 0; i < 2; ++i) {
-    problem.AddResidualBlock(OdometrySE3Factor::Create(random_pose(), prior * (i + 1)), nullptr, blocks[i].data(),
-                             blocks[i + 1].data());
+    problem.AddResidualBlock(OdometrySE3Factor::Create(random_pose(), prior * (i + 1)), nullptr,
+                             blocks[i].data(), blocks[i + 1].data());
   }
   std::vector<const double*> block_pointers = {blocks[0].data(), blocks[1].data(), blocks[2].data()};
   ceres::Covariance::Options covariance_options;

@@ -2,14 +2,14 @@
 // problems with quaternion manifolds, constant blocks and a free gauge.
 #include "mapping/marginal_covariance.h"
 
-#include <array>
-#include <memory>
-#include <random>
-
-#include <Eigen/Dense>
 #include <ceres/ceres.h>
 #include <ceres/covariance.h>
 #include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <array>
+#include <memory>
+#include <random>
 
 namespace waymark {
 namespace {
@@ -20,7 +20,8 @@ class LinearCost : public ceres::CostFunction {
  public:
   LinearCost(std::vector<Eigen::MatrixXd> A, Eigen::VectorXd c) : A_(std::move(A)), c_(std::move(c)) {
     set_num_residuals(static_cast<int>(c_.size()));
-    for (const Eigen::MatrixXd& a : A_) mutable_parameter_block_sizes()->push_back(static_cast<int>(a.cols()));
+    for (const Eigen::MatrixXd& a : A_)
+      mutable_parameter_block_sizes()->push_back(static_cast<int>(a.cols()));
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
     Eigen::Map<Eigen::VectorXd> r(residuals, c_.size());
@@ -28,8 +29,8 @@ class LinearCost : public ceres::CostFunction {
     for (size_t b = 0; b < A_.size(); ++b) {
       r += A_[b] * Eigen::Map<const Eigen::VectorXd>(parameters[b], A_[b].cols());
       if (jacobians != nullptr && jacobians[b] != nullptr) {
-        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobians[b], A_[b].rows(),
-                                                                                          A_[b].cols()) = A_[b];
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            jacobians[b], A_[b].rows(), A_[b].cols()) = A_[b];
       }
     }
     return true;
@@ -61,7 +62,8 @@ struct ChainProblem {
       Eigen::VectorXd v = random(size, 1);
       if (size == 4) v.normalize();
       values[b].assign(v.data(), v.data() + size);
-      problem.AddParameterBlock(values[b].data(), size, size == 4 ? new ceres::QuaternionManifold() : nullptr);
+      problem.AddParameterBlock(values[b].data(), size,
+                                size == 4 ? new ceres::QuaternionManifold() : nullptr);
     }
     const auto size_of = [&](int b) { return static_cast<int>(values[b].size()); };
     for (int b = 0; b < chain; ++b) {
@@ -78,14 +80,16 @@ struct ChainProblem {
   }
 
   // Relative-only costs (r = x_b - x_a - c) leave the sum of the blocks free.
-  void AddCost(const std::vector<int>& blocks, const std::vector<Eigen::MatrixXd>& A, const Eigen::VectorXd& c) {
+  void AddCost(const std::vector<int>& blocks, const std::vector<Eigen::MatrixXd>& A,
+               const Eigen::VectorXd& c) {
     std::vector<double*> parameters;
     for (int b : blocks) parameters.push_back(values[b].data());
     problem.AddResidualBlock(new LinearCost(A, c), nullptr, parameters);
   }
 };
 
-std::vector<Eigen::MatrixXd> CeresCovariances(ceres::Problem* problem, const std::vector<const double*>& blocks) {
+std::vector<Eigen::MatrixXd> CeresCovariances(ceres::Problem* problem,
+                                              const std::vector<const double*>& blocks) {
   ceres::Covariance::Options options;
   options.algorithm_type = ceres::SPARSE_QR;
   ceres::Covariance covariance(options);
@@ -119,7 +123,8 @@ TEST(MarginalCovarianceTest, MatchesCeresCovarianceOnEveryBlock) {
 TEST(MarginalCovarianceTest, ConstantBlocksAreConditionedOn) {
   ChainProblem chain(20, 6, true, 11);
   chain.problem.SetParameterBlockConstant(chain.values[3].data());
-  std::vector<const double*> blocks = {chain.values[0].data(), chain.values[21].data(), chain.values[25].data()};
+  std::vector<const double*> blocks = {chain.values[0].data(), chain.values[21].data(),
+                                       chain.values[25].data()};
   std::vector<Eigen::MatrixXd> ours;
   ASSERT_TRUE(MarginalCovariances(&chain.problem, blocks, &ours));
   const std::vector<Eigen::MatrixXd> reference = CeresCovariances(&chain.problem, blocks);
@@ -180,8 +185,8 @@ TEST(MarginalCovarianceTest, FreeGaugeIsReportedNotInverted) {
   ceres::Problem problem;
   for (size_t b = 0; b + 1 < x.size(); ++b) {
     Eigen::MatrixXd minus = -Eigen::MatrixXd::Identity(3, 3), plus = Eigen::MatrixXd::Identity(3, 3);
-    problem.AddResidualBlock(new LinearCost({minus, plus}, Eigen::Vector3d(1.0, 0.0, 0.5)), nullptr, x[b].data(),
-                             x[b + 1].data());
+    problem.AddResidualBlock(new LinearCost({minus, plus}, Eigen::Vector3d(1.0, 0.0, 0.5)), nullptr,
+                             x[b].data(), x[b + 1].data());
   }
   std::vector<Eigen::MatrixXd> covariance;
   EXPECT_FALSE(MarginalCovariances(&problem, {x[4].data()}, &covariance));

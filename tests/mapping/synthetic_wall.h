@@ -48,7 +48,8 @@ inline CameraInfo ForwardCamera() {
 inline SE3d WallCode(const Eigen::Vector3d& position, double yaw_rad) {
   Eigen::Matrix3d R_world_marker;  // marker x = world -y, y = world z, z = world -x
   R_world_marker << 0, 0, -1, -1, 0, 0, 0, 1, 0;
-  return SE3d(Eigen::Matrix3d(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) * R_world_marker), position);
+  return SE3d(Eigen::Matrix3d(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) * R_world_marker),
+              position);
 }
 
 // Three codes on a wall at x = 3 m, facing the robot (marker z along world -x, y up).

@@ -161,10 +161,11 @@ TEST(EkfStateTest, ConsiderUpdateCovarianceIsTheTrueErrorCovariance) {
   for (int k = 0; k < 6; ++k) {
     const Eigen::MatrixXd H = random(8, 3), H_m = 10.0 * random(8, 6);
     const Linearization lin{Eigen::VectorXd::Zero(8), H, R, ConsideredMarker{key, H_m, Sigma, {}}};
-    const Eigen::MatrixXd S = H * state.covariance() * H.transpose() + H * state.Cross(key) * H_m.transpose() +
-                              H_m * state.Cross(key).transpose() * H.transpose() + H_m * Sigma * H_m.transpose() + R;
-    const Eigen::MatrixXd K =
-        (state.covariance() * H.transpose() + state.Cross(key) * H_m.transpose()) * S.llt().solve(Eigen::MatrixXd::Identity(8, 8));
+    const Eigen::MatrixXd S =
+        H * state.covariance() * H.transpose() + H * state.Cross(key) * H_m.transpose() +
+        H_m * state.Cross(key).transpose() * H.transpose() + H_m * Sigma * H_m.transpose() + R;
+    const Eigen::MatrixXd K = (state.covariance() * H.transpose() + state.Cross(key) * H_m.transpose()) *
+                              S.llt().solve(Eigen::MatrixXd::Identity(8, 8));
     ASSERT_TRUE(state.UpdateIterated([&lin](const EkfState&) { return lin; }, std::nullopt, 3).accepted);
     Eigen::MatrixXd A = Eigen::MatrixXd::Identity(9, 9);
     A.topLeftCorner(3, 3) -= K * H;
@@ -236,7 +237,8 @@ TEST(EkfStateTest, ConsiderWithFactorMatchesAugmentedSchmidtFilter) {
     J = A * J * A.transpose();
     J.topLeftCorner(kDim, kDim) += K * R * K.transpose();
     EXPECT_LT((state.mean() - mean_expected).norm(), 1e-10 * mean_expected.norm()) << "update " << step;
-    EXPECT_LT((state.covariance() - J.topLeftCorner(kDim, kDim)).norm(), 1e-9 * J.norm()) << "update " << step;
+    EXPECT_LT((state.covariance() - J.topLeftCorner(kDim, kDim)).norm(), 1e-9 * J.norm())
+        << "update " << step;
     ASSERT_EQ(state.cross_factor().cols(), kRank);
     for (int i = 0; i < kMarkers; ++i) {
       const Eigen::MatrixXd cross = state.cross_factor() * F_all.middleRows(6 * i, 6).transpose() +
@@ -252,8 +254,9 @@ TEST(EkfStateTest, ConsiderWithFactorMatchesAugmentedSchmidtFilter) {
     J.topLeftCorner(kDim, kDim) += Q;
   }
   // A factor with another number of columns than the map's so far is invalid input.
-  const Linearization wrong_k{Eigen::VectorXd::Zero(8), random(8, kDim), R,
-                              ConsideredMarker{key(0), random(8, 6), Sigma[0], CovarianceFactor::Zero(6, kRank + 1)}};
+  const Linearization wrong_k{
+      Eigen::VectorXd::Zero(8), random(8, kDim), R,
+      ConsideredMarker{key(0), random(8, 6), Sigma[0], CovarianceFactor::Zero(6, kRank + 1)}};
   EXPECT_EQ(state.UpdateIterated([&](const EkfState&) { return wrong_k; }, std::nullopt, 1).status,
             StepStatus::kInvalidInput);
   ASSERT_EQ(state.Reset(Eigen::Vector3d::Zero(), P0), StepStatus::kOk);  // forgets C_xi

@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <algorithm>
 #include <memory>
 #include <random>
 
@@ -178,7 +178,9 @@ TEST(LocalizerTest, MapCovarianceKeepsTheFilterHonest) {
   Sigma.diagonal() << 3e-5, 3e-5, 3e-5, 1e-4, 1e-4, 1e-4;  // 0.3 deg, 1 cm per axis
   const Matrix6d L = Sigma.llt().matrixL();
   const std::vector<std::pair<const char*, MapUncertainty>> variants = {
-      {"consider", MapUncertainty::kConsider}, {"in R", MapUncertainty::kInNoise}, {"exact claim", MapUncertainty::kIgnore}};
+      {"consider", MapUncertainty::kConsider},
+      {"in R", MapUncertainty::kInNoise},
+      {"exact claim", MapUncertainty::kIgnore}};
   std::vector<double> nees(variants.size(), 0.0), rmse(variants.size(), 0.0);
   const auto mean_nees = [](const std::vector<double>& values) {
     double sum = 0.0;
@@ -209,8 +211,8 @@ TEST(LocalizerTest, MapCovarianceKeepsTheFilterHonest) {
     }
   }
   for (size_t v = 0; v < variants.size(); ++v) {
-    std::printf("noisy map (1 cm, 0.3 deg), map covariance %s: mean NEES %.2f, RMSE %.4f m\n", variants[v].first,
-                nees[v], rmse[v]);
+    std::printf("noisy map (1 cm, 0.3 deg), map covariance %s: mean NEES %.2f, RMSE %.4f m\n",
+                variants[v].first, nees[v], rmse[v]);
   }
   const double upper = ChiSquareQuantile(0.975, 3 * kRuns) / kRuns;
   EXPECT_LT(nees[0], upper);
@@ -242,9 +244,11 @@ TEST(LocalizerTest, KidnappedRobotIsReportedLostThenRelocalized) {
   }
   ASSERT_GE(first_untracked, teleport_step);
   ASSERT_GT(relocalized, first_untracked);
-  std::printf("kidnapped at step %d, no pose from step %d (%s), relocalized at step %d (%.2f s after the kidnapping)\n",
-              teleport_step, first_untracked, TrackingStatusName(figures.tracking[first_untracked]), relocalized,
-              (relocalized - teleport_step) * config.odometry_period_s);
+  std::printf(
+      "kidnapped at step %d, no pose from step %d (%s), relocalized at step %d (%.2f s after the "
+      "kidnapping)\n",
+      teleport_step, first_untracked, TrackingStatusName(figures.tracking[first_untracked]), relocalized,
+      (relocalized - teleport_step) * config.odometry_period_s);
   EXPECT_EQ(first_untracked, teleport_step);  // the first frame after the jump has codes
   EXPECT_EQ(figures.tracking[first_untracked], TrackingStatus::kSuspect);
   EXPECT_LT((relocalized - teleport_step) * config.odometry_period_s, 0.5);
@@ -252,7 +256,8 @@ TEST(LocalizerTest, KidnappedRobotIsReportedLostThenRelocalized) {
   EXPECT_EQ(figures.counters.times_suspect, 1);
   EXPECT_LT(figures.error_m[relocalized], 0.05);
   EXPECT_LT(figures.error_m.back(), 0.05);
-  for (size_t k = 0; k < steps.size(); ++k) EXPECT_LT(figures.error_m[k], 0.2) << "step " << k;  // -1: no pose
+  for (size_t k = 0; k < steps.size(); ++k)
+    EXPECT_LT(figures.error_m[k], 0.2) << "step " << k;  // -1: no pose
   for (int k = first_untracked; k < relocalized; ++k) EXPECT_EQ(figures.error_m[k], -1.0);
 }
 
@@ -282,13 +287,15 @@ TEST(LocalizerTest, CarriedIntoAStretchWithoutCodesStopsOutputtingBeforeTheNextC
   long wrong_without = 0;
   for (int k = teleport_step; k < static_cast<int>(steps.size()); ++k) {
     if (first_untracked < 0 && figures.tracking[k] != TrackingStatus::kTracking) first_untracked = k;
-    if (first_untracked >= 0 && relocalized < 0 && figures.tracking[k] == TrackingStatus::kTracking) relocalized = k;
+    if (first_untracked >= 0 && relocalized < 0 && figures.tracking[k] == TrackingStatus::kTracking)
+      relocalized = k;
     wrong_without += without.error_m[k] > 0.2;
   }
-  std::printf("carried at step %d, next code at step %d: no pose from step %d (%s), relocalized at step %d; "
-              "without negative information %ld wrong poses\n",
-              teleport_step, next_code_step, first_untracked, TrackingStatusName(figures.tracking[first_untracked]),
-              relocalized, wrong_without);
+  std::printf(
+      "carried at step %d, next code at step %d: no pose from step %d (%s), relocalized at step %d; "
+      "without negative information %ld wrong poses\n",
+      teleport_step, next_code_step, first_untracked, TrackingStatusName(figures.tracking[first_untracked]),
+      relocalized, wrong_without);
   EXPECT_GE(wrong_without, 20);  // the test this feature answers
   // One camera expects one code: its first miss is a 10 % event, the second one makes the track
   // suspect (the second camera frame after the carry, 0.1 s).
@@ -335,11 +342,12 @@ TEST(LocalizerTest, CameraCoveredForTwoSecondsIsNotLost) {
     EXPECT_NE(localizer.tracking(), TrackingStatus::kLost) << "step " << k;
     const PoseOutput output = localizer.Output();
     if (output.T_world_robot) {
-      EXPECT_LT((output.T_world_robot->translation() - steps[k].T_world_robot_true.translation()).norm(), 0.2);
+      EXPECT_LT((output.T_world_robot->translation() - steps[k].T_world_robot_true.translation()).norm(),
+                0.2);
     }
   }
-  std::printf("%ld codes hidden: max S %.2f (suspect at %.1f, lost at %.1f), suspect %ld times\n", covered_codes,
-              max_llr, VisibilityOptions().suspect_llr, VisibilityOptions().lost_llr,
+  std::printf("%ld codes hidden: max S %.2f (suspect at %.1f, lost at %.1f), suspect %ld times\n",
+              covered_codes, max_llr, VisibilityOptions().suspect_llr, VisibilityOptions().lost_llr,
               localizer.counters().times_suspect);
   EXPECT_GE(max_llr, 2.0);  // the misses were counted, until the camera's blindness explained them
   EXPECT_EQ(localizer.counters().times_lost, 0);
@@ -406,10 +414,12 @@ TEST(LocalizerTest, MisdecodedIdIsAFalseAlarm) {
   EXPECT_FALSE(localizer->Output().T_world_robot.has_value());
   for (bool tracking = false; k < steps.size() && !tracking; ++k) {
     localizer->AddOdometry(steps[k].stamp_s, steps[k].T_odom_robot);
-    for (const CameraFrame& next : steps[k].frames) tracking = localizer->AddFrame(next).tracking == TrackingStatus::kTracking;
+    for (const CameraFrame& next : steps[k].frames)
+      tracking = localizer->AddFrame(next).tracking == TrackingStatus::kTracking;
   }
   ASSERT_EQ(localizer->tracking(), TrackingStatus::kTracking);
-  EXPECT_LT((localizer->Output().T_world_robot->translation() - steps[k - 1].T_world_robot_true.translation()).norm(),
+  EXPECT_LT((localizer->Output().T_world_robot->translation() - steps[k - 1].T_world_robot_true.translation())
+                .norm(),
             0.05);
   EXPECT_EQ(localizer->counters().initializations, 1);  // the same track, no restart
   EXPECT_EQ(localizer->counters().times_suspect, 1);
@@ -444,8 +454,8 @@ TEST(LocalizerTest, MisdecodedIdsKeepTheTrack) {
     return std::count(f.tracking.begin(), f.tracking.end(), TrackingStatus::kTracking);
   };
   std::printf("%d misdecoded sightings: tracking %ld of %zu steps (clean %ld), suspect %ld times, lost %ld\n",
-              misdecoded, static_cast<long>(tracked(figures)), steps.size(), static_cast<long>(tracked(clean)),
-              figures.counters.times_suspect, figures.counters.times_lost);
+              misdecoded, static_cast<long>(tracked(figures)), steps.size(),
+              static_cast<long>(tracked(clean)), figures.counters.times_suspect, figures.counters.times_lost);
   EXPECT_GT(misdecoded, 10);
   EXPECT_EQ(figures.counters.times_lost, 0);
   EXPECT_EQ(figures.counters.initializations, 1);
@@ -663,8 +673,8 @@ TEST(LocalizerTest, PlanarStartFromOneSmallCeilingCodeIsAccurate) {
     const CodeSighting sighting = MakeCodeSighting(projector, observation, code.size_m);
     ASSERT_FALSE(sighting.T_camera_marker.empty());
     ambiguous += sighting.ambiguous;
-    const SE3d single_image = code.T_world_marker * sighting.T_camera_marker[0].inverse() *
-                              camera.T_robot_camera.inverse();
+    const SE3d single_image =
+        code.T_world_marker * sighting.T_camera_marker[0].inverse() * camera.T_robot_camera.inverse();
     worst_single_image_m = std::max(
         worst_single_image_m, (single_image.translation() - T_world_robot.translation()).head<2>().norm());
 
@@ -675,13 +685,16 @@ TEST(LocalizerTest, PlanarStartFromOneSmallCeilingCodeIsAccurate) {
     const PoseOutput output = localizer.Output();
     if (!output.T_world_robot) continue;
     ++started;
-    const Eigen::Vector2d error = (output.T_world_robot->translation() - T_world_robot.translation()).head<2>();
+    const Eigen::Vector2d error =
+        (output.T_world_robot->translation() - T_world_robot.translation()).head<2>();
     worst_start_m = std::max(worst_start_m, error.norm());
-    worst_nees = std::max(worst_nees, error.dot(output.covariance->topLeftCorner<2, 2>().ldlt().solve(error)));
+    worst_nees =
+        std::max(worst_nees, error.dot(output.covariance->topLeftCorner<2, 2>().ldlt().solve(error)));
   }
-  std::printf("single-image pose worst %.3f m; corner-fit start worst %.4f m, %d/%d started (%d ambiguous), "
-              "worst position NEES %.2f\n",
-              worst_single_image_m, worst_start_m, started, trials, ambiguous, worst_nees);
+  std::printf(
+      "single-image pose worst %.3f m; corner-fit start worst %.4f m, %d/%d started (%d ambiguous), "
+      "worst position NEES %.2f\n",
+      worst_single_image_m, worst_start_m, started, trials, ambiguous, worst_nees);
   EXPECT_GT(worst_single_image_m, 0.1);  // what the start used to inherit
   EXPECT_EQ(started, trials);
   EXPECT_LT(worst_start_m, 0.01);

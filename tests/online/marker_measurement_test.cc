@@ -151,8 +151,8 @@ TEST(MarkerMeasurementTest, AttitudeJacobianAndNoiseMatchCentralDifferences) {
   EXPECT_LT((prediction->J_attitude - J_numeric).norm(), 1e-5 * J_numeric.norm());
   const Eigen::Matrix3d attitude_covariance = Eigen::Vector3d(1e-6, 4e-6, 0.0).asDiagonal();
   const Matrix8d R = CornerNoise(0.5, *prediction, std::nullopt, attitude_covariance);
-  const Matrix8d expected = 0.25 * Matrix8d::Identity() +
-                            J_numeric * attitude_covariance * J_numeric.transpose();
+  const Matrix8d expected =
+      0.25 * Matrix8d::Identity() + J_numeric * attitude_covariance * J_numeric.transpose();
   EXPECT_LT((R - expected).norm(), 1e-6 * expected.norm());
 }
 
@@ -160,8 +160,9 @@ TEST(MarkerMeasurementTest, CodeAttitudeCovarianceIsTheRotationBlocksInTheWorldF
   MapMarker marker = LeftWallMarker();
   const Matrix6d code = SomeMarkerCovariance();
   const Eigen::Matrix3d R_wm = marker.T_world_marker.rotation_matrix();
-  EXPECT_LT((CodeAttitudeCovariance(marker, code) - R_wm * code.topLeftCorner<3, 3>() * R_wm.transpose()).norm(),
-            1e-15);
+  EXPECT_LT(
+      (CodeAttitudeCovariance(marker, code) - R_wm * code.topLeftCorner<3, 3>() * R_wm.transpose()).norm(),
+      1e-15);
   const Matrix6d map = SomeMarkerCovariance();
   marker.covariance = map;
   const Eigen::Matrix3d both = R_wm * (code + map).topLeftCorner<3, 3>() * R_wm.transpose();

@@ -124,7 +124,8 @@ TEST(MotionModelTest, HeadingWalkGrowsWithDistanceNotRate) {
     noise.floor_rot_rad = 1e-12;
     Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
     for (int k = 0; k < steps; ++k) {
-      const MotionPrediction p = PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(4.0 / steps, 0.0, 0.0), noise);
+      const MotionPrediction p =
+          PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(4.0 / steps, 0.0, 0.0), noise);
       P = p.F * P * p.F.transpose() + p.G * p.Qu * p.G.transpose();
     }
     EXPECT_NEAR(P(2, 2), 1e-4 * 4.0, 1e-12) << steps << " steps";
@@ -136,19 +137,22 @@ TEST(MotionModelTest, HeadingWalkGrowsWithDistanceNotRate) {
 }
 
 Eigen::Matrix3d RollPitch(double roll_rad, double pitch_rad) {
-  return (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+  return (Eigen::AngleAxisd(pitch_rad, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
       .toRotationMatrix();
 }
 
-Eigen::Matrix3d Yaw(double yaw_rad) { return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix(); }
+Eigen::Matrix3d Yaw(double yaw_rad) {
+  return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
 
 TEST(OdometryTiltTest, LevelFromUpAndTangentBasis) {
   for (const auto& [roll, pitch] : {std::pair{0.0, 0.0}, {0.3, -0.2}, {-1.2, 0.7}}) {
     const Eigen::Matrix3d R_level = RollPitch(roll, pitch);
     EXPECT_LT((LevelFromUp(R_level.transpose() * Eigen::Vector3d::UnitZ()) - R_level).norm(), 1e-12);
   }
-  for (const Eigen::Vector3d& u : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, -1, 0),
-                                   Eigen::Vector3d(0.3, -0.5, 0.8).normalized()}) {
+  for (const Eigen::Vector3d& u :
+       {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(0.3, -0.5, 0.8).normalized()}) {
     const Eigen::Matrix<double, 3, 2> B = TangentBasis(u);
     EXPECT_LT((B.transpose() * B - Eigen::Matrix2d::Identity()).norm(), 1e-12);
     EXPECT_LT((B.transpose() * u).norm(), 1e-12);
@@ -167,14 +171,20 @@ TEST(OdometryTiltTest, RecoversTheOdometryFramesTiltFromCodeAttitudes) {
   OdometryNoise noise;
   double before_deg = 0.0, after_deg = 0.0;
   for (int k = 0; k < 400; ++k) {
-    const Eigen::Matrix3d R_world_robot = Yaw(0.01 * k) * RollPitch(0.03 * std::sin(0.1 * k), 0.02 * std::cos(0.07 * k));
+    const Eigen::Matrix3d R_world_robot =
+        Yaw(0.01 * k) * RollPitch(0.03 * std::sin(0.1 * k), 0.02 * std::cos(0.07 * k));
     const Eigen::Matrix3d R_odom_robot = R_world_odom.transpose() * R_world_robot;
     tilt.Propagate(SE3d(), noise);
-    const Eigen::Matrix3d R_code = ExpSO3(Eigen::Vector3d(normal(rng), normal(rng), normal(rng))) * R_world_robot;
+    const Eigen::Matrix3d R_code =
+        ExpSO3(Eigen::Vector3d(normal(rng), normal(rng), normal(rng))) * R_world_robot;
     EXPECT_TRUE(tilt.Update(R_odom_robot, R_code, covariance_phi));
     const Eigen::Matrix3d truth = LevelRotation(R_world_robot);
-    before_deg = RotationAngleBetween(SE3d(LevelRotation(R_odom_robot), Eigen::Vector3d::Zero()), SE3d(truth, Eigen::Vector3d::Zero())) * 180.0 / M_PI;
-    after_deg = RotationAngleBetween(SE3d(tilt.Level(R_odom_robot), Eigen::Vector3d::Zero()), SE3d(truth, Eigen::Vector3d::Zero())) * 180.0 / M_PI;
+    before_deg = RotationAngleBetween(SE3d(LevelRotation(R_odom_robot), Eigen::Vector3d::Zero()),
+                                      SE3d(truth, Eigen::Vector3d::Zero())) *
+                 180.0 / M_PI;
+    after_deg = RotationAngleBetween(SE3d(tilt.Level(R_odom_robot), Eigen::Vector3d::Zero()),
+                                     SE3d(truth, Eigen::Vector3d::Zero())) *
+                180.0 / M_PI;
   }
   EXPECT_GT(before_deg, 1.0);  // the odometry's own attitude is off by the start tilt
   EXPECT_LT(after_deg, 0.1);
@@ -197,7 +207,9 @@ TEST(OdometryTiltTest, GatesAFlippedAttitudeAndPropagatesTheRotationNoise) {
   noise.sigma = {0.0, 0.1};
   noise.floor_rot_rad = 1e-3;
   const Eigen::Matrix2d before = tilt.covariance();
-  tilt.Propagate(SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ())), Eigen::Vector3d::Zero()), noise);
+  tilt.Propagate(
+      SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ())), Eigen::Vector3d::Zero()),
+      noise);
   const double sigma_rot = 0.1 * 0.2 + 1e-3;
   EXPECT_LT((tilt.covariance() - before - Eigen::Matrix2d::Identity() * sigma_rot * sigma_rot).norm(), 1e-15);
 }
@@ -231,7 +243,7 @@ TEST(OdometryTiltTest, LocalizerOverFloorCodesIsNotTiltedByTheOdometryFrame) {
   const auto truth_at = [](int k) {
     const double t = 0.05 * k;
     return SE3d(Eigen::Quaterniond(Yaw(0.1 + 0.02 * t) * RollPitch(-0.0175 + 0.02 * std::sin(1.3 * t),
-                                                                  0.035 + 0.02 * std::sin(2.1 * t + 1.0))),
+                                                                   0.035 + 0.02 * std::sin(2.1 * t + 1.0))),
                 Eigen::Vector3d(0.3 * t, 0.1 * std::sin(0.5 * t), 1.2 + 0.05 * std::sin(0.8 * t)));
   };
   const SE3d T_odom_world = truth_at(0).inverse();  // the odometry starts at the identity

@@ -40,8 +40,8 @@ MarkerMap Squares(int count) {
 }
 
 // The detection of `square` from the robot at T_world_robot: solid side first, id "*".
-std::optional<MarkerObservation> Detect(const MapMarker& square, const Camera& camera, const SE3d& T_world_robot,
-                                        std::mt19937* rng) {
+std::optional<MarkerObservation> Detect(const MapMarker& square, const Camera& camera,
+                                        const SE3d& T_world_robot, std::mt19937* rng) {
   std::normal_distribution<double> noise(0.0, 0.3);
   const SE3d T_camera_world = (T_world_robot * camera.info().T_robot_camera).inverse();
   std::array<Eigen::Vector2d, 4> px;
@@ -76,7 +76,8 @@ TEST(SquareIdentificationTest, TheOnlySquareStartsAndTracks) {
     ASSERT_EQ(localizer.AddDetections(frame).status, StepStatus::kOk);
     const PoseOutput output = localizer.Output();
     ASSERT_TRUE(output.T_world_robot.has_value()) << k;
-    worst_m = std::max(worst_m, (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm());
+    worst_m = std::max(worst_m,
+                       (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm());
   }
   EXPECT_EQ(localizer.counters().unknown_markers, 0);
   EXPECT_EQ(localizer.counters().initializations, 1);
@@ -120,7 +121,8 @@ TEST(SquareIdentificationTest, SeveralSquaresAreToldApartByThePose) {
     ASSERT_EQ(localizer.AddDetections(f).status, StepStatus::kOk);
     const PoseOutput output = localizer.Output();
     ASSERT_TRUE(output.T_world_robot.has_value()) << k;
-    worst_m = std::max(worst_m, (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm());
+    worst_m = std::max(worst_m,
+                       (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm());
   }
   EXPECT_GT(seen_b, 20);
   EXPECT_EQ(localizer.counters().unknown_markers, 1);  // only the first, trackless one

@@ -16,9 +16,10 @@ using testing::SideCamera;
 // A planar state at (x, y, yaw) with diagonal standard deviations.
 EkfState PlanarState(double x_m, double y_m, double yaw_rad, double sigma_m, double sigma_rad) {
   EkfState state(MotionModel::kPlanar);
-  EXPECT_EQ(state.Reset(Eigen::Vector3d(x_m, y_m, yaw_rad),
-                        Eigen::Vector3d(sigma_m * sigma_m, sigma_m * sigma_m, sigma_rad * sigma_rad).asDiagonal()),
-            StepStatus::kOk);
+  EXPECT_EQ(
+      state.Reset(Eigen::Vector3d(x_m, y_m, yaw_rad),
+                  Eigen::Vector3d(sigma_m * sigma_m, sigma_m * sigma_m, sigma_rad * sigma_rad).asDiagonal()),
+      StepStatus::kOk);
   return state;
 }
 
@@ -50,7 +51,8 @@ TEST(VisibilityTest, CodeSquarelyInViewIsExpectedAndOthersAreNot) {
   // Too small to read: nothing expected.
   VisibilityOptions large;
   large.min_code_px = 200.0;
-  EXPECT_TRUE(PredictExpectedCodes(PlanarState(1.5, 0.0, 0.0, 0.01, 0.005), left, map, CodeIndex(map), large).empty());
+  EXPECT_TRUE(PredictExpectedCodes(PlanarState(1.5, 0.0, 0.0, 0.01, 0.005), left, map, CodeIndex(map), large)
+                  .empty());
 }
 
 // The same code near the image edge: a wide heading uncertainty makes it weak evidence.
@@ -61,17 +63,20 @@ TEST(VisibilityTest, UncertainPoseLowersTheInViewProbabilityAtTheEdge) {
   const VisibilityOptions options;
   // The code 0.2 m ahead of the camera's axis: its far edge about 40 px inside the image.
   const ExpectedCode* sure = nullptr;
-  const std::vector<ExpectedCode> tight = PredictExpectedCodes(PlanarState(1.3, 0.0, 0.0, 0.005, 0.002), left, map, CodeIndex(map), options);
+  const std::vector<ExpectedCode> tight =
+      PredictExpectedCodes(PlanarState(1.3, 0.0, 0.0, 0.005, 0.002), left, map, CodeIndex(map), options);
   sure = FindExpected(tight, "code-2");
   ASSERT_NE(sure, nullptr);
-  const std::vector<ExpectedCode> wide = PredictExpectedCodes(PlanarState(1.3, 0.0, 0.0, 0.05, 0.1), left, map, CodeIndex(map), options);
+  const std::vector<ExpectedCode> wide =
+      PredictExpectedCodes(PlanarState(1.3, 0.0, 0.0, 0.05, 0.1), left, map, CodeIndex(map), options);
   const ExpectedCode* unsure = FindExpected(wide, "code-2");
   ASSERT_NE(unsure, nullptr);
   EXPECT_GT(sure->in_view, 0.95);
   EXPECT_LT(unsure->in_view, 0.7);
   // Centred, the wide covariance still leaves it likely in view.
-  const ExpectedCode* centred =
-      FindExpected(PredictExpectedCodes(PlanarState(1.5, 0.0, 0.0, 0.05, 0.1), left, map, CodeIndex(map), options), "code-2");
+  const ExpectedCode* centred = FindExpected(
+      PredictExpectedCodes(PlanarState(1.5, 0.0, 0.0, 0.05, 0.1), left, map, CodeIndex(map), options),
+      "code-2");
   ASSERT_NE(centred, nullptr);
   EXPECT_GT(centred->in_view, unsure->in_view + 0.2);
 }
@@ -94,7 +99,8 @@ TEST(VisibilityTest, NearCodesGiveTheSameExpectedCodesAsTheWholeMap) {
     const std::vector<size_t>& near = near_codes.Around(index, left, camera_world, options);
     smallest_near = std::min(smallest_near, near.size());
     const std::vector<ExpectedCode> all = PredictExpectedCodes(state, left, map, index, options);
-    const std::vector<ExpectedCode> kept = PredictExpectedCodes(state, left, map, index, options, std::nullopt, &near);
+    const std::vector<ExpectedCode> kept =
+        PredictExpectedCodes(state, left, map, index, options, std::nullopt, &near);
     ASSERT_EQ(all.size(), kept.size()) << "x " << x_m;
     for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(all[i].marker, kept[i].marker);
     expected_total += all.size();
@@ -142,7 +148,7 @@ TEST(VisibilityTest, DetectionModelLearnsTheHitRate) {
   EXPECT_LT(model.Probability("cam", far_a), 0.02);
   // Misses of `a` where it is far do not lower its rate near by (they were predicted).
   EXPECT_NEAR(model.Probability("cam", code_a), 0.7, 0.08);
-  EXPECT_DOUBLE_EQ(model.Probability("other", code_a), 0.5);  // per camera
+  EXPECT_DOUBLE_EQ(model.Probability("other", code_a), 0.5);            // per camera
   for (int i = 0; i < 20; ++i) model.Learn("cam", code_b, false, 1.0);  // b hidden from here
   EXPECT_LT(model.Probability("cam", code_b), 0.3);
 }
@@ -160,7 +166,8 @@ struct TrainedTest {
     code.size_px = 100.0;
     code.in_view = 1.0;
     for (const std::string camera : {"left", "right"}) {
-      for (int i = 0; i < 200; ++i) Frame(camera, i % 10 != 0 ? ExpectedOutcome::kHit : ExpectedOutcome::kMissed, true);
+      for (int i = 0; i < 200; ++i)
+        Frame(camera, i % 10 != 0 ? ExpectedOutcome::kHit : ExpectedOutcome::kMissed, true);
     }
     EXPECT_LT(test.llr(), VisibilityOptions().suspect_llr);
   }
@@ -206,7 +213,8 @@ TEST(VisibilityTest, EvidenceDecays) {
   TrainedTest test;
   test.Frame("left", ExpectedOutcome::kMissed);
   const double llr = test.Frame("right", ExpectedOutcome::kMissed);
-  const double later = test.test.AddFrame(test.stamp_s + VisibilityOptions().decay_time_s, "left", {}, {}, 0, false, false);
+  const double later =
+      test.test.AddFrame(test.stamp_s + VisibilityOptions().decay_time_s, "left", {}, {}, 0, false, false);
   EXPECT_NEAR(later, llr * std::exp(-1.0), 1e-9);
 }
 

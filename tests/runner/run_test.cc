@@ -4,19 +4,18 @@
 #include "runner/run.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 
-#include <filesystem>
-#include <opencv2/imgcodecs.hpp>
-#include <unistd.h>
-
-#include "geometry/camera.h"
 #include "detect/synthetic.h"
+#include "geometry/camera.h"
 #include "sim/simulator.h"
 
 namespace waymark {
@@ -118,7 +117,8 @@ struct ArcCase {
     for (int j = 0; j < 4; ++j) observation.corners_px[j] = *model.Project(T_camera_marker * corners[j]);
     first.markers.push_back(observation);
     dataset.detections.push_back(first);
-    for (double t : {0.25, 0.55, 0.83}) dataset.detections.push_back({t, "front", {}, std::nullopt, std::nullopt});
+    for (double t : {0.25, 0.55, 0.83})
+      dataset.detections.push_back({t, "front", {}, std::nullopt, std::nullopt});
   }
 };
 
@@ -166,7 +166,9 @@ TEST(RunLocalizerTest, DetectsOnTheDatasetsImages) {
   std::filesystem::remove_all(dir);
   ASSERT_EQ(from_images.outputs.size(), 4u);
   ASSERT_EQ(from_images.trajectory.size(), 4u);
-  EXPECT_LT((from_images.trajectory[0].T.translation() - from_detections.trajectory[0].T.translation()).norm(), 0.01);
+  EXPECT_LT(
+      (from_images.trajectory[0].T.translation() - from_detections.trajectory[0].T.translation()).norm(),
+      0.01);
   EXPECT_GT(from_images.latency_ms[0], from_detections.latency_ms[0]);  // detection time counted
   ASSERT_EQ(from_images.warnings.size(), 1u);
   EXPECT_NE(from_images.warnings[0].find(kWarnImage), std::string::npos) << from_images.warnings[0];
@@ -219,7 +221,8 @@ TEST(RunLocalizerTest, TightBeatsLooseOnTheCorridor) {
   EXPECT_EQ(tight.latency_ms.size(), tight.outputs.size());
   EXPECT_GT(tight.counters.accepted, 100);
   EXPECT_FALSE(tight.predicted.empty());
-  for (size_t i = 1; i < tight.predicted.size(); ++i) ASSERT_LT(tight.predicted[i - 1].stamp_s, tight.predicted[i].stamp_s);
+  for (size_t i = 1; i < tight.predicted.size(); ++i)
+    ASSERT_LT(tight.predicted[i - 1].stamp_s, tight.predicted[i].stamp_s);
 }
 
 TEST(RunLocalizerTest, CodesAbsentFromTheMapAreCountedNeverAJump) {
@@ -297,7 +300,8 @@ TEST(LocalizeStreamTest, AFrameWaitsForTheOdometryPastItsStamp) {
   EXPECT_LT((outputs[1].pose.T_world_robot->translation() - expected.translation()).norm(), 1e-9);
   // Without odometry past it, a frame is released once the input is odometry_wait_s ahead.
   stream.AddFrame({0.55, "front", {}, std::nullopt, std::nullopt});
-  stream.AddFrame({0.55 + LocalizeRunOptions{}.odometry_wait_s + 0.01, "front", {}, std::nullopt, std::nullopt});
+  stream.AddFrame(
+      {0.55 + LocalizeRunOptions{}.odometry_wait_s + 0.01, "front", {}, std::nullopt, std::nullopt});
   EXPECT_EQ(outputs.size(), 3u);
   stream.Flush();
   EXPECT_EQ(outputs.size(), 4u);
@@ -371,10 +375,12 @@ TEST(RunLocalizerTest, OdometryTimeOffsetIsApplied) {
   ASSERT_EQ(corrected.trajectory.size(), reference.trajectory.size());
   double unsynced_worst_m = 0.0;
   for (size_t i = 0; i < reference.trajectory.size(); ++i) {
-    EXPECT_LT((corrected.trajectory[i].T.translation() - reference.trajectory[i].T.translation()).norm(), 1e-9);
+    EXPECT_LT((corrected.trajectory[i].T.translation() - reference.trajectory[i].T.translation()).norm(),
+              1e-9);
     if (i < unsynced.trajectory.size()) {
-      unsynced_worst_m = std::max(
-          unsynced_worst_m, (unsynced.trajectory[i].T.translation() - reference.trajectory[i].T.translation()).norm());
+      unsynced_worst_m =
+          std::max(unsynced_worst_m,
+                   (unsynced.trajectory[i].T.translation() - reference.trajectory[i].T.translation()).norm());
     }
   }
   EXPECT_GT(unsynced_worst_m, 0.05);
@@ -414,7 +420,7 @@ TEST(RealtimePacerTest, GapsAreCappedAndCounted) {
   EXPECT_NEAR(SecondsOf([&] { pacer.WaitFor(0.1); }), 0.1, 0.08);  // a normal gap: waited
   EXPECT_NEAR(SecondsOf([&] { pacer.WaitFor(1e6); }), 0.2, 0.1);   // capped
   EXPECT_NEAR(SecondsOf([&] { pacer.WaitFor(1e18); }), 0.2, 0.1);  // no overflow: still waits
-  EXPECT_LT(SecondsOf([&] { pacer.WaitFor(5.0); }), 0.05);          // backwards: no wait
+  EXPECT_LT(SecondsOf([&] { pacer.WaitFor(5.0); }), 0.05);         // backwards: no wait
   EXPECT_EQ(pacer.shortened_gaps(), 2);
   EXPECT_EQ(pacer.Summary(), "--realtime: 2 stamp gaps longer than 0.2 s were waited as 0.2 s");
   EXPECT_EQ(RealtimePacer().Summary(), "");

@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "geometry/camera.h"
 #include "detect/detector.h"
+#include "geometry/camera.h"
 #include "sim/test_scenes.h"
 
 namespace waymark::sim {
@@ -57,7 +57,8 @@ double CornerRmsPx(const World& world, const RenderOptions& options, double* wid
     for (int k = 0; k < 4; ++k) {
       sum_sq += (obs.corners_px[k] - truth[0].corners_px[k]).squaredNorm();
       if (std::getenv("RENDER_TEST_VERBOSE")) {
-        std::printf("  corner %d error (%.3f, %.3f) px\n", k, obs.corners_px[k].x() - truth[0].corners_px[k].x(),
+        std::printf("  corner %d error (%.3f, %.3f) px\n", k,
+                    obs.corners_px[k].x() - truth[0].corners_px[k].x(),
                     obs.corners_px[k].y() - truth[0].corners_px[k].y());
       }
     }
@@ -85,8 +86,8 @@ TEST(RenderTest, DetectedCornersMatchTruthWithoutNoise) {
     double width_px = 0.0;
     const double rms_px =
         CornerRmsPx(OneCodeWorld(c.family, c.id, c.range_m, c.yaw_deg, c.offset_m), NoNoise(), &width_px);
-    std::printf("%-15s %-7s range %.1f m yaw %5.1f deg: width %.1f px, corner RMS %.3f px\n", c.family.c_str(),
-                c.id.c_str(), c.range_m, c.yaw_deg, width_px, rms_px);
+    std::printf("%-15s %-7s range %.1f m yaw %5.1f deg: width %.1f px, corner RMS %.3f px\n",
+                c.family.c_str(), c.id.c_str(), c.range_m, c.yaw_deg, width_px, rms_px);
     ASSERT_GE(width_px, 40.0) << c.family << " " << c.id;
     ASSERT_GE(rms_px, 0.0) << c.family << " " << c.id << " not detected";
     EXPECT_LE(rms_px, 0.2) << c.family << " " << c.id;
@@ -144,7 +145,8 @@ TEST(RenderTest, CodeSeenFromBehindIsNotDrawn) {
 
 TEST(RenderTest, RejectsUndrawableFamiliesAndBadOptions) {
   EXPECT_THROW(Renderer(OneCodeWorld("square", "1", 1.0, 0.0, {0, 0}), NoNoise()), std::invalid_argument);
-  EXPECT_THROW(Renderer(OneCodeWorld("apriltag-36h11", "x1", 1.0, 0.0, {0, 0}), NoNoise()), std::invalid_argument);
+  EXPECT_THROW(Renderer(OneCodeWorld("apriltag-36h11", "x1", 1.0, 0.0, {0, 0}), NoNoise()),
+               std::invalid_argument);
   RenderOptions bad = NoNoise();
   bad.supersample = 0;
   std::string why;

@@ -8,15 +8,14 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "geometry/camera.h"
-#include "io/dataset_io.h"
 #include "geometry/square_marker.h"
+#include "io/dataset_io.h"
 #include "sim/ir_render.h"
 #include "sim/render_io.h"
 #include "sim/scenarios.h"
@@ -72,8 +71,9 @@ TEST(SquareCeilingTest, SimulatedDatasetHasTheSquareInEveryFrame) {
 }
 
 TEST(SquareCeilingTest, TiltAndLensErrorChangeOnlyTheTruth) {
-  const Scene scene = BuildScene("square-ceiling", Params({"camera.tilt_deg=0.5", "camera.lens_error_k1=0.01",
-                                                           "camera.focal_error=0.002"}));
+  const Scene scene =
+      BuildScene("square-ceiling",
+                 Params({"camera.tilt_deg=0.5", "camera.lens_error_k1=0.01", "camera.focal_error=0.002"}));
   ASSERT_EQ(scene.world.calibrated_cameras.size(), 1u);
   const CameraInfo& truth = scene.world.cameras[0];
   const CameraInfo& calibrated = scene.world.calibrated_cameras[0];
@@ -165,7 +165,8 @@ TEST(IrRenderTest, LampsInBothFramesAndAPersonNearTheLeds) {
   // Keep the person out of this view: look from where the person is not.
   const std::vector<Eigen::Vector2d> people = renderer.PeopleAt(0.0);
   ASSERT_EQ(people.size(), 1u);
-  const Eigen::Vector2d lamp_px = *camera.Project(T_world_camera.inverse() * Eigen::Vector3d(lamp.x(), lamp.y(), 2.3));
+  const Eigen::Vector2d lamp_px =
+      *camera.Project(T_world_camera.inverse() * Eigen::Vector3d(lamp.x(), lamp.y(), 2.3));
   if ((people[0] - lamp).norm() > 1.0) {
     EXPECT_GE(At(renderer.Render(camera, T_world_camera, 0.0, true, 0), lamp_px), 240.0);
     EXPECT_GE(At(renderer.Render(camera, T_world_camera, 0.0, false, 1), lamp_px), 240.0);
@@ -235,7 +236,8 @@ TEST(IrRenderTest, RenderedDatasetHasLedPairs) {
 
 TEST(IrRenderTest, InterpolatePoseBetweenSamples) {
   Trajectory truth = {{0.0, SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0))},
-                      {1.0, SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(2, 0, 0))}};
+                      {1.0, SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ())),
+                                 Eigen::Vector3d(2, 0, 0))}};
   const SE3d mid = InterpolatePose(truth, 0.25);
   EXPECT_NEAR(mid.translation().x(), 0.5, 1e-12);
   EXPECT_NEAR(mid.yaw(), 0.25, 1e-12);

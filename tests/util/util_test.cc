@@ -1,11 +1,11 @@
 // Tests of util/: the one number formatter, the options-check helper and the order statistics.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "util/check.h"
 #include "util/format.h"
