@@ -1,4 +1,4 @@
-// Seed 002's experiment (Seki, Kawai, Hikizu, IJAT 15(2) 2021, section 6.3): the robot stands at
+// [Seki]'s experiment (Seki, Kawai, Hikizu, IJAT 15(2) 2021, section 6.3): the robot stands at
 // 8 places covering half the area around the 2 m square (2 m above the camera), turned every 30 deg
 // (12 headings), and its 2D pose is measured from one LED pair. Ours: the square-ceiling scenario's
 // renderer (sim/ir_render.h, lamps on, nobody walking) makes the pair with the true camera, the

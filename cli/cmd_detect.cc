@@ -55,7 +55,7 @@ detections.jsonl; frames without codes get a line too). INPUT is
     row's stamp and camera;
   - a video file (.mp4 .avi .mkv .mov .webm .m4v .mpg .mpeg): "frame": N from 0, stamps
     from the video's clock.
-Family square (the large square ceiling marker of reflective tape, seed 002) is found in the
+Family square (the large square ceiling marker of reflective tape, [Seki]) is found in the
 LED pairs of a dataset (images.csv rows ending -on.<ext> and -off.<ext>, docs/formats.md) by
 detect/square.h; its side, tape and height come from the dataset's markers.json. A pair
 gives one line at the on image's stamp; with one square in markers.json the detection gets its

@@ -3,7 +3,7 @@
 //   pinhole-radtan      OpenCV plumb-bob, distortion [k1 k2 p1 p2 k3] (cv::projectPoints)
 //   pinhole-equidistant OpenCV fisheye / Kalibr equidistant, [k1 k2 k3 k4] (cv::fisheye)
 //   equisolid           equisolid-angle fisheye (r = 2 f sin(theta/2), e.g. the FIT FI-23 lens
-//                       of seed 002), with the same polynomial in theta as equidistant, [k1 k2 k3 k4]
+//                       of [Seki]), with the same polynomial in theta as equidistant, [k1 k2 k3 k4]
 // The projection is templated on the scalar so Ceres can differentiate it (Jets).
 // Intrinsics are [fx fy cx cy]. YAML reading is in io/camera_io.h, not here.
 //

@@ -1,4 +1,4 @@
-// The large square ceiling marker of seed 002 (family `square`; Seki, Kawai, Hikizu, "Localization
+// The large square ceiling marker of [Seki] (family `square`; Seki, Kawai, Hikizu, "Localization
 // System for Indoor Mobile Robot Using Large Square-Shaped Reflective Marker", IJAT 15(2), 2021):
 // retro-reflective tape laid as a square on the ceiling, one side solid, three dashed. It carries
 // no ID: the solid side fixes its orientation, and where several squares hang in one map the pose

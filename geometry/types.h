@@ -78,7 +78,7 @@ std::optional<SE3d> InterpolateTrajectory(const Trajectory& trajectory, double s
 // Rows F_i of a map's low-rank joint marker covariance (6 x k; mapping/map_covariance.h).
 using CovarianceFactor = Eigen::Matrix<double, 6, Eigen::Dynamic>;
 
-// The tape of a `square` marker (seed 002: retro-reflective tape on the ceiling). The marker's
+// The tape of a `square` marker ([Seki]: retro-reflective tape on the ceiling). The marker's
 // size_m is the side between the tape's centrelines, so its corners (MarkerCorners) are where
 // the centrelines cross. One side is solid, the three others dashed: dashes of dash_m with
 // gaps of about gap_m, spread evenly so that a dash covers each end of the side. The math is in

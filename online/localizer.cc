@@ -340,7 +340,7 @@ void Localizer::FinishFrame(int accepted, double llr) {
 namespace {
 
 // A `square` detection's corners differ from a prediction by the pose's error times ~170 px/m
-// (seed 002's lens, 2 m up); squares of a map stand metres apart, hundreds of pixels.
+// ([Seki]'s lens, 2 m up); squares of a map stand metres apart, hundreds of pixels.
 constexpr double kSquareGatePx = 100.0;
 
 // The square of the map a detection with the id "*" is (geometry/square_marker.h): the only one in

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 16's acceptance run for seed 002 (the square ceiling marker), through the binary, per seed:
+# Issue 16's acceptance run for [Seki] (the square ceiling marker), through the binary, per seed:
 #   waymark sim square-ceiling --out D --seed N --render [--set ...]   (rendered LED pairs)
 #   waymark detect D --out D/detections.jsonl --families square       (the detector on the images)
 #   waymark localize D --map D/markers.json --out run.tum              (tight EKF, the known square)

@@ -1,4 +1,4 @@
-// Infrared frame pairs of the square-ceiling scenario (seed 002): an upward camera with
+// Infrared frame pairs of the square-ceiling scenario ([Seki]): an upward camera with
 // infrared LEDs around its lens, retro-reflective tape on the ceiling, the LEDs on for one frame
 // and off for the next. 8-bit gray images.
 //

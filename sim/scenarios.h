@@ -15,7 +15,7 @@
 //                    door and the robot is carried there (odometry restarts).
 //   warehouse-drone  [Kang]: floor QR codes "0/x/y" in the aisles, load QR codes on the rack
 //                    faces; a down-looking and a front-looking camera; 6-DoF flight.
-//   square-ceiling   seed 002: one (or several) large squares of retro-reflective tape on the
+//   square-ceiling   [Seki]: one (or several) large squares of retro-reflective tape on the
 //                    ceiling, an upward equisolid fisheye with blinking infrared LEDs, a loop under
 //                    the squares; rendered as LED-on/LED-off pairs (sim/ir_render.h).
 // docs/sim.md gives every key, the geometry and the noise models.

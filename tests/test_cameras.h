@@ -35,7 +35,7 @@ inline CameraInfo TagslamFisheyeInfo() {
   return info;
 }
 
-// Seed 002's camera: 1280x1024 NIR (Marlin F-131B, 6.7 um pixels) behind an equisolid-angle
+// [Seki]'s camera: 1280x1024 NIR (Marlin F-131B, 6.7 um pixels) behind an equisolid-angle
 // fisheye (FIT FI-23, f = 2.3 mm, 160 degrees): fx = 2.3 mm / 6.7 um = 343.28 px, so the 160 degree
 // circle is 2 fx sin(40 deg) = 441 px in radius and fits the 1024 px height.
 inline CameraInfo Seed002EquisolidInfo() {

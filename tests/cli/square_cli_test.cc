@@ -1,4 +1,4 @@
-// Seed 002 end to end through the binary: `waymark sim square-ceiling --render` (LED pairs),
+// [Seki] end to end through the binary: `waymark sim square-ceiling --render` (LED pairs),
 // `waymark detect D --families square`, `waymark localize D --map D/markers.json`; and the
 // errors of bad LED pairs (a lone on image, a pair of different sizes, no pairs, family square on
 // a lone image): exit 1, one line, no output file.

@@ -2,7 +2,7 @@
 // (project o unproject). The two calibrations are real ones, typed in from
 // /work/shared/data/tagslam: tagslam-test16 cam0 (radtan, strong barrel distortion) and
 // tagslam-test22 cam0 (RealSense T265 fisheye, equidistant). The equisolid model (no OpenCV
-// counterpart) is checked against its closed form r = 2 f sin(theta/2) on seed 002's camera,
+// counterpart) is checked against its closed form r = 2 f sin(theta/2) on [Seki]'s camera,
 // and with a distortion polynomial.
 #include "geometry/camera.h"
 
@@ -28,7 +28,7 @@ CameraInfo FisheyeInfo() { return testing::TagslamFisheyeInfo(); }
 
 CameraInfo EquisolidInfo() { return testing::Seed002EquisolidInfo(); }
 
-// Seed 002's camera with a distortion polynomial (as a calibration would give).
+// [Seki]'s camera with a distortion polynomial (as a calibration would give).
 CameraInfo DistortedEquisolidInfo() {
   CameraInfo info = testing::Seed002EquisolidInfo();
   info.intrinsics = {343.0, 344.1, 641.3, 509.7};
@@ -111,7 +111,7 @@ TEST(CameraTest, FisheyeRoundTripOverWholeImage) {
 }
 
 // Every pixel of the image within 90 degrees of the axis comes back from its ray; pixels
-// further out (the image corners of seed 002's camera) have no ray.
+// further out (the image corners of [Seki]'s camera) have no ray.
 void ExpectFisheyeRoundTrip(const Camera& camera, int min_inside, int min_outside) {
   const auto& k = camera.info().intrinsics;
   const double r_edge = camera.max_normalized_radius() * (1.0 - 1e-9);

@@ -116,7 +116,7 @@ TEST(SquareMarkerTest, SolidFirstToMarkerOrder) {
   EXPECT_EQ(left[0], solid_first[1]);
 }
 
-// Two 2 m squares on a 2 m high ceiling, 4 m apart, seen by seed 002's upward fisheye.
+// Two 2 m squares on a 2 m high ceiling, 4 m apart, seen by [Seki]'s upward fisheye.
 MarkerMap TwoSquares() {
   MarkerMap map;
   // Face down (z towards the floor): rotate 180 degrees about x.

@@ -1,4 +1,4 @@
-// The square-ceiling scenario (seed 002) and its infrared LED-pair renderer: the paper's setup by
+// The square-ceiling scenario ([Seki]) and its infrared LED-pair renderer: the paper's setup by
 // default, the options (several squares, camera tilt, lens calibration error), the photometry
 // (tape bright only with the LEDs on, falling off with the angle; lamps in both frames; a person
 // near the LEDs bright with them on) and the LED-pair files of a rendered dataset.
