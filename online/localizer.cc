@@ -346,8 +346,9 @@ constexpr double kSquareGatePx = 100.0;
 // The square of the map a detection with the id "*" is (geometry/square_marker.h): the only one in
 // the map, or the one the tracked pose predicts (IdentifySquare). Leaves it "*" (unknown to the
 // map, counted as such) when neither tells.
-void IdentifySquareObservation(const MarkerMap& map, const Camera* camera,
-                               const std::optional<SE3d>& T_world_robot, MarkerObservation* observation) {
+// T_world_robot: the tracked pose, null without a track.
+void IdentifySquareObservation(const MarkerMap& map, const Camera* camera, const SE3d* T_world_robot,
+                               MarkerObservation* observation) {
   if (observation->key.family != kFamilySquare || observation->key.id != kUnidentifiedSquareId) return;
   const MapMarker* only = nullptr;
   int squares = 0;
@@ -362,7 +363,7 @@ void IdentifySquareObservation(const MarkerMap& map, const Camera* camera,
     observation->corners_px = SolidFirstToMarkerOrder(observation->corners_px, TapeOf(*only).solid_side);
     return;
   }
-  if (camera == nullptr || !T_world_robot) return;
+  if (camera == nullptr || T_world_robot == nullptr) return;
   const std::optional<SquareMatch> match = IdentifySquare(
       map, *camera, *T_world_robot * camera->info().T_robot_camera, observation->corners_px, kSquareGatePx);
   if (!match) return;
@@ -379,12 +380,14 @@ FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
   frame.sightings.reserve(detections.markers.size());
   const auto camera_it = cameras_.find(detections.camera);
   const Camera* camera = camera_it == cameras_.end() ? nullptr : &camera_it->second;
-  const std::optional<SE3d> T_world_robot =
-      HasTrack() ? std::optional<SE3d>(state_.T_world_robot()) : std::nullopt;
+  // A plain pose and a pointer, not std::optional<SE3d>: GCC 12 warns (-Wmaybe-uninitialized,
+  // falsely) about the optional's payload once IdentifySquareObservation is inlined.
+  const bool tracked = HasTrack();
+  const SE3d T_world_robot = tracked ? state_.T_world_robot() : SE3d();
   for (const MarkerObservation& observation : detections.markers) {
     CodeSighting sighting;
     sighting.observation = observation;
-    IdentifySquareObservation(map_, camera, T_world_robot, &sighting.observation);
+    IdentifySquareObservation(map_, camera, tracked ? &T_world_robot : nullptr, &sighting.observation);
     sighting.solved = !map_.Find(sighting.observation.key);  // nothing to solve for an unknown code
     frame.sightings.push_back(std::move(sighting));
   }
