@@ -33,6 +33,15 @@ std::string ImagePath(const std::string& camera, long frame_number) {
   return "images/" + camera + "/" + name;
 }
 
+// images.csv and the exact corners (groundtruth/corners.jsonl) of a rendered run.
+void WriteRenderIndex(const fs::path& dir, const std::vector<ImageEntry>& images,
+                      const std::vector<DetectionFrame>& truth_frames) {
+  AtomicWriteFile(dir / "images.csv", FormatImagesCsv(images));
+  std::error_code ec;
+  fs::create_directories(dir / "groundtruth", ec);
+  WriteDetections(dir / "groundtruth" / "corners.jsonl", truth_frames);
+}
+
 }  // namespace
 
 RenderStats RenderRun(const SimResult& result, const RenderOptions& options, std::uint64_t seed, long every,
@@ -73,24 +82,20 @@ RenderStats RenderRun(const SimResult& result, const RenderOptions& options, std
     ++stats.images;
     if (progress) progress(stats.images, total);
   }
-  AtomicWriteFile(dir / "images.csv", FormatImagesCsv(images));
-  std::error_code ec;
-  fs::create_directories(dir / "groundtruth", ec);
-  WriteDetections(dir / "groundtruth" / "corners.jsonl", truth_frames);
+  WriteRenderIndex(dir, images, truth_frames);
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return stats;
 }
 
-SE3d InterpolatePose(const Trajectory& truth, double stamp_s) {
-  if (truth.empty()) throw std::logic_error("InterpolatePose: empty trajectory");
+SE3d InterpolateTrajectoryClamped(const Trajectory& truth, double stamp_s) {
+  if (truth.empty()) throw std::logic_error("InterpolateTrajectoryClamped: empty trajectory");
   const auto it = std::lower_bound(truth.begin(), truth.end(), stamp_s,
                                    [](const StampedSE3& s, double t) { return s.stamp_s < t; });
   if (it == truth.begin()) return truth.front().T;
   if (it == truth.end()) return truth.back().T;
   const StampedSE3& a = *(it - 1);
   const StampedSE3& b = *it;
-  const double f = (stamp_s - a.stamp_s) / (b.stamp_s - a.stamp_s);
-  return SE3d(a.T.rotation().slerp(f, b.T.rotation()), (1.0 - f) * a.T.translation() + f * b.T.translation());
+  return InterpolateProduct(a.T, b.T, (stamp_s - a.stamp_s) / (b.stamp_s - a.stamp_s));
 }
 
 RenderStats RenderIrRun(const SimResult& result, const IrOptions& options, std::uint64_t seed, long every,
@@ -118,7 +123,7 @@ RenderStats RenderIrRun(const SimResult& result, const IrOptions& options, std::
     const double t_on = frames[i].stamp_s, t_off = t_on + options.pair_gap_s;
     for (const bool on : {true, false}) {
       const double t = on ? t_on : t_off;
-      const SE3d T_world_camera = InterpolatePose(truth, t) * camera.info().T_robot_camera;
+      const SE3d T_world_camera = InterpolateTrajectoryClamped(truth, t) * camera.info().T_robot_camera;
       std::string path = ImagePath(frames[i].camera, frame_number);
       path.replace(path.size() - 4, 4, on ? "-on.png" : "-off.png");
       const ImageEntry entry{t, frames[i].camera, path};
@@ -149,10 +154,7 @@ RenderStats RenderIrRun(const SimResult& result, const IrOptions& options, std::
       if (progress) progress(stats.images, total);
     }
   }
-  AtomicWriteFile(dir / "images.csv", FormatImagesCsv(images));
-  std::error_code ec;
-  fs::create_directories(dir / "groundtruth", ec);
-  WriteDetections(dir / "groundtruth" / "corners.jsonl", truth_frames);
+  WriteRenderIndex(dir, images, truth_frames);
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return stats;
 }

@@ -42,7 +42,7 @@ RenderStats RenderIrRun(const SimResult& result, const IrOptions& options, std::
                         const std::function<void(long, long)>& progress = nullptr);
 
 // T_world_robot at `stamp_s` between the samples of `truth` (translation linear, rotation by
-// slerp); the first or last sample outside them.
-SE3d InterpolatePose(const Trajectory& truth, double stamp_s);
+// slerp: InterpolateProduct of geometry/pose.h); the first or last sample outside them.
+SE3d InterpolateTrajectoryClamped(const Trajectory& truth, double stamp_s);
 
 }  // namespace waymark::sim

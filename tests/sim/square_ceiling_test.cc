@@ -234,14 +234,14 @@ TEST(IrRenderTest, RenderedDatasetHasLedPairs) {
   fs::remove_all(dir);
 }
 
-TEST(IrRenderTest, InterpolatePoseBetweenSamples) {
+TEST(IrRenderTest, InterpolateTrajectoryClampedBetweenSamples) {
   Trajectory truth = {{0.0, SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0))},
                       {1.0, SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ())),
                                  Eigen::Vector3d(2, 0, 0))}};
-  const SE3d mid = InterpolatePose(truth, 0.25);
+  const SE3d mid = InterpolateTrajectoryClamped(truth, 0.25);
   EXPECT_NEAR(mid.translation().x(), 0.5, 1e-12);
   EXPECT_NEAR(mid.yaw(), 0.25, 1e-12);
-  EXPECT_NEAR(InterpolatePose(truth, 5.0).translation().x(), 2.0, 1e-12);
+  EXPECT_NEAR(InterpolateTrajectoryClamped(truth, 5.0).translation().x(), 2.0, 1e-12);
 }
 
 }  // namespace
