@@ -1,4 +1,4 @@
-// cameras/<name>.yaml (core/camera_io.h): arbitrary text.
+// cameras/<name>.yaml (io/camera_io.h): arbitrary text.
 #include "fuzz/fuzz_util.h"
 #include "io/camera_io.h"
 #include "io/util.h"

@@ -1,4 +1,4 @@
-// dataset.yaml (core/dataset_io.h), then images.csv with the same bytes: arbitrary text.
+// dataset.yaml (io/dataset_io.h), then images.csv with the same bytes: arbitrary text.
 #include "fuzz/fuzz_util.h"
 #include "io/dataset_io.h"
 #include "io/util.h"

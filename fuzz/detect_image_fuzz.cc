@@ -1,4 +1,4 @@
-// The detectors on arbitrary image file bytes (PNG, JPEG, ... through core/detect_image.h's
+// The detectors on arbitrary image file bytes (PNG, JPEG, ... through runner/image.h's
 // DecodeImage, as `waymark detect` reads files): every family at once.
 #include <memory>
 

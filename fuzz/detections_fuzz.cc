@@ -1,4 +1,4 @@
-// detections.jsonl (core/detections_io.h): arbitrary text, with and without camera sizes.
+// detections.jsonl (io/detections_io.h): arbitrary text, with and without camera sizes.
 #include "fuzz/fuzz_util.h"
 #include "io/detections_io.h"
 #include "io/util.h"

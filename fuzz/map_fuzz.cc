@@ -1,4 +1,4 @@
-// Maps, map.json (core/map_io.h): arbitrary text, poses required and optional.
+// Maps, map.json (io/map_io.h): arbitrary text, poses required and optional.
 #include "fuzz/fuzz_util.h"
 #include "io/map_io.h"
 #include "io/util.h"

@@ -1,4 +1,4 @@
-// Payload patterns and texts (core/payload.h, dataset.yaml `payload`): the input's first line
+// Payload patterns and texts (geometry/payload.h, dataset.yaml `payload`): the input's first line
 // is the pattern, its second the field names (comma-separated), every further line a code's
 // text to parse.
 #include <sstream>

@@ -1,4 +1,4 @@
-// TUM trajectories (core/tum_io.h): arbitrary text.
+// TUM trajectories (io/tum_io.h): arbitrary text.
 #include "fuzz/fuzz_util.h"
 #include "io/tum_io.h"
 #include "io/util.h"

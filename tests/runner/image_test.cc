@@ -1,4 +1,4 @@
-// core/detect_image.h: decoding image bytes for the detectors with bounded work and one-line
+// runner/image.h: decoding image bytes for the detectors with bounded work and one-line
 // reasons (issue 18, finding 3), and the detectors on odd image shapes.
 #include "runner/image.h"
 
