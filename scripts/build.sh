@@ -8,6 +8,10 @@ cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
 targets=()
 while [ $# -gt 0 ] && [ "$1" = --target ]; do
+  if [ $# -lt 2 ]; then
+    echo "build.sh: --target needs a target name (e.g. --target waymark)" >&2
+    exit 2
+  fi
   targets+=(--target "$2")
   shift 2
 done
