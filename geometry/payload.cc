@@ -1,5 +1,7 @@
 #include "geometry/payload.h"
 
+#include <re2/re2.h>
+
 #include <charconv>
 #include <cmath>
 #include <set>
@@ -16,74 +18,15 @@ bool IsCoordinateField(const std::string& name) {
   return name == "x" || name == "y" || name == "z" || name == "yaw_deg";
 }
 
-// Whether the quantifier at pattern[i] repeats without bound: *, + or {n,}.
-bool UnboundedQuantifierAt(const std::string& pattern, size_t i) {
-  if (i >= pattern.size()) return false;
-  if (pattern[i] == '*' || pattern[i] == '+') return true;
-  if (pattern[i] != '{') return false;
-  const size_t close = pattern.find('}', i);
-  return close != std::string::npos && pattern[close - 1] == ',';
-}
-
-// Throws when a group that repeats without bound holds a repetition without bound itself
-// ("(a+)+", "(?:[^;]*)*"): std::regex takes exponential time on such patterns.
-void RejectNestedRepetition(const std::string& pattern) {
-  std::vector<bool> holds_repetition;  // one per open group
-  for (size_t i = 0; i < pattern.size(); ++i) {
-    const char c = pattern[i];
-    if (c == '\\') {
-      ++i;                  // an escaped character
-    } else if (c == '[') {  // a class: up to its closing ']' (a leading ']' or '^]' is literal)
-      size_t j = i + 1;
-      if (j < pattern.size() && pattern[j] == '^') ++j;
-      if (j < pattern.size() && pattern[j] == ']') ++j;
-      while (j < pattern.size() && pattern[j] != ']') j += pattern[j] == '\\' ? 2 : 1;
-      i = j;
-      if (UnboundedQuantifierAt(pattern, i + 1) && !holds_repetition.empty()) holds_repetition.back() = true;
-    } else if (c == '(') {
-      holds_repetition.push_back(false);
-    } else if (c == ')' && !holds_repetition.empty()) {
-      const bool inner = holds_repetition.back();
-      holds_repetition.pop_back();
-      if (UnboundedQuantifierAt(pattern, i + 1)) {
-        if (inner) {
-          throw std::runtime_error("payload: pattern: a repeated group holds a repetition itself (`" +
-                                   pattern.substr(0, i + 2) +
-                                   "`): std::regex can take exponential time on it; repeat only one of them");
-        }
-        if (!holds_repetition.empty()) holds_repetition.back() = true;
-      } else if (inner && !holds_repetition.empty()) {
-        holds_repetition.back() = true;
-      }
-    } else if (UnboundedQuantifierAt(pattern, i) && !holds_repetition.empty()) {
-      holds_repetition.back() = true;
-    }
+// Compiles a spec's pattern; throws on a syntax error, a pattern larger than RE2's memory
+// budget (8 MiB; a repetition count is at most 1000) or invalid UTF-8.
+std::shared_ptr<const re2::RE2> CompilePattern(const std::string& pattern) {
+  auto regex = std::make_shared<const re2::RE2>(pattern, re2::RE2::Quiet);
+  if (!regex->ok()) {
+    throw std::runtime_error("payload: pattern: invalid regular expression `" + pattern +
+                             "`: " + regex->error());
   }
-}
-
-// Throws on a run of more than 6 digits: libstdc++'s regex compiler reads a repetition count or
-// a back-reference number into an int without an overflow check (fuzz/payload_fuzz.cc:
-// `\\777777777777777777777`, undefined behaviour); no payload needs such a number.
-void RejectLongNumbers(const std::string& pattern) {
-  size_t run = 0;
-  for (size_t i = 0; i < pattern.size(); ++i) {
-    run = (pattern[i] >= '0' && pattern[i] <= '9') ? run + 1 : 0;
-    if (run > 6) {
-      throw std::runtime_error("payload: pattern: a number of more than 6 digits at `" +
-                               pattern.substr(i + 1 - run, run) + "` (a repetition count or back-reference)");
-    }
-  }
-}
-
-std::regex CompilePattern(const std::string& pattern) {
-  RejectLongNumbers(pattern);
-  RejectNestedRepetition(pattern);
-  try {
-    return std::regex(pattern, std::regex::ECMAScript);
-  } catch (const std::regex_error& e) {
-    throw std::runtime_error("payload: pattern: invalid ECMAScript regular expression `" + pattern +
-                             "`: " + e.what());
-  }
+  return regex;
 }
 
 void CheckFields(const PayloadSpec& spec, size_t groups) {
@@ -142,12 +85,12 @@ bool StoreField(const std::string& name, const std::string& value, PayloadData* 
 }  // namespace
 
 void ValidatePayloadSpec(const PayloadSpec& spec) {
-  CheckFields(spec, CompilePattern(spec.pattern).mark_count());
+  CheckFields(spec, static_cast<size_t>(CompilePattern(spec.pattern)->NumberOfCapturingGroups()));
 }
 
 PayloadParser::PayloadParser(PayloadSpec spec)
     : spec_(std::move(spec)), regex_(CompilePattern(spec_.pattern)) {
-  CheckFields(spec_, regex_.mark_count());
+  CheckFields(spec_, static_cast<size_t>(regex_->NumberOfCapturingGroups()));
 }
 
 std::optional<PayloadData> PayloadParser::Parse(const std::string& text, std::string* why) const {
@@ -159,25 +102,25 @@ std::optional<PayloadData> PayloadParser::Parse(const std::string& text, std::st
            std::to_string(kMaxPayloadBytes);
     return std::nullopt;
   }
-  std::smatch match;
-  try {
-    if (!std::regex_search(text, match, regex_)) return std::nullopt;
-  } catch (const std::regex_error& e) {
-    *why = std::string("regular expression engine error: ") + e.what();
+  // groups[0] is the whole match; an optional group that took no part has a null data().
+  std::vector<re2::StringPiece> groups(spec_.fields.size() + 1);
+  if (!regex_->Match(text, 0, text.size(), re2::RE2::UNANCHORED, groups.data(),
+                     static_cast<int>(groups.size()))) {
     return std::nullopt;
   }
   PayloadData data;
   for (size_t i = 0; i < spec_.fields.size(); ++i) {
     const std::string& name = spec_.fields[i];
     const bool required = name == "x" || name == "y";
-    if (!match[i + 1].matched) {
+    const re2::StringPiece& group = groups[i + 1];
+    if (group.data() == nullptr) {
       if (required) {
         *why = "field `" + name + "` is missing";
         return std::nullopt;
       }
       continue;
     }
-    if (!StoreField(name, match[i + 1].str(), &data, why)) return std::nullopt;
+    if (!StoreField(name, std::string(group.data(), group.size()), &data, why)) return std::nullopt;
   }
   if (!data.z_m && spec_.default_z_m && data.HasPosition()) data.z_m = spec_.default_z_m;
   return data;

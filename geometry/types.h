@@ -148,7 +148,7 @@ struct OdometrySigma {
 
 // Coordinates printed inside a code's payload (dataset.yaml `payload`).
 struct PayloadSpec {
-  std::string pattern;              // ECMAScript regular expression over the decoded text
+  std::string pattern;              // regular expression (RE2 syntax) over the decoded text
   std::vector<std::string> fields;  // one name per capture group; x, y, z, yaw_deg are special
   // dataset.yaml `payload.default_z_m`: the height of a code whose text gives x and y but no z
   // (e.g. [Kang]'s floor codes "0/x/y", printed on the floor at z = 0). Unset: z stays unknown.

@@ -23,7 +23,7 @@
 //   images: images.csv
 //   markers: markers.json
 //
-// payload: the pattern must compile as an ECMAScript regex and have exactly one field name per
+// payload: the pattern must compile as a regular expression (RE2 syntax) and have exactly one field name per
 // capture group; names are distinct and non-empty; z and yaw_deg need x and y.
 //
 // Errors are FormatErrors naming the file and line; counted warnings (Dataset::warnings)

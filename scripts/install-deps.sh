@@ -8,7 +8,7 @@ packages=(
   libeigen3-dev libceres-dev
   libopencv-dev libopencv-contrib-dev
   libdmtx-dev libzxing-dev libapriltag-dev
-  libyaml-cpp-dev nlohmann-json3-dev
+  libyaml-cpp-dev nlohmann-json3-dev libre2-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang-format
 )

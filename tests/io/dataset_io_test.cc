@@ -160,7 +160,7 @@ TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x]")),
               HasSubstr("dataset.yaml:8: payload: fields: expected 3 names (one per capture group"));
   EXPECT_THAT(ParseError(GoodYamlWith("(\\\\d+)/", "(\\\\d+/")),
-              HasSubstr("dataset.yaml:8: payload: pattern: invalid ECMAScript regular expression"));
+              HasSubstr("dataset.yaml:8: payload: pattern: invalid regular expression"));
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x, x]")),
               HasSubstr("payload: fields: `x` appears twice"));
   // The payload parser's own rules: a coordinate needs its partner.
