@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "geometry/robot_pnp.h"
 #include "mapping/residuals.h"
 
 namespace waymark {

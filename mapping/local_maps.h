@@ -113,23 +113,6 @@ std::optional<FusedPose> FuseMarkerViews(const std::vector<FusionView>& views, d
                                          const std::vector<SE3d>& seeds, bool single_view_unambiguous,
                                          const LocalMapOptions& options);
 
-// One code seen by a robot, for the robot's PnP: the code's pose is held fixed.
-struct PnpView {
-  const Camera* camera = nullptr;
-  const std::array<Eigen::Vector2d, 4>* corners_px = nullptr;
-  double sigma_px = 1.0;
-  double size_m = 0.0;
-  SE3d T_world_marker;
-};
-
-// Robust PnP of T_world_robot over the codes it sees (cameras at T_world_robot *
-// T_robot_camera), Levenberg-Marquardt with Cauchy weights over the right perturbation
-// T_world_robot * Exp([dr, dt]) (planar: only dr_z, dt_x, dt_y, result planarized):
-//   d(p_camera)/d[dr, dt] = R_camera_robot [Hat(p_robot), -I]
-// Views that do not project at the start are left out; returns `start` when none is left.
-SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool planar, double cauchy_scale,
-                     int max_iterations);
-
 struct LocalMap {
   int component = -1;
   std::vector<int> frames;         // first one is the reference

@@ -9,6 +9,7 @@
 #include <random>
 #include <set>
 
+#include "geometry/robot_pnp.h"
 #include "tests/mapping/synthetic_wall.h"
 
 namespace waymark {
