@@ -63,7 +63,12 @@ stderr with its line number, counted and skipped; the counts go to stderr at the
 
 Options:
   --map FILE          the map (map.json format), required
-  --mode MODE         tight (the four corners, default) or loose ([Bach]'s single-code pose)
+  --mode MODE         tight (the four corners, default), loose ([Bach]'s single-code pose) or
+                      single-frame (no filter: each frame's robust PnP over all its codes; the
+                      baseline a filter must match, docs/online.md)
+  --without-odometry V,W     a dataset or stream without odometry: between frames the pose is a
+                      random walk of V m/s per axis and W rad/s in heading (default 1,2; a
+                      hand-held camera or a walking robot); used until odometry comes
   --detect-images     detect the codes on DATASET's images (images.csv) instead of reading
                       detections.jsonl; the detection time counts in the latency
   --families LIST     families to detect (default: those of the map's codes), e.g.
@@ -84,6 +89,7 @@ Options:
 const std::set<std::string> kValues = {"map",
                                        "out",
                                        "mode",
+                                       "without-odometry",
                                        "predicted",
                                        "poses",
                                        "families",
@@ -103,8 +109,18 @@ LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
     options.localizer.mode = CorrectionMode::kTightCorners;
   } else if (mode == "loose") {
     options.localizer.mode = CorrectionMode::kLoosePose;
+  } else if (mode == "single-frame") {
+    options.localizer.mode = CorrectionMode::kSingleFrame;
   } else {
-    throw std::invalid_argument("--mode: expected tight or loose, got '" + mode + "'");
+    throw std::invalid_argument("--mode: expected tight, loose or single-frame, got '" + mode + "'");
+  }
+  if (args.Has("without-odometry")) {
+    const std::vector<double> values = *args.GetDoubleList("without-odometry");
+    if (values.size() != 2 || !(values[0] >= 0.0) || !(values[1] >= 0.0) || !std::isfinite(values[0]) ||
+        !std::isfinite(values[1])) {
+      throw std::invalid_argument("--without-odometry: expected V,W: two finite numbers >= 0 (m/s, rad/s)");
+    }
+    options.localizer.without_odometry = {values[0], values[1]};
   }
   options.detect_images = args.Flag("detect-images");
   if (args.Has("families")) options.families = ParseFamilyList(*args.Get("families"));

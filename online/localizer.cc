@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "geometry/robot_pnp.h"
 #include "geometry/square_marker.h"
 #include "online/chi_square.h"
 #include "online/marker_measurement.h"
@@ -36,6 +37,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(clear_max_rms_sigmas > 0.0 && clear_max_range_sizes > 0.0,
                        "localizer options: clear_max_rms_sigmas and clear_max_range_sizes must be > 0");
   WAYMARK_CHECK_OPTION(tight_iterations >= 1, "localizer options: tight_iterations must be >= 1");
+  WAYMARK_CHECK_OPTION(
+      IsFiniteAtLeast(without_odometry.speed_mps, 0.0) && IsFiniteAtLeast(without_odometry.turn_radps, 0.0),
+      "localizer options: without_odometry speed and turn rate must be finite and >= 0");
   WAYMARK_CHECK_OPTION(max_considered_markers >= 1, "localizer options: max_considered_markers must be >= 1");
   std::string nested_why;
   WAYMARK_CHECK_OPTION(marker_pose.Check(&nested_why), "localizer options: " + nested_why);
@@ -110,6 +114,7 @@ StepStatus Localizer::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
   }
   const StepStatus time_status = Accept(stamp_s);
   if (time_status != StepStatus::kOk) return time_status;
+  had_motion_input_ = true;
   const std::optional<SE3d> previous = last_T_odom_robot_;
   last_T_odom_robot_ = T_odom_robot;
   if (!previous) return StepStatus::kOk;
@@ -134,6 +139,7 @@ StepStatus Localizer::AddVelocity(double stamp_s, double v_mps, double omega_rad
   }
   const std::optional<double> previous_s = last_stamp_s_;
   const StepStatus time_status = Accept(stamp_s);
+  if (time_status == StepStatus::kOk) had_motion_input_ = true;
   if (time_status != StepStatus::kOk || !previous_s) return time_status;
   const double dt_s = stamp_s - *previous_s;
   const double d = v_mps * dt_s, a = omega_radps * dt_s;
@@ -230,6 +236,7 @@ bool Localizer::PlanarResolvesAmbiguity(const Camera& camera, const MapMarker& m
 
 FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   FrameResult result;
+  const std::optional<double> previous_s = last_stamp_s_;
   const auto camera_it = cameras_.find(frame.camera);
   if (camera_it == cameras_.end()) {
     ++counters_.rejected_inputs;
@@ -240,6 +247,31 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   result.tracking = tracking_;
   if (result.status != StepStatus::kOk) return result;
   ++counters_.frames;
+  if (options_.mode == CorrectionMode::kSingleFrame) {
+    FitSingleFrame(camera_it->second, frame, &result);
+    result.tracking = tracking_;
+    return result;
+  }
+  if (!had_motion_input_ && HasTrack() && previous_s) PredictWithoutOdometry(frame.stamp_s - *previous_s);
+  // Without odometry the tight mode corrects with the frame's robust PnP (header comment).
+  const bool frame_fit = !had_motion_input_ && options_.mode == CorrectionMode::kTightCorners;
+  if (frame_fit && tracking_ == TrackingStatus::kUninitialized) {
+    // The first start without odometry: from all of the frame's codes at once, when one of the
+    // codes it keeps is unambiguous (a single code seen head-on may flip) or it keeps two.
+    const std::optional<FrameFit> fit = FitFrame(camera_it->second, frame);
+    int kept = 0;
+    bool unambiguous = false;
+    if (fit) {
+      for (size_t v = 0; v < fit->inliers.size(); ++v) {
+        kept += fit->inliers[v];
+        unambiguous = unambiguous || (fit->inliers[v] && fit->unambiguous[v]);
+      }
+    }
+    if (fit && (unambiguous || kept >= 2) && StartFromFit(*fit, frame, &result)) {
+      result.tracking = tracking_;
+      return result;
+    }
+  }
   const bool had_track = HasTrack();
   const SE3d T_world_robot_predicted = state_.T_world_robot();
   std::vector<ExpectedCode> expected;
@@ -257,9 +289,13 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   const long initializations = counters_.initializations;
   gated_.clear();
   int accepted = 0;
-  for (const CodeSighting& sighting : frame.sightings) {
-    result.corrections.push_back(ProcessSighting(camera_it->second, sighting));
-    const CorrectionResult& correction = result.corrections.back();
+  if (frame_fit && had_track) {
+    CorrectWithFrameFit(camera_it->second, frame, &result);
+  } else {
+    for (const CodeSighting& sighting : frame.sightings)
+      result.corrections.push_back(ProcessSighting(camera_it->second, sighting));
+  }
+  for (const CorrectionResult& correction : result.corrections) {
     if (correction.status != StepStatus::kOk && result.status == StepStatus::kOk)
       result.status = correction.status;
     accepted += correction.outcome == CorrectionOutcome::kAccepted;
@@ -273,6 +309,208 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   gated_.clear();
   result.tracking = tracking_;
   return result;
+}
+
+void Localizer::PredictWithoutOdometry(double dt_s) {
+  if (!(dt_s > 0.0)) return;
+  const int dim = state_.dim();
+  Eigen::VectorXd sigma = Eigen::VectorXd::Constant(dim, options_.without_odometry.speed_mps * dt_s);
+  sigma(state_.yaw_index()) = options_.without_odometry.turn_radps * dt_s;
+  const Eigen::MatrixXd unit = Eigen::MatrixXd::Identity(dim, dim);
+  if (state_.Propagate(state_.mean(), unit, unit, sigma.array().square().matrix().asDiagonal()) !=
+      StepStatus::kOk) {
+    SetLost();
+    return;
+  }
+  CheckUncertainty();
+}
+
+std::vector<PnpView> Localizer::FrameViews(const Camera& camera, const CameraFrame& frame) const {
+  const double sigma_px = camera.info().pixel_sigma.value_or(options_.default_pixel_sigma_px);
+  std::vector<PnpView> views;
+  for (const CodeSighting& sighting : frame.sightings) {
+    const MapMarker* marker = map_.Find(sighting.observation.key);
+    if (marker == nullptr || !marker->has_pose) continue;
+    views.push_back(
+        {&camera, &sighting.observation.corners_px, sigma_px, marker->size_m, marker->T_world_marker});
+  }
+  return views;
+}
+
+namespace {
+
+// Robust PnP of one frame: the Cauchy scale in whitened units of a whole code (8 residuals),
+// and the iterations of Levenberg-Marquardt.
+constexpr double kFrameCauchyScale = 4.0;
+constexpr int kFrameFitIterations = 30;
+
+}  // namespace
+
+std::optional<Localizer::FrameFit> Localizer::FitFrame(const Camera& camera, const CameraFrame& frame) const {
+  FrameFit fit;
+  fit.views = FrameViews(camera, frame);
+  const bool planar = options_.motion == MotionModel::kPlanar;
+  // Starts: each code's single-image robot poses (both solutions of an ambiguous one), at most
+  // kMaxStarts of them, and the current pose when there is a track.
+  constexpr size_t kMaxStarts = 16;
+  std::vector<SE3d> starts;
+  if (HasTrack()) starts.push_back(state_.T_world_robot());
+  for (const CodeSighting& sighting : frame.sightings) {
+    const MapMarker* marker = map_.Find(sighting.observation.key);
+    if (marker == nullptr || !marker->has_pose) continue;
+    CodeSighting storage;
+    const CodeSighting& solved = Solved(camera, *marker, sighting, &storage);
+    fit.unambiguous.push_back(!solved.ambiguous || PlanarResolvesAmbiguity(camera, *marker, solved));
+    for (size_t i = 0; i < solved.T_camera_marker.size() && starts.size() < kMaxStarts; ++i)
+      starts.push_back(RestartPose(camera, *marker, solved, i));
+  }
+  // The fit that keeps the most codes inside the gate, then the smallest error over them.
+  int best_count = 0;
+  double best_error = std::numeric_limits<double>::infinity();
+  for (const SE3d& start : starts) {
+    const SE3d fitted = RefineRobotPose(fit.views, start, planar, kFrameCauchyScale, kFrameFitIterations);
+    const std::vector<std::optional<double>> errors = RobotPnpErrors(fit.views, fitted, nullptr);
+    std::vector<bool> inliers(fit.views.size(), false);
+    int count = 0;
+    double error = 0.0;
+    for (size_t v = 0; v < fit.views.size(); ++v) {
+      inliers[v] = errors[v] && *errors[v] <= gate_tight_;
+      count += inliers[v];
+      if (inliers[v]) error += *errors[v];
+    }
+    // With a track, among fits keeping as many codes the one nearest the state (in its
+    // covariance) wins: an ambiguous code's two solutions fit its corners alike.
+    if (HasTrack() && count > 0) {
+      const Eigen::VectorXd d =
+          EkfState::BoxMinus(state_.mean(), PoseToStateVector(fitted, options_.motion), state_.yaw_index());
+      error = d.dot(state_.covariance().ldlt().solve(d));
+    }
+    if (count > best_count || (count == best_count && count > 0 && error < best_error)) {
+      fit.T_world_robot = fitted;
+      fit.inliers = inliers;
+      best_count = count;
+      best_error = error;
+    }
+  }
+  if (best_count == 0) return std::nullopt;
+  // The covariance from the codes inside the gate, in the state's error coordinates, given
+  // the fit's roll and pitch (the state holds them fixed; for planar robots they and z are 0):
+  // with world errors [phi, dt_w] = [R dr, R dt] of the right perturbation [dr, dt], the
+  // information is I_w = A I A^T (A = diag(R, R)), and the state's [dt_w (x, y[, z]), phi_z]
+  // block of it is inverted. (The marginal, (A I^-1 A^T) of that block, would add the
+  // uncertainty of a roll and pitch that SetLevel then takes as exact.)
+  std::vector<PnpView> kept;
+  for (size_t v = 0; v < fit.views.size(); ++v) {
+    if (fit.inliers[v]) kept.push_back(fit.views[v]);
+  }
+  Matrix6d information;
+  RobotPnpErrors(kept, fit.T_world_robot, &information);
+  Matrix6d A = Matrix6d::Zero();
+  A.topLeftCorner<3, 3>() = A.bottomRightCorner<3, 3>() = fit.T_world_robot.rotation_matrix();
+  const Matrix6d information_world = A * information * A.transpose();
+  const int dim = state_.dim();
+  std::vector<int> index;  // state coordinate -> world error coordinate
+  for (int i = 0; i < dim - 1; ++i) index.push_back(3 + i);
+  index.push_back(2);
+  Eigen::MatrixXd information_state(dim, dim);
+  for (int i = 0; i < dim; ++i) {
+    for (int j = 0; j < dim; ++j) information_state(i, j) = information_world(index[i], index[j]);
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(information_state);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
+  fit.covariance = ldlt.solve(Eigen::MatrixXd::Identity(dim, dim));
+  if (!fit.covariance.allFinite() || Eigen::LLT<Eigen::MatrixXd>(fit.covariance).info() != Eigen::Success)
+    return std::nullopt;
+  return fit;
+}
+
+bool Localizer::StartFromFit(const FrameFit& fit, const CameraFrame& frame, FrameResult* result) {
+  if (state_.Reset(PoseToStateVector(fit.T_world_robot, options_.motion), fit.covariance) != StepStatus::kOk)
+    return false;
+  state_.SetLevel(fit.T_world_robot.rotation_matrix());
+  const bool started = tracking_ == TrackingStatus::kUninitialized;
+  tracking_ = TrackingStatus::kTracking;
+  rejected_frames_in_a_row_ = 0;
+  hypotheses_.clear();
+  size_t v = 0;
+  for (const CodeSighting& sighting : frame.sightings) {
+    CorrectionResult correction;
+    correction.key = sighting.observation.key;
+    const MapMarker* marker = map_.Find(sighting.observation.key);
+    if (marker == nullptr || !marker->has_pose) {
+      ++counters_.unknown_markers;
+      correction.outcome = CorrectionOutcome::kUnknownMarker;
+    } else {
+      const bool inlier = fit.inliers[v++];
+      correction.outcome = !inlier   ? CorrectionOutcome::kGated
+                           : started ? CorrectionOutcome::kInitialized
+                                     : CorrectionOutcome::kAccepted;
+      counters_.accepted += inlier && !started;
+      counters_.gated += !inlier;
+      if (inlier) component_ = marker->component;
+    }
+    result->corrections.push_back(correction);
+  }
+  if (started) {
+    ++counters_.initializations;
+    negative_.Restart();
+  }
+  return true;
+}
+
+void Localizer::CorrectWithFrameFit(const Camera& camera, const CameraFrame& frame, FrameResult* result) {
+  const std::optional<FrameFit> fit = FitFrame(camera, frame);
+  UpdateResult update;
+  if (fit) {
+    const int dim = state_.dim();
+    const Eigen::VectorXd innovation = EkfState::BoxMinus(
+        state_.mean(), PoseToStateVector(fit->T_world_robot, options_.motion), state_.yaw_index());
+    update = state_.Update(innovation, Eigen::MatrixXd::Identity(dim, dim), fit->covariance, gate_loose_);
+    if (update.accepted) state_.SetLevel(fit->T_world_robot.rotation_matrix());
+  }
+  size_t v = 0;
+  for (const CodeSighting& sighting : frame.sightings) {
+    CorrectionResult correction;
+    correction.key = sighting.observation.key;
+    const MapMarker* marker = map_.Find(sighting.observation.key);
+    if (marker == nullptr || !marker->has_pose) {
+      ++counters_.unknown_markers;
+      correction.outcome = CorrectionOutcome::kUnknownMarker;
+      result->corrections.push_back(correction);
+      continue;
+    }
+    const bool used = fit && update.accepted && fit->inliers[v++];
+    correction.status = update.status;
+    correction.nis = update.nis;
+    correction.gate = gate_loose_;
+    correction.innovation = update.innovation;
+    correction.outcome = used ? CorrectionOutcome::kAccepted : CorrectionOutcome::kGated;
+    counters_.accepted += used;
+    counters_.gated += !used;
+    if (used) component_ = marker->component;
+    if (!used) {
+      CodeSighting storage;
+      gated_.push_back({&camera, marker, Solved(camera, *marker, sighting, &storage)});
+    }
+    result->corrections.push_back(correction);
+  }
+}
+
+void Localizer::FitSingleFrame(const Camera& camera, const CameraFrame& frame, FrameResult* result) {
+  const std::optional<FrameFit> fit = FitFrame(camera, frame);
+  if (fit && StartFromFit(*fit, frame, result)) return;
+  for (const CodeSighting& sighting : frame.sightings) {
+    CorrectionResult correction;
+    correction.key = sighting.observation.key;
+    const MapMarker* marker = map_.Find(sighting.observation.key);
+    correction.outcome = marker == nullptr || !marker->has_pose ? CorrectionOutcome::kUnknownMarker
+                                                                : CorrectionOutcome::kGated;
+    counters_.unknown_markers += correction.outcome == CorrectionOutcome::kUnknownMarker;
+    counters_.gated += correction.outcome == CorrectionOutcome::kGated;
+    result->corrections.push_back(correction);
+  }
+  // No pose for this frame; the next frame with codes has one again (no relocalization here).
+  if (HasTrack()) tracking_ = TrackingStatus::kLost;
 }
 
 double Localizer::TestExpectedCodes(const CameraFrame& frame, const std::vector<ExpectedCode>& expected,

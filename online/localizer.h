@@ -6,6 +6,13 @@
 // Corrections, each gated by NIS <= ChiSquareQuantile(gate_probability, dof):
 //   kLoosePose     [Bach]'s baseline: the code's single-image pose composed with the map is
 //                  the measurement, H = I, fixed noise `loose_noise` (dof 3 planar, 4 free).
+//   kSingleFrame   no filter: every camera frame on its own, the robust PnP of the robot over
+//                  all of the frame's codes at once (geometry/robot_pnp.h), started from each
+//                  code's single-image pose (planar: its corner fit); the start whose fit keeps
+//                  the most codes inside the gate wins. Codes outside the gate are counted as
+//                  gated; a frame without a code inside it has no pose. The covariance is the
+//                  fit's (J^T J)^-1 (the map taken as exact). The baseline of issue 13 ("a
+//                  single-frame fit"), and a mode for robots with no motion input at all.
 //   kTightCorners  ours: the four corners' pixels, H through the camera Jacobian, noise
 //                  sigma_px^2 I8, the marker's map error considered (Schmidt, ekf_state.h;
 //                  MapUncertainty below) (dof 8), applied as an
@@ -61,6 +68,21 @@
 //       relocalize_after_agreeing sightings otherwise (ambiguous, poorly fitting or far codes).
 //   Frames whose codes are gated while suspect are decided at the end of the frame: a code that
 //   passes the gate in the same frame keeps the track.
+// Without odometry (no odometry or velocity input has come yet: a hand-held camera, a humanoid
+// that gives none, [Kang]): each frame first predicts that the robot stayed where it was, with a
+// random walk whose sigma grows with the time dt since the previous input,
+//   sigma_trans = without_odometry.speed_mps * dt (per axis),  sigma_yaw = without_odometry.turn_radps * dt,
+// (F = I, G = I, Qu = diag(sigma^2)), so that the corners of a robot that moved since are not
+// gated against an overconfident prior; a long gap grows sigma past max_position_sigma_m (lost).
+// The tight mode then corrects with the frame's robust PnP over all its codes (the fit of
+// kSingleFrame, its start chosen nearest the state) as one measurement of the state:
+//   z = the fit's (x, y, theta) or (x, y, z, yaw),  H = I,  R = the fit's (J^T J)^-1,
+// gated like the loose update (dof 3 or 4); the free model takes its roll and pitch from the
+// fit. Linearizing each code at the predicted pose, as with odometry, fails here: after a
+// second without codes the prior is off by decimetres and radians (the corners are gated),
+// there is no odometry attitude, and a hand-held camera tilts by degrees between frames. The
+// fit holds the map as exact (no Schmidt term). The first start takes the fit too, when it
+// keeps two codes or an unambiguous one.
 // Codes absent from the map are counted and ignored. Inputs older than the last one processed
 // are rejected (StepStatus::kTimeWentBackwards) and change nothing.
 #pragma once
@@ -73,6 +95,7 @@
 
 #include "geometry/camera.h"
 #include "geometry/pose.h"
+#include "geometry/robot_pnp.h"
 #include "geometry/types.h"
 #include "online/code_sighting.h"
 #include "online/ekf_state.h"
@@ -83,7 +106,7 @@
 
 namespace waymark {
 
-enum class CorrectionMode { kLoosePose, kTightCorners };
+enum class CorrectionMode { kLoosePose, kTightCorners, kSingleFrame };
 // Where the free model takes roll and pitch from (ekf_state.h).
 enum class AttitudeSource { kOdometry, kMarker };
 // How the tight update treats a marker's map covariance Sigma_m:
@@ -94,11 +117,19 @@ enum class AttitudeSource { kOdometry, kMarker };
 //   kIgnore    the map taken as exact.
 enum class MapUncertainty { kConsider, kInNoise, kIgnore };
 
+// The random walk that replaces the odometry while there is none (header comment above).
+struct MotionWithoutOdometry {
+  double speed_mps = 1.0;   // sigma of the translation per second, per axis
+  double turn_radps = 2.0;  // sigma of the heading per second
+};
+
 struct LocalizerOptions {
   MotionModel motion = MotionModel::kPlanar;
   CorrectionMode mode = CorrectionMode::kTightCorners;
   AttitudeSource attitude_source = AttitudeSource::kOdometry;
   OdometryNoise odometry;
+  // Used only until the first odometry or velocity input (header comment).
+  MotionWithoutOdometry without_odometry;
   double gate_probability = 0.997;      // chi-square gate of every correction
   int tight_iterations = 5;             // iterated EKF steps of the corner update (1: plain EKF)
   double default_pixel_sigma_px = 1.0;  // when CameraInfo::pixel_sigma is absent
@@ -264,6 +295,26 @@ class Localizer {
   bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i = 0);
   void SetLost();
   void CheckUncertainty();
+  // Without odometry: the random-walk prediction over dt seconds (header comment).
+  void PredictWithoutOdometry(double dt_s);
+  // The frame's known codes as PnP views (corner pixels of `frame` are referenced, not copied).
+  std::vector<PnpView> FrameViews(const Camera& camera, const CameraFrame& frame) const;
+  // The robust PnP of the robot over all of a frame's known codes (kSingleFrame, header
+  // comment); nullopt when no code fits inside the gate.
+  struct FrameFit {
+    std::vector<PnpView> views;     // the frame's known codes, in the frame's order
+    std::vector<bool> unambiguous;  // per view: its single-image pose is unambiguous
+    std::vector<bool> inliers;      // per view: inside the gate at the fit
+    SE3d T_world_robot;
+    Eigen::MatrixXd covariance;  // of the state's error, from the inliers
+  };
+  std::optional<FrameFit> FitFrame(const Camera& camera, const CameraFrame& frame) const;
+  // Sets the state to the fit (a start when there was no track) and reports every code.
+  bool StartFromFit(const FrameFit& fit, const CameraFrame& frame, FrameResult* result);
+  // Without odometry: the frame's fit as one measurement of the pose (header comment).
+  void CorrectWithFrameFit(const Camera& camera, const CameraFrame& frame, FrameResult* result);
+  // kSingleFrame: the frame's pose on its own (header comment).
+  void FitSingleFrame(const Camera& camera, const CameraFrame& frame, FrameResult* result);
   // Free model, kOdometry: a used code's attitude refines the odometry frame's tilt.
   void UpdateOdometryTilt(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting);
   bool HasTrack() const {
@@ -279,6 +330,7 @@ class Localizer {
   Trajectory predicted_before_correction_;
   std::optional<double> last_stamp_s_;
   std::optional<SE3d> last_T_odom_robot_;
+  bool had_motion_input_ = false;  // an odometry or velocity input came: no random walk
   int rejected_frames_in_a_row_ = 0;
   // Relocalization: the latest sighting's robot poses (both solutions of an ambiguous code),
   // moved with the odometry, each with the length of the chain of agreeing sightings it ends.

@@ -157,7 +157,8 @@ LocalizeStream::LocalizeStream(const Dataset& dataset, const MarkerMap& map,
                                std::function<void(const FrameOutput&)> on_frame)
     : options_(options),
       on_frame_(std::move(on_frame)),
-      localizer_(options.localizer, map, CameraList(dataset)) {
+      localizer_(options.localizer, map, CameraList(dataset)),
+      dataset_has_odometry_(!dataset.odometry.empty()) {
   std::string why;
   if (!options_.Check(&why)) throw std::invalid_argument(why);
   for (const MapMarker& marker : map.markers) {
@@ -267,7 +268,7 @@ void LocalizeStream::ProcessFrame(const Pending& pending) {
       const double a = (frame.stamp_s - last_odometry_->stamp_s) / (next.stamp_s - last_odometry_->stamp_s);
       CountStatus(localizer_.AddOdometry(frame.stamp_s, InterpolateScrew(last_odometry_->T, next.T, a)),
                   "odometry interpolated to " + example);
-    } else if (!at_sample &&
+    } else if (!at_sample && (seen_odometry_ || dataset_has_odometry_) &&
                (!last_odometry_ || (last_odometry_->stamp_s < frame.stamp_s && odometry_.empty()))) {
       warnings_.Add(kWarnOutsideOdometry, example);  // before the first sample or after the last
     }

@@ -12,7 +12,8 @@
 // with Exp/Log of SE(3) (screw motion: exact for constant linear and angular velocity in the
 // body frame; InterpolateScrew in geometry/pose.h). The Localizer then sees the increments T_i -> T(t) ->
 // T_j, which compose to the recorded T_i^-1 T_j. A frame outside the odometry's time span is corrected
-// without a prediction to its instant (counted warning).
+// without a prediction to its instant (counted warning). A dataset or stream without any
+// odometry is no warning: the localizer's random walk predicts instead (online/localizer.h).
 //
 // Bad data never stops a run: codes absent from the map, frames or odometry whose time goes
 // backwards, unreadable images are counted warnings. A map of another place (none of the codes
@@ -186,6 +187,7 @@ class LocalizeStream {
   LocalizeRunOptions options_;
   std::function<void(const FrameOutput&)> on_frame_;
   Localizer localizer_;
+  bool dataset_has_odometry_ = false;  // dataset mode: the frames outside its span are warned of
   std::deque<Pending> pending_;
   std::deque<StampedSE3> odometry_;          // received, not yet fed
   std::optional<StampedSE3> last_odometry_;  // last recorded sample fed (interpolation base)

@@ -321,6 +321,43 @@ TEST_F(LocalizeCliTest, LiveVelocityLinesPredict) {
   EXPECT_GT(tracking, 0.9 * lines);
 }
 
+// Issue 13, item 7: a dataset without odometry (a hand-held camera) tracks with the random
+// walk and the frame fit, as accurately as the single-frame fit, and is not warned about
+// frames "outside the odometry's time span".
+TEST_F(LocalizeCliTest, WithoutOdometryTracksLikeTheSingleFrameFit) {
+  const fs::path still = *dir_ / "run-without-odometry";
+  fs::remove_all(still);
+  fs::copy(Path("run"), still, fs::copy_options::recursive);
+  fs::remove(still / "odometry.tum");
+  std::string yaml;
+  for (const std::string& line : Lines(ReadTextFile((still / "dataset.yaml").string()))) {
+    if (line.rfind("odometry", 0) != 0) yaml += line + "\n";
+  }
+  AtomicWriteFile(still / "dataset.yaml", yaml);
+  std::vector<double> ate_m;
+  for (const std::string mode : {"tight", "single-frame"}) {
+    const std::string out = Path("still-" + mode + ".tum");
+    const RunResult run = Run("localize " + still.string() + " --map " + Path("map.json") + " --out " + out +
+                              " --mode " + mode);
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    EXPECT_EQ(run.err.find("odometry's time span"), std::string::npos) << run.err;
+    const RunResult eval =
+        Run("eval --est " + out + " --gt " + Path("run") + "/groundtruth/trajectory.tum --align none");
+    ASSERT_EQ(eval.exit_code, 0) << eval.err;
+    ate_m.push_back(Figure(eval.out, "ATE trans (m)"));
+  }
+  std::cout << "corridor without odometry: filter ATE " << ate_m[0] << " m, single-frame fit " << ate_m[1]
+            << " m\n";
+  EXPECT_LT(ate_m[1], 0.05);
+  EXPECT_LT(ate_m[0], 1.2 * ate_m[1]);
+  const RunResult bad = Run("localize " + still.string() + " --map " + Path("map.json") + " --out " +
+                            Path("never.tum") + " --without-odometry 1");
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_EQ(Lines(bad.err).size(), 1u) << bad.err;
+  EXPECT_NE(bad.err.find("--without-odometry: expected V,W"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(Path("never.tum")));
+}
+
 TEST_F(LocalizeCliTest, MissingMapIsOneLineAndNoOutput) {
   const RunResult run =
       Run("localize " + Path("run") + " --map " + Path("absent.json") + " --out " + Path("never.tum"));
