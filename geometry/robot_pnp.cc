@@ -103,8 +103,8 @@ SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool 
   return T.IsFinite() ? T : flatten(start);
 }
 
-std::vector<std::optional<double>> RobotPnpErrors(const std::vector<PnpView>& views, const SE3d& T_world_robot,
-                                                  Matrix6d* information) {
+std::vector<std::optional<double>> RobotPnpErrors(const std::vector<PnpView>& views,
+                                                  const SE3d& T_world_robot, Matrix6d* information) {
   std::vector<std::optional<double>> errors;
   errors.reserve(views.size());
   Matrix6d H = Matrix6d::Zero();

@@ -10,11 +10,10 @@
 // only and the result is planarized.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <optional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "geometry/camera.h"
 #include "geometry/pose.h"
@@ -40,7 +39,7 @@ SE3d RefineRobotPose(const std::vector<PnpView>& views, const SE3d& start, bool 
 // corner that does not project) and, when `information` is given, J^T J of the right
 // perturbation [dr, dt] over the views that project (the inverse covariance of the fit; a
 // caller holding some directions fixed inverts the block of the others).
-std::vector<std::optional<double>> RobotPnpErrors(const std::vector<PnpView>& views, const SE3d& T_world_robot,
-                                                  Matrix6d* information);
+std::vector<std::optional<double>> RobotPnpErrors(const std::vector<PnpView>& views,
+                                                  const SE3d& T_world_robot, Matrix6d* information);
 
 }  // namespace waymark

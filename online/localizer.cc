@@ -38,6 +38,9 @@ bool LocalizerOptions::Check(std::string* why) const {
                        "localizer options: clear_max_rms_sigmas and clear_max_range_sizes must be > 0");
   WAYMARK_CHECK_OPTION(tight_iterations >= 1, "localizer options: tight_iterations must be >= 1");
   WAYMARK_CHECK_OPTION(
+      IsFiniteAtLeast(camera_mount_sigma_rad, 0.0) && IsFiniteAtLeast(camera_mount_sigma_m, 0.0),
+      "localizer options: camera_mount_sigma_rad and camera_mount_sigma_m must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(
       IsFiniteAtLeast(without_odometry.speed_mps, 0.0) && IsFiniteAtLeast(without_odometry.turn_radps, 0.0),
       "localizer options: without_odometry speed and turn rate must be finite and >= 0");
   WAYMARK_CHECK_OPTION(max_considered_markers >= 1, "localizer options: max_considered_markers must be >= 1");
@@ -275,7 +278,10 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   const bool had_track = HasTrack();
   const SE3d T_world_robot_predicted = state_.T_world_robot();
   std::vector<ExpectedCode> expected;
-  if (had_track && options_.visibility.enabled) {
+  // Codes expected in view and not seen say the robot is elsewhere only when a motion input
+  // predicted where it is; a random walk predicts nothing of the kind (header comment).
+  const bool test_visibility = options_.visibility.enabled && had_motion_input_;
+  if (had_track && test_visibility) {
     const Camera& camera = camera_it->second;
     const Eigen::Vector3d camera_world =
         (T_world_robot_predicted * camera.info().T_robot_camera).translation();
@@ -303,7 +309,7 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   if (had_track && accepted > 0)
     predicted_before_correction_.push_back({frame.stamp_s, T_world_robot_predicted});
   if (HasTrack() && counters_.initializations == initializations) {
-    const double llr = options_.visibility.enabled ? TestExpectedCodes(frame, expected, result, learn) : 0.0;
+    const double llr = test_visibility ? TestExpectedCodes(frame, expected, result, learn) : 0.0;
     FinishFrame(accepted, llr);
   }
   gated_.clear();
@@ -378,12 +384,13 @@ std::optional<Localizer::FrameFit> Localizer::FitFrame(const Camera& camera, con
       count += inliers[v];
       if (inliers[v]) error += *errors[v];
     }
-    // With a track, among fits keeping as many codes the one nearest the state (in its
-    // covariance) wins: an ambiguous code's two solutions fit its corners alike.
+    // With a track, the state's prior joins the fit's error (the negative log-posterior): an
+    // ambiguous code's two solutions fit its corners about alike, and the one the track
+    // expects wins unless the other fits clearly better.
     if (HasTrack() && count > 0) {
       const Eigen::VectorXd d =
           EkfState::BoxMinus(state_.mean(), PoseToStateVector(fitted, options_.motion), state_.yaw_index());
-      error = d.dot(state_.covariance().ldlt().solve(d));
+      error += d.dot(state_.covariance().ldlt().solve(d));
     }
     if (count > best_count || (count == best_count && count > 0 && error < best_error)) {
       fit.T_world_robot = fitted;
@@ -465,7 +472,14 @@ void Localizer::CorrectWithFrameFit(const Camera& camera, const CameraFrame& fra
     const int dim = state_.dim();
     const Eigen::VectorXd innovation = EkfState::BoxMinus(
         state_.mean(), PoseToStateVector(fit->T_world_robot, options_.motion), state_.yaw_index());
-    update = state_.Update(innovation, Eigen::MatrixXd::Identity(dim, dim), fit->covariance, gate_loose_);
+    Eigen::MatrixXd R = fit->covariance;
+    if (cameras_.size() > 1) {
+      const double lever_m = camera.info().T_robot_camera.translation().norm();
+      const double sigma_rad = options_.camera_mount_sigma_rad, sigma_m = options_.camera_mount_sigma_m;
+      R.diagonal().head(dim - 1).array() += sigma_m * sigma_m + sigma_rad * sigma_rad * lever_m * lever_m;
+      R(dim - 1, dim - 1) += sigma_rad * sigma_rad;
+    }
+    update = state_.Update(innovation, Eigen::MatrixXd::Identity(dim, dim), R, gate_loose_);
     if (update.accepted) state_.SetLevel(fit->T_world_robot.rotation_matrix());
   }
   size_t v = 0;

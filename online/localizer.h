@@ -78,13 +78,17 @@
 // kSingleFrame, its start chosen nearest the state) as one measurement of the state:
 //   z = the fit's (x, y, theta) or (x, y, z, yaw),  H = I,  R = the fit's (J^T J)^-1,
 // gated like the loose update (dof 3 or 4); the free model takes its roll and pitch from the
-// fit. Linearizing each code at the predicted pose, as with odometry, fails here: after a
-// second without codes the prior is off by decimetres and radians (the corners are gated),
-// there is no odometry attitude, and a hand-held camera tilts by degrees between frames. The
-// fit holds the map as exact (no Schmidt term). The first start takes the fit too, when it
-// keeps two codes or an unambiguous one.
-// Codes absent from the map are counted and ignored. Inputs older than the last one processed
-// are rejected (StepStatus::kTimeWentBackwards) and change nothing.
+// fit. A rig of several cameras adds the mount's uncertainty to R: with the camera at lever
+// arm l from the robot's origin, position sigma_m^2 + (sigma_rad |l|)^2 per axis and heading
+// sigma_rad^2 (camera_mount_sigma_*). The test of codes expected in view and not seen
+// (online/visibility.h) is off without odometry: a random walk does not predict where the
+// robot went, so a code it "expects" says nothing when missed; a wrong track shows instead as
+// frame fits outside the gate (lost after lost_after_rejected_frames of them). Linearizing each code at the
+// predicted pose, as with odometry, fails here: after a second without codes the prior is off by decimetres
+// and radians (the corners are gated), there is no odometry attitude, and a hand-held camera tilts by degrees
+// between frames. The fit holds the map as exact (no Schmidt term). The first start takes the fit too, when
+// it keeps two codes or an unambiguous one. Codes absent from the map are counted and ignored. Inputs older
+// than the last one processed are rejected (StepStatus::kTimeWentBackwards) and change nothing.
 #pragma once
 
 #include <Eigen/Core>
@@ -130,6 +134,11 @@ struct LocalizerOptions {
   OdometryNoise odometry;
   // Used only until the first odometry or velocity input (header comment).
   MotionWithoutOdometry without_odometry;
+  // Rigs of several cameras, without odometry: how far each camera's pose at a frame may be off
+  // its T_robot_camera (calibration error, cameras that are not exactly synchronized), per axis;
+  // added to the frame fit's noise so that two cameras' fits of one instant agree within it.
+  double camera_mount_sigma_rad = 0.005;
+  double camera_mount_sigma_m = 0.005;
   double gate_probability = 0.997;      // chi-square gate of every correction
   int tight_iterations = 5;             // iterated EKF steps of the corner update (1: plain EKF)
   double default_pixel_sigma_px = 1.0;  // when CameraInfo::pixel_sigma is absent

@@ -31,8 +31,8 @@ struct Scene {
   Scene() {
     Eigen::Matrix3d R_world_marker;  // marker z towards -x (facing the robot), marker x along -y
     R_world_marker << 0, 0, -1, -1, 0, 0, 0, 1, 0;
-    for (const Eigen::Vector3d& t : {Eigen::Vector3d(2.2, 0.3, 0.4), Eigen::Vector3d(2.0, -0.5, 0.1),
-                                     Eigen::Vector3d(2.4, 0.0, -0.2)}) {
+    for (const Eigen::Vector3d& t :
+         {Eigen::Vector3d(2.2, 0.3, 0.4), Eigen::Vector3d(2.0, -0.5, 0.1), Eigen::Vector3d(2.4, 0.0, -0.2)}) {
       codes.emplace_back(R_world_marker, t);
     }
     corners.resize(codes.size());
@@ -52,7 +52,8 @@ struct Scene {
   }
   std::vector<PnpView> Views(double sigma_px) const {
     std::vector<PnpView> views;
-    for (size_t i = 0; i < codes.size(); ++i) views.push_back({&camera, &corners[i], sigma_px, 0.16, codes[i]});
+    for (size_t i = 0; i < codes.size(); ++i)
+      views.push_back({&camera, &corners[i], sigma_px, 0.16, codes[i]});
     return views;
   }
 };
@@ -87,7 +88,7 @@ TEST(RobotPnpTest, InformationMatchesTheScatterOfNoisyFits) {
     scene.Observe(kSigmaPx, &rng);
     const SE3d fitted = RefineRobotPose(scene.Views(kSigmaPx), scene.T_world_robot, false, 1e3, 50);
     const Vector6d d = scene.T_world_robot.BoxMinus(fitted);  // right perturbation [dr, dt]
-    sum += d.dot(information * d);  // d^T Sigma^-1 d with Sigma = information^-1
+    sum += d.dot(information * d);                            // d^T Sigma^-1 d with Sigma = information^-1
   }
   EXPECT_NEAR(sum / kRuns, 6.0, 0.6);
   // A view that does not project has no error and no information.
