@@ -80,6 +80,21 @@ void PrintSummary(const Dataset& dataset, std::ostream& out) {
   } else {
     out << "odometry: none\n";
   }
+  if (dataset.has_range_bearing_file) {
+    long landmarks = 0, robots = 0;
+    for (const RangeBearingFrame& frame : dataset.range_bearing) {
+      landmarks += static_cast<long>(frame.landmarks.size());
+      robots += static_cast<long>(frame.robots.size());
+    }
+    out << "range-bearing: " << dataset.range_bearing.size() << " stamps, " << landmarks
+        << " landmark observations, " << robots << " robot sightings (" << config.range_bearing_file << ")\n";
+  }
+  if (config.start_prior) {
+    const SE2d T = SE2d::FromSE3(config.start_prior->T_world_robot);
+    out << "start prior: x " << FormatFixed(T.x(), 3) << " m, y " << FormatFixed(T.y(), 3) << " m, yaw "
+        << FormatFixed(T.theta(), 3) << " rad (sigma " << FormatDouble(config.start_prior->sigma_m) << " m, "
+        << FormatDouble(config.start_prior->sigma_rad) << " rad)\n";
+  }
   out << "images: "
       << (dataset.has_images_file ? std::to_string(dataset.images.size()) + " (" + config.images_file + ")"
                                   : "none")

@@ -14,6 +14,7 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
+#include "eval/trajectory_eval.h"
 #include "io/dataset_io.h"
 #include "io/detections_io.h"
 #include "io/json_util.h"
@@ -21,6 +22,7 @@
 #include "io/tum_io.h"
 #include "io/util.h"
 #include "runner/live_input.h"
+#include "runner/range_bearing_run.h"
 #include "runner/run.h"
 #include "util/format.h"
 #include "util/stats.h"
@@ -31,6 +33,11 @@ namespace {
 constexpr const char* kUsage = R"(Usage:
   waymark localize DATASET --map MAP.json --out RUN.tum [options]
   waymark localize DATASET --map MAP.json --live [options] < input.jsonl > poses.jsonl
+
+A dataset with range-bearing observations (range_bearing.jsonl) is localized against the
+point landmarks of MAP.json by the range-bearing EKF (online/range_bearing_localizer.h) with
+the map's range_bearing_noise, starting at dataset.yaml's start_prior; it writes --out (the
+poses while not lost) and, when the dataset has a ground truth, prints the ATE and the NEES.
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -185,12 +192,61 @@ void WriteOutputs(const Args& args, const LocalizeRun& run) {
   AtomicWriteFiles(files);  // all or nothing
 }
 
+// A dataset with range_bearing.jsonl: the range-bearing EKF (runner/range_bearing_run.h); with a
+// ground truth, its ATE and NEES.
+int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const MarkerMap& map) {
+  for (const char* option : {"predicted", "poses", "mode", "families", "odometry-time-offset"}) {
+    if (args.Has(option))
+      throw std::invalid_argument(std::string("--") + option + " is not for range-bearing datasets");
+  }
+  if (args.Flag("detect-images") || args.Flag("realtime"))
+    throw std::invalid_argument("--detect-images and --realtime are not for range-bearing datasets");
+  RangeBearingLocalizerOptions options;
+  if (map.range_bearing_noise) {
+    options.noise = *map.range_bearing_noise;
+  } else {
+    std::cerr << "warning: the map has no range_bearing_noise: the default noise model is used\n";
+  }
+  const RangeBearingRun run = RunRangeBearingLocalizer(dataset, map, options);
+  AtomicWriteFile(
+      args.Require("out"),
+      FormatTum(run.poses, "waymark localize: T_world_robot of the range-bearing EKF while not lost"));
+  std::cout << "poses: " << run.poses.size() << " written, " << run.outputs_withheld
+            << " withheld while lost\n";
+  std::cout << "observations:";
+  for (const auto& [reason, count] : run.counts) std::cout << " " << reason << " " << count << ",";
+  std::cout << "\n";
+  if (dataset.groundtruth_trajectory && !run.poses.empty()) {
+    eval::TrajectoryEvalOptions eval_options;
+    eval_options.max_dt_s = 0.02;
+    eval_options.align = eval::AlignmentMode::kNone;
+    const eval::TrajectoryEvaluation ate =
+        eval::EvaluateTrajectory(*dataset.groundtruth_trajectory, run.poses, std::nullopt, eval_options);
+    eval_options.align = eval::AlignmentMode::kSE2;
+    const eval::TrajectoryEvaluation aligned =
+        eval::EvaluateTrajectory(*dataset.groundtruth_trajectory, run.poses, std::nullopt, eval_options);
+    std::cout << "ATE RMSE: " << FormatFixed(ate.ate.translation_m.rmse, 3) << " m in the map's frame, "
+              << FormatFixed(aligned.ate.translation_m.rmse, 3) << " m after SE(2) alignment ("
+              << ate.ate.stamps_s.size() << " poses; rotation " << FormatFixed(ate.ate.rotation_deg.rmse, 2)
+              << " deg)\n";
+    const NeesResult nees = ComputeNees(*dataset.groundtruth_trajectory, run.poses, run.covariances, 0.02);
+    std::cout << "NEES: mean " << FormatFixed(nees.mean, 2) << " over " << nees.samples
+              << " poses (95 % bounds of the mean of independent draws [" << FormatFixed(nees.mean_lower, 3)
+              << ", " << FormatFixed(nees.mean_upper, 3) << "]); "
+              << FormatFixed(100.0 * nees.share_inside, 1)
+              << " % of poses inside the per-pose 95 % interval [" << FormatFixed(nees.sample_lower, 3)
+              << ", " << FormatFixed(nees.sample_upper, 3) << "]\n";
+  }
+  return 0;
+}
+
 int RunDataset(const Args& args) {
   args.Require("out");
   if (args.Has("detect-budget-ms")) throw std::invalid_argument("--detect-budget-ms applies to --live only");
   args.ExpectDistinctOutputs({"out", "predicted", "poses"});
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
+  if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
   if (StderrIsTerminal()) std::cerr << "\r\033[K";

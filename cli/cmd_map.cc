@@ -25,6 +25,8 @@
 #include "mapping/build_report.h"
 #include "mapping/map_builder.h"
 #include "mapping/map_merge.h"
+#include "mapping/multi_survey.h"
+#include "mapping/range_bearing_map.h"
 #include "util/format.h"
 #include "util/stats.h"
 
@@ -32,7 +34,7 @@ namespace waymark::cli {
 namespace {
 
 constexpr const char* kUsage = R"(Usage:
-  waymark map build DATASET --out MAP.json [--trajectory SMOOTHED.tum] [options]
+  waymark map build DATASET... --out MAP.json [--trajectory SMOOTHED.tum] [--trajectory-dir DIR] [options]
   waymark map merge MAP.json DATASET --out MERGED.json [--trajectory SMOOTHED.tum] [options]
   waymark map info MAP.json
   waymark map score DATASET --map MAP.json [options]   (see `waymark map score --help`)
@@ -44,6 +46,14 @@ build   learns the poses of the codes seen in the dataset directory DATASET (its
         map, with a covariance per code, and the smoothed trajectory. Disconnected groups of
         codes become separate components, each in its own frame, except that groups holding
         anchors or priors (markers.json) are one component in the world frame.
+        Several datasets (robots, or survey days in one building) make one map, tied through
+        the codes they share; --trajectory-dir DIR then receives each dataset's smoothed
+        trajectory as DIR/<dataset name>.tum. Datasets with range-bearing observations of
+        point landmarks (range_bearing.jsonl) are mapped by the range-bearing build
+        (mapping/range_bearing_map.h): robot nodes at the observations' stamps, odometry with
+        its systematic errors, start priors (dataset.yaml start_prior) or, without them, the
+        first dataset's start as the origin; the measurement and odometry noise are estimated
+        from the data; the map holds point landmarks (p_world_marker).
 merge   the same with the codes of MAP.json as priors (their covariance, or held fixed when
         they have none); codes of MAP.json the survey does not see are kept as they were.
 info    markers, components, families, anchors and position uncertainty of a map, and the
@@ -59,6 +69,8 @@ Options (build, merge):
   --trajectory FILE   the smoothed trajectories T_world_robot (TUM), one file per component:
                       FILE holds component 0, <stem>.component<c><ext> component c >= 1
                       (e.g. smoothed.tum, smoothed.component1.tum), each in its component's frame
+  --trajectory-dir DIR  each dataset's smoothed trajectory T_world_robot as DIR/<name>.tum
+                      (<name>: dataset.yaml name, or the directory's name)
   --report FILE       the summary as JSON: components, reprojection per camera (RMS, median),
                       every rejected observation (code, stamp, camera, reason) and their counts
                       by reason and by code, unmapped codes, time and peak memory per phase
@@ -122,20 +134,26 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   return options;
 }
 
-const std::set<std::string> kBuildValues = {
-    "out",      "trajectory",           "report",       "threads", "min-frames", "outlier-chi2", "max-gap",
-    "families", "odometry-calibration", "payload-sigma"};
+const std::set<std::string> kBuildValues = {"out",           "trajectory",    "report",
+                                            "threads",       "min-frames",    "outlier-chi2",
+                                            "max-gap",       "families",      "odometry-calibration",
+                                            "payload-sigma", "trajectory-dir"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
 
-// DATASET with the detections the build uses (cli/dataset_detect.h).
-Dataset LoadSurvey(const Args& args, const std::string& dir) {
+// The detections the build uses (cli/dataset_detect.h).
+void PrepareSurvey(const Args& args, Dataset* dataset) {
   if (args.Has("families") && !args.Flag("detect-images")) {
     throw std::invalid_argument("--families is for --detect-images");
   }
-  Dataset dataset = LoadDataset(dir);
   const std::vector<std::string> families =
       args.Has("families") ? ParseFamilyList(*args.Get("families")) : std::vector<std::string>{};
-  PrepareDetectionsForMapping(args.Flag("detect-images"), families, &dataset);
+  PrepareDetectionsForMapping(args.Flag("detect-images"), families, dataset);
+}
+
+// DATASET with the detections the build uses.
+Dataset LoadSurvey(const Args& args, const std::string& dir) {
+  Dataset dataset = LoadDataset(dir);
+  PrepareSurvey(args, &dataset);
   return dataset;
 }
 
@@ -266,17 +284,173 @@ int Finish(const Args& args, const MapBuildResult& result) {
   return 0;
 }
 
+// Datasets named alike in their dataset.yaml (e.g. two runs of one simulated place) are named
+// by their directories instead; the same directory name twice is an error.
+void UniqueNames(std::vector<Dataset>* datasets) {
+  std::set<std::string> names;
+  bool clash = false;
+  for (const Dataset& d : *datasets) clash |= !names.insert(d.config.name).second;
+  if (!clash) return;
+  names.clear();
+  for (Dataset& d : *datasets) {
+    d.config.name = std::filesystem::absolute(d.dir).lexically_normal().filename().string();
+    if (d.config.name.empty())
+      d.config.name = std::filesystem::absolute(d.dir).lexically_normal().parent_path().filename().string();
+    if (!names.insert(d.config.name).second)
+      throw std::invalid_argument("two datasets are named " + d.config.name +
+                                  " (dataset.yaml name and directory)");
+  }
+}
+
+// Several datasets of the code families of mapping/map_builder.h as one survey
+// (mapping/multi_survey.h).
+int RunMultiBuild(const Args& args, std::vector<Dataset>* datasets) {
+  if (args.Flag("detect-images") || args.Has("families"))
+    throw std::invalid_argument(
+        "--detect-images is for one dataset (detect each with `waymark detect` first)");
+  if (args.Has("trajectory"))
+    throw std::invalid_argument("--trajectory is for one dataset; with several, use --trajectory-dir DIR");
+  MapBuildOptions options = ParseBuildOptions(args);
+  std::vector<const Dataset*> pointers;
+  for (Dataset& dataset : *datasets) {
+    PrepareDetectionsForMapping(false, {}, &dataset);
+    pointers.push_back(&dataset);
+  }
+  const CombinedSurvey combined =
+      CombineSurveys(pointers, std::max(10.0, 10.0 * options.ingest.max_odometry_gap_s));
+  MapBuildResult result = BuildMap(combined.dataset, options);
+  if (StderrIsTerminal()) std::cerr << "\r\033[K";
+  std::vector<std::pair<std::string, std::string>> files;
+  files.emplace_back(args.Require("out"), FormatMap(result.map));
+  std::vector<std::string> lines;
+  if (const auto dir = args.Get("trajectory-dir")) {
+    for (size_t c = 0; c < result.trajectories.size(); ++c) {
+      for (const auto& [name, trajectory] : SplitTrajectory(combined, result.trajectories[c])) {
+        if (trajectory.empty()) continue;
+        const std::string file = c == 0 ? name + ".tum" : name + ".component" + std::to_string(c) + ".tum";
+        const std::string path = (std::filesystem::path(*dir) / file).string();
+        files.emplace_back(path,
+                           FormatTum(trajectory, "waymark map build: smoothed T_world_robot of " + name +
+                                                     " in component " + std::to_string(c) + "'s frame"));
+        lines.push_back("trajectory of " + name + " (component " + std::to_string(c) + "): " + path + " (" +
+                        std::to_string(trajectory.size()) + " poses)");
+      }
+    }
+  }
+  if (const auto path = args.Get("report")) files.emplace_back(*path, ReportJson(result).dump(1) + "\n");
+  AtomicWriteFiles({files.begin(), files.end()});
+  std::cout << "datasets: " << combined.parts.size() << " built as one survey\n"
+            << FormatBuildSummary(result);
+  PrintPredictedError(result.map);
+  for (const std::string& line : lines) std::cout << line << "\n";
+  return 0;
+}
+
+// The range-bearing build of several datasets (mapping/range_bearing_map.h).
+int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets) {
+  for (const char* option : {"trajectory", "families", "odometry-calibration", "payload-sigma", "max-gap"}) {
+    if (args.Has(option))
+      throw std::invalid_argument(std::string("--") + option + " is not for range-bearing datasets");
+  }
+  RangeBearingBuildOptions options;
+  if (const auto n = args.GetInt("threads")) options.num_threads = static_cast<int>(*n);
+  if (const auto n = args.GetInt("min-frames")) options.min_observations = static_cast<int>(*n);
+  if (const auto x = args.GetDouble("outlier-chi2")) options.outlier_chi2 = *x;
+  const std::function<void(const std::string&)> terminal = TerminalProgress();
+  options.progress = terminal;
+  std::vector<const Dataset*> pointers;
+  for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
+  const RangeBearingBuildResult result = BuildRangeBearingMap(pointers, options);
+  if (StderrIsTerminal()) std::cerr << "\r\033[K";
+  std::vector<std::pair<std::string, std::string>> files;
+  files.emplace_back(args.Require("out"), FormatMap(result.map));
+  if (const auto dir = args.Get("trajectory-dir")) {
+    for (const auto& [name, trajectory] : result.trajectories) {
+      files.emplace_back((std::filesystem::path(*dir) / (name + ".tum")).string(),
+                         FormatTum(trajectory, "waymark map build: smoothed T_world_robot of " + name));
+    }
+  }
+  if (const auto path = args.Get("report")) {
+    nlohmann::json report = {{"landmarks", result.map.markers.size()},
+                             {"observations_used", result.observations},
+                             {"outliers", result.outliers},
+                             {"range_rms_m", result.range_rms_m},
+                             {"bearing_rms_rad", result.bearing_rms_rad},
+                             {"solver_time_s", result.solver_time_s},
+                             {"noise",
+                              {{"sigma_range_a_m", result.noise.range_a_m},
+                               {"sigma_range_b", result.noise.range_b},
+                               {"sigma_bearing_rad", result.noise.bearing_rad},
+                               {"odometry_q_t", result.noise.odometry_q_t},
+                               {"odometry_q_r", result.noise.odometry_q_r}}}};
+    for (const RangeBearingDatasetSummary& d : result.datasets) {
+      report["datasets"].push_back(
+          {{"name", d.name},
+           {"nodes", d.nodes},
+           {"observations", d.observations},
+           {"outliers", d.outliers},
+           {"gauge", d.gauge},
+           {"sensor_bias", {d.sensor_bias[0], d.sensor_bias[1]}},
+           {"sigma_range", {d.noise.range_a_m, d.noise.range_b}},
+           {"sigma_bearing_rad", d.noise.bearing_rad},
+           {"odometry_q", {d.noise.odometry_q_t, d.noise.odometry_q_r}},
+           {"odometry_calibration",
+            {d.odometry_calibration[0], d.odometry_calibration[1], d.odometry_calibration[2]}}});
+    }
+    for (const auto& [key, reason] : result.unmapped)
+      report["unmapped"].push_back({{"family", key.family}, {"id", key.id}, {"reason", reason}});
+    files.emplace_back(*path, report.dump(1) + "\n");
+  }
+  AtomicWriteFiles({files.begin(), files.end()});
+  std::cout << "landmarks: " << result.map.markers.size() << " (point landmarks, one component)\n"
+            << "observations: " << result.observations << " used, " << result.outliers << " outliers\n"
+            << "residual RMS: range " << FormatFixed(result.range_rms_m, 3) << " m, bearing "
+            << FormatFixed(result.bearing_rms_rad, 4) << " rad\n"
+            << "noise estimated: sigma_range " << FormatSignificant(result.noise.range_a_m, 3) << " m + "
+            << FormatSignificant(result.noise.range_b, 3) << " x range, sigma_bearing "
+            << FormatSignificant(result.noise.bearing_rad, 3) << " rad, odometry q_t "
+            << FormatSignificant(result.noise.odometry_q_t, 3) << " m^2/m, q_r "
+            << FormatSignificant(result.noise.odometry_q_r, 3) << " rad^2/rad\n";
+  for (const RangeBearingDatasetSummary& d : result.datasets) {
+    std::cout << d.name << ": " << d.nodes << " nodes, " << d.observations << " observations, " << d.outliers
+              << " outliers, " << d.gauge << ", odometry calibration "
+              << FormatSignificant(d.odometry_calibration[0], 3) << ","
+              << FormatSignificant(d.odometry_calibration[1], 3) << ","
+              << FormatSignificant(d.odometry_calibration[2], 3) << ", sensor offsets "
+              << FormatFixed(d.sensor_bias[0], 3) << " m, " << FormatFixed(d.sensor_bias[1], 4)
+              << " rad, sigma_range " << FormatSignificant(d.noise.range_a_m, 3) << " m + "
+              << FormatSignificant(d.noise.range_b, 3) << " x range, sigma_bearing "
+              << FormatSignificant(d.noise.bearing_rad, 3) << " rad\n";
+  }
+  for (const auto& [key, reason] : result.unmapped)
+    std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";
+  std::cout << "solver time: " << FormatFixed(result.solver_time_s, 2) << " s\n";
+  return 0;
+}
+
 int RunBuild(const std::vector<std::string>& argv) {
   const Args args(argv, kBuildValues, kBuildFlags);
   if (args.Help()) {
     std::cout << kUsage;
     return 0;
   }
-  args.ExpectPositionals(1, 1, "dataset directory DATASET");
+  args.ExpectPositionals(1, 1000, "dataset directory DATASET");
   args.Require("out");
-  args.ExpectDistinctOutputs({"out", "trajectory", "report"});
+  args.ExpectDistinctOutputs({"out", "trajectory", "report", "trajectory-dir"});
+  if (args.positionals().size() > 1 || args.Has("trajectory-dir")) {
+    std::vector<Dataset> datasets;
+    for (const std::string& dir : args.positionals()) datasets.push_back(LoadDataset(dir));
+    UniqueNames(&datasets);
+    std::vector<const Dataset*> pointers;
+    for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
+    if (HasRangeBearing(pointers)) return RunRangeBearingBuild(args, datasets);
+    return RunMultiBuild(args, &datasets);
+  }
+  Dataset dataset = LoadDataset(args.positionals()[0]);
+  const std::vector<const Dataset*> one = {&dataset};
+  if (HasRangeBearing(one)) return RunRangeBearingBuild(args, {dataset});
   const MapBuildOptions options = ParseBuildOptions(args);
-  const Dataset dataset = LoadSurvey(args, args.positionals()[0]);
+  PrepareSurvey(args, &dataset);
   return Finish(args, BuildMap(dataset, options));
 }
 

@@ -30,6 +30,7 @@ struct ComponentMatches {
   std::vector<SE3d> T_est_marker;
   std::vector<SE3d> T_gt_marker;
   size_t markers_total = 0;
+  bool all_points = true;  // every matched estimate is a point landmark (no orientation)
 };
 
 std::map<int, ComponentMatches> MatchByComponent(const MarkerMap& est, const MarkerMap& gt) {
@@ -41,6 +42,7 @@ std::map<int, ComponentMatches> MatchByComponent(const MarkerMap& est, const Mar
       c.keys.push_back(marker.key);
       c.T_est_marker.push_back(marker.T_world_marker);
       c.T_gt_marker.push_back(truth->T_world_marker);
+      c.all_points = c.all_points && marker.is_point;
     }
   }
   return components;
@@ -69,6 +71,12 @@ ComponentResult AlignComponent(int component, const ComponentMatches& matches) {
   for (size_t i = 0; i < matches.keys.size(); ++i) {
     p_est.push_back(matches.T_est_marker[i].translation());
     p_gt.push_back(matches.T_gt_marker[i].translation());
+  }
+  if (matches.all_points && matches.keys.size() >= 2) {
+    // Point landmarks of a planar map (issue 15): rotation about z and x, y translation.
+    result.alignment = UmeyamaSE2(p_est, p_gt, /*with_scale=*/false);
+    result.method = MapAlignmentMethod::kPointsSE2;
+    return result;
   }
   if (matches.keys.size() >= 3 && !NearlyCollinear(p_gt)) {
     try {
@@ -107,6 +115,8 @@ const char* MapAlignmentMethodName(MapAlignmentMethod method) {
       return "positions";
     case MapAlignmentMethod::kPoses:
       return "poses";
+    case MapAlignmentMethod::kPointsSE2:
+      return "points-se2";
     case MapAlignmentMethod::kNone:
       return "none";
   }
@@ -148,7 +158,9 @@ MapEvalResult EvaluateMap(const MarkerMap& est, const MarkerMap& gt) {
       error.key = matches.keys[i];
       error.component = component;
       error.position_error_m = (matches.T_gt_marker[i].translation() - T_gt_marker_est.translation()).norm();
-      error.orientation_error_deg = kRadToDeg * RotationAngleBetween(matches.T_gt_marker[i], T_gt_marker_est);
+      error.orientation_error_deg =
+          matches.all_points ? 0.0
+                             : kRadToDeg * RotationAngleBetween(matches.T_gt_marker[i], T_gt_marker_est);
       position_m.push_back(error.position_error_m);
       orientation_deg.push_back(error.orientation_error_deg);
       result.per_marker.push_back(error);

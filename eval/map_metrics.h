@@ -38,8 +38,12 @@ struct MarkerError {
   double orientation_error_deg = 0.0;
 };
 
-enum class MapAlignmentMethod { kPositions, kPoses, kNone };    // kNone: no marker in common
-const char* MapAlignmentMethodName(MapAlignmentMethod method);  // "positions", "poses", "none"
+// kNone: no marker in common; kPointsSE2: a component of point landmarks only (issue 15),
+// aligned in the plane, dst = R_z p_est + t by UmeyamaSE2 on >= 2 points; their orientation
+// error is 0 (they have none).
+enum class MapAlignmentMethod { kPositions, kPoses, kNone, kPointsSE2 };
+// "positions", "poses", "none", "points-se2"
+const char* MapAlignmentMethodName(MapAlignmentMethod method);
 
 struct ComponentResult {
   int component = 0;

@@ -10,6 +10,8 @@ bool IsKnownFamily(const std::string& family) {
   return family.size() > prefix.size() && family.compare(0, prefix.size(), prefix) == 0;
 }
 
+bool IsPointFamily(const std::string& family) { return family == kFamilyBarcode || IsKnownFamily(family); }
+
 const MapMarker* MarkerMap::Find(const MarkerKey& key) const {
   for (const MapMarker& m : markers) {
     if (m.key == key) return &m;

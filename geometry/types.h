@@ -22,8 +22,13 @@ inline constexpr const char* kFamilyDataMatrix = "datamatrix";
 inline constexpr const char* kFamilySquare = "square";
 inline constexpr const char* kFamilyAprilTagPrefix = "apriltag-";  // e.g. apriltag-36h11
 
+inline constexpr const char* kFamilyBarcode = "barcode";  // a 1-D barcode: point landmarks only
+
 // True for qr, datamatrix, square and apriltag-<name> with a non-empty name.
 bool IsKnownFamily(const std::string& family);
+// Families a point landmark (range-bearing observations, map entries with p_world_marker) may
+// have: every known family, and barcode.
+bool IsPointFamily(const std::string& family);
 
 // A marker's identity: (family, id). `id` is the decoded text for QR and DataMatrix
 // and the tag number, as a string, for AprilTag.
@@ -91,6 +96,21 @@ struct SquareTape {
   double gap_m = 0.10;
 };
 
+// The noise of range-bearing observations and of a planar robot's odometry, as the range-bearing
+// map build estimates it (mapping/range_bearing_map.h) and the range-bearing localizer uses it;
+// map.json carries it as `range_bearing_noise`.
+//   sigma_range = range_a_m + range_b * range,  sigma_bearing = bearing_rad
+//   odometry random walk over an increment of distance d and turn dtheta:
+//   sigma_t^2 = odometry_q_t (d + 1 mm),  sigma_theta^2 = odometry_q_r (|dtheta| + odometry_c_d d + 1 mrad)
+struct RangeBearingNoise {
+  double range_a_m = 0.05;
+  double range_b = 0.02;  // per metre of range
+  double bearing_rad = 0.02;
+  double odometry_q_t = 1e-3;  // m^2 per metre travelled
+  double odometry_q_r = 1e-3;  // rad^2 per radian turned
+  double odometry_c_d = 0.1;   // rad per metre travelled, in the turn's variance
+};
+
 // A marker in a map (map.json; also ground-truth and known markers).
 struct MapMarker {
   MarkerKey key;
@@ -105,10 +125,16 @@ struct MapMarker {
   std::optional<CovarianceFactor> covariance_factor = std::nullopt;
   // Family `square` only: its tape (absent: SquareTape's defaults, the paper's 50 mm tape).
   std::optional<SquareTape> square_tape = std::nullopt;
+  // A point landmark (map.json `p_world_marker`): a position and no orientation, observed by
+  // range and bearing. Its position is T_world_marker.translation() (rotation identity); size_m
+  // is 0 and `covariance` unset; position_covariance is its 3 x 3 covariance, world frame.
+  bool is_point = false;
+  std::optional<Eigen::Matrix3d> position_covariance = std::nullopt;
 };
 
 struct MarkerMap {
   std::vector<MapMarker> markers;
+  std::optional<RangeBearingNoise> range_bearing_noise;  // map.json `range_bearing_noise`, optional
 
   // nullptr when absent.
   const MapMarker* Find(const MarkerKey& key) const;
@@ -146,6 +172,42 @@ struct OdometrySigma {
   double rot_per_rad = 0.0;  // rotation noise per radian turned
 };
 
+// One point landmark seen by a range-bearing sensor (range_bearing.jsonl), in the robot frame
+// (x forward, y left, z up): range |p_robot|, bearing atan2(p_y, p_x), elevation
+// atan2(p_z, hypot(p_x, p_y)). Sigmas are optional (the map build estimates them when absent).
+struct RangeBearingObservation {
+  MarkerKey key;
+  double range_m = 0.0;
+  double bearing_rad = 0.0;
+  std::optional<double> elevation_rad;
+  std::optional<double> sigma_range_m;
+  std::optional<double> sigma_bearing_rad;
+  std::optional<double> sigma_elevation_rad;
+};
+
+// Another robot seen by the same sensor (kept for cooperative methods; the map build ignores it).
+struct RobotSighting {
+  std::string robot;    // the other robot's dataset name, e.g. robot3
+  std::string barcode;  // the code read on it
+  double range_m = 0.0;
+  double bearing_rad = 0.0;
+};
+
+// All range-bearing observations at one stamp (one line of range_bearing.jsonl).
+struct RangeBearingFrame {
+  double stamp_s = 0.0;
+  std::vector<RangeBearingObservation> landmarks;
+  std::vector<RobotSighting> robots;
+};
+
+// dataset.yaml `start_prior`: T_world_robot at the first odometry stamp, with isotropic sigmas
+// on the position and on the rotation (e.g. a robot placed on a known spot).
+struct StartPrior {
+  SE3d T_world_robot;
+  double sigma_m = 0.0;
+  double sigma_rad = 0.0;
+};
+
 // Coordinates printed inside a code's payload (dataset.yaml `payload`).
 struct PayloadSpec {
   std::string pattern;              // regular expression (RE2 syntax) over the decoded text
@@ -174,6 +236,8 @@ struct DatasetConfig {
   std::string detections_file = "detections.jsonl";
   std::string images_file = "images.csv";
   std::string markers_file = "markers.json";
+  std::string range_bearing_file = "range_bearing.jsonl";
+  std::optional<StartPrior> start_prior;
 };
 
 // Warnings counted while reading (docs/design.md: rejected, never silently used).
@@ -192,6 +256,7 @@ struct Dataset {
   Trajectory odometry;                        // T_odom_robot
   std::vector<DetectionFrame> detections;
   std::vector<ImageEntry> images;
+  std::vector<RangeBearingFrame> range_bearing;  // range_bearing.jsonl
   std::optional<MarkerMap> known_markers;
   std::optional<Trajectory> groundtruth_trajectory;  // T_world_robot
   std::optional<MarkerMap> groundtruth_markers;
@@ -201,6 +266,7 @@ struct Dataset {
   bool has_odometry_file = false;
   bool has_detections_file = false;
   bool has_images_file = false;
+  bool has_range_bearing_file = false;
 
   // Size of a marker: known_markers, then default_marker_size_m; nullopt if neither.
   std::optional<double> MarkerSize(const MarkerKey& key) const;

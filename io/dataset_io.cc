@@ -12,6 +12,7 @@
 #include "io/camera_io.h"
 #include "io/detections_io.h"
 #include "io/map_io.h"
+#include "io/range_bearing_io.h"
 #include "io/tum_io.h"
 #include "io/util.h"
 #include "io/yaml_util.h"
@@ -45,7 +46,6 @@ MotionModel ReadMotion(const fs::path& path, const YAML::Node& root) {
 std::vector<std::string> ReadCameraNames(const fs::path& path, const YAML::Node& root) {
   const YAML::Node node = YamlRequire(path, root, "cameras");
   const std::vector<std::string> names = YamlStrings(path, node, "cameras");
-  if (names.empty()) ThrowYamlError(path, node, "cameras: expected at least one camera name");
   std::set<std::string> seen;
   for (const std::string& name : names) {
     if (!IsValidCameraName(name))
@@ -71,6 +71,26 @@ OdometrySigma ReadOdometrySigma(const fs::path& path, const YAML::Node& node) {
     }
   }
   return sigma;
+}
+
+// start_prior: {T_world_robot: {t: [x, y, z], q_xyzw: [...]}, sigma_m: 0.01, sigma_rad: 0.01}
+StartPrior ReadStartPrior(const fs::path& path, const YAML::Node& node) {
+  if (!node.IsMap())
+    ThrowYamlError(path, node, "start_prior: expected a map {T_world_robot, sigma_m, sigma_rad}");
+  StartPrior prior;
+  prior.T_world_robot = YamlPose(path, YamlRequire(path, node, "T_world_robot"), "start_prior.T_world_robot");
+  prior.sigma_m = YamlNumber(path, YamlRequire(path, node, "sigma_m"), "start_prior.sigma_m");
+  prior.sigma_rad = YamlNumber(path, YamlRequire(path, node, "sigma_rad"), "start_prior.sigma_rad");
+  if (!(prior.sigma_m > 0.0) || !(prior.sigma_rad > 0.0))
+    ThrowYamlError(path, node, "start_prior: expected positive sigma_m and sigma_rad");
+  for (const auto& key_value : node) {
+    const std::string key = key_value.first.Scalar();
+    if (key != "T_world_robot" && key != "sigma_m" && key != "sigma_rad") {
+      ThrowYamlError(path, key_value.first,
+                     "start_prior: unknown key '" + key + "' (expected T_world_robot, sigma_m, sigma_rad)");
+    }
+  }
+  return prior;
 }
 
 PayloadSpec ReadPayload(const fs::path& path, const YAML::Node& node) {
@@ -163,10 +183,15 @@ DatasetConfig ParseDatasetYaml(const std::string& text, const fs::path& path, Re
   ReadFileName(path, root, "detections", &config.detections_file, named_files);
   ReadFileName(path, root, "images", &config.images_file, named_files);
   ReadFileName(path, root, "markers", &config.markers_file, named_files);
-  YamlWarnUnknownKeys(path, root,
-                      {"format", "version", "name", "motion", "cameras", "default_marker_size_m",
-                       "odometry_sigma", "payload", "odometry", "detections", "images", "markers"},
-                      "", warnings);
+  ReadFileName(path, root, "range_bearing", &config.range_bearing_file, named_files);
+  if (const YAML::Node prior = root["start_prior"]; prior.IsDefined() && !prior.IsNull()) {
+    config.start_prior = ReadStartPrior(path, prior);
+  }
+  YamlWarnUnknownKeys(
+      path, root,
+      {"format", "version", "name", "motion", "cameras", "default_marker_size_m", "odometry_sigma", "payload",
+       "odometry", "detections", "images", "markers", "range_bearing", "start_prior"},
+      "", warnings);
   return config;
 }
 
@@ -181,7 +206,6 @@ std::string QuotedList(const std::vector<std::string>& items) {
 }  // namespace
 
 std::string FormatDatasetYaml(const DatasetConfig& config) {
-  if (config.cameras.empty()) throw std::invalid_argument("dataset writer: no cameras");
   for (const std::string& name : config.cameras) {
     if (!IsValidCameraName(name))
       throw std::invalid_argument("dataset writer: invalid camera name '" + name + "'");
@@ -214,8 +238,22 @@ std::string FormatDatasetYaml(const DatasetConfig& config) {
     if (config.payload->default_z_m) out << ", default_z_m: " << FormatDouble(*config.payload->default_z_m);
     out << "}\n";
   }
+  if (const auto& prior = config.start_prior) {
+    const Eigen::Vector3d& t = prior->T_world_robot.translation();
+    const Eigen::Quaterniond& q = prior->T_world_robot.rotation();
+    if (!prior->T_world_robot.IsFinite() || !(prior->sigma_m > 0.0) || !(prior->sigma_rad > 0.0) ||
+        !std::isfinite(prior->sigma_m) || !std::isfinite(prior->sigma_rad)) {
+      throw std::invalid_argument("dataset writer: start_prior must be finite with positive sigmas");
+    }
+    out << "start_prior: {T_world_robot: {t: [" << FormatDouble(t.x()) << ", " << FormatDouble(t.y()) << ", "
+        << FormatDouble(t.z()) << "], q_xyzw: [" << FormatDouble(q.x()) << ", " << FormatDouble(q.y()) << ", "
+        << FormatDouble(q.z()) << ", " << FormatDouble(q.w())
+        << "]}, sigma_m: " << FormatDouble(prior->sigma_m)
+        << ", sigma_rad: " << FormatDouble(prior->sigma_rad) << "}\n";
+  }
   const DatasetConfig defaults;
   const std::pair<const char*, std::pair<std::string, std::string>> files[] = {
+      {"range_bearing", {config.range_bearing_file, defaults.range_bearing_file}},
       {"odometry", {config.odometry_file, defaults.odometry_file}},
       {"detections", {config.detections_file, defaults.detections_file}},
       {"images", {config.images_file, defaults.images_file}},
@@ -367,6 +405,10 @@ Dataset LoadDataset(const fs::path& dir) {
   }
   if (const auto path = OptionalFile(dir, config.images_file, "images", named_files))
     LoadImages(&dataset, *path);
+  if (const auto path = OptionalFile(dir, config.range_bearing_file, "range_bearing", named_files)) {
+    dataset.range_bearing = ReadRangeBearing(*path, &dataset.warnings);
+    dataset.has_range_bearing_file = true;
+  }
   LoadTruthAndReference(&dataset);
   WarnMarkersWithoutSize(&dataset);
   return dataset;
@@ -419,6 +461,9 @@ void WriteDataset(const fs::path& dir, const Dataset& dataset) {
   }
   if (dataset.has_images_file || !dataset.images.empty()) {
     files.emplace_back(dir / config.images_file, FormatImagesCsv(dataset.images));
+  }
+  if (dataset.has_range_bearing_file || !dataset.range_bearing.empty()) {
+    files.emplace_back(dir / config.range_bearing_file, FormatRangeBearing(dataset.range_bearing));
   }
   if (dataset.known_markers) files.emplace_back(dir / config.markers_file, FormatMap(*dataset.known_markers));
   if (dataset.groundtruth_trajectory) {

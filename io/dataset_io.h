@@ -14,7 +14,7 @@
 //   version: 1                       # required, integer 1
 //   name: corridor-1m                # optional (default: the directory's name)
 //   motion: planar                   # required: planar | free
-//   cameras: [cam0, cam1]            # required, non-empty, distinct names
+//   cameras: [cam0, cam1]            # required, distinct names; [] for range-bearing-only datasets
 //   default_marker_size_m: 0.10      # optional, > 0
 //   odometry_sigma: {trans_per_m: 0.02, rot_per_rad: 0.02}   # optional, both keys, >= 0
 //   payload: {pattern: "^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", fields: [kind, x, y]}   # optional
@@ -22,6 +22,8 @@
 //   detections: detections.jsonl     #   here must exist, a default-named one may be absent
 //   images: images.csv
 //   markers: markers.json
+//   range_bearing: range_bearing.jsonl   # io/range_bearing_io.h
+//   start_prior: {T_world_robot: {t: [x, y, z], q_xyzw: [...]}, sigma_m: 0.01, sigma_rad: 0.01}   # optional
 //
 // payload: the pattern must compile as a regular expression (RE2 syntax) and have exactly one field name per
 // capture group; names are distinct and non-empty; z and yaw_deg need x and y.

@@ -83,8 +83,73 @@ SquareTape ParseSquareTape(const JsonSource& source, const nlohmann::json& value
   return tape;
 }
 
+// A point landmark: {"family", "id", "p_world_marker": [x, y, z], "position_covariance": [9],
+// "fixed", "component"}; no size_m, T_world_marker, covariance or square.
+MapMarker ParsePointMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                           ReadWarnings* warnings) {
+  MapMarker marker;
+  marker.is_point = true;
+  marker.key.family =
+      JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
+  if (!IsPointFamily(marker.key.family)) {
+    ThrowJsonError(source, JsonField(field, "family"),
+                   "unknown family \"" + marker.key.family +
+                       "\" (expected barcode, qr, datamatrix, square or apriltag-<name>)");
+  }
+  marker.key.id = JsonString(source, *JsonMember(source, value, field, "id", true), JsonField(field, "id"));
+  if (marker.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
+  const std::string p_field = JsonField(field, "p_world_marker");
+  const std::vector<double> p =
+      JsonNumbers(source, *JsonMember(source, value, field, "p_world_marker", true), p_field, 3);
+  for (const double c : p) {
+    if (std::abs(c) > kMaxCoordinateM) {
+      ThrowJsonError(
+          source, p_field,
+          "expected coordinates within +-" + FormatDouble(kMaxCoordinateM) + " m, got " + FormatDouble(c));
+    }
+  }
+  marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(p[0], p[1], p[2]));
+  if (const nlohmann::json* cov = JsonMember(source, value, field, "position_covariance", false)) {
+    const std::string cov_field = JsonField(field, "position_covariance");
+    const std::vector<double> numbers = JsonNumbers(source, *cov, cov_field, 9);
+    Eigen::Matrix3d covariance;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) covariance(r, c) = numbers[3 * r + c];
+    }
+    const double scale = std::max(1.0, covariance.cwiseAbs().maxCoeff());
+    if ((covariance - covariance.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale)
+      ThrowJsonError(source, cov_field, "expected a symmetric 3x3 matrix (row-major)");
+    if ((covariance.diagonal().array() < 0.0).any())
+      ThrowJsonError(source, cov_field, "expected a non-negative diagonal (variances)");
+    marker.position_covariance = covariance;
+  }
+  if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
+    marker.fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
+  }
+  if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
+    const long number = JsonInteger(source, *component, JsonField(field, "component"));
+    if (number < 0 || number > std::numeric_limits<int>::max()) {
+      ThrowJsonError(source, JsonField(field, "component"),
+                     "expected a non-negative integer, got " + component->dump());
+    }
+    marker.component = static_cast<int>(number);
+  }
+  for (const char* key : {"size_m", "T_world_marker", "covariance", "covariance_factor", "square"}) {
+    if (JsonMember(source, value, field, key, false)) {
+      ThrowJsonError(source, JsonField(field, key),
+                     "a point landmark (p_world_marker) has no " + std::string(key));
+    }
+  }
+  JsonWarnUnknownKeys(source, value, field,
+                      {"family", "id", "p_world_marker", "position_covariance", "fixed", "component"},
+                      warnings);
+  return marker;
+}
+
 MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
                       ReadWarnings* warnings, MapPoses poses) {
+  if (value.is_object() && value.contains("p_world_marker"))
+    return ParsePointMarker(source, value, field, warnings);
   MapMarker marker;
   marker.key.family =
       JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
@@ -152,6 +217,35 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
   return marker;
 }
 
+// {"range_a_m", "range_b", "bearing_rad", "odometry_q_t", "odometry_q_r", "odometry_c_d"}, all
+// required: sigmas and q > 0, range_b and odometry_c_d >= 0.
+RangeBearingNoise ParseRangeBearingNoise(const JsonSource& source, const nlohmann::json& value,
+                                         ReadWarnings* warnings) {
+  const std::string field = "range_bearing_noise";
+  if (!value.is_object()) ThrowJsonError(source, field, "expected an object");
+  RangeBearingNoise noise;
+  const std::pair<const char*, double*> positive[] = {{"range_a_m", &noise.range_a_m},
+                                                      {"bearing_rad", &noise.bearing_rad},
+                                                      {"odometry_q_t", &noise.odometry_q_t},
+                                                      {"odometry_q_r", &noise.odometry_q_r}};
+  for (const auto& [key, out] : positive) {
+    *out = JsonNumber(source, *JsonMember(source, value, field, key, true), JsonField(field, key));
+    if (!(*out > 0.0))
+      ThrowJsonError(source, JsonField(field, key), "expected a positive number, got " + FormatDouble(*out));
+  }
+  const std::pair<const char*, double*> non_negative[] = {{"range_b", &noise.range_b},
+                                                          {"odometry_c_d", &noise.odometry_c_d}};
+  for (const auto& [key, out] : non_negative) {
+    *out = JsonNumber(source, *JsonMember(source, value, field, key, true), JsonField(field, key));
+    if (!(*out >= 0.0))
+      ThrowJsonError(source, JsonField(field, key), "expected a number >= 0, got " + FormatDouble(*out));
+  }
+  JsonWarnUnknownKeys(source, value, field,
+                      {"range_a_m", "range_b", "bearing_rad", "odometry_q_t", "odometry_q_r", "odometry_c_d"},
+                      warnings);
+  return noise;
+}
+
 void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
   const std::string format = JsonString(source, *JsonMember(source, root, "", "format", true), "format");
   if (format != kMapFormat) {
@@ -173,9 +267,12 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
   CheckHeader(source, root);
   const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
   if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array of markers");
-  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers"}, warnings);
+  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers", "range_bearing_noise"}, warnings);
 
   MarkerMap map;
+  if (const nlohmann::json* noise = JsonMember(source, root, "", "range_bearing_noise", false)) {
+    map.range_bearing_noise = ParseRangeBearingNoise(source, *noise, warnings);
+  }
   std::set<MarkerKey> seen;
   std::optional<long> factor_columns;  // k, the same for every marker
   for (size_t i = 0; i < markers.size(); ++i) {
@@ -209,6 +306,21 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
   const Eigen::Vector3d& t = marker.T_world_marker.translation();
   const Eigen::Quaterniond& q = marker.T_world_marker.rotation();
   nlohmann::ordered_json json;
+  if (marker.is_point) {
+    json["family"] = marker.key.family;
+    json["id"] = marker.key.id;
+    json["p_world_marker"] = {t.x(), t.y(), t.z()};
+    if (marker.position_covariance) {
+      nlohmann::ordered_json covariance = nlohmann::ordered_json::array();
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) covariance.push_back((*marker.position_covariance)(r, c));
+      }
+      json["position_covariance"] = covariance;
+    }
+    json["fixed"] = marker.fixed;
+    if (marker.component) json["component"] = *marker.component;
+    return json;
+  }
   json["family"] = marker.key.family;
   json["id"] = marker.key.id;
   json["size_m"] = marker.size_m;
@@ -242,7 +354,23 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
   return json;
 }
 
+void CheckWritablePoint(const MapMarker& marker, std::set<MarkerKey>* seen) {
+  const std::string name = "map writer: point landmark " + marker.key.ToString() + ": ";
+  if (!IsPointFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family");
+  if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
+  if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "position not finite");
+  if (marker.T_world_marker.translation().cwiseAbs().maxCoeff() > kMaxCoordinateM)
+    throw std::invalid_argument(name + "position beyond the coordinate range");
+  if (marker.covariance || marker.covariance_factor || marker.square_tape)
+    throw std::invalid_argument(name + "a pose covariance, covariance factor or tape on a point");
+  if (marker.position_covariance && !marker.position_covariance->allFinite())
+    throw std::invalid_argument(name + "position_covariance not finite");
+  if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");
+  if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
+}
+
 void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
+  if (marker.is_point) return CheckWritablePoint(marker, seen);
   const std::string name = "map writer: marker " + marker.key.ToString() + ": ";
   if (!IsKnownFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family");
   if (marker.key.id.empty()) throw std::invalid_argument(name + "empty id");
@@ -280,8 +408,21 @@ std::string FormatMap(const MarkerMap& map) {
     CheckWritable(map.markers[i], &seen);
     text += (i == 0 ? "\n  " : ",\n  ") + MarkerJson(map.markers[i]).dump();
   }
-  text += map.markers.empty() ? "]}\n" : "\n ]}\n";
-  return text;
+  text += map.markers.empty() ? "]" : "\n ]";
+  if (const auto& noise = map.range_bearing_noise) {
+    const double values[] = {noise->range_a_m,    noise->range_b,      noise->bearing_rad,
+                             noise->odometry_q_t, noise->odometry_q_r, noise->odometry_c_d};
+    for (const double v : values) {
+      if (!std::isfinite(v) || v < 0.0)
+        throw std::invalid_argument("map writer: range_bearing_noise not finite or negative");
+    }
+    nlohmann::ordered_json json = {
+        {"range_a_m", noise->range_a_m},       {"range_b", noise->range_b},
+        {"bearing_rad", noise->bearing_rad},   {"odometry_q_t", noise->odometry_q_t},
+        {"odometry_q_r", noise->odometry_q_r}, {"odometry_c_d", noise->odometry_c_d}};
+    text += ",\n \"range_bearing_noise\": " + json.dump();
+  }
+  return text + "}\n";
 }
 
 void WriteMap(const std::filesystem::path& path, const MarkerMap& map) {

@@ -1,0 +1,130 @@
+// Range and bearing of a point landmark seen from a planar robot (range_bearing.jsonl).
+//
+//   p_robot = R(theta)^T (l_world - t_world)          (the landmark in the robot frame, 2-D)
+//   range   = |p_robot|,   bearing = atan2(p_robot_y, p_robot_x)
+//   r = [(range - range_measured) / sigma_range,  wrap(bearing - bearing_measured) / sigma_bearing]
+//
+// T_world_robot = (t_world, theta) is the robot block, l_world the landmark's x, y in the world
+// frame. The sensor is at the robot's origin with the robot's axes (x forward, y left); a
+// measured elevation is applied by the caller (range_measured = range cos(elevation)).
+// Parameter blocks (factors/pose_block.h, Euclidean):
+//   T_world_robot [x y theta]
+//   l_world       [x y]
+// Returns false (Ceres rejects the step) when the landmark is within 1 mm of the robot's
+// origin, where the bearing is undefined.
+#pragma once
+
+#include <ceres/autodiff_cost_function.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "factors/pose_block.h"
+#include "util/format.h"
+
+namespace waymark {
+
+inline constexpr int kPointLandmark2Size = 2;
+
+class RangeBearingFactor {
+ public:
+  // Throws std::invalid_argument unless the range is finite and positive, the bearing finite and
+  // both sigmas finite and positive.
+  RangeBearingFactor(double range_m, double bearing_rad, double sigma_range_m, double sigma_bearing_rad)
+      : range_m_(range_m),
+        bearing_rad_(bearing_rad),
+        inv_sigma_range_(1.0 / sigma_range_m),
+        inv_sigma_bearing_(1.0 / sigma_bearing_rad) {
+    if (!std::isfinite(range_m) || !(range_m > 0.0) || !std::isfinite(bearing_rad) ||
+        !std::isfinite(sigma_range_m) || !(sigma_range_m > 0.0) || !std::isfinite(sigma_bearing_rad) ||
+        !(sigma_bearing_rad > 0.0)) {
+      throw std::invalid_argument("range-bearing factor: expected a positive range, a finite bearing and positive "
+                                  "sigmas, got range " +
+                                  FormatDouble(range_m) + ", bearing " + FormatDouble(bearing_rad) + ", sigmas " +
+                                  FormatDouble(sigma_range_m) + ", " + FormatDouble(sigma_bearing_rad));
+    }
+  }
+
+  template <typename T>
+  bool operator()(const T* const T_world_robot, const T* const l_world, T* residuals) const {
+    using std::atan2;
+    using std::cos;
+    using std::sin;
+    using std::sqrt;
+    const T dx = l_world[0] - T_world_robot[0];
+    const T dy = l_world[1] - T_world_robot[1];
+    const T c = cos(T_world_robot[2]), s = sin(T_world_robot[2]);
+    const T px = c * dx + s * dy;
+    const T py = -s * dx + c * dy;
+    const T squared = px * px + py * py;
+    if (squared < T(1e-6)) return false;
+    residuals[0] = (sqrt(squared) - T(range_m_)) * T(inv_sigma_range_);
+    residuals[1] = WrapAngleT(atan2(py, px) - T(bearing_rad_)) * T(inv_sigma_bearing_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double range_m, double bearing_rad, double sigma_range_m,
+                                     double sigma_bearing_rad) {
+    return new ceres::AutoDiffCostFunction<RangeBearingFactor, 2, kSE2BlockSize, kPointLandmark2Size>(
+        new RangeBearingFactor(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad));
+  }
+
+ private:
+  const double range_m_;
+  const double bearing_rad_;
+  const double inv_sigma_range_;
+  const double inv_sigma_bearing_;
+};
+
+// The same with the sensor's constant errors estimated (one block per robot):
+//   r = [(range + b_range - range_measured) / sigma_range,
+//        wrap(bearing + b_bearing - bearing_measured) / sigma_bearing]
+// b_range: a range offset (e.g. ranges to a cylinder's face, truth at its axis); b_bearing: the
+// sensor's yaw on the robot. Blocks: T_world_robot [x y theta], l_world [x y],
+// sensor [b_range b_bearing] (Euclidean; give it a weak prior, SensorBiasPrior).
+class BiasedRangeBearingFactor {
+ public:
+  BiasedRangeBearingFactor(double range_m, double bearing_rad, double sigma_range_m, double sigma_bearing_rad)
+      : plain_(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad),
+        inv_sigma_range_(1.0 / sigma_range_m),
+        inv_sigma_bearing_(1.0 / sigma_bearing_rad) {}
+
+  template <typename T>
+  bool operator()(const T* const T_world_robot, const T* const l_world, const T* const sensor, T* residuals) const {
+    if (!plain_(T_world_robot, l_world, residuals)) return false;
+    residuals[0] += sensor[0] * T(inv_sigma_range_);
+    residuals[1] = WrapAngleT(residuals[1] / T(inv_sigma_bearing_) + sensor[1]) * T(inv_sigma_bearing_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double range_m, double bearing_rad, double sigma_range_m,
+                                     double sigma_bearing_rad) {
+    return new ceres::AutoDiffCostFunction<BiasedRangeBearingFactor, 2, kSE2BlockSize, kPointLandmark2Size, 2>(
+        new BiasedRangeBearingFactor(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad));
+  }
+
+ private:
+  const RangeBearingFactor plain_;
+  const double inv_sigma_range_;
+  const double inv_sigma_bearing_;
+};
+
+// r = [b_range / sigma_range_m, b_bearing / sigma_bearing_rad]: the weak prior that keeps an
+// unexcited sensor bias at 0.
+struct SensorBiasPrior {
+  SensorBiasPrior(double sigma_range_m, double sigma_bearing_rad)
+      : inv_range_(1.0 / sigma_range_m), inv_bearing_(1.0 / sigma_bearing_rad) {}
+  template <typename T>
+  bool operator()(const T* const sensor, T* residuals) const {
+    residuals[0] = sensor[0] * T(inv_range_);
+    residuals[1] = sensor[1] * T(inv_bearing_);
+    return true;
+  }
+  static ceres::CostFunction* Create(double sigma_range_m, double sigma_bearing_rad) {
+    return new ceres::AutoDiffCostFunction<SensorBiasPrior, 2, 2>(new SensorBiasPrior(sigma_range_m, sigma_bearing_rad));
+  }
+  const double inv_range_, inv_bearing_;
+};
+
+}  // namespace waymark

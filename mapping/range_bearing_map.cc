@@ -1,0 +1,617 @@
+#include "mapping/range_bearing_map.h"
+
+#include <ceres/ceres.h>
+#include <ceres/covariance.h>
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <cmath>
+#include <memory>
+#include <set>
+#include <stdexcept>
+
+#include "factors/calibrated_odometry_factor.h"
+#include "factors/pose_prior_se2_factor.h"
+#include "factors/range_bearing_factor.h"
+#include "geometry/pose.h"
+#include "util/check.h"
+#include "util/format.h"
+#include "util/stats.h"
+
+namespace waymark {
+
+bool RangeBearingBuildOptions::Check(std::string* why) const {
+  WAYMARK_CHECK_OPTION(IsFinitePositive(keyframe_interval_s), "keyframe_interval_s must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(window_s), "window_s must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(cauchy_scale), "cauchy_scale must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(outlier_chi2), "outlier_chi2 must be > 0");
+  WAYMARK_CHECK_OPTION(min_observations >= 1, "min_observations must be >= 1");
+  WAYMARK_CHECK_OPTION(noise_rounds >= 0, "noise_rounds must be >= 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(noise_window_s), "noise_window_s must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_sigma), "calibration_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(max_iterations >= 1, "max_iterations must be >= 1");
+  WAYMARK_CHECK_OPTION(num_threads >= 1, "num_threads must be >= 1");
+  const RangeBearingNoise& n = initial_noise;
+  WAYMARK_CHECK_OPTION(IsFinitePositive(n.range_a_m) && IsFiniteAtLeast(n.range_b, 0.0) &&
+                           IsFinitePositive(n.bearing_rad) && IsFinitePositive(n.odometry_q_t) &&
+                           IsFinitePositive(n.odometry_q_r) && IsFiniteAtLeast(n.odometry_c_d, 0.0),
+                       "initial_noise: sigmas and q must be finite and > 0 (range_b, c_d >= 0)");
+  return true;
+}
+
+bool HasRangeBearing(const std::vector<const Dataset*>& datasets) {
+  for (const Dataset* dataset : datasets) {
+    if (dataset->has_range_bearing_file || !dataset->range_bearing.empty()) return true;
+  }
+  return false;
+}
+
+namespace {
+
+constexpr double kLinkFloorM = 1e-3;      // d0 of the header
+constexpr double kLinkFloorRad = 1e-3;    // th0
+constexpr int kMinRangeBinCount = 30;
+
+struct Node {
+  double stamp_s = 0.0;
+  SE2d T_odom_robot;
+  double block[3] = {0.0, 0.0, 0.0};
+  SE2d Pose() const { return SE2d(block[0], block[1], block[2]); }
+  void Set(const SE2d& T) {
+    block[0] = T.x();
+    block[1] = T.y();
+    block[2] = T.theta();
+  }
+};
+
+struct Observation {
+  size_t dataset = 0, node = 0;
+  MarkerKey key;
+  double range_m = 0.0, bearing_rad = 0.0;
+  std::optional<double> sigma_range_m, sigma_bearing_rad;
+  bool outlier = false;
+};
+
+struct Landmark {
+  double block[2] = {0.0, 0.0};
+  bool placed = false;
+  int count = 0;
+};
+
+struct DatasetState {
+  const Dataset* dataset = nullptr;
+  std::vector<Node> nodes;
+  double calibration[3] = {0.0, 0.0, 0.0};
+  double sensor[2] = {0.0, 0.0};  // range offset, bearing offset (factors/range_bearing_factor.h)
+  RangeBearingNoise noise;        // this dataset's own, estimated in stage (2)
+  bool placed = false;  // nodes have world poses
+  size_t active = 0;    // nodes [0, active) are in the problem
+  RangeBearingDatasetSummary summary;
+};
+
+// T_odom_robot at `stamp_s`, interpolated in SE(2) between the surrounding odometry samples.
+SE2d OdometryAt(const Trajectory& odometry, double stamp_s) {
+  const std::optional<SE3d> T = InterpolateTrajectory(odometry, stamp_s, 1e9);
+  if (!T) throw std::runtime_error("odometry does not cover stamp " + FormatDouble(stamp_s));
+  return SE2d::FromSE3(*T);
+}
+
+// The measured increment corrected by the calibration c (factors/calibrated_odometry_factor.h).
+SE2d CorrectedIncrement(const SE2d& M, const double* c) {
+  const double s = M.translation().norm();
+  const double theta_c = (M.theta() - c[0] * s) / (1.0 + c[1]);
+  const double half = 0.5 * (theta_c - M.theta());
+  const Eigen::Vector2d t = Eigen::Rotation2Dd(half) * M.translation() / (1.0 + c[2]);
+  return SE2d(t.x(), t.y(), theta_c);
+}
+
+Eigen::Matrix3d LinkCovariance(const SE2d& M, double dt_s, const RangeBearingNoise& noise) {
+  (void)dt_s;
+  const double d = M.translation().norm();
+  const double var_t = noise.odometry_q_t * (d + kLinkFloorM);
+  const double var_r = noise.odometry_q_r * (std::abs(M.theta()) + noise.odometry_c_d * d + kLinkFloorRad);
+  return Eigen::Vector3d(var_t, var_t, var_r).asDiagonal();
+}
+
+double SigmaRange(const Observation& obs, const RangeBearingNoise& noise) {
+  return obs.sigma_range_m ? *obs.sigma_range_m : noise.range_a_m + noise.range_b * obs.range_m;
+}
+double SigmaBearing(const Observation& obs, const RangeBearingNoise& noise) {
+  return obs.sigma_bearing_rad ? *obs.sigma_bearing_rad : noise.bearing_rad;
+}
+
+// Range and bearing of `p_world` from `T_world_robot`.
+Eigen::Vector2d Predict(const SE2d& T_world_robot, const Eigen::Vector2d& p_world) {
+  const Eigen::Vector2d p = T_world_robot.rotation_matrix().transpose() * (p_world - T_world_robot.translation());
+  return Eigen::Vector2d(p.norm(), std::atan2(p.y(), p.x()));
+}
+
+// Residual [range error, wrapped bearing error] of an observation at the current state.
+Eigen::Vector2d Error(const Observation& obs, const std::vector<DatasetState>& states,
+                      const std::map<MarkerKey, Landmark>& landmarks) {
+  const Landmark& l = landmarks.at(obs.key);
+  const DatasetState& state = states[obs.dataset];
+  const Eigen::Vector2d predicted = Predict(state.nodes[obs.node].Pose(), Eigen::Vector2d(l.block[0], l.block[1]));
+  return Eigen::Vector2d(predicted[0] + state.sensor[0] - obs.range_m,
+                         WrapAngle(predicted[1] + state.sensor[1] - obs.bearing_rad));
+}
+
+// The range sigma line and the bearing sigma from residuals (the header's stage 2); false (and
+// `noise` unchanged) when there are too few.
+bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors, std::vector<double> bearing_errors,
+                         RangeBearingNoise* noise);
+
+// Rigid 2-D fit dst ~ R src + t (Kabsch); needs >= 2 points.
+SE2d FitRigid2D(const std::vector<Eigen::Vector2d>& src, const std::vector<Eigen::Vector2d>& dst) {
+  Eigen::Vector2d mean_src = Eigen::Vector2d::Zero(), mean_dst = Eigen::Vector2d::Zero();
+  for (size_t i = 0; i < src.size(); ++i) {
+    mean_src += src[i];
+    mean_dst += dst[i];
+  }
+  mean_src /= static_cast<double>(src.size());
+  mean_dst /= static_cast<double>(dst.size());
+  double sxx = 0.0, sxy = 0.0;
+  for (size_t i = 0; i < src.size(); ++i) {
+    const Eigen::Vector2d a = src[i] - mean_src, b = dst[i] - mean_dst;
+    sxx += a.dot(b);
+    sxy += a.x() * b.y() - a.y() * b.x();
+  }
+  const double theta = std::atan2(sxy, sxx);
+  const Eigen::Vector2d t = mean_dst - Eigen::Rotation2Dd(theta) * mean_src;
+  return SE2d(t.x(), t.y(), theta);
+}
+
+class Builder {
+ public:
+  Builder(const std::vector<const Dataset*>& datasets, const RangeBearingBuildOptions& options)
+      : options_(options), noise_(options.initial_noise) {
+    for (size_t k = 0; k < datasets.size(); ++k) Ingest(k, *datasets[k]);
+  }
+
+  RangeBearingBuildResult Run();
+
+ private:
+  void Ingest(size_t k, const Dataset& dataset);
+  void Progress(const std::string& line) const {
+    if (options_.progress) options_.progress(line);
+  }
+  // Extends every dataset's active nodes to stamps <= end_s, placing what is new.
+  void Activate(double end_s);
+  bool TryPlace(DatasetState* state, double end_s);
+  void PlaceLandmarks();
+  double Solve(bool robust);
+  size_t MarkOutliers();
+  void EstimateNoise();
+  RangeBearingBuildResult Collect();
+
+  RangeBearingBuildOptions options_;
+  RangeBearingNoise noise_;
+  std::vector<DatasetState> states_;
+  std::vector<Observation> observations_;
+  std::map<MarkerKey, Landmark> landmarks_;
+  double solver_time_s_ = 0.0;
+  std::vector<std::string> notes_;
+};
+
+void Builder::Ingest(size_t k, const Dataset& dataset) {
+  const std::string& name = dataset.config.name;
+  if (dataset.config.motion != MotionModel::kPlanar)
+    throw std::runtime_error(name + ": range-bearing maps need motion: planar");
+  if (dataset.odometry.size() < 2)
+    throw std::runtime_error(name + ": range-bearing maps need odometry (at least 2 poses)");
+  DatasetState state;
+  state.dataset = &dataset;
+  state.noise = options_.initial_noise;
+  state.summary.name = name;
+  const Trajectory& odometry = dataset.odometry;
+  const double t_first = odometry.front().stamp_s, t_last = odometry.back().stamp_s;
+  std::vector<double> stamps;
+  for (double t = t_first; t < t_last; t += options_.keyframe_interval_s) stamps.push_back(t);
+  stamps.push_back(t_last);
+  for (const RangeBearingFrame& frame : dataset.range_bearing) {
+    if (frame.stamp_s >= t_first && frame.stamp_s <= t_last && !frame.landmarks.empty())
+      stamps.push_back(frame.stamp_s);
+  }
+  std::sort(stamps.begin(), stamps.end());
+  stamps.erase(std::unique(stamps.begin(), stamps.end()), stamps.end());
+  for (const double t : stamps) {
+    Node node;
+    node.stamp_s = t;
+    node.T_odom_robot = OdometryAt(odometry, t);
+    state.nodes.push_back(node);
+  }
+  for (const RangeBearingFrame& frame : dataset.range_bearing) {
+    if (frame.stamp_s < t_first || frame.stamp_s > t_last) continue;
+    const size_t node = static_cast<size_t>(std::lower_bound(stamps.begin(), stamps.end(), frame.stamp_s) -
+                                            stamps.begin());
+    for (const RangeBearingObservation& rb : frame.landmarks) {
+      Observation obs;
+      obs.dataset = k;
+      obs.node = node;
+      obs.key = rb.key;
+      obs.range_m = rb.elevation_rad ? rb.range_m * std::cos(*rb.elevation_rad) : rb.range_m;
+      obs.bearing_rad = rb.bearing_rad;
+      obs.sigma_range_m = rb.sigma_range_m;
+      obs.sigma_bearing_rad = rb.sigma_bearing_rad;
+      observations_.push_back(obs);
+      ++landmarks_[rb.key].count;
+    }
+  }
+  if (options_.use_start_priors && dataset.config.start_prior) {
+    const SE2d T_world_start = SE2d::FromSE3(dataset.config.start_prior->T_world_robot);
+    const SE2d T_world_odom = T_world_start * state.nodes.front().T_odom_robot.inverse();
+    state.nodes.front().Set(T_world_odom * state.nodes.front().T_odom_robot);
+    state.placed = true;
+    state.summary.gauge = "start prior";
+  }
+  states_.push_back(std::move(state));
+}
+
+bool Builder::TryPlace(DatasetState* state, double end_s) {
+  // Dead-reckoned landmark positions (mean of the first sightings) in the dataset's odometry frame.
+  std::map<MarkerKey, std::pair<Eigen::Vector2d, int>> seen;
+  const size_t k = static_cast<size_t>(state - states_.data());
+  for (const Observation& obs : observations_) {
+    if (obs.dataset != k || state->nodes[obs.node].stamp_s > end_s) continue;
+    const Landmark& l = landmarks_.at(obs.key);
+    if (!l.placed) continue;
+    const SE2d& T = state->nodes[obs.node].T_odom_robot;
+    const Eigen::Vector2d p =
+        T * Eigen::Vector2d(obs.range_m * std::cos(obs.bearing_rad), obs.range_m * std::sin(obs.bearing_rad));
+    auto& [sum, count] = seen[obs.key];
+    if (count == 0) sum.setZero();
+    sum += p;
+    ++count;
+  }
+  std::vector<Eigen::Vector2d> src, dst;
+  for (const auto& [key, sum_count] : seen) {
+    src.push_back(sum_count.first / sum_count.second);
+    const Landmark& l = landmarks_.at(key);
+    dst.push_back(Eigen::Vector2d(l.block[0], l.block[1]));
+  }
+  if (src.size() < 2) return false;
+  const SE2d T_world_odom = FitRigid2D(src, dst);
+  state->nodes.front().Set(T_world_odom * state->nodes.front().T_odom_robot);
+  state->placed = true;
+  state->summary.gauge = "placed by " + std::to_string(src.size()) + " shared landmarks at t=" +
+                         FormatFixed(end_s - state->nodes.front().stamp_s, 1) + " s";
+  return true;
+}
+
+void Builder::Activate(double end_s) {
+  for (size_t k = 0; k < states_.size(); ++k) {
+    DatasetState& state = states_[k];
+    if (!state.placed) {
+      if (k == 0) {
+        state.nodes.front().Set(SE2d());
+        state.placed = true;
+        state.summary.gauge = "first node held at the identity";
+      } else if (!TryPlace(&state, end_s)) {
+        continue;
+      }
+    }
+    if (state.active == 0) state.active = 1;
+    while (state.active < state.nodes.size() && state.nodes[state.active].stamp_s <= end_s) {
+      const Node& previous = state.nodes[state.active - 1];
+      Node& node = state.nodes[state.active];
+      const SE2d M = previous.T_odom_robot.inverse() * node.T_odom_robot;
+      node.Set(previous.Pose() * CorrectedIncrement(M, state.calibration));
+      ++state.active;
+    }
+  }
+  PlaceLandmarks();
+}
+
+void Builder::PlaceLandmarks() {
+  for (const Observation& obs : observations_) {
+    const DatasetState& state = states_[obs.dataset];
+    if (obs.node >= state.active) continue;
+    Landmark& l = landmarks_.at(obs.key);
+    if (l.placed) continue;
+    const Eigen::Vector2d p = state.nodes[obs.node].Pose() * Eigen::Vector2d(obs.range_m * std::cos(obs.bearing_rad),
+                                                                             obs.range_m * std::sin(obs.bearing_rad));
+    l.block[0] = p.x();
+    l.block[1] = p.y();
+    l.placed = true;
+  }
+}
+
+double Builder::Solve(bool robust) {
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  bool any_prior = false;
+  for (DatasetState& state : states_) {
+    if (state.active == 0) continue;
+    for (size_t i = 0; i < state.active; ++i) problem.AddParameterBlock(state.nodes[i].block, 3);
+    bool links = false;
+    for (size_t i = 1; i < state.active; ++i) {
+      const Node& a = state.nodes[i - 1];
+      const Node& b = state.nodes[i];
+      const SE2d M = a.T_odom_robot.inverse() * b.T_odom_robot;
+      problem.AddResidualBlock(
+          CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)), nullptr,
+          state.nodes[i - 1].block, state.nodes[i].block, state.calibration);
+      links = true;
+    }
+    if (links) {
+      problem.AddResidualBlock(
+          OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(options_.calibration_sigma)), nullptr,
+          state.calibration);
+    }
+    const auto& prior = state.dataset->config.start_prior;
+    if (options_.use_start_priors && prior) {
+      const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);
+      problem.AddResidualBlock(
+          PosePriorSE2Factor::Create(SE2d::FromSE3(prior->T_world_robot),
+                                     Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal())),
+          nullptr, state.nodes.front().block);
+      any_prior = true;
+    }
+  }
+  if (!any_prior) problem.SetParameterBlockConstant(states_.front().nodes.front().block);
+  for (const Observation& obs : observations_) {
+    if (obs.outlier || obs.node >= states_[obs.dataset].active) continue;
+    Landmark& l = landmarks_.at(obs.key);
+    DatasetState& state = states_[obs.dataset];
+    ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
+    problem.AddResidualBlock(BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad,
+                                                              SigmaRange(obs, state.noise),
+                                                              SigmaBearing(obs, state.noise)),
+                             loss, state.nodes[obs.node].block, l.block, state.sensor);
+  }
+  for (DatasetState& state : states_) {
+    if (problem.HasParameterBlock(state.sensor)) {
+      problem.AddResidualBlock(
+          SensorBiasPrior::Create(options_.sensor_bias_sigma_m, options_.sensor_bias_sigma_rad), nullptr,
+          state.sensor);
+    }
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options_.max_iterations;
+  solver_options.num_threads = options_.num_threads;
+  solver_options.function_tolerance = 1e-8;
+  ceres::Solver::Summary summary;
+  const auto start = std::chrono::steady_clock::now();
+  ceres::Solve(solver_options, &problem, &summary);
+  solver_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary.final_cost;
+}
+
+size_t Builder::MarkOutliers() {
+  size_t outliers = 0;
+  for (Observation& obs : observations_) {
+    const Eigen::Vector2d e = Error(obs, states_, landmarks_);
+    const RangeBearingNoise& noise = states_[obs.dataset].noise;
+    const double chi2 = std::pow(e[0] / SigmaRange(obs, noise), 2) + std::pow(e[1] / SigmaBearing(obs, noise), 2);
+    obs.outlier = chi2 > options_.outlier_chi2;
+    outliers += obs.outlier;
+  }
+  return outliers;
+}
+
+bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors, std::vector<double> bearing_errors,
+                         RangeBearingNoise* noise) {
+  if (range_errors.size() < 2 * kMinRangeBinCount) return false;
+  // Bins of equal count along the range; sigma of each bin = 1.4826 MAD; a line through them by
+  // least squares, its intercept kept >= 1 cm and its slope >= 0.
+  std::sort(range_errors.begin(), range_errors.end());
+  const size_t bins = std::min<size_t>(8, range_errors.size() / kMinRangeBinCount);
+  std::vector<double> x, y;
+  for (size_t b = 0; b < bins; ++b) {
+    const size_t begin = b * range_errors.size() / bins, end = (b + 1) * range_errors.size() / bins;
+    std::vector<double> errors, ranges;
+    for (size_t i = begin; i < end; ++i) {
+      errors.push_back(range_errors[i].second);
+      ranges.push_back(range_errors[i].first);
+    }
+    const double median = Median(errors);
+    for (double& e : errors) e = std::abs(e - median);
+    x.push_back(Median(ranges));
+    y.push_back(1.4826 * Median(errors));
+  }
+  const double n = static_cast<double>(x.size());
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sx += x[i];
+    sy += y[i];
+    sxx += x[i] * x[i];
+    sxy += x[i] * y[i];
+  }
+  const double denominator = n * sxx - sx * sx;
+  double b = denominator > 1e-12 ? std::max(0.0, (n * sxy - sx * sy) / denominator) : 0.0;
+  double a = (sy - b * sx) / n;
+  if (a < 0.01) {  // refit the slope through the floor
+    a = 0.01;
+    b = sxx > 0 ? std::max(0.0, (sxy - a * sx) / sxx) : 0.0;
+  }
+  noise->range_a_m = a;
+  noise->range_b = b;
+  const double median = Median(bearing_errors);
+  for (double& e : bearing_errors) e = std::abs(e - median);
+  noise->bearing_rad = std::max(1e-3, 1.4826 * Median(bearing_errors));
+  return true;
+}
+
+// The header's stage (2), per dataset (a dataset with too few residuals takes the pooled
+// figures): measurement sigmas from the robust spread of every observation's residuals, the
+// odometry's q from its disagreement with the solved trajectory over noise_window_s.
+void Builder::EstimateNoise() {
+  std::vector<std::vector<std::pair<double, double>>> range_errors(states_.size());
+  std::vector<std::vector<double>> bearing_errors(states_.size());
+  std::vector<std::pair<double, double>> all_range;
+  std::vector<double> all_bearing;
+  // Every observation: the robust spread ignores the outliers, and leaving them out would
+  // truncate the distribution (and shrink the sigmas round after round).
+  for (const Observation& obs : observations_) {
+    if (obs.node >= states_[obs.dataset].active) continue;
+    const Eigen::Vector2d e = Error(obs, states_, landmarks_);
+    range_errors[obs.dataset].emplace_back(obs.range_m, e[0]);
+    bearing_errors[obs.dataset].push_back(e[1]);
+    all_range.emplace_back(obs.range_m, e[0]);
+    all_bearing.push_back(e[1]);
+  }
+  FitMeasurementNoise(all_range, all_bearing, &noise_);
+  // Odometry: over windows of noise_window_s, the solved increment against the calibrated
+  // odometry increment; the mean normalized squared error per axis scales q_t and q_r.
+  std::vector<double> sum_t(states_.size(), 0.0), sum_r(states_.size(), 0.0);
+  std::vector<long> windows(states_.size(), 0);
+  for (size_t k = 0; k < states_.size(); ++k) {
+    DatasetState& state = states_[k];
+    size_t i = 0;
+    while (i + 1 < state.active) {
+      size_t j = i + 1;
+      double var_t = 0.0, var_r = 0.0;
+      SE2d odometry_increment;
+      while (true) {
+        const SE2d M = state.nodes[j - 1].T_odom_robot.inverse() * state.nodes[j].T_odom_robot;
+        const Eigen::Matrix3d covariance = LinkCovariance(M, 0.0, state.noise);
+        var_t += covariance(0, 0);
+        var_r += covariance(2, 2);
+        odometry_increment = odometry_increment * CorrectedIncrement(M, state.calibration);
+        if (j + 1 >= state.active || state.nodes[j].stamp_s - state.nodes[i].stamp_s >= options_.noise_window_s)
+          break;
+        ++j;
+      }
+      const SE2d solved = state.nodes[i].Pose().inverse() * state.nodes[j].Pose();
+      const SE2d error = odometry_increment.inverse() * solved;
+      sum_t[k] += error.translation().squaredNorm() / (2.0 * var_t);
+      sum_r[k] += error.theta() * error.theta() / var_r;
+      ++windows[k];
+      i = j;
+    }
+  }
+  for (size_t k = 0; k < states_.size(); ++k) {
+    DatasetState& state = states_[k];
+    if (!FitMeasurementNoise(range_errors[k], bearing_errors[k], &state.noise)) {
+      state.noise.range_a_m = noise_.range_a_m;
+      state.noise.range_b = noise_.range_b;
+      state.noise.bearing_rad = noise_.bearing_rad;
+    }
+    if (windows[k] >= 10) {
+      state.noise.odometry_q_t *= std::clamp(sum_t[k] / windows[k], 1e-3, 1e3);
+      state.noise.odometry_q_r *= std::clamp(sum_r[k] / windows[k], 1e-3, 1e3);
+    }
+  }
+  // The map's odometry figures: the median over the datasets.
+  std::vector<double> q_t, q_r;
+  for (const DatasetState& state : states_) {
+    q_t.push_back(state.noise.odometry_q_t);
+    q_r.push_back(state.noise.odometry_q_r);
+  }
+  noise_.odometry_q_t = Median(q_t);
+  noise_.odometry_q_r = Median(q_r);
+}
+
+RangeBearingBuildResult Builder::Run() {
+  double t_begin = std::numeric_limits<double>::infinity(), t_end = -t_begin;
+  for (const DatasetState& state : states_) {
+    t_begin = std::min(t_begin, state.nodes.front().stamp_s);
+    t_end = std::max(t_end, state.nodes.back().stamp_s);
+  }
+  // (1) growing windows.
+  for (double end_s = t_begin + options_.window_s;; end_s += options_.window_s) {
+    Activate(end_s);
+    Solve(true);
+    Progress("window to t=" + FormatFixed(end_s - t_begin, 0) + " s solved");
+    if (end_s >= t_end) break;
+  }
+  for (const DatasetState& state : states_) {
+    if (!state.placed) {
+      throw std::runtime_error(state.summary.name +
+                               ": shares fewer than two landmarks with the other datasets and has no start prior: "
+                               "it cannot be placed in their map");
+    }
+  }
+  // (2) outliers and noise.
+  for (int round = 0; round < options_.noise_rounds; ++round) {
+    EstimateNoise();
+    const size_t outliers = MarkOutliers();
+    Solve(true);
+    Progress("noise round " + std::to_string(round + 1) + ": sigma_range " + FormatSignificant(noise_.range_a_m, 3) +
+             " m + " + FormatSignificant(noise_.range_b, 3) + " r, sigma_bearing " +
+             FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " + FormatSignificant(noise_.odometry_q_t, 3) +
+             ", q_r " + FormatSignificant(noise_.odometry_q_r, 3) + ", " + std::to_string(outliers) + " outliers");
+  }
+  // (3) final.
+  MarkOutliers();
+  Solve(false);
+  MarkOutliers();
+  return Collect();
+}
+
+RangeBearingBuildResult Builder::Collect() {
+  RangeBearingBuildResult result;
+  result.noise = noise_;
+  result.map.range_bearing_noise = noise_;
+  result.solver_time_s = solver_time_s_;
+  std::map<MarkerKey, int> inliers;
+  double sum_range = 0.0, sum_bearing = 0.0;
+  for (const Observation& obs : observations_) {
+    DatasetState& state = states_[obs.dataset];
+    if (obs.outlier) {
+      ++state.summary.outliers;
+      ++result.outliers;
+      continue;
+    }
+    ++inliers[obs.key];
+    ++state.summary.observations;
+    ++result.observations;
+    const Eigen::Vector2d e = Error(obs, states_, landmarks_);
+    sum_range += e[0] * e[0];
+    sum_bearing += e[1] * e[1];
+  }
+  if (result.observations > 0) {
+    result.range_rms_m = std::sqrt(sum_range / result.observations);
+    result.bearing_rms_rad = std::sqrt(sum_bearing / result.observations);
+  }
+  for (const auto& [key, landmark] : landmarks_) {
+    const int count = inliers.count(key) ? inliers.at(key) : 0;
+    if (count < options_.min_observations) {
+      result.unmapped.emplace_back(key, "seen " + std::to_string(count) + " times (inliers), fewer than " +
+                                            std::to_string(options_.min_observations));
+      continue;
+    }
+    MapMarker marker;
+    marker.is_point = true;
+    marker.key = key;
+    marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(landmark.block[0], landmark.block[1], 0.0));
+    marker.component = 0;
+    result.map.markers.push_back(marker);
+  }
+  for (DatasetState& state : states_) {
+    Trajectory trajectory;
+    for (size_t i = 0; i < state.active; ++i) {
+      trajectory.push_back({state.nodes[i].stamp_s, state.nodes[i].Pose().ToSE3()});
+    }
+    state.summary.nodes = state.active;
+    state.summary.odometry_calibration =
+        Eigen::Vector3d(state.calibration[0], state.calibration[1], state.calibration[2]);
+    state.summary.sensor_bias = Eigen::Vector2d(state.sensor[0], state.sensor[1]);
+    state.summary.noise = state.noise;
+    result.trajectories[state.summary.name] = std::move(trajectory);
+    result.datasets.push_back(state.summary);
+  }
+  result.notes = notes_;
+  return result;
+}
+
+}  // namespace
+
+RangeBearingBuildResult BuildRangeBearingMap(const std::vector<const Dataset*>& datasets,
+                                             const RangeBearingBuildOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument("range-bearing map build: " + why);
+  if (datasets.empty()) throw std::runtime_error("range-bearing map build: no dataset");
+  std::set<std::string> names;
+  for (const Dataset* dataset : datasets) {
+    if (!names.insert(dataset->config.name).second)
+      throw std::runtime_error("two datasets are named " + dataset->config.name + " (dataset.yaml name)");
+  }
+  Builder builder(datasets, options);
+  return builder.Run();
+}
+
+}  // namespace waymark

@@ -1,0 +1,95 @@
+// Point-landmark maps from range-bearing observations of one or several planar datasets (robots,
+// or survey days in one building), tied through the landmarks they share.
+//
+//   minimize  sum_obs rho(|r_rb|^2) + sum_links |r_odo|^2 + sum_robots |r_cal|^2 + sum_starts |r_start|^2
+//
+// r_rb:    range and bearing of a landmark from a robot node (factors/range_bearing_factor.h),
+//          sigma_range = a + b * range and sigma_bearing, estimated from the data (below) unless
+//          the observation carries its own sigmas, with the sensor's constant range and bearing
+//          offsets estimated per dataset (BiasedRangeBearingFactor, weak prior);
+// r_odo:   the odometry between consecutive nodes of one dataset with its systematic errors
+//          (factors/calibrated_odometry_factor.h; one calibration block per dataset, r_cal its
+//          weak prior), covariance of a random walk in distance, turn and time:
+//            sigma_t^2 = q_t (d + d0),  sigma_theta^2 = q_r (|dtheta| + c_d d + th0)
+//          with d0 = 1 mm and th0 = 1 mrad per link so that a standstill is not infinitely certain;
+// r_start: dataset.yaml start_prior of each dataset (when use_start_priors).
+// Nodes: one per range-bearing stamp and at least every keyframe_interval_s, at odometry poses
+// interpolated at the stamp. Gauge: the start priors; without them the first dataset's first node
+// is held at the identity and every other dataset is placed, when it first shares two landmarks
+// with the map, by a rigid 2-D fit of its dead-reckoned landmark positions to the mapped ones.
+//
+// Stages: (1) incremental solves over growing time windows (window_s): new nodes are predicted
+// by the calibrated odometry from the last solved node, new landmarks placed from their first
+// observation; Cauchy loss (cauchy_scale, whitened units). (2) noise_rounds rounds of: the range
+// sigma line a + b r is fitted to the robust spread (1.4826 MAD) of the range residuals of every
+// observation in range bins, the bearing sigma to that of the bearing residuals; observations
+// whose whitened squared residual exceeds outlier_chi2 are set aside as outliers; q_t, q_r are scaled so that the
+// odometry's disagreement with the solved trajectory over windows of noise_window_s matches the
+// model; solve again. (3) a final solve with the plain squared loss; landmarks seen fewer than
+// min_observations times are reported, not mapped. (No landmark covariance is written yet.)
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "geometry/types.h"
+
+namespace waymark {
+
+struct RangeBearingBuildOptions {
+  double keyframe_interval_s = 0.5;
+  double window_s = 60.0;
+  double cauchy_scale = 3.0;
+  double outlier_chi2 = 13.8;  // 2 degrees of freedom, 99.9 %
+  int min_observations = 3;
+  int noise_rounds = 3;
+  double noise_window_s = 5.0;
+  bool use_start_priors = true;
+  double calibration_sigma = 0.2;
+  // The sensor's constant range and bearing offsets, one pair per dataset, held near 0 by a
+  // prior of these sigmas (factors/range_bearing_factor.h, BiasedRangeBearingFactor).
+  double sensor_bias_sigma_m = 0.2;
+  double sensor_bias_sigma_rad = 0.05;
+  RangeBearingNoise initial_noise;  // the starting point of the estimation (stage 2)
+  int max_iterations = 50;
+  int num_threads = 1;
+  std::function<void(const std::string&)> progress;
+  bool Check(std::string* why) const;
+};
+
+struct RangeBearingDatasetSummary {
+  std::string name;
+  size_t nodes = 0;
+  size_t observations = 0;  // range-bearing observations of landmarks used in the final solve
+  size_t outliers = 0;
+  Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
+  Eigen::Vector2d sensor_bias = Eigen::Vector2d::Zero();  // range offset (m), bearing offset (rad)
+  RangeBearingNoise noise;                                 // this dataset's, as estimated
+  std::string gauge;  // "start prior", "held", "placed at t=..."
+};
+
+struct RangeBearingBuildResult {
+  MarkerMap map;                                   // point landmarks, component 0
+  std::map<std::string, Trajectory> trajectories;  // smoothed T_world_robot per dataset name
+  std::vector<RangeBearingDatasetSummary> datasets;
+  RangeBearingNoise noise;  // as estimated over all datasets (odometry: the datasets' median)
+  std::vector<std::pair<MarkerKey, std::string>> unmapped;
+  size_t observations = 0;
+  size_t outliers = 0;
+  double range_rms_m = 0.0;    // residuals of the inliers, final solve
+  double bearing_rms_rad = 0.0;
+  double solver_time_s = 0.0;
+  std::vector<std::string> notes;
+};
+
+// True when some dataset has range-bearing observations (the map build then uses this builder).
+bool HasRangeBearing(const std::vector<const Dataset*>& datasets);
+
+// Throws std::runtime_error for unusable input: a dataset without odometry, a non-planar one, a
+// dataset that shares fewer than two landmarks with the others when it has no start prior.
+RangeBearingBuildResult BuildRangeBearingMap(const std::vector<const Dataset*>& datasets,
+                                             const RangeBearingBuildOptions& options = {});
+
+}  // namespace waymark

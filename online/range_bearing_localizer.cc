@@ -1,0 +1,172 @@
+#include "online/range_bearing_localizer.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <stdexcept>
+
+#include "util/check.h"
+
+namespace waymark {
+namespace {
+
+constexpr double kLinkFloorM = 1e-3;
+constexpr double kLinkFloorRad = 1e-3;
+
+bool IsSpd(const Eigen::Matrix3d& P) {
+  if (!P.allFinite() || (P - P.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, P.cwiseAbs().maxCoeff()))
+    return false;
+  return Eigen::LLT<Eigen::Matrix3d>(P).info() == Eigen::Success;
+}
+
+}  // namespace
+
+std::string CheckRangeBearingNoise(const RangeBearingNoise& n) {
+  if (!IsFinitePositive(n.range_a_m)) return "range_a_m must be > 0";
+  if (!IsFiniteAtLeast(n.range_b, 0.0)) return "range_b must be >= 0";
+  if (!IsFinitePositive(n.bearing_rad)) return "bearing_rad must be > 0";
+  if (!IsFinitePositive(n.odometry_q_t)) return "odometry_q_t must be > 0";
+  if (!IsFinitePositive(n.odometry_q_r)) return "odometry_q_r must be > 0";
+  if (!IsFiniteAtLeast(n.odometry_c_d, 0.0)) return "odometry_c_d must be >= 0";
+  return "";
+}
+
+bool RangeBearingLocalizerOptions::Check(std::string* why) const {
+  WAYMARK_CHECK_OPTION(CheckRangeBearingNoise(noise).empty(), "noise: " + CheckRangeBearingNoise(noise));
+  WAYMARK_CHECK_OPTION(IsFinitePositive(gate_chi2), "gate_chi2 must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(lost_sigma_m), "lost_sigma_m must be > 0");
+  WAYMARK_CHECK_OPTION(lost_rejections >= 1, "lost_rejections must be >= 1");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(reacquire_sigma_m) && IsFinitePositive(reacquire_sigma_rad),
+                       "reacquire sigmas must be > 0");
+  WAYMARK_CHECK_OPTION(regain_updates >= 1, "regain_updates must be >= 1");
+  return true;
+}
+
+RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map, const RangeBearingLocalizerOptions& options,
+                                             const SE2d& T_world_start, const Eigen::Matrix3d& start_covariance)
+    : options_(options), x_(T_world_start.x(), T_world_start.y(), T_world_start.theta()), P_(start_covariance) {
+  std::string why;
+  if (!options.Check(&why)) throw std::invalid_argument("range-bearing localizer: " + why);
+  if (!IsSpd(start_covariance))
+    throw std::invalid_argument("range-bearing localizer: the start covariance is not symmetric positive definite");
+  for (const MapMarker& marker : map.markers) {
+    if (!marker.is_point) continue;
+    std::optional<Eigen::Matrix2d> covariance;
+    if (marker.position_covariance) covariance = marker.position_covariance->topLeftCorner<2, 2>();
+    landmarks_[marker.key] = {marker.T_world_marker.translation().head<2>(), covariance};
+  }
+}
+
+Eigen::Matrix3d RangeBearingLocalizer::PredictJacobian(const Eigen::Vector3d& x, const SE2d& T_a_b) {
+  const double c = std::cos(x[2]), s = std::sin(x[2]);
+  const Eigen::Vector2d rotated(c * T_a_b.x() - s * T_a_b.y(), s * T_a_b.x() + c * T_a_b.y());
+  Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+  F(0, 2) = -rotated.y();
+  F(1, 2) = rotated.x();
+  return F;
+}
+
+Eigen::Vector2d RangeBearingLocalizer::Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world) {
+  const Eigen::Vector2d d = l_world - x.head<2>();
+  return Eigen::Vector2d(d.norm(), WrapAngle(std::atan2(d.y(), d.x()) - x[2]));
+}
+
+Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::Vector3d& x,
+                                                                    const Eigen::Vector2d& l_world) {
+  const Eigen::Vector2d d = l_world - x.head<2>();
+  const double q = d.squaredNorm(), r = std::sqrt(q);
+  Eigen::Matrix<double, 2, 3> H;
+  H << -d.x() / r, -d.y() / r, 0.0, d.y() / q, -d.x() / q, -1.0;
+  return H;
+}
+
+void RangeBearingLocalizer::Predict(const SE2d& T_a_b) {
+  const Eigen::Matrix3d F = PredictJacobian(x_, T_a_b);
+  const double c = std::cos(x_[2]), s = std::sin(x_[2]);
+  Eigen::Matrix3d G = Eigen::Matrix3d::Identity();
+  G.topLeftCorner<2, 2>() << c, -s, s, c;
+  const RangeBearingNoise& n = options_.noise;
+  const double d = T_a_b.translation().norm();
+  const double var_t = n.odometry_q_t * (d + kLinkFloorM);
+  const double var_r = n.odometry_q_r * (std::abs(T_a_b.theta()) + n.odometry_c_d * d + kLinkFloorRad);
+  const Eigen::Matrix3d Q = Eigen::Vector3d(var_t, var_t, var_r).asDiagonal();
+  x_.head<2>() += G.topLeftCorner<2, 2>() * T_a_b.translation();
+  x_[2] = WrapAngle(x_[2] + T_a_b.theta());
+  P_ = F * P_ * F.transpose() + G * Q * G.transpose();
+  P_ = 0.5 * (P_ + P_.transpose());
+  CheckLost();
+}
+
+RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& observation) {
+  const auto it = landmarks_.find(observation.key);
+  if (it == landmarks_.end()) {
+    ++counts_["unknown landmark"];
+    return RangeBearingUpdate::kUnknownLandmark;
+  }
+  const Eigen::Vector2d& l = it->second.first;
+  if ((l - x_.head<2>()).norm() < 1e-3) {
+    ++counts_["degenerate"];
+    return RangeBearingUpdate::kDegenerate;
+  }
+  const double range_m =
+      observation.elevation_rad ? observation.range_m * std::cos(*observation.elevation_rad) : observation.range_m;
+  const RangeBearingNoise& n = options_.noise;
+  const double sigma_range = observation.sigma_range_m.value_or(n.range_a_m + n.range_b * range_m);
+  const double sigma_bearing = observation.sigma_bearing_rad.value_or(n.bearing_rad);
+  Eigen::Matrix2d R = Eigen::Vector2d(sigma_range * sigma_range, sigma_bearing * sigma_bearing).asDiagonal();
+  const Eigen::Matrix<double, 2, 3> H = MeasureJacobian(x_, l);
+  if (it->second.second) {
+    const Eigen::Matrix2d H_l = -H.leftCols<2>();
+    R += H_l * *it->second.second * H_l.transpose();
+  }
+  const Eigen::Vector2d predicted = Measure(x_, l);
+  const Eigen::Vector2d y(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
+  const Eigen::Matrix2d S = H * P_ * H.transpose() + R;
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  if (llt.info() != Eigen::Success) {
+    ++counts_["degenerate"];
+    return RangeBearingUpdate::kDegenerate;
+  }
+  const double chi2 = y.dot(llt.solve(y));
+  if (chi2 > options_.gate_chi2) {
+    ++counts_["gated"];
+    accepted_in_row_ = 0;
+    if (++rejections_in_row_ >= options_.lost_rejections) {
+      // Lost: widen P so that the gate can accept the next sightings again.
+      const double sm = options_.reacquire_sigma_m, sr = options_.reacquire_sigma_rad;
+      P_ = P_ + Eigen::Vector3d(sm * sm, sm * sm, sr * sr).asDiagonal().toDenseMatrix();
+      rejections_in_row_ = 0;
+      if (!lost_) ++counts_["became lost"];
+      lost_ = true;
+    }
+    return RangeBearingUpdate::kGated;
+  }
+  const Eigen::Matrix<double, 3, 2> K = llt.solve(H * P_).transpose();
+  x_ += K * y;
+  x_[2] = WrapAngle(x_[2]);
+  const Eigen::Matrix3d I_KH = Eigen::Matrix3d::Identity() - K * H;
+  P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();
+  P_ = 0.5 * (P_ + P_.transpose());
+  ++counts_["accepted"];
+  rejections_in_row_ = 0;
+  ++accepted_in_row_;
+  CheckLost();
+  return RangeBearingUpdate::kAccepted;
+}
+
+void RangeBearingLocalizer::CheckLost() {
+  const double sigma_m =
+      std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(P_.topLeftCorner<2, 2>())
+                                  .eigenvalues()
+                                  .maxCoeff()));
+  if (!lost_ && sigma_m > options_.lost_sigma_m) {
+    lost_ = true;
+    accepted_in_row_ = 0;
+    ++counts_["became lost"];
+  } else if (lost_ && sigma_m <= options_.lost_sigma_m && accepted_in_row_ >= options_.regain_updates) {
+    lost_ = false;
+    ++counts_["regained"];
+  }
+}
+
+}  // namespace waymark

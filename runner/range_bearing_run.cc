@@ -1,0 +1,107 @@
+#include "runner/range_bearing_run.h"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <stdexcept>
+
+#include "online/chi_square.h"
+
+namespace waymark {
+namespace {
+
+SE2d OdometryAt(const Trajectory& odometry, double stamp_s) {
+  return SE2d::FromSE3(*InterpolateTrajectory(odometry, stamp_s, 1e9));
+}
+
+}  // namespace
+
+RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap& map,
+                                         const RangeBearingLocalizerOptions& options) {
+  const std::string& name = dataset.config.name;
+  if (dataset.odometry.size() < 2) throw std::runtime_error(name + ": the range-bearing localizer needs odometry");
+  const auto& prior = dataset.config.start_prior;
+  if (!prior) {
+    throw std::runtime_error(name + ": the range-bearing localizer needs dataset.yaml start_prior (the start pose; "
+                                    "e.g. `waymark import mrclam --known-start`)");
+  }
+  const Trajectory& odometry = dataset.odometry;
+  const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);
+  RangeBearingLocalizer filter(map, options, SE2d::FromSE3(prior->T_world_robot),
+                               Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal()));
+  RangeBearingRun run;
+  SE2d T_odom_last = SE2d::FromSE3(odometry.front().T);
+  const auto advance = [&](double stamp_s) {
+    const SE2d T_odom_now = OdometryAt(odometry, stamp_s);
+    filter.Predict(T_odom_last.inverse() * T_odom_now);
+    T_odom_last = T_odom_now;
+  };
+  const auto output = [&](double stamp_s) {
+    if (filter.lost()) {
+      ++run.outputs_withheld;
+      return;
+    }
+    if (!run.poses.empty() && run.poses.back().stamp_s == stamp_s) {
+      run.poses.back().T = filter.pose().ToSE3();
+      run.covariances.back() = filter.covariance();
+      return;
+    }
+    run.poses.push_back({stamp_s, filter.pose().ToSE3()});
+    run.covariances.push_back(filter.covariance());
+  };
+  output(odometry.front().stamp_s);
+  size_t frame = 0;
+  const std::vector<RangeBearingFrame>& frames = dataset.range_bearing;
+  while (frame < frames.size() && frames[frame].stamp_s < odometry.front().stamp_s) {
+    ++run.counts["frames outside odometry"];
+    ++frame;
+  }
+  for (size_t i = 1; i < odometry.size(); ++i) {
+    for (; frame < frames.size() && frames[frame].stamp_s <= odometry[i].stamp_s; ++frame) {
+      advance(frames[frame].stamp_s);
+      for (const RangeBearingObservation& obs : frames[frame].landmarks) filter.Update(obs);
+      output(frames[frame].stamp_s);
+    }
+    advance(odometry[i].stamp_s);
+    output(odometry[i].stamp_s);
+  }
+  run.counts["frames outside odometry"] += static_cast<long>(frames.size() - frame);
+  for (const auto& [key, count] : filter.counts()) run.counts[key] += count;
+  return run;
+}
+
+NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
+                       const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s) {
+  NeesResult result;
+  result.sample_lower = ChiSquareQuantile(0.025, 3);
+  result.sample_upper = ChiSquareQuantile(0.975, 3);
+  double sum = 0.0;
+  size_t inside = 0;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const std::optional<SE3d> truth = InterpolateTrajectory(groundtruth, poses[i].stamp_s, max_dt_s);
+    if (!truth) continue;
+    const SE2d T_true = SE2d::FromSE3(*truth), T = SE2d::FromSE3(poses[i].T);
+    const Eigen::Vector3d e(T_true.x() - T.x(), T_true.y() - T.y(), WrapAngle(T_true.theta() - T.theta()));
+    const Eigen::LLT<Eigen::Matrix3d> llt(covariances[i]);
+    if (llt.info() != Eigen::Success) continue;
+    const double nees = e.dot(llt.solve(e));
+    sum += nees;
+    inside += nees >= result.sample_lower && nees <= result.sample_upper;
+    ++result.samples;
+  }
+  if (result.samples == 0) throw std::runtime_error("NEES: no pose associates with the ground truth");
+  const double n = static_cast<double>(result.samples);
+  result.mean = sum / n;
+  result.share_inside = inside / n;
+  // chi2inv(p, 3N) / N by the Wilson-Hilferty approximation for large 3N (exact quantile below 3000 dof).
+  const auto mean_bound = [&](double p, double z) {
+    const double k = 3.0 * n;
+    if (k <= 3000.0) return ChiSquareQuantile(p, static_cast<int>(k)) / n;
+    const double a = 2.0 / (9.0 * k);
+    return k * std::pow(1.0 - a + z * std::sqrt(a), 3) / n;
+  };
+  result.mean_lower = mean_bound(0.025, -1.959963984540054);
+  result.mean_upper = mean_bound(0.975, 1.959963984540054);
+  return result;
+}
+
+}  // namespace waymark

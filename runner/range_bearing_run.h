@@ -1,0 +1,51 @@
+// The range-bearing localizer (online/range_bearing_localizer.h) driven through a dataset: its
+// odometry and range_bearing.jsonl merged in time order, and the filter's consistency (NEES)
+// against a ground truth.
+//
+// The filter starts at dataset.yaml's start_prior (its sigmas as the start covariance) at the
+// first odometry stamp. Each odometry sample predicts; each range-bearing frame is applied at its
+// own stamp, the odometry interpolated there (frames outside the odometry's span are counted and
+// skipped). A pose (with its covariance) is output at every odometry stamp and every frame while
+// the filter is not lost; none while it is lost.
+//
+// NEES of an output pose against the true pose at its stamp (interpolated, within max_dt_s):
+//   e = [t_true - t, wrap(theta_true - theta)],  NEES = e^T P^-1 e   (3 dof)
+// Reported: the mean over the outputs, the share of outputs inside the two-sided 95 % interval of
+// chi-square(3) [0.216, 9.35], and the 95 % interval of the mean of N independent chi-square(3)
+// draws, [chi2inv(0.025, 3N) / N, chi2inv(0.975, 3N) / N] (consecutive outputs are correlated,
+// so this interval is the stricter reading).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "geometry/types.h"
+#include "online/range_bearing_localizer.h"
+
+namespace waymark {
+
+struct RangeBearingRun {
+  Trajectory poses;                          // T_world_robot while not lost
+  std::vector<Eigen::Matrix3d> covariances;  // of each pose, order [x y theta]
+  std::map<std::string, long> counts;        // the localizer's counts and "frames outside odometry"
+  long outputs_withheld = 0;                 // instants at which the filter was lost
+};
+
+// Throws std::runtime_error when the dataset has no odometry or no start_prior.
+RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap& map,
+                                         const RangeBearingLocalizerOptions& options);
+
+struct NeesResult {
+  size_t samples = 0;
+  double mean = 0.0;
+  double share_inside = 0.0;  // of samples inside [sample_lower, sample_upper]
+  double sample_lower = 0.0, sample_upper = 0.0;
+  double mean_lower = 0.0, mean_upper = 0.0;
+};
+
+// Throws std::runtime_error when no pose associates with the ground truth.
+NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
+                       const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s);
+
+}  // namespace waymark

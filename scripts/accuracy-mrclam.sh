@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Every MRCLAM figure of docs/accuracy.md ("Real robots: MRCLAM"), on one run of the UTIAS MRCLAM
+# dataset (default: ../shared/data/mrclam/MRCLAM_Dataset6; any other run directory works the same,
+# nothing here is specific to run 6):
+#   1. waymark import mrclam RUN --known-start   (dead reckoning per robot, misreads counted)
+#   2. waymark map build robot1 ... robot5        (one map of all five robots, smoothed trajectories)
+#   3. waymark eval: landmark RMSE after SE(2) alignment; per robot ATE and RPE (1 m) of the
+#      smoothed trajectory and of dead reckoning after SE(2) alignment; a top-view SVG per robot
+#   4. waymark map build robot1 robot2 robot3; waymark localize robot4 and robot5 against it
+#      (ATE in the map's frame, NEES)
+# Usage: scripts/accuracy-mrclam.sh [RUN_DIR] [OUT_DIR]   (OUT_DIR default: out/mrclam; needs
+# build/waymark: scripts/build.sh --target waymark)
+set -euo pipefail
+run=${1:-}
+out=${2:-}
+if [[ -n "$run" && "$run" != /* ]]; then run="$PWD/$run"; fi
+if [[ -n "$out" && "$out" != /* ]]; then out="$PWD/$out"; fi
+cd "$(dirname "$0")/.."
+run=${run:-../shared/data/mrclam/MRCLAM_Dataset6}
+out=${out:-out/mrclam}
+waymark=${WAYMARK_BINARY:-./build/waymark}
+mkdir -p "$out"
+
+echo "== import (dead reckoning from the true start pose, and after SE(2) alignment)"
+"$waymark" import mrclam "$run" --out "$out/data" --known-start
+robots=()
+for dir in "$out"/data/robot*; do robots+=("$(basename "$dir")"); done
+
+echo "== one map of all robots"
+"$waymark" map build "${robots[@]/#/$out/data/}" --out "$out/map-all.json" \
+  --trajectory-dir "$out/smoothed-all" --report "$out/map-all-report.json"
+gt_map="$out/data/${robots[0]}/groundtruth/markers.json"
+echo "== landmark error after SE(2) alignment"
+"$waymark" eval --map "$out/map-all.json" --gt-map "$gt_map" --json "$out/map-all-eval.json"
+
+for robot in "${robots[@]}"; do
+  gt="$out/data/$robot/groundtruth/trajectory.tum"
+  echo "== $robot: smoothed (all robots' map)"
+  "$waymark" eval --est "$out/smoothed-all/$robot.tum" --gt "$gt" --align se2 --max-dt 0.02 \
+    --rpe-delta 1 --rpe-unit m --markers "$out/map-all.json" --gt-map "$gt_map" \
+    --json "$out/$robot-smoothed-eval.json" --plot "$out/$robot-smoothed.svg"
+  echo "== $robot: dead reckoning"
+  "$waymark" eval --est "$out/data/$robot/odometry.tum" --gt "$gt" --align se2 --max-dt 0.02 \
+    --rpe-delta 1 --rpe-unit m --json "$out/$robot-dead-reckoning-eval.json"
+done
+
+if [[ ${#robots[@]} -ge 5 ]]; then
+  echo "== map of robots 1-3, robots 4 and 5 localized online against it"
+  "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" \
+    --out "$out/map-123.json" --trajectory-dir "$out/smoothed-123"
+  "$waymark" eval --map "$out/map-123.json" --gt-map "$gt_map"
+  for robot in robot4 robot5; do
+    echo "== $robot: online against the map of robots 1-3"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --out "$out/$robot-online.tum"
+    "$waymark" eval --est "$out/$robot-online.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
+      --align none --max-dt 0.02 --markers "$out/map-123.json" --gt-map "$gt_map" \
+      --plot "$out/$robot-online.svg"
+  done
+fi

@@ -1,0 +1,94 @@
+// factors/range_bearing_factor.h: zero at the truth, one hand-computed value (residuals
+// pre-filled with NaN), gradient checks against numeric differentiation at ten random states,
+// the degenerate case and bad input.
+#include "factors/range_bearing_factor.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <random>
+
+#include "tests/factors/factor_test_util.h"
+
+namespace waymark {
+namespace {
+
+TEST(RangeBearingFactor, ZeroAtTruthAndHandComputed) {
+  // Robot at (1, 2) facing +y; landmark at (1, 5): 3 m straight ahead.
+  double robot[3] = {1.0, 2.0, M_PI / 2};
+  double landmark[2] = {1.0, 5.0};
+  const double* parameters[2] = {robot, landmark};
+  double residuals[2] = {testing::kNaN, testing::kNaN};
+  const std::unique_ptr<ceres::CostFunction> exact(RangeBearingFactor::Create(3.0, 0.0, 0.1, 0.01));
+  ASSERT_TRUE(exact->Evaluate(parameters, residuals, nullptr));
+  EXPECT_NEAR(residuals[0], 0.0, 1e-12);
+  EXPECT_NEAR(residuals[1], 0.0, 1e-12);
+  // Measured 2.8 m at bearing 0.1 rad: the landmark is 0.2 m farther and 0.1 rad to the right.
+  const std::unique_ptr<ceres::CostFunction> off(RangeBearingFactor::Create(2.8, 0.1, 0.1, 0.01));
+  residuals[0] = residuals[1] = testing::kNaN;
+  ASSERT_TRUE(off->Evaluate(parameters, residuals, nullptr));
+  EXPECT_NEAR(residuals[0], 2.0, 1e-12);
+  EXPECT_NEAR(residuals[1], -10.0, 1e-12);
+  // Landmark behind-left at (0, 1) from robot at origin facing +x: range 1, bearing pi/2... and wrap:
+  // measured -3.1 rad for a true bearing of +3.1 rad gives a residual of 2 pi - 6.2 rad, not 6.2 rad.
+  double robot0[3] = {0.0, 0.0, 0.0};
+  double behind[2] = {std::cos(3.1), std::sin(3.1)};
+  const double* wrap_parameters[2] = {robot0, behind};
+  const std::unique_ptr<ceres::CostFunction> wrap(RangeBearingFactor::Create(1.0, -3.1, 1.0, 1.0));
+  ASSERT_TRUE(wrap->Evaluate(wrap_parameters, residuals, nullptr));
+  EXPECT_NEAR(residuals[1], 6.2 - 2 * M_PI, 1e-9);
+}
+
+TEST(RangeBearingFactor, GradientCheckTenRandomStates) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coordinate(-8.0, 8.0), angle(-3.0, 3.0), range(0.5, 6.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    double robot[3] = {coordinate(rng), coordinate(rng), angle(rng) + 2 * M_PI * (trial % 3 - 1)};
+    const double r = range(rng), b = angle(rng);
+    double landmark[2] = {robot[0] + r * std::cos(robot[2] + b), robot[1] + r * std::sin(robot[2] + b)};
+    const std::unique_ptr<ceres::CostFunction> cost(
+        RangeBearingFactor::Create(r + 0.1 * angle(rng), WrapAngle(b + 0.05 * angle(rng)), 0.05, 0.02));
+    testing::ExpectGradientsMatch(*cost, {nullptr, nullptr}, {robot, landmark}, 1e-6, "range-bearing");
+  }
+}
+
+TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
+  double robot[3] = {1.0, 2.0, M_PI / 2};
+  double landmark[2] = {1.0, 5.0};
+  double sensor[2] = {0.1, 0.02};  // ranges read 10 cm long, bearings 0.02 rad to the left
+  const double* parameters[3] = {robot, landmark, sensor};
+  double residuals[2] = {testing::kNaN, testing::kNaN};
+  const std::unique_ptr<ceres::CostFunction> exact(BiasedRangeBearingFactor::Create(3.1, 0.02, 0.1, 0.01));
+  ASSERT_TRUE(exact->Evaluate(parameters, residuals, nullptr));
+  EXPECT_NEAR(residuals[0], 0.0, 1e-12);
+  EXPECT_NEAR(residuals[1], 0.0, 1e-12);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    double r[3] = {u(rng), u(rng), u(rng)};
+    double l[2] = {r[0] + 2.0 + std::abs(u(rng)), r[1] + u(rng)};
+    double b[2] = {0.05 * u(rng), 0.01 * u(rng)};
+    const std::unique_ptr<ceres::CostFunction> cost(BiasedRangeBearingFactor::Create(2.5, 0.1 * u(rng), 0.05, 0.02));
+    testing::ExpectGradientsMatch(*cost, {nullptr, nullptr, nullptr}, {r, l, b}, 1e-6, "biased range-bearing");
+  }
+}
+
+TEST(RangeBearingFactor, LandmarkAtTheRobotIsRejected) {
+  double robot[3] = {1.0, 1.0, 0.3};
+  double landmark[2] = {1.0, 1.0 + 1e-4};
+  const double* parameters[2] = {robot, landmark};
+  double residuals[2];
+  const std::unique_ptr<ceres::CostFunction> cost(RangeBearingFactor::Create(1.0, 0.0, 0.1, 0.1));
+  EXPECT_FALSE(cost->Evaluate(parameters, residuals, nullptr));
+}
+
+TEST(RangeBearingFactor, RejectsBadInput) {
+  EXPECT_THROW(RangeBearingFactor(0.0, 0.0, 0.1, 0.1), std::invalid_argument);
+  EXPECT_THROW(RangeBearingFactor(1.0, std::nan(""), 0.1, 0.1), std::invalid_argument);
+  EXPECT_THROW(RangeBearingFactor(1.0, 0.0, 0.0, 0.1), std::invalid_argument);
+  EXPECT_THROW(RangeBearingFactor(1.0, 0.0, 0.1, -1.0), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace waymark

@@ -1,0 +1,99 @@
+// mapping/range_bearing_map.h on a synthetic room: two robots with biased odometry map ten
+// point landmarks to centimetres; gross outliers are set aside; without start priors the second
+// robot is placed through the shared landmarks; the estimated range noise follows the truth;
+// bad input is refused.
+#include "mapping/range_bearing_map.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tests/mapping/range_bearing_world.h"
+
+namespace waymark {
+namespace {
+
+using ::testing::HasSubstr;
+
+double LandmarkRms(const MarkerMap& estimate, const MarkerMap& truth) {
+  double sum = 0.0;
+  for (const MapMarker& m : estimate.markers) {
+    const MapMarker* t = truth.Find(m.key);
+    EXPECT_NE(t, nullptr);
+    sum += (m.T_world_marker.translation() - t->T_world_marker.translation()).squaredNorm();
+  }
+  return std::sqrt(sum / estimate.markers.size());
+}
+
+double TrajectoryRms(const Trajectory& estimate, const Trajectory& truth) {
+  double sum = 0.0;
+  for (const StampedSE3& pose : estimate) {
+    const SE3d T = *InterpolateTrajectory(truth, pose.stamp_s, 1.0);
+    sum += (T.translation() - pose.T.translation()).squaredNorm();
+  }
+  return std::sqrt(sum / estimate.size());
+}
+
+TEST(RangeBearingMap, TwoRobotsWithStartPriors) {
+  testing::RangeBearingWorldOptions world;
+  world.outlier_share = 0.03;
+  const Dataset a = testing::RangeBearingRobot(0, 1, world), b = testing::RangeBearingRobot(1, 2, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  EXPECT_EQ(result.map.markers.size(), 10u);
+  EXPECT_LT(LandmarkRms(result.map, *a.groundtruth_markers), 0.03);
+  EXPECT_LT(TrajectoryRms(result.trajectories.at("robot0"), *a.groundtruth_trajectory), 0.05);
+  EXPECT_LT(TrajectoryRms(result.trajectories.at("robot1"), *b.groundtruth_trajectory), 0.05);
+  EXPECT_GT(result.outliers, 0u);
+  // The estimated range noise is near the simulated 3 cm + 2 % of the range (at 3 m: 9 cm).
+  const double sigma_3m = result.noise.range_a_m + 3.0 * result.noise.range_b;
+  EXPECT_NEAR(sigma_3m, 0.09, 0.03);
+  EXPECT_NEAR(result.noise.bearing_rad, 0.01, 0.004);
+  ASSERT_TRUE(result.map.range_bearing_noise);
+  EXPECT_EQ(result.datasets[0].gauge, "start prior");
+  // The odometry's 3 % scale error is found (distance_scale = -3 % / 1.03).
+  EXPECT_NEAR(result.datasets[0].odometry_calibration[2], -0.029, 0.01);
+}
+
+TEST(RangeBearingMap, WithoutPriorsTheSecondRobotIsPlacedByTheLandmarks) {
+  testing::RangeBearingWorldOptions world;
+  world.start_prior = false;
+  const Dataset a = testing::RangeBearingRobot(0, 3, world), b = testing::RangeBearingRobot(1, 4, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  EXPECT_THAT(result.datasets[1].gauge, HasSubstr("placed by"));
+  // Align nothing: robot0 starts at the identity, the truth starts elsewhere; compare in
+  // robot0's start frame.
+  const SE2d T_world_start = SE2d::FromSE3(a.groundtruth_trajectory->front().T);
+  double sum = 0.0;
+  for (const MapMarker& m : result.map.markers) {
+    const Eigen::Vector2d p_world = T_world_start * Eigen::Vector2d(m.T_world_marker.translation().head<2>());
+    sum += (p_world - a.groundtruth_markers->Find(m.key)->T_world_marker.translation().head<2>()).squaredNorm();
+  }
+  EXPECT_LT(std::sqrt(sum / result.map.markers.size()), 0.05);
+}
+
+TEST(RangeBearingMap, RefusesBadInput) {
+  Dataset a = testing::RangeBearingRobot(0, 5, {});
+  Dataset no_odometry = a;
+  no_odometry.odometry.clear();
+  EXPECT_THROW(BuildRangeBearingMap({&no_odometry}), std::runtime_error);
+  Dataset twin = a;
+  EXPECT_THROW(BuildRangeBearingMap({&a, &twin}), std::runtime_error);
+  RangeBearingBuildOptions options;
+  options.keyframe_interval_s = 0.0;
+  EXPECT_THROW(BuildRangeBearingMap({&a}, options), std::invalid_argument);
+  // A second robot that sees nothing and has no prior cannot be placed.
+  testing::RangeBearingWorldOptions world;
+  world.start_prior = false;
+  Dataset blind = testing::RangeBearingRobot(1, 6, world);
+  blind.range_bearing.clear();
+  try {
+    BuildRangeBearingMap({&a, &blind});
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("robot1: shares fewer than two landmarks"));
+  }
+}
+
+}  // namespace
+}  // namespace waymark

@@ -1,0 +1,160 @@
+// online/range_bearing_localizer.h: F and H against central differences (asserted), a zero
+// innovation keeps the mean and shrinks P, P stays symmetric positive definite, unknown codes
+// and gross outliers are rejected and counted, a long run of rejections makes the filter lost
+// (and it regains the track), and the Monte-Carlo mean NEES lies inside its 95 % bounds.
+#include "online/range_bearing_localizer.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <random>
+
+#include "online/chi_square.h"
+#include "tests/online/jacobian_check.h"
+
+namespace waymark {
+namespace {
+
+MarkerMap TwoLandmarks() {
+  MarkerMap map;
+  for (const auto& [id, x, y] : {std::tuple<const char*, double, double>{"1", 3.0, 1.0}, {"2", 2.0, -2.0}}) {
+    MapMarker m;
+    m.is_point = true;
+    m.key = {kFamilyBarcode, id};
+    m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(x, y, 0.0));
+    map.markers.push_back(m);
+  }
+  return map;
+}
+
+RangeBearingObservation Sighting(const std::string& id, const Eigen::Vector2d& z) {
+  RangeBearingObservation obs;
+  obs.key = {kFamilyBarcode, id};
+  obs.range_m = z[0];
+  obs.bearing_rad = z[1];
+  return obs;
+}
+
+TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    const Eigen::Vector3d x(u(rng), u(rng), u(rng));
+    const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
+    const auto predict = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
+      const SE2d T = SE2d(s[0], s[1], s[2]) * M;
+      return Eigen::Vector3d(T.x(), T.y(), s[2] + M.theta());
+    };
+    const Eigen::MatrixXd F_numeric = testing::NumericJacobian(predict, x);
+    EXPECT_LT((F_numeric - RangeBearingLocalizer::PredictJacobian(x, M)).cwiseAbs().maxCoeff(), 1e-6);
+    const Eigen::Vector2d l(u(rng) + 4.0, u(rng));
+    const auto measure = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
+      return RangeBearingLocalizer::Measure(s, l);
+    };
+    const auto wrap = [](Eigen::VectorXd d) {
+      d[1] = WrapAngle(d[1]);
+      return d;
+    };
+    const Eigen::MatrixXd H_numeric = testing::NumericJacobian(measure, x, 1e-6, wrap);
+    EXPECT_LT((H_numeric - RangeBearingLocalizer::MeasureJacobian(x, l)).cwiseAbs().maxCoeff(), 1e-6);
+  }
+}
+
+TEST(RangeBearingLocalizer, ZeroInnovationKeepsTheMeanAndShrinksP) {
+  const SE2d start(0.5, 0.2, 0.1);
+  RangeBearingLocalizer filter(TwoLandmarks(), {}, start, Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal());
+  const Eigen::Vector3d x(start.x(), start.y(), start.theta());
+  const Eigen::Matrix3d P_before = filter.covariance();
+  EXPECT_EQ(filter.Update(Sighting("1", RangeBearingLocalizer::Measure(x, {3.0, 1.0}))), RangeBearingUpdate::kAccepted);
+  EXPECT_NEAR((Eigen::Vector3d(filter.pose().x(), filter.pose().y(), filter.pose().theta()) - x).norm(), 0.0, 1e-12);
+  EXPECT_LT(filter.covariance().trace(), P_before.trace());
+  EXPECT_LT((filter.covariance() - filter.covariance().transpose()).cwiseAbs().maxCoeff(), 1e-15);
+  EXPECT_EQ(Eigen::LLT<Eigen::Matrix3d>(filter.covariance()).info(), Eigen::Success);
+}
+
+TEST(RangeBearingLocalizer, UnknownCodesAndGrossOutliersAreRejectedAndCounted) {
+  RangeBearingLocalizer filter(TwoLandmarks(), {}, SE2d(), Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal());
+  EXPECT_EQ(filter.Update(Sighting("99", {2.0, 0.1})), RangeBearingUpdate::kUnknownLandmark);
+  EXPECT_EQ(filter.Update(Sighting("1", {8.0, 0.3})), RangeBearingUpdate::kGated);  // true range 3.16
+  EXPECT_EQ(filter.counts().at("unknown landmark"), 1);
+  EXPECT_EQ(filter.counts().at("gated"), 1);
+  EXPECT_NEAR(filter.pose().x(), 0.0, 1e-15);
+  EXPECT_FALSE(filter.lost());
+}
+
+TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
+  RangeBearingLocalizerOptions options;
+  options.lost_rejections = 3;
+  // The filter believes it is at the origin; the robot is at (1, 0.5) heading 0.
+  RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(), Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal());
+  const Eigen::Vector3d truth(1.0, 0.5, 0.0);
+  for (int i = 0; i < 3; ++i) filter.Update(Sighting("1", RangeBearingLocalizer::Measure(truth, {3.0, 1.0})));
+  EXPECT_TRUE(filter.lost());
+  for (int i = 0; i < 30; ++i) {
+    filter.Update(Sighting("1", RangeBearingLocalizer::Measure(truth, {3.0, 1.0})));
+    filter.Update(Sighting("2", RangeBearingLocalizer::Measure(truth, {2.0, -2.0})));
+  }
+  EXPECT_FALSE(filter.lost());
+  EXPECT_NEAR(filter.pose().x(), 1.0, 0.05);
+  EXPECT_NEAR(filter.pose().y(), 0.5, 0.05);
+  EXPECT_EQ(filter.counts().at("became lost"), 1);
+  EXPECT_EQ(filter.counts().at("regained"), 1);
+}
+
+TEST(RangeBearingLocalizer, MonteCarloNeesInsideBounds) {
+  RangeBearingLocalizerOptions options;
+  options.noise.range_a_m = 0.05;
+  options.noise.range_b = 0.01;
+  options.noise.bearing_rad = 0.02;
+  options.noise.odometry_q_t = 1e-4;
+  options.noise.odometry_q_r = 1e-4;
+  options.noise.odometry_c_d = 0.1;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const MarkerMap map = TwoLandmarks();
+  const int runs = 200;
+  double sum = 0.0;
+  for (int run = 0; run < runs; ++run) {
+    const Eigen::Vector3d sigma0(0.05, 0.05, 0.02);
+    SE2d truth;
+    const SE2d start(sigma0[0] * n(rng), sigma0[1] * n(rng), sigma0[2] * n(rng));
+    RangeBearingLocalizer filter(map, options, start, Eigen::Matrix3d(sigma0.cwiseAbs2().asDiagonal()));
+    for (int step = 0; step < 50; ++step) {
+      const SE2d M(0.05, 0.0, 0.01);
+      // The true increment differs from M by the model's noise.
+      const double d = 0.05;
+      const double st = std::sqrt(options.noise.odometry_q_t * (d + 1e-3));
+      const double sr = std::sqrt(options.noise.odometry_q_r * (0.01 + 0.1 * d + 1e-3));
+      truth = truth * SE2d(0.05 + st * n(rng), st * n(rng), 0.01 + sr * n(rng));
+      filter.Predict(M);
+      if (step % 5 == 4) {
+        const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+        for (const char* id : {"1", "2"}) {
+          const Eigen::Vector2d l = map.Find({kFamilyBarcode, id})->T_world_marker.translation().head<2>();
+          Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
+          z[0] += (0.05 + 0.01 * z[0]) * n(rng);
+          z[1] = WrapAngle(z[1] + 0.02 * n(rng));
+          filter.Update(Sighting(id, z));
+        }
+      }
+    }
+    const Eigen::Vector3d e(truth.x() - filter.pose().x(), truth.y() - filter.pose().y(),
+                            WrapAngle(truth.theta() - filter.pose().theta()));
+    sum += e.dot(filter.covariance().llt().solve(e));
+  }
+  const double mean = sum / runs;
+  EXPECT_GT(mean, ChiSquareQuantile(0.025, 3 * runs) / runs);
+  EXPECT_LT(mean, ChiSquareQuantile(0.975, 3 * runs) / runs);
+}
+
+TEST(RangeBearingLocalizer, RefusesBadInput) {
+  RangeBearingLocalizerOptions options;
+  options.noise.bearing_rad = 0.0;
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), options, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), {}, SE2d(), -Eigen::Matrix3d::Identity()), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace waymark
