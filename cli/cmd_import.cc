@@ -103,9 +103,8 @@ int RunMrclam(const std::vector<std::string>& argv) {
   return 0;
 }
 
-const CommandRegistrar kRegistrar(Command{"import mrclam",
-                                          "convert an UTIAS MRCLAM run into one dataset per robot", kUsage,
-                                          RunMrclam});
+const CommandRegistrar kRegistrar(Command{
+    "import mrclam", "convert an UTIAS MRCLAM run into one dataset per robot", kUsage, RunMrclam});
 
 }  // namespace
 }  // namespace waymark::cli

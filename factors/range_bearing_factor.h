@@ -39,10 +39,11 @@ class RangeBearingFactor {
     if (!std::isfinite(range_m) || !(range_m > 0.0) || !std::isfinite(bearing_rad) ||
         !std::isfinite(sigma_range_m) || !(sigma_range_m > 0.0) || !std::isfinite(sigma_bearing_rad) ||
         !(sigma_bearing_rad > 0.0)) {
-      throw std::invalid_argument("range-bearing factor: expected a positive range, a finite bearing and positive "
-                                  "sigmas, got range " +
-                                  FormatDouble(range_m) + ", bearing " + FormatDouble(bearing_rad) + ", sigmas " +
-                                  FormatDouble(sigma_range_m) + ", " + FormatDouble(sigma_bearing_rad));
+      throw std::invalid_argument(
+          "range-bearing factor: expected a positive range, a finite bearing and positive "
+          "sigmas, got range " +
+          FormatDouble(range_m) + ", bearing " + FormatDouble(bearing_rad) + ", sigmas " +
+          FormatDouble(sigma_range_m) + ", " + FormatDouble(sigma_bearing_rad));
     }
   }
 
@@ -91,7 +92,8 @@ class BiasedRangeBearingFactor {
         inv_sigma_bearing_(1.0 / sigma_bearing_rad) {}
 
   template <typename T>
-  bool operator()(const T* const T_world_robot, const T* const l_world, const T* const sensor, T* residuals) const {
+  bool operator()(const T* const T_world_robot, const T* const l_world, const T* const sensor,
+                  T* residuals) const {
     if (!plain_(T_world_robot, l_world, residuals)) return false;
     residuals[0] += sensor[0] * T(inv_sigma_range_);
     residuals[1] = WrapAngleT(residuals[1] / T(inv_sigma_bearing_) + sensor[1]) * T(inv_sigma_bearing_);
@@ -100,7 +102,8 @@ class BiasedRangeBearingFactor {
 
   static ceres::CostFunction* Create(double range_m, double bearing_rad, double sigma_range_m,
                                      double sigma_bearing_rad) {
-    return new ceres::AutoDiffCostFunction<BiasedRangeBearingFactor, 2, kSE2BlockSize, kPointLandmark2Size, 2>(
+    return new ceres::AutoDiffCostFunction<BiasedRangeBearingFactor, 2, kSE2BlockSize, kPointLandmark2Size,
+                                           2>(
         new BiasedRangeBearingFactor(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad));
   }
 
@@ -122,7 +125,8 @@ struct SensorBiasPrior {
     return true;
   }
   static ceres::CostFunction* Create(double sigma_range_m, double sigma_bearing_rad) {
-    return new ceres::AutoDiffCostFunction<SensorBiasPrior, 2, 2>(new SensorBiasPrior(sigma_range_m, sigma_bearing_rad));
+    return new ceres::AutoDiffCostFunction<SensorBiasPrior, 2, 2>(
+        new SensorBiasPrior(sigma_range_m, sigma_bearing_rad));
   }
   const double inv_range_, inv_bearing_;
 };

@@ -16,7 +16,8 @@ constexpr double kPi = 3.14159265358979323846;
 
 std::vector<MrclamRow> ReadTable(const fs::path& path, size_t columns, const std::string& what) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw FormatError(path, "missing file (expected columns: " + what + ")");
+  if (!fs::is_regular_file(path, ec))
+    throw FormatError(path, "missing file (expected columns: " + what + ")");
   return ParseMrclamTable(ReadTextFile(path), path, columns, what);
 }
 
@@ -32,8 +33,8 @@ void CheckNonDecreasing(const fs::path& path, const std::vector<MrclamRow>& rows
   for (size_t i = 1; i < rows.size(); ++i) {
     if (rows[i].values[0] < rows[i - 1].values[0]) {
       throw FormatError(path, rows[i].line,
-                        "time: expected non-decreasing stamps, got " + FormatDouble(rows[i].values[0]) + " after " +
-                            FormatDouble(rows[i - 1].values[0]));
+                        "time: expected non-decreasing stamps, got " + FormatDouble(rows[i].values[0]) +
+                            " after " + FormatDouble(rows[i - 1].values[0]));
     }
   }
 }
@@ -67,8 +68,9 @@ std::vector<MrclamRow> ParseMrclamTable(const std::string& text, const fs::path&
     while (in >> token) {
       const std::optional<double> value = ParseFiniteDouble(token);
       if (!value) {
-        throw FormatError(path, line_number,
-                          "expected " + std::to_string(columns) + " numbers (" + what + "), got '" + token + "'");
+        throw FormatError(
+            path, line_number,
+            "expected " + std::to_string(columns) + " numbers (" + what + "), got '" + token + "'");
       }
       row.values.push_back(*value);
     }
@@ -100,7 +102,8 @@ MrclamImport ImportMrclam(const fs::path& run_dir, const MrclamImportOptions& op
   if (barcode_of_subject.empty()) throw FormatError(barcodes_path, "no subjects");
   std::set<long> robots;
   for (const auto& [subject, barcode] : barcode_of_subject) {
-    if (fs::exists(run_dir / ("Robot" + std::to_string(subject) + "_Odometry.dat"), ec)) robots.insert(subject);
+    if (fs::exists(run_dir / ("Robot" + std::to_string(subject) + "_Odometry.dat"), ec))
+      robots.insert(subject);
   }
   if (robots.empty()) throw FormatError(run_dir, "no RobotN_Odometry.dat for any subject N of Barcodes.dat");
 
@@ -119,7 +122,8 @@ MrclamImport ImportMrclam(const fs::path& run_dir, const MrclamImportOptions& op
     marker.key = {kFamilyBarcode, std::to_string(it->second)};
     if (landmarks_truth.Find(marker.key))
       throw FormatError(landmarks_path, row.line, "subject " + std::to_string(subject) + " listed twice");
-    marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(row.values[1], row.values[2], 0.0));
+    marker.T_world_marker =
+        SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(row.values[1], row.values[2], 0.0));
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     covariance(0, 0) = row.values[3] * row.values[3];
     covariance(1, 1) = row.values[4] * row.values[4];
@@ -142,7 +146,8 @@ MrclamImport ImportMrclam(const fs::path& run_dir, const MrclamImportOptions& op
     CheckNonDecreasing(odometry_path, odometry_rows);
     if (odometry_rows.size() < 2) throw FormatError(odometry_path, "expected at least 2 velocity samples");
     std::vector<VelocitySample> samples;
-    for (const MrclamRow& row : odometry_rows) samples.push_back({row.values[0], row.values[1], row.values[2]});
+    for (const MrclamRow& row : odometry_rows)
+      samples.push_back({row.values[0], row.values[1], row.values[2]});
     Trajectory odometry = IntegrateVelocities(samples);
     // Equal stamps give equal poses: keep one (TUM stamps of a trajectory increase).
     Trajectory unique;
@@ -166,7 +171,8 @@ MrclamImport ImportMrclam(const fs::path& run_dir, const MrclamImportOptions& op
       const long barcode = AsInteger(measurement_path, row, 1, "barcode");
       const double range_m = row.values[2], bearing_rad = row.values[3];
       if (!(range_m > 0.0)) {
-        throw FormatError(measurement_path, row.line, "range: expected a positive range, got " + FormatDouble(range_m));
+        throw FormatError(measurement_path, row.line,
+                          "range: expected a positive range, got " + FormatDouble(range_m));
       }
       if (std::abs(bearing_rad) > kPi) {
         throw FormatError(measurement_path, row.line,
@@ -209,7 +215,8 @@ MrclamImport ImportMrclam(const fs::path& run_dir, const MrclamImportOptions& op
     dataset.groundtruth_trajectory = ReadGroundtruth(truth_path);
     dataset.groundtruth_markers = landmarks_truth;
     if (options.known_start) {
-      const std::optional<SE3d> T_world_start = InterpolateTrajectory(*dataset.groundtruth_trajectory, t_first, 1.0);
+      const std::optional<SE3d> T_world_start =
+          InterpolateTrajectory(*dataset.groundtruth_trajectory, t_first, 1.0);
       if (!T_world_start) {
         throw FormatError(truth_path, "no ground-truth pose within 1 s around the first odometry stamp " +
                                           FormatDouble(t_first) + " (needed by --known-start)");

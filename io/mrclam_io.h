@@ -39,8 +39,8 @@ struct MrclamRow {
   long line = 0;
   std::vector<double> values;
 };
-std::vector<MrclamRow> ParseMrclamTable(const std::string& text, const std::filesystem::path& path, size_t columns,
-                                        const std::string& what);
+std::vector<MrclamRow> ParseMrclamTable(const std::string& text, const std::filesystem::path& path,
+                                        size_t columns, const std::string& what);
 
 struct MrclamImportOptions {
   bool known_start = false;
@@ -56,12 +56,12 @@ struct MrclamImportOptions {
 struct MrclamRobotReport {
   std::string name;
   size_t odometry_samples = 0;
-  size_t frames = 0;             // lines of range_bearing.jsonl
+  size_t frames = 0;  // lines of range_bearing.jsonl
   size_t landmark_observations = 0;
   size_t robot_sightings = 0;
-  size_t misreads = 0;           // barcodes in no list
-  size_t own_barcode = 0;        // the robot's own barcode (a misread too)
-  size_t outside_odometry = 0;   // measurements before the first or after the last odometry stamp
+  size_t misreads = 0;          // barcodes in no list
+  size_t own_barcode = 0;       // the robot's own barcode (a misread too)
+  size_t outside_odometry = 0;  // measurements before the first or after the last odometry stamp
   std::map<std::string, size_t> misread_barcodes;  // barcode -> count
 };
 

@@ -56,7 +56,8 @@ std::optional<double> OptionalChecked(const JsonSource& source, const nlohmann::
 
 RangeBearingObservation ParseLandmark(const JsonSource& source, const nlohmann::json& value,
                                       const std::string& field, ReadWarnings* warnings) {
-  if (!value.is_object()) ThrowJsonError(source, field, "expected an object {family, id, range_m, bearing_rad}");
+  if (!value.is_object())
+    ThrowJsonError(source, field, "expected an object {family, id, range_m, bearing_rad}");
   RangeBearingObservation obs;
   obs.key.family =
       JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
@@ -69,8 +70,8 @@ RangeBearingObservation ParseLandmark(const JsonSource& source, const nlohmann::
   if (obs.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
   obs.range_m = Checked(source, value, field, "range_m", CheckRange);
   obs.bearing_rad = Checked(source, value, field, "bearing_rad", [](double a) { return CheckAngle(a, kPi); });
-  obs.elevation_rad =
-      OptionalChecked(source, value, field, "elevation_rad", [](double a) { return CheckAngle(a, 0.5 * kPi); });
+  obs.elevation_rad = OptionalChecked(source, value, field, "elevation_rad",
+                                      [](double a) { return CheckAngle(a, 0.5 * kPi); });
   obs.sigma_range_m = OptionalChecked(source, value, field, "sigma_range_m", CheckSigma);
   obs.sigma_bearing_rad = OptionalChecked(source, value, field, "sigma_bearing_rad", CheckSigma);
   obs.sigma_elevation_rad = OptionalChecked(source, value, field, "sigma_elevation_rad", CheckSigma);
@@ -83,17 +84,20 @@ RangeBearingObservation ParseLandmark(const JsonSource& source, const nlohmann::
 
 RobotSighting ParseRobot(const JsonSource& source, const nlohmann::json& value, const std::string& field,
                          ReadWarnings* warnings) {
-  if (!value.is_object()) ThrowJsonError(source, field, "expected an object {robot, barcode, range_m, bearing_rad}");
+  if (!value.is_object())
+    ThrowJsonError(source, field, "expected an object {robot, barcode, range_m, bearing_rad}");
   RobotSighting sighting;
   sighting.robot =
       JsonString(source, *JsonMember(source, value, field, "robot", true), JsonField(field, "robot"));
   sighting.barcode =
       JsonString(source, *JsonMember(source, value, field, "barcode", true), JsonField(field, "barcode"));
-  if (sighting.robot.empty()) ThrowJsonError(source, JsonField(field, "robot"), "expected a non-empty string");
+  if (sighting.robot.empty())
+    ThrowJsonError(source, JsonField(field, "robot"), "expected a non-empty string");
   if (sighting.barcode.empty())
     ThrowJsonError(source, JsonField(field, "barcode"), "expected a non-empty string");
   sighting.range_m = Checked(source, value, field, "range_m", CheckRange);
-  sighting.bearing_rad = Checked(source, value, field, "bearing_rad", [](double a) { return CheckAngle(a, kPi); });
+  sighting.bearing_rad =
+      Checked(source, value, field, "bearing_rad", [](double a) { return CheckAngle(a, kPi); });
   JsonWarnUnknownKeys(source, value, field, {"robot", "barcode", "range_m", "bearing_rad"}, warnings);
   return sighting;
 }
@@ -125,9 +129,10 @@ RangeBearingFrame ParseFrame(const JsonSource& source, const nlohmann::json& roo
   for (const auto& [key, n] : count) {
     if (n < 2) continue;
     if (warnings) {
-      warnings->Add("duplicate landmark in frame",
-                    JsonErrorText(source, "landmarks",
-                                  key.ToString() + " seen " + std::to_string(n) + " times in one frame, all ignored"));
+      warnings->Add(
+          "duplicate landmark in frame",
+          JsonErrorText(source, "landmarks",
+                        key.ToString() + " seen " + std::to_string(n) + " times in one frame, all ignored"));
     }
     std::vector<RangeBearingObservation> kept;
     for (RangeBearingObservation& obs : frame.landmarks) {
@@ -211,11 +216,14 @@ std::string FormatRangeBearingLine(const RangeBearingFrame& frame) {
   if (!frame.robots.empty()) {
     root["robots"] = nlohmann::ordered_json::array();
     for (const RobotSighting& s : frame.robots) {
-      if (s.robot.empty() || s.barcode.empty()) throw std::invalid_argument(name + "robot sighting without names");
+      if (s.robot.empty() || s.barcode.empty())
+        throw std::invalid_argument(name + "robot sighting without names");
       check(CheckRange(s.range_m));
       check(CheckAngle(s.bearing_rad, kPi));
-      root["robots"].push_back(
-          {{"robot", s.robot}, {"barcode", s.barcode}, {"range_m", s.range_m}, {"bearing_rad", s.bearing_rad}});
+      root["robots"].push_back({{"robot", s.robot},
+                                {"barcode", s.barcode},
+                                {"range_m", s.range_m},
+                                {"bearing_rad", s.bearing_rad}});
     }
   }
   return root.dump();
@@ -225,7 +233,8 @@ std::string FormatRangeBearing(const std::vector<RangeBearingFrame>& frames) {
   std::string text;
   for (size_t i = 0; i < frames.size(); ++i) {
     if (i > 0 && frames[i].stamp_s < frames[i - 1].stamp_s)
-      throw std::invalid_argument("range_bearing writer: stamps decrease at t=" + FormatDouble(frames[i].stamp_s));
+      throw std::invalid_argument("range_bearing writer: stamps decrease at t=" +
+                                  FormatDouble(frames[i].stamp_s));
     text += FormatRangeBearingLine(frames[i]) + "\n";
   }
   return text;

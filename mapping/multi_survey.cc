@@ -20,7 +20,8 @@ std::pair<double, double> Span(const Dataset& dataset) {
   for (const StampedSE3& pose : dataset.odometry) add(pose.stamp_s);
   for (const DetectionFrame& frame : dataset.detections) add(frame.stamp_s);
   for (const ImageEntry& image : dataset.images) add(image.stamp_s);
-  if (!(begin <= end)) throw std::runtime_error(dataset.config.name + ": nothing with a stamp (no odometry, no detections)");
+  if (!(begin <= end))
+    throw std::runtime_error(dataset.config.name + ": nothing with a stamp (no odometry, no detections)");
   return {begin, end};
 }
 
@@ -46,12 +47,14 @@ CombinedSurvey CombineSurveys(const std::vector<const Dataset*>& datasets, doubl
   for (size_t k = 0; k < datasets.size(); ++k) {
     const Dataset& d = *datasets[k];
     const std::string& name = d.config.name;
-    if (!names.insert(name).second) throw std::runtime_error("two datasets are named " + name + " (dataset.yaml name)");
+    if (!names.insert(name).second)
+      throw std::runtime_error("two datasets are named " + name + " (dataset.yaml name)");
     const auto disagree = [&](const std::string& what) {
       throw std::runtime_error(name + ": " + what + " differs from " + first.config.name + "'s");
     };
     if (d.config.motion != first.config.motion) disagree("motion");
-    if (d.config.default_marker_size_m != first.config.default_marker_size_m) disagree("default_marker_size_m");
+    if (d.config.default_marker_size_m != first.config.default_marker_size_m)
+      disagree("default_marker_size_m");
     if (!SameSigma(d.config.odometry_sigma, first.config.odometry_sigma)) disagree("odometry_sigma");
     if (d.config.payload.has_value() != first.config.payload.has_value() ||
         (d.config.payload && (d.config.payload->pattern != first.config.payload->pattern ||
@@ -97,9 +100,10 @@ CombinedSurvey CombineSurveys(const std::vector<const Dataset*>& datasets, doubl
           out.known_markers->markers.push_back(marker);
         } else if (existing->size_m != marker.size_m || existing->has_pose != marker.has_pose ||
                    existing->fixed != marker.fixed ||
-                   (existing->has_pose && !(existing->T_world_marker.translation() == marker.T_world_marker.translation() &&
-                                            existing->T_world_marker.rotation().coeffs() ==
-                                                marker.T_world_marker.rotation().coeffs()))) {
+                   (existing->has_pose &&
+                    !(existing->T_world_marker.translation() == marker.T_world_marker.translation() &&
+                      existing->T_world_marker.rotation().coeffs() ==
+                          marker.T_world_marker.rotation().coeffs()))) {
           throw std::runtime_error(name + ": markers.json entry " + marker.key.ToString() +
                                    " differs from the same code's entry in an earlier dataset");
         }
@@ -112,7 +116,8 @@ CombinedSurvey CombineSurveys(const std::vector<const Dataset*>& datasets, doubl
   return combined;
 }
 
-std::map<std::string, Trajectory> SplitTrajectory(const CombinedSurvey& combined, const Trajectory& trajectory) {
+std::map<std::string, Trajectory> SplitTrajectory(const CombinedSurvey& combined,
+                                                  const Trajectory& trajectory) {
   std::map<std::string, Trajectory> parts;
   for (const SurveyPart& part : combined.parts) {
     Trajectory& own = parts[part.name];

@@ -20,7 +20,7 @@ namespace waymark {
 
 struct SurveyPart {
   std::string name;
-  double offset_s = 0.0;         // combined stamp = own stamp + offset_s
+  double offset_s = 0.0;              // combined stamp = own stamp + offset_s
   double begin_s = 0.0, end_s = 0.0;  // combined stamps of the part's first and last sample
 };
 
@@ -33,6 +33,7 @@ struct CombinedSurvey {
 CombinedSurvey CombineSurveys(const std::vector<const Dataset*>& datasets, double gap_s);
 
 // The poses of `trajectory` (combined stamps) that fall in each part, back at their own stamps.
-std::map<std::string, Trajectory> SplitTrajectory(const CombinedSurvey& combined, const Trajectory& trajectory);
+std::map<std::string, Trajectory> SplitTrajectory(const CombinedSurvey& combined,
+                                                  const Trajectory& trajectory);
 
 }  // namespace waymark

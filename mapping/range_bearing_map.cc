@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <set>
 #include <stdexcept>
@@ -49,8 +49,8 @@ bool HasRangeBearing(const std::vector<const Dataset*>& datasets) {
 
 namespace {
 
-constexpr double kLinkFloorM = 1e-3;      // d0 of the header
-constexpr double kLinkFloorRad = 1e-3;    // th0
+constexpr double kLinkFloorM = 1e-3;    // d0 of the header
+constexpr double kLinkFloorRad = 1e-3;  // th0
 constexpr int kMinRangeBinCount = 30;
 
 struct Node {
@@ -85,8 +85,8 @@ struct DatasetState {
   double calibration[3] = {0.0, 0.0, 0.0};
   double sensor[2] = {0.0, 0.0};  // range offset, bearing offset (factors/range_bearing_factor.h)
   RangeBearingNoise noise;        // this dataset's own, estimated in stage (2)
-  bool placed = false;  // nodes have world poses
-  size_t active = 0;    // nodes [0, active) are in the problem
+  bool placed = false;            // nodes have world poses
+  size_t active = 0;              // nodes [0, active) are in the problem
   RangeBearingDatasetSummary summary;
 };
 
@@ -123,7 +123,8 @@ double SigmaBearing(const Observation& obs, const RangeBearingNoise& noise) {
 
 // Range and bearing of `p_world` from `T_world_robot`.
 Eigen::Vector2d Predict(const SE2d& T_world_robot, const Eigen::Vector2d& p_world) {
-  const Eigen::Vector2d p = T_world_robot.rotation_matrix().transpose() * (p_world - T_world_robot.translation());
+  const Eigen::Vector2d p =
+      T_world_robot.rotation_matrix().transpose() * (p_world - T_world_robot.translation());
   return Eigen::Vector2d(p.norm(), std::atan2(p.y(), p.x()));
 }
 
@@ -132,15 +133,16 @@ Eigen::Vector2d Error(const Observation& obs, const std::vector<DatasetState>& s
                       const std::map<MarkerKey, Landmark>& landmarks) {
   const Landmark& l = landmarks.at(obs.key);
   const DatasetState& state = states[obs.dataset];
-  const Eigen::Vector2d predicted = Predict(state.nodes[obs.node].Pose(), Eigen::Vector2d(l.block[0], l.block[1]));
+  const Eigen::Vector2d predicted =
+      Predict(state.nodes[obs.node].Pose(), Eigen::Vector2d(l.block[0], l.block[1]));
   return Eigen::Vector2d(predicted[0] + state.sensor[0] - obs.range_m,
                          WrapAngle(predicted[1] + state.sensor[1] - obs.bearing_rad));
 }
 
 // The range sigma line and the bearing sigma from residuals (the header's stage 2); false (and
 // `noise` unchanged) when there are too few.
-bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors, std::vector<double> bearing_errors,
-                         RangeBearingNoise* noise);
+bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors,
+                         std::vector<double> bearing_errors, RangeBearingNoise* noise);
 
 // Rigid 2-D fit dst ~ R src + t (Kabsch); needs >= 2 points.
 SE2d FitRigid2D(const std::vector<Eigen::Vector2d>& src, const std::vector<Eigen::Vector2d>& dst) {
@@ -223,8 +225,8 @@ void Builder::Ingest(size_t k, const Dataset& dataset) {
   }
   for (const RangeBearingFrame& frame : dataset.range_bearing) {
     if (frame.stamp_s < t_first || frame.stamp_s > t_last) continue;
-    const size_t node = static_cast<size_t>(std::lower_bound(stamps.begin(), stamps.end(), frame.stamp_s) -
-                                            stamps.begin());
+    const size_t node =
+        static_cast<size_t>(std::lower_bound(stamps.begin(), stamps.end(), frame.stamp_s) - stamps.begin());
     for (const RangeBearingObservation& rb : frame.landmarks) {
       Observation obs;
       obs.dataset = k;
@@ -274,8 +276,9 @@ bool Builder::TryPlace(DatasetState* state, double end_s) {
   const SE2d T_world_odom = FitRigid2D(src, dst);
   state->nodes.front().Set(T_world_odom * state->nodes.front().T_odom_robot);
   state->placed = true;
-  state->summary.gauge = "placed by " + std::to_string(src.size()) + " shared landmarks at t=" +
-                         FormatFixed(end_s - state->nodes.front().stamp_s, 1) + " s";
+  state->summary.gauge = "placed by " + std::to_string(src.size()) +
+                         " shared landmarks at t=" + FormatFixed(end_s - state->nodes.front().stamp_s, 1) +
+                         " s";
   return true;
 }
 
@@ -309,8 +312,9 @@ void Builder::PlaceLandmarks() {
     if (obs.node >= state.active) continue;
     Landmark& l = landmarks_.at(obs.key);
     if (l.placed) continue;
-    const Eigen::Vector2d p = state.nodes[obs.node].Pose() * Eigen::Vector2d(obs.range_m * std::cos(obs.bearing_rad),
-                                                                             obs.range_m * std::sin(obs.bearing_rad));
+    const Eigen::Vector2d p =
+        state.nodes[obs.node].Pose() *
+        Eigen::Vector2d(obs.range_m * std::cos(obs.bearing_rad), obs.range_m * std::sin(obs.bearing_rad));
     l.block[0] = p.x();
     l.block[1] = p.y();
     l.placed = true;
@@ -331,8 +335,8 @@ double Builder::Solve(bool robust) {
       const Node& b = state.nodes[i];
       const SE2d M = a.T_odom_robot.inverse() * b.T_odom_robot;
       problem.AddResidualBlock(
-          CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)), nullptr,
-          state.nodes[i - 1].block, state.nodes[i].block, state.calibration);
+          CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)),
+          nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration);
       links = true;
     }
     if (links) {
@@ -343,10 +347,9 @@ double Builder::Solve(bool robust) {
     const auto& prior = state.dataset->config.start_prior;
     if (options_.use_start_priors && prior) {
       const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);
-      problem.AddResidualBlock(
-          PosePriorSE2Factor::Create(SE2d::FromSE3(prior->T_world_robot),
-                                     Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal())),
-          nullptr, state.nodes.front().block);
+      problem.AddResidualBlock(PosePriorSE2Factor::Create(SE2d::FromSE3(prior->T_world_robot),
+                                                          Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal())),
+                               nullptr, state.nodes.front().block);
       any_prior = true;
     }
   }
@@ -356,10 +359,10 @@ double Builder::Solve(bool robust) {
     Landmark& l = landmarks_.at(obs.key);
     DatasetState& state = states_[obs.dataset];
     ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
-    problem.AddResidualBlock(BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad,
-                                                              SigmaRange(obs, state.noise),
-                                                              SigmaBearing(obs, state.noise)),
-                             loss, state.nodes[obs.node].block, l.block, state.sensor);
+    problem.AddResidualBlock(
+        BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
+                                         SigmaBearing(obs, state.noise)),
+        loss, state.nodes[obs.node].block, l.block, state.sensor);
   }
   for (DatasetState& state : states_) {
     if (problem.HasParameterBlock(state.sensor)) {
@@ -385,15 +388,16 @@ size_t Builder::MarkOutliers() {
   for (Observation& obs : observations_) {
     const Eigen::Vector2d e = Error(obs, states_, landmarks_);
     const RangeBearingNoise& noise = states_[obs.dataset].noise;
-    const double chi2 = std::pow(e[0] / SigmaRange(obs, noise), 2) + std::pow(e[1] / SigmaBearing(obs, noise), 2);
+    const double chi2 =
+        std::pow(e[0] / SigmaRange(obs, noise), 2) + std::pow(e[1] / SigmaBearing(obs, noise), 2);
     obs.outlier = chi2 > options_.outlier_chi2;
     outliers += obs.outlier;
   }
   return outliers;
 }
 
-bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors, std::vector<double> bearing_errors,
-                         RangeBearingNoise* noise) {
+bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors,
+                         std::vector<double> bearing_errors, RangeBearingNoise* noise) {
   if (range_errors.size() < 2 * kMinRangeBinCount) return false;
   // Bins of equal count along the range; sigma of each bin = 1.4826 MAD; a line through them by
   // least squares, its intercept kept >= 1 cm and its slope >= 0.
@@ -471,7 +475,8 @@ void Builder::EstimateNoise() {
         var_t += covariance(0, 0);
         var_r += covariance(2, 2);
         odometry_increment = odometry_increment * CorrectedIncrement(M, state.calibration);
-        if (j + 1 >= state.active || state.nodes[j].stamp_s - state.nodes[i].stamp_s >= options_.noise_window_s)
+        if (j + 1 >= state.active ||
+            state.nodes[j].stamp_s - state.nodes[i].stamp_s >= options_.noise_window_s)
           break;
         ++j;
       }
@@ -520,9 +525,10 @@ RangeBearingBuildResult Builder::Run() {
   }
   for (const DatasetState& state : states_) {
     if (!state.placed) {
-      throw std::runtime_error(state.summary.name +
-                               ": shares fewer than two landmarks with the other datasets and has no start prior: "
-                               "it cannot be placed in their map");
+      throw std::runtime_error(
+          state.summary.name +
+          ": shares fewer than two landmarks with the other datasets and has no start prior: "
+          "it cannot be placed in their map");
     }
   }
   // (2) outliers and noise.
@@ -530,10 +536,11 @@ RangeBearingBuildResult Builder::Run() {
     EstimateNoise();
     const size_t outliers = MarkOutliers();
     Solve(true);
-    Progress("noise round " + std::to_string(round + 1) + ": sigma_range " + FormatSignificant(noise_.range_a_m, 3) +
-             " m + " + FormatSignificant(noise_.range_b, 3) + " r, sigma_bearing " +
-             FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " + FormatSignificant(noise_.odometry_q_t, 3) +
-             ", q_r " + FormatSignificant(noise_.odometry_q_r, 3) + ", " + std::to_string(outliers) + " outliers");
+    Progress("noise round " + std::to_string(round + 1) + ": sigma_range " +
+             FormatSignificant(noise_.range_a_m, 3) + " m + " + FormatSignificant(noise_.range_b, 3) +
+             " r, sigma_bearing " + FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " +
+             FormatSignificant(noise_.odometry_q_t, 3) + ", q_r " +
+             FormatSignificant(noise_.odometry_q_r, 3) + ", " + std::to_string(outliers) + " outliers");
   }
   // (3) final.
   MarkOutliers();
@@ -577,7 +584,8 @@ RangeBearingBuildResult Builder::Collect() {
     MapMarker marker;
     marker.is_point = true;
     marker.key = key;
-    marker.T_world_marker = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(landmark.block[0], landmark.block[1], 0.0));
+    marker.T_world_marker =
+        SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(landmark.block[0], landmark.block[1], 0.0));
     marker.component = 0;
     result.map.markers.push_back(marker);
   }

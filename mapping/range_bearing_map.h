@@ -23,10 +23,10 @@
 // observation; Cauchy loss (cauchy_scale, whitened units). (2) noise_rounds rounds of: the range
 // sigma line a + b r is fitted to the robust spread (1.4826 MAD) of the range residuals of every
 // observation in range bins, the bearing sigma to that of the bearing residuals; observations
-// whose whitened squared residual exceeds outlier_chi2 are set aside as outliers; q_t, q_r are scaled so that the
-// odometry's disagreement with the solved trajectory over windows of noise_window_s matches the
-// model; solve again. (3) a final solve with the plain squared loss; landmarks seen fewer than
-// min_observations times are reported, not mapped. (No landmark covariance is written yet.)
+// whose whitened squared residual exceeds outlier_chi2 are set aside as outliers; q_t, q_r are scaled so that
+// the odometry's disagreement with the solved trajectory over windows of noise_window_s matches the model;
+// solve again. (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations
+// times are reported, not mapped. (No landmark covariance is written yet.)
 #pragma once
 
 #include <functional>
@@ -66,8 +66,8 @@ struct RangeBearingDatasetSummary {
   size_t outliers = 0;
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   Eigen::Vector2d sensor_bias = Eigen::Vector2d::Zero();  // range offset (m), bearing offset (rad)
-  RangeBearingNoise noise;                                 // this dataset's, as estimated
-  std::string gauge;  // "start prior", "held", "placed at t=..."
+  RangeBearingNoise noise;                                // this dataset's, as estimated
+  std::string gauge;                                      // "start prior", "held", "placed at t=..."
 };
 
 struct RangeBearingBuildResult {
@@ -78,7 +78,7 @@ struct RangeBearingBuildResult {
   std::vector<std::pair<MarkerKey, std::string>> unmapped;
   size_t observations = 0;
   size_t outliers = 0;
-  double range_rms_m = 0.0;    // residuals of the inliers, final solve
+  double range_rms_m = 0.0;  // residuals of the inliers, final solve
   double bearing_rms_rad = 0.0;
   double solver_time_s = 0.0;
   std::vector<std::string> notes;

@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <stdexcept>
 
@@ -14,7 +15,8 @@ constexpr double kLinkFloorM = 1e-3;
 constexpr double kLinkFloorRad = 1e-3;
 
 bool IsSpd(const Eigen::Matrix3d& P) {
-  if (!P.allFinite() || (P - P.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, P.cwiseAbs().maxCoeff()))
+  if (!P.allFinite() ||
+      (P - P.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, P.cwiseAbs().maxCoeff()))
     return false;
   return Eigen::LLT<Eigen::Matrix3d>(P).info() == Eigen::Success;
 }
@@ -39,16 +41,25 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(IsFinitePositive(reacquire_sigma_m) && IsFinitePositive(reacquire_sigma_rad),
                        "reacquire sigmas must be > 0");
   WAYMARK_CHECK_OPTION(regain_updates >= 1, "regain_updates must be >= 1");
+  WAYMARK_CHECK_OPTION(calibration_sigma.allFinite() && (calibration_sigma.array() > 0.0).all(),
+                       "calibration_sigma must be finite and > 0");
   return true;
 }
 
-RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map, const RangeBearingLocalizerOptions& options,
-                                             const SE2d& T_world_start, const Eigen::Matrix3d& start_covariance)
-    : options_(options), x_(T_world_start.x(), T_world_start.y(), T_world_start.theta()), P_(start_covariance) {
+RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
+                                             const RangeBearingLocalizerOptions& options,
+                                             const SE2d& T_world_start,
+                                             const Eigen::Matrix3d& start_covariance)
+    : options_(options) {
+  x_ << T_world_start.x(), T_world_start.y(), T_world_start.theta(), 0.0, 0.0, 0.0;
+  P_.setZero();
+  P_.topLeftCorner<3, 3>() = start_covariance;
+  P_.bottomRightCorner<3, 3>() = options.calibration_sigma.cwiseAbs2().asDiagonal();
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("range-bearing localizer: " + why);
   if (!IsSpd(start_covariance))
-    throw std::invalid_argument("range-bearing localizer: the start covariance is not symmetric positive definite");
+    throw std::invalid_argument(
+        "range-bearing localizer: the start covariance is not symmetric positive definite");
   for (const MapMarker& marker : map.markers) {
     if (!marker.is_point) continue;
     std::optional<Eigen::Matrix2d> covariance;
@@ -57,12 +68,24 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map, const RangeBe
   }
 }
 
-Eigen::Matrix3d RangeBearingLocalizer::PredictJacobian(const Eigen::Vector3d& x, const SE2d& T_a_b) {
-  const double c = std::cos(x[2]), s = std::sin(x[2]);
-  const Eigen::Vector2d rotated(c * T_a_b.x() - s * T_a_b.y(), s * T_a_b.x() + c * T_a_b.y());
-  Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+RangeBearingLocalizer::Vector6 RangeBearingLocalizer::PredictState(const Vector6& x, const SE2d& T_a_b) {
+  const Eigen::Vector2d t_C = (1.0 + x[5]) * T_a_b.translation();
+  const double theta_C = (1.0 + x[4]) * T_a_b.theta() + x[3] * T_a_b.translation().norm();
+  Vector6 next = x;
+  next.head<2>() += Eigen::Rotation2Dd(x[2]) * t_C;
+  next[2] = WrapAngle(x[2] + theta_C);
+  return next;
+}
+
+RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vector6& x, const SE2d& T_a_b) {
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(x[2]).toRotationMatrix();
+  const Eigen::Vector2d rotated = R * ((1.0 + x[5]) * T_a_b.translation());
+  Matrix6 F = Matrix6::Identity();
   F(0, 2) = -rotated.y();
   F(1, 2) = rotated.x();
+  F.block<2, 1>(0, 5) = R * T_a_b.translation();
+  F(2, 3) = T_a_b.translation().norm();
+  F(2, 4) = T_a_b.theta();
   return F;
 }
 
@@ -72,7 +95,7 @@ Eigen::Vector2d RangeBearingLocalizer::Measure(const Eigen::Vector3d& x, const E
 }
 
 Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::Vector3d& x,
-                                                                    const Eigen::Vector2d& l_world) {
+                                                                   const Eigen::Vector2d& l_world) {
   const Eigen::Vector2d d = l_world - x.head<2>();
   const double q = d.squaredNorm(), r = std::sqrt(q);
   Eigen::Matrix<double, 2, 3> H;
@@ -81,17 +104,17 @@ Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::
 }
 
 void RangeBearingLocalizer::Predict(const SE2d& T_a_b) {
-  const Eigen::Matrix3d F = PredictJacobian(x_, T_a_b);
+  const Matrix6 F = PredictJacobian(x_, T_a_b);
   const double c = std::cos(x_[2]), s = std::sin(x_[2]);
-  Eigen::Matrix3d G = Eigen::Matrix3d::Identity();
+  Eigen::Matrix<double, 6, 3> G = Eigen::Matrix<double, 6, 3>::Zero();
   G.topLeftCorner<2, 2>() << c, -s, s, c;
+  G(2, 2) = 1.0;
   const RangeBearingNoise& n = options_.noise;
   const double d = T_a_b.translation().norm();
   const double var_t = n.odometry_q_t * (d + kLinkFloorM);
   const double var_r = n.odometry_q_r * (std::abs(T_a_b.theta()) + n.odometry_c_d * d + kLinkFloorRad);
   const Eigen::Matrix3d Q = Eigen::Vector3d(var_t, var_t, var_r).asDiagonal();
-  x_.head<2>() += G.topLeftCorner<2, 2>() * T_a_b.translation();
-  x_[2] = WrapAngle(x_[2] + T_a_b.theta());
+  x_ = PredictState(x_, T_a_b);
   P_ = F * P_ * F.transpose() + G * Q * G.transpose();
   P_ = 0.5 * (P_ + P_.transpose());
   CheckLost();
@@ -108,18 +131,21 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
     ++counts_["degenerate"];
     return RangeBearingUpdate::kDegenerate;
   }
-  const double range_m =
-      observation.elevation_rad ? observation.range_m * std::cos(*observation.elevation_rad) : observation.range_m;
+  const double range_m = observation.elevation_rad
+                             ? observation.range_m * std::cos(*observation.elevation_rad)
+                             : observation.range_m;
   const RangeBearingNoise& n = options_.noise;
   const double sigma_range = observation.sigma_range_m.value_or(n.range_a_m + n.range_b * range_m);
   const double sigma_bearing = observation.sigma_bearing_rad.value_or(n.bearing_rad);
   Eigen::Matrix2d R = Eigen::Vector2d(sigma_range * sigma_range, sigma_bearing * sigma_bearing).asDiagonal();
-  const Eigen::Matrix<double, 2, 3> H = MeasureJacobian(x_, l);
+  const Eigen::Vector3d pose = x_.head<3>();
+  Eigen::Matrix<double, 2, 6> H = Eigen::Matrix<double, 2, 6>::Zero();
+  H.leftCols<3>() = MeasureJacobian(pose, l);
   if (it->second.second) {
     const Eigen::Matrix2d H_l = -H.leftCols<2>();
     R += H_l * *it->second.second * H_l.transpose();
   }
-  const Eigen::Vector2d predicted = Measure(x_, l);
+  const Eigen::Vector2d predicted = Measure(pose, l);
   const Eigen::Vector2d y(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
   const Eigen::Matrix2d S = H * P_ * H.transpose() + R;
   const Eigen::LLT<Eigen::Matrix2d> llt(S);
@@ -134,17 +160,17 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
     if (++rejections_in_row_ >= options_.lost_rejections) {
       // Lost: widen P so that the gate can accept the next sightings again.
       const double sm = options_.reacquire_sigma_m, sr = options_.reacquire_sigma_rad;
-      P_ = P_ + Eigen::Vector3d(sm * sm, sm * sm, sr * sr).asDiagonal().toDenseMatrix();
+      P_.topLeftCorner<3, 3>() += Eigen::Vector3d(sm * sm, sm * sm, sr * sr).asDiagonal().toDenseMatrix();
       rejections_in_row_ = 0;
       if (!lost_) ++counts_["became lost"];
       lost_ = true;
     }
     return RangeBearingUpdate::kGated;
   }
-  const Eigen::Matrix<double, 3, 2> K = llt.solve(H * P_).transpose();
+  const Eigen::Matrix<double, 6, 2> K = llt.solve(H * P_).transpose();
   x_ += K * y;
   x_[2] = WrapAngle(x_[2]);
-  const Eigen::Matrix3d I_KH = Eigen::Matrix3d::Identity() - K * H;
+  const Matrix6 I_KH = Matrix6::Identity() - K * H;
   P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();
   P_ = 0.5 * (P_ + P_.transpose());
   ++counts_["accepted"];
@@ -155,10 +181,9 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
 }
 
 void RangeBearingLocalizer::CheckLost() {
-  const double sigma_m =
-      std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(P_.topLeftCorner<2, 2>())
-                                  .eigenvalues()
-                                  .maxCoeff()));
+  const double sigma_m = std::sqrt(std::max(
+      0.0,
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(P_.topLeftCorner<2, 2>()).eigenvalues().maxCoeff()));
   if (!lost_ && sigma_m > options_.lost_sigma_m) {
     lost_ = true;
     accepted_in_row_ = 0;

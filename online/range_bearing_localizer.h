@@ -1,16 +1,21 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta] = T_world_robot, covariance P (3 x 3, the same order).
-// Predict with an odometry increment M = (t_M, theta_M) in the robot frame:
-//   x' = [t + R(theta) t_M, theta + theta_M]
-//   F  = d x'/d x = [[1, 0, -(R(theta) t_M)_y], [0, 1, (R(theta) t_M)_x], [0, 0, 1]]
-//   G  = d x'/d M = blockdiag(R(theta), 1)
+// State x = [x, y, theta, k, s_turn, s_dist]: T_world_robot and the odometry's constant errors
+// (heading drift k in rad/m, turn scale, distance scale; as factors/calibrated_odometry_factor.h,
+// to first order), covariance P (6 x 6, the same order); the calibration starts at 0 with
+// calibration_sigma and has no process noise.
+// Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
+//   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
+//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist]
+//   F  = d x'/d x = I6 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
+//        F[2, 3] = s, F[2, 4] = theta_M
+//   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
 //   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad).
 // Update with a landmark l (map position, 2-D; its map covariance Sigma_l when present):
 //   d = l - t, q = |d|^2, h(x) = [sqrt(q), wrap(atan2(d_y, d_x) - theta)]
-//   H = [[-d_x/sqrt(q), -d_y/sqrt(q), 0], [d_y/q, -d_x/q, -1]],  H_l = -H[:, 0:2]
+//   H = [[-d_x/sqrt(q), -d_y/sqrt(q), 0, 0 0 0], [d_y/q, -d_x/q, -1, 0 0 0]],  H_l = -H[:, 0:2]
 //   y = [range - h_0, wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l H_l^T,
 //   R = diag(sigma_range(range)^2, sigma_bearing^2)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
@@ -44,6 +49,8 @@ struct RangeBearingLocalizerOptions {
   double reacquire_sigma_m = 1.0;
   double reacquire_sigma_rad = 0.3;
   int regain_updates = 3;
+  // Sigmas of the calibration's start (0): k (rad/m), turn scale, distance scale.
+  Eigen::Vector3d calibration_sigma = Eigen::Vector3d(0.05, 0.2, 0.2);
   bool Check(std::string* why) const;
 };
 
@@ -52,30 +59,35 @@ enum class RangeBearingUpdate { kAccepted, kUnknownLandmark, kGated, kDegenerate
 class RangeBearingLocalizer {
  public:
   // Throws std::invalid_argument for bad options or a covariance that is not SPD.
-  RangeBearingLocalizer(const MarkerMap& map, const RangeBearingLocalizerOptions& options, const SE2d& T_world_start,
-                        const Eigen::Matrix3d& start_covariance);
+  RangeBearingLocalizer(const MarkerMap& map, const RangeBearingLocalizerOptions& options,
+                        const SE2d& T_world_start, const Eigen::Matrix3d& start_covariance);
 
   void Predict(const SE2d& T_a_b);
   RangeBearingUpdate Update(const RangeBearingObservation& observation);
 
   SE2d pose() const { return SE2d(x_[0], x_[1], x_[2]); }
-  const Eigen::Matrix3d& covariance() const { return P_; }
+  Eigen::Matrix3d covariance() const { return P_.topLeftCorner<3, 3>(); }  // of the pose
+  Eigen::Vector3d calibration() const { return x_.tail<3>(); }
   bool lost() const { return lost_; }
   // Counts: accepted, unknown, gated, degenerate, became lost, regained.
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static Eigen::Matrix3d PredictJacobian(const Eigen::Vector3d& x, const SE2d& T_a_b);
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b);
+  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b);
   static Eigen::Vector2d Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world);
-  static Eigen::Matrix<double, 2, 3> MeasureJacobian(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world);
+  static Eigen::Matrix<double, 2, 3> MeasureJacobian(const Eigen::Vector3d& x,
+                                                     const Eigen::Vector2d& l_world);
 
  private:
   void CheckLost();
 
   RangeBearingLocalizerOptions options_;
   std::map<MarkerKey, std::pair<Eigen::Vector2d, std::optional<Eigen::Matrix2d>>> landmarks_;
-  Eigen::Vector3d x_;
-  Eigen::Matrix3d P_;
+  Vector6 x_;
+  Matrix6 P_;
   bool lost_ = false;
   int rejections_in_row_ = 0;
   int accepted_in_row_ = 0;

@@ -18,11 +18,13 @@ SE2d OdometryAt(const Trajectory& odometry, double stamp_s) {
 RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap& map,
                                          const RangeBearingLocalizerOptions& options) {
   const std::string& name = dataset.config.name;
-  if (dataset.odometry.size() < 2) throw std::runtime_error(name + ": the range-bearing localizer needs odometry");
+  if (dataset.odometry.size() < 2)
+    throw std::runtime_error(name + ": the range-bearing localizer needs odometry");
   const auto& prior = dataset.config.start_prior;
   if (!prior) {
-    throw std::runtime_error(name + ": the range-bearing localizer needs dataset.yaml start_prior (the start pose; "
-                                    "e.g. `waymark import mrclam --known-start`)");
+    throw std::runtime_error(name +
+                             ": the range-bearing localizer needs dataset.yaml start_prior (the start pose; "
+                             "e.g. `waymark import mrclam --known-start`)");
   }
   const Trajectory& odometry = dataset.odometry;
   const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);

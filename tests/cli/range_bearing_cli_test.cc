@@ -29,24 +29,30 @@ class RangeBearingCliTest : public CliTest {
   fs::path TinyRun() const {
     const fs::path run = dir_ / "run";
     fs::create_directories(run);
-    const auto write = [&](const std::string& name, const std::string& text) { std::ofstream(run / name) << text; };
+    const auto write = [&](const std::string& name, const std::string& text) {
+      std::ofstream(run / name) << text;
+    };
     write("Barcodes.dat", "# Subject # Barcode #\n1 5\n2 14\n6 72\n7 27\n");
     write("Landmark_Groundtruth.dat", "6 1.0 2.0 0.0001 0.0002\n7 -1.0 0.5 0.0001 0.0001\n");
     write("Robot1_Odometry.dat", "100.0 1.0 0.0\n101.0 1.0 0.0\n102.0 0.0 0.0\n");
     write("Robot2_Odometry.dat", "100.0 0.0 0.5\n102.0 0.0 0.0\n");
     write("Robot1_Measurement.dat", "100.5 72 2.0 0.1\n100.5 99 4.0 0.0\n101.5 27 2.5 1.0\n");
     write("Robot2_Measurement.dat", "101.0 27 2.0 0.5\n");
-    write("Robot1_Groundtruth.dat", "99.0 0.0 0.0 0.0\n100.0 1.0 0.0 0.0\n101.0 2.0 0.0 0.0\n102.0 3.0 0.0 0.0\n103.0 4.0 0.0 0.0\n");
-    write("Robot2_Groundtruth.dat", "99.0 5.0 5.0 0.0\n100.0 5.0 5.0 0.5\n101.0 5.0 5.0 1.0\n102.0 5.0 5.0 1.5\n103.0 5.0 5.0 2.0\n");
+    write("Robot1_Groundtruth.dat",
+          "99.0 0.0 0.0 0.0\n100.0 1.0 0.0 0.0\n101.0 2.0 0.0 0.0\n102.0 3.0 0.0 0.0\n103.0 4.0 0.0 0.0\n");
+    write("Robot2_Groundtruth.dat",
+          "99.0 5.0 5.0 0.0\n100.0 5.0 5.0 0.5\n101.0 5.0 5.0 1.0\n102.0 5.0 5.0 1.5\n103.0 5.0 5.0 2.0\n");
     return run;
   }
 };
 
 TEST_F(RangeBearingCliTest, ImportMrclam) {
   const fs::path run = TinyRun();
-  const RunResult import = Run("import mrclam " + run.string() + " --out " + (dir_ / "out").string() + " --known-start");
+  const RunResult import =
+      Run("import mrclam " + run.string() + " --out " + (dir_ / "out").string() + " --known-start");
   ASSERT_EQ(import.exit_code, 0) << import.err;
-  EXPECT_THAT(import.out, HasSubstr("robot1: 3 velocity samples, 2 measurement stamps, 2 landmark observations"));
+  EXPECT_THAT(import.out,
+              HasSubstr("robot1: 3 velocity samples, 2 measurement stamps, 2 landmark observations"));
   EXPECT_THAT(import.out, HasSubstr("rejected: 1 misread barcodes (99 x1)"));
   EXPECT_THAT(import.out, HasSubstr("dead reckoning ATE RMSE: "));
   const Dataset robot1 = LoadDataset(dir_ / "out" / "robot1");
@@ -64,10 +70,12 @@ TEST_F(RangeBearingCliTest, ImportRefusesMalformedFilesWithOneLine) {
   std::ofstream(run / "Robot2_Measurement.dat") << "101.0 27 2.0\n";
   const RunResult import = Run("import mrclam " + run.string() + " --out " + (dir_ / "out").string());
   EXPECT_EQ(import.exit_code, 1);
-  EXPECT_THAT(import.err, HasSubstr("Robot2_Measurement.dat:1: expected 4 numbers (time barcode range bearing), got 3"));
+  EXPECT_THAT(import.err,
+              HasSubstr("Robot2_Measurement.dat:1: expected 4 numbers (time barcode range bearing), got 3"));
   EXPECT_EQ(std::count(import.err.begin(), import.err.end(), '\n'), 1) << import.err;
   EXPECT_FALSE(fs::exists(dir_ / "out"));
-  const RunResult missing = Run("import mrclam " + (dir_ / "nowhere").string() + " --out " + (dir_ / "out").string());
+  const RunResult missing =
+      Run("import mrclam " + (dir_ / "nowhere").string() + " --out " + (dir_ / "out").string());
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_THAT(missing.err, HasSubstr("not a directory"));
 }
@@ -75,9 +83,11 @@ TEST_F(RangeBearingCliTest, ImportRefusesMalformedFilesWithOneLine) {
 TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   testing::RangeBearingWorldOptions world;
   world.outlier_share = 0.02;
-  for (int i = 0; i < 3; ++i) WriteDataset(dir_ / ("robot" + std::to_string(i)), testing::RangeBearingRobot(i, 20 + i, world));
-  const RunResult build = Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
-                              (dir_ / "map.json").string() + " --trajectory-dir " + (dir_ / "smoothed").string());
+  for (int i = 0; i < 3; ++i)
+    WriteDataset(dir_ / ("robot" + std::to_string(i)), testing::RangeBearingRobot(i, 20 + i, world));
+  const RunResult build =
+      Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
+          (dir_ / "map.json").string() + " --trajectory-dir " + (dir_ / "smoothed").string());
   ASSERT_EQ(build.exit_code, 0) << build.err;
   EXPECT_THAT(build.out, HasSubstr("landmarks: 10"));
   EXPECT_TRUE(fs::exists(dir_ / "smoothed" / "robot0.tum"));
@@ -85,8 +95,8 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   const MarkerMap map = ReadMap(dir_ / "map.json");
   ASSERT_TRUE(map.range_bearing_noise);
   EXPECT_TRUE(map.markers.front().is_point);
-  const RunResult localize = Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() +
-                                 " --out " + (dir_ / "robot2.tum").string());
+  const RunResult localize = Run("localize " + (dir_ / "robot2").string() + " --map " +
+                                 (dir_ / "map.json").string() + " --out " + (dir_ / "robot2.tum").string());
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
   EXPECT_THAT(localize.out, HasSubstr("NEES: mean "));
@@ -95,20 +105,22 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
 
 TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
   for (const int seed : {5, 6}) {
-    const RunResult sim = Run("sim corridor --out " + (dir_ / ("survey" + std::to_string(seed))).string() + " --seed " +
-                              std::to_string(seed) +
-                              " --set place.loop_length_m=4 --set place.loop_width_m=3 --set place.spacing_m=0.5");
+    const RunResult sim =
+        Run("sim corridor --out " + (dir_ / ("survey" + std::to_string(seed))).string() + " --seed " +
+            std::to_string(seed) +
+            " --set place.loop_length_m=4 --set place.loop_width_m=3 --set place.spacing_m=0.5");
     ASSERT_EQ(sim.exit_code, 0) << sim.err;
   }
-  const RunResult build = Run("map build " + (dir_ / "survey5").string() + " " + (dir_ / "survey6").string() +
-                              " --out " + (dir_ / "map.json").string() + " --trajectory-dir " +
-                              (dir_ / "smoothed").string());
+  const RunResult build =
+      Run("map build " + (dir_ / "survey5").string() + " " + (dir_ / "survey6").string() + " --out " +
+          (dir_ / "map.json").string() + " --trajectory-dir " + (dir_ / "smoothed").string());
   ASSERT_EQ(build.exit_code, 0) << build.err;
   EXPECT_THAT(build.out, HasSubstr("datasets: 2 built as one survey"));
   EXPECT_TRUE(fs::exists(dir_ / "smoothed" / "survey5.tum")) << build.out;
   EXPECT_TRUE(fs::exists(dir_ / "smoothed" / "survey6.tum")) << build.out;
   const MarkerMap map = ReadMap(dir_ / "map.json");
-  const eval::MapEvalResult error = eval::EvaluateMap(map, ReadMap(dir_ / "survey5" / "groundtruth/markers.json"));
+  const eval::MapEvalResult error =
+      eval::EvaluateMap(map, ReadMap(dir_ / "survey5" / "groundtruth/markers.json"));
   EXPECT_EQ(error.components.size(), 1u);
   EXPECT_LE(error.position_rmse_m, 0.01);
   // The smoothed trajectories are back at each survey's own stamps.
@@ -116,8 +128,9 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
   const Trajectory smoothed = ReadTum(dir_ / "smoothed" / "survey6.tum");
   EXPECT_GE(smoothed.front().stamp_s, own.front().stamp_s - 1.0);
   EXPECT_LE(smoothed.back().stamp_s, own.back().stamp_s + 1.0);
-  const RunResult one_file = Run("map build " + (dir_ / "survey5").string() + " " + (dir_ / "survey6").string() +
-                                 " --out " + (dir_ / "m2.json").string() + " --trajectory " + (dir_ / "t.tum").string());
+  const RunResult one_file =
+      Run("map build " + (dir_ / "survey5").string() + " " + (dir_ / "survey6").string() + " --out " +
+          (dir_ / "m2.json").string() + " --trajectory " + (dir_ / "t.tum").string());
   EXPECT_EQ(one_file.exit_code, 1);
   EXPECT_THAT(one_file.err, HasSubstr("--trajectory is for one dataset"));
 }

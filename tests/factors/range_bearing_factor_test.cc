@@ -69,8 +69,10 @@ TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
     double r[3] = {u(rng), u(rng), u(rng)};
     double l[2] = {r[0] + 2.0 + std::abs(u(rng)), r[1] + u(rng)};
     double b[2] = {0.05 * u(rng), 0.01 * u(rng)};
-    const std::unique_ptr<ceres::CostFunction> cost(BiasedRangeBearingFactor::Create(2.5, 0.1 * u(rng), 0.05, 0.02));
-    testing::ExpectGradientsMatch(*cost, {nullptr, nullptr, nullptr}, {r, l, b}, 1e-6, "biased range-bearing");
+    const std::unique_ptr<ceres::CostFunction> cost(
+        BiasedRangeBearingFactor::Create(2.5, 0.1 * u(rng), 0.05, 0.02));
+    testing::ExpectGradientsMatch(*cost, {nullptr, nullptr, nullptr}, {r, l, b}, 1e-6,
+                                  "biased range-bearing");
   }
 }
 

@@ -32,12 +32,15 @@ class MrclamTinyRun : public ::testing::Test {
     // Robot 1 drives 1 m/s along x for 2 s, robot 2 turns in place.
     Write("Robot1_Odometry.dat", "# t v w\n100.0 1.0 0.0\n101.0 1.0 0.0\n102.0 0.0 0.0\n");
     Write("Robot2_Odometry.dat", "100.0 0.0 0.5\n102.0 0.0 0.0\n");
-    Write("Robot1_Measurement.dat",
-          "# t barcode range bearing\n99.0 72 1.0 0.0\n100.5 72 2.0 0.1\n100.5 14 3.0 -0.2\n100.5 99 4.0 0.0\n"
-          "101.0 5 1.0 0.0\n101.5 27 2.5 1.0\n");
+    Write(
+        "Robot1_Measurement.dat",
+        "# t barcode range bearing\n99.0 72 1.0 0.0\n100.5 72 2.0 0.1\n100.5 14 3.0 -0.2\n100.5 99 4.0 0.0\n"
+        "101.0 5 1.0 0.0\n101.5 27 2.5 1.0\n");
     Write("Robot2_Measurement.dat", "101.0 27 2.0 0.5\n");
-    Write("Robot1_Groundtruth.dat", "99.0 0.0 0.0 0.1\n100.0 1.0 0.0 0.1\n101.0 2.0 0.0 0.1\n102.0 3.0 0.0 0.1\n103.0 4.0 0.0 0.1\n");
-    Write("Robot2_Groundtruth.dat", "99.0 5.0 5.0 0.0\n100.0 5.0 5.0 0.5\n101.0 5.0 5.0 1.0\n102.0 5.0 5.0 1.5\n103.0 5.0 5.0 2.0\n");
+    Write("Robot1_Groundtruth.dat",
+          "99.0 0.0 0.0 0.1\n100.0 1.0 0.0 0.1\n101.0 2.0 0.0 0.1\n102.0 3.0 0.0 0.1\n103.0 4.0 0.0 0.1\n");
+    Write("Robot2_Groundtruth.dat",
+          "99.0 5.0 5.0 0.0\n100.0 5.0 5.0 0.5\n101.0 5.0 5.0 1.0\n102.0 5.0 5.0 1.5\n103.0 5.0 5.0 2.0\n");
   }
   void TearDown() override { fs::remove_all(dir_); }
   void Write(const std::string& name, const std::string& text) { std::ofstream(dir_ / name) << text; }
@@ -73,7 +76,8 @@ TEST_F(MrclamTinyRun, ImportsEveryPart) {
   EXPECT_EQ(report.outside_odometry, 1u);
   EXPECT_EQ(report.landmark_observations, 2u);
   ASSERT_TRUE(robot1.config.start_prior);
-  EXPECT_NEAR(robot1.config.start_prior->T_world_robot.translation().x(), 1.0, 1e-12);  // interpolated at t=100
+  EXPECT_NEAR(robot1.config.start_prior->T_world_robot.translation().x(), 1.0,
+              1e-12);  // interpolated at t=100
   ASSERT_TRUE(robot1.groundtruth_markers);
   EXPECT_EQ(robot1.groundtruth_markers->markers.size(), 2u);
   EXPECT_TRUE(robot1.groundtruth_markers->markers[0].is_point);

@@ -70,7 +70,8 @@ TEST(RangeBearingIo, OneLineErrors) {
               HasSubstr("landmarks[0].range_m: expected a range > 0 m, got 0"));
   EXPECT_THAT(ParseError("{\"t\": 1, \"landmarks\": [{" + lm + ", \"range_m\": 1, \"bearing_rad\": 4}]}\n"),
               HasSubstr("landmarks[0].bearing_rad: expected an angle within"));
-  EXPECT_THAT(ParseError("{\"t\": 1, \"landmarks\": [{" + lm + ", \"range_m\": 1}]}\n"), HasSubstr("bearing_rad"));
+  EXPECT_THAT(ParseError("{\"t\": 1, \"landmarks\": [{" + lm + ", \"range_m\": 1}]}\n"),
+              HasSubstr("bearing_rad"));
   EXPECT_THAT(ParseError("{\"t\": 1, \"landmarks\": [{\"family\": \"morse\", \"id\": \"7\", \"range_m\": 1, "
                          "\"bearing_rad\": 0}]}\n"),
               HasSubstr("unknown family \"morse\""));
@@ -87,7 +88,8 @@ TEST(RangeBearingIo, OneLineErrors) {
 TEST(RangeBearingIo, DuplicateLandmarkInFrameIsDroppedAndCounted) {
   const std::string obs = R"({"family": "barcode", "id": "7", "range_m": 1, "bearing_rad": 0})";
   ReadWarnings warnings;
-  const auto frames = ParseRangeBearing("{\"t\": 1, \"landmarks\": [" + obs + ", " + obs + "]}\n", "f", &warnings);
+  const auto frames =
+      ParseRangeBearing("{\"t\": 1, \"landmarks\": [" + obs + ", " + obs + "]}\n", "f", &warnings);
   ASSERT_EQ(frames.size(), 1u);
   EXPECT_TRUE(frames[0].landmarks.empty());
   EXPECT_EQ(warnings.counts["duplicate landmark in frame"], 1);
@@ -126,11 +128,14 @@ TEST(RangeBearingIo, PointLandmarkInTheMapFormat) {
               HasSubstr("markers[0].p_world_marker: expected 3 numbers"));
   EXPECT_THAT(error(R"({"family": "barcode", "id": "1", "p_world_marker": [1, 2, 0], "size_m": 0.1})"),
               HasSubstr("markers[0].size_m: a point landmark (p_world_marker) has no size_m"));
-  EXPECT_THAT(error(R"({"family": "barcode", "id": "1", "p_world_marker": [1, 2, 0], "position_covariance": [1]})"),
-              HasSubstr("position_covariance: expected 9 numbers"));
+  EXPECT_THAT(
+      error(R"({"family": "barcode", "id": "1", "p_world_marker": [1, 2, 0], "position_covariance": [1]})"),
+      HasSubstr("position_covariance: expected 9 numbers"));
   // A barcode is a point family only: as a square code it is still unknown.
-  EXPECT_THAT(error(R"({"family": "barcode", "id": "1", "size_m": 0.1, "T_world_marker": {"t": [0, 0, 0], "q_xyzw": [0, 0, 0, 1]}})"),
-              HasSubstr("unknown family \"barcode\""));
+  EXPECT_THAT(
+      error(
+          R"({"family": "barcode", "id": "1", "size_m": 0.1, "T_world_marker": {"t": [0, 0, 0], "q_xyzw": [0, 0, 0, 1]}})"),
+      HasSubstr("unknown family \"barcode\""));
 }
 
 TEST(RangeBearingIo, DatasetWithRangeBearingAndStartPrior) {
@@ -142,7 +147,8 @@ TEST(RangeBearingIo, DatasetWithRangeBearingAndStartPrior) {
   dataset.odometry = {{0.0, SE3d()}, {1.0, SE2d(0.1, 0.0, 0.01).ToSE3()}};
   RangeBearingFrame frame;
   frame.stamp_s = 0.5;
-  frame.landmarks.push_back({{kFamilyBarcode, "7"}, 2.0, 0.1, std::nullopt, std::nullopt, std::nullopt, std::nullopt});
+  frame.landmarks.push_back(
+      {{kFamilyBarcode, "7"}, 2.0, 0.1, std::nullopt, std::nullopt, std::nullopt, std::nullopt});
   dataset.range_bearing.push_back(frame);
   WriteDataset(dir, dataset);
   const Dataset back = LoadDataset(dir);
@@ -155,7 +161,8 @@ TEST(RangeBearingIo, DatasetWithRangeBearingAndStartPrior) {
   EXPECT_EQ(back.warnings.Total(), 0);
   const auto yaml_error = [](const std::string& extra) -> std::string {
     try {
-      ParseDatasetYaml("format: waymark-dataset\nversion: 1\nmotion: planar\ncameras: []\n" + extra, "dataset.yaml");
+      ParseDatasetYaml("format: waymark-dataset\nversion: 1\nmotion: planar\ncameras: []\n" + extra,
+                       "dataset.yaml");
     } catch (const FormatError& e) {
       return e.what();
     }

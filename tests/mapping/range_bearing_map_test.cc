@@ -67,7 +67,8 @@ TEST(RangeBearingMap, WithoutPriorsTheSecondRobotIsPlacedByTheLandmarks) {
   double sum = 0.0;
   for (const MapMarker& m : result.map.markers) {
     const Eigen::Vector2d p_world = T_world_start * Eigen::Vector2d(m.T_world_marker.translation().head<2>());
-    sum += (p_world - a.groundtruth_markers->Find(m.key)->T_world_marker.translation().head<2>()).squaredNorm();
+    sum +=
+        (p_world - a.groundtruth_markers->Find(m.key)->T_world_marker.translation().head<2>()).squaredNorm();
   }
   EXPECT_LT(std::sqrt(sum / result.map.markers.size()), 0.05);
 }

@@ -40,14 +40,25 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-3.0, 3.0);
   for (int trial = 0; trial < 10; ++trial) {
-    const Eigen::Vector3d x(u(rng), u(rng), u(rng));
+    RangeBearingLocalizer::Vector6 x6;
+    x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng);
+    const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const auto predict = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
-      const SE2d T = SE2d(s[0], s[1], s[2]) * M;
-      return Eigen::Vector3d(T.x(), T.y(), s[2] + M.theta());
+      Eigen::VectorXd next = RangeBearingLocalizer::PredictState(s, M);
+      next[2] = s[2] + WrapAngle(next[2] - s[2]);  // unwrapped, for the differences
+      return next;
     };
-    const Eigen::MatrixXd F_numeric = testing::NumericJacobian(predict, x);
-    EXPECT_LT((F_numeric - RangeBearingLocalizer::PredictJacobian(x, M)).cwiseAbs().maxCoeff(), 1e-6);
+    const Eigen::MatrixXd F_numeric = testing::NumericJacobian(predict, x6);
+    EXPECT_LT((F_numeric - RangeBearingLocalizer::PredictJacobian(x6, M)).cwiseAbs().maxCoeff(), 1e-6);
+    // With no calibration error the prediction is the composition T * M.
+    RangeBearingLocalizer::Vector6 plain = x6;
+    plain.tail<3>().setZero();
+    const SE2d composed = SE2d(x[0], x[1], x[2]) * M;
+    const RangeBearingLocalizer::Vector6 predicted = RangeBearingLocalizer::PredictState(plain, M);
+    EXPECT_NEAR(predicted[0], composed.x(), 1e-12);
+    EXPECT_NEAR(predicted[1], composed.y(), 1e-12);
+    EXPECT_NEAR(WrapAngle(predicted[2] - composed.theta()), 0.0, 1e-12);
     const Eigen::Vector2d l(u(rng) + 4.0, u(rng));
     const auto measure = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
       return RangeBearingLocalizer::Measure(s, l);
@@ -66,8 +77,10 @@ TEST(RangeBearingLocalizer, ZeroInnovationKeepsTheMeanAndShrinksP) {
   RangeBearingLocalizer filter(TwoLandmarks(), {}, start, Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal());
   const Eigen::Vector3d x(start.x(), start.y(), start.theta());
   const Eigen::Matrix3d P_before = filter.covariance();
-  EXPECT_EQ(filter.Update(Sighting("1", RangeBearingLocalizer::Measure(x, {3.0, 1.0}))), RangeBearingUpdate::kAccepted);
-  EXPECT_NEAR((Eigen::Vector3d(filter.pose().x(), filter.pose().y(), filter.pose().theta()) - x).norm(), 0.0, 1e-12);
+  EXPECT_EQ(filter.Update(Sighting("1", RangeBearingLocalizer::Measure(x, {3.0, 1.0}))),
+            RangeBearingUpdate::kAccepted);
+  EXPECT_NEAR((Eigen::Vector3d(filter.pose().x(), filter.pose().y(), filter.pose().theta()) - x).norm(), 0.0,
+              1e-12);
   EXPECT_LT(filter.covariance().trace(), P_before.trace());
   EXPECT_LT((filter.covariance() - filter.covariance().transpose()).cwiseAbs().maxCoeff(), 1e-15);
   EXPECT_EQ(Eigen::LLT<Eigen::Matrix3d>(filter.covariance()).info(), Eigen::Success);
@@ -87,7 +100,8 @@ TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
   RangeBearingLocalizerOptions options;
   options.lost_rejections = 3;
   // The filter believes it is at the origin; the robot is at (1, 0.5) heading 0.
-  RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(), Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal());
+  RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(),
+                               Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal());
   const Eigen::Vector3d truth(1.0, 0.5, 0.0);
   for (int i = 0; i < 3; ++i) filter.Update(Sighting("1", RangeBearingLocalizer::Measure(truth, {3.0, 1.0})));
   EXPECT_TRUE(filter.lost());
@@ -153,7 +167,8 @@ TEST(RangeBearingLocalizer, RefusesBadInput) {
   options.noise.bearing_rad = 0.0;
   EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), options, SE2d(), Eigen::Matrix3d::Identity()),
                std::invalid_argument);
-  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), {}, SE2d(), -Eigen::Matrix3d::Identity()), std::invalid_argument);
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), {}, SE2d(), -Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
 }
 
 }  // namespace
