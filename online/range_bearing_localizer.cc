@@ -43,6 +43,8 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(regain_updates >= 1, "regain_updates must be >= 1");
   WAYMARK_CHECK_OPTION(calibration_sigma.allFinite() && (calibration_sigma.array() > 0.0).all(),
                        "calibration_sigma must be finite and > 0");
+  WAYMARK_CHECK_OPTION(sensor_bias_sigma.allFinite() && (sensor_bias_sigma.array() > 0.0).all(),
+                       "sensor_bias_sigma must be finite and > 0");
   return true;
 }
 
@@ -51,10 +53,12 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
                                              const SE2d& T_world_start,
                                              const Eigen::Matrix3d& start_covariance)
     : options_(options) {
-  x_ << T_world_start.x(), T_world_start.y(), T_world_start.theta(), 0.0, 0.0, 0.0;
+  x_.setZero();
+  x_.head<3>() << T_world_start.x(), T_world_start.y(), T_world_start.theta();
   P_.setZero();
   P_.topLeftCorner<3, 3>() = start_covariance;
-  P_.bottomRightCorner<3, 3>() = options.calibration_sigma.cwiseAbs2().asDiagonal();
+  P_.block<3, 3>(3, 3) = options.calibration_sigma.cwiseAbs2().asDiagonal();
+  P_.bottomRightCorner<2, 2>() = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("range-bearing localizer: " + why);
   if (!IsSpd(start_covariance))
@@ -106,7 +110,7 @@ Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::
 void RangeBearingLocalizer::Predict(const SE2d& T_a_b) {
   const Matrix6 F = PredictJacobian(x_, T_a_b);
   const double c = std::cos(x_[2]), s = std::sin(x_[2]);
-  Eigen::Matrix<double, 6, 3> G = Eigen::Matrix<double, 6, 3>::Zero();
+  Eigen::Matrix<double, kStateSize, 3> G = Eigen::Matrix<double, kStateSize, 3>::Zero();
   G.topLeftCorner<2, 2>() << c, -s, s, c;
   G(2, 2) = 1.0;
   const RangeBearingNoise& n = options_.noise;
@@ -139,13 +143,15 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
   const double sigma_bearing = observation.sigma_bearing_rad.value_or(n.bearing_rad);
   Eigen::Matrix2d R = Eigen::Vector2d(sigma_range * sigma_range, sigma_bearing * sigma_bearing).asDiagonal();
   const Eigen::Vector3d pose = x_.head<3>();
-  Eigen::Matrix<double, 2, 6> H = Eigen::Matrix<double, 2, 6>::Zero();
+  Eigen::Matrix<double, 2, kStateSize> H = Eigen::Matrix<double, 2, kStateSize>::Zero();
   H.leftCols<3>() = MeasureJacobian(pose, l);
+  H(0, 6) = 1.0;
+  H(1, 7) = 1.0;
   if (it->second.second) {
     const Eigen::Matrix2d H_l = -H.leftCols<2>();
     R += H_l * *it->second.second * H_l.transpose();
   }
-  const Eigen::Vector2d predicted = Measure(pose, l);
+  const Eigen::Vector2d predicted = Measure(pose, l) + x_.tail<2>();
   const Eigen::Vector2d y(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
   const Eigen::Matrix2d S = H * P_ * H.transpose() + R;
   const Eigen::LLT<Eigen::Matrix2d> llt(S);
@@ -167,7 +173,7 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
     }
     return RangeBearingUpdate::kGated;
   }
-  const Eigen::Matrix<double, 6, 2> K = llt.solve(H * P_).transpose();
+  const Eigen::Matrix<double, kStateSize, 2> K = llt.solve(H * P_).transpose();
   x_ += K * y;
   x_[2] = WrapAngle(x_[2]);
   const Matrix6 I_KH = Matrix6::Identity() - K * H;

@@ -1,21 +1,23 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist]: T_world_robot and the odometry's constant errors
-// (heading drift k in rad/m, turn scale, distance scale; as factors/calibrated_odometry_factor.h,
-// to first order), covariance P (6 x 6, the same order); the calibration starts at 0 with
-// calibration_sigma and has no process noise.
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing]: T_world_robot, the odometry's
+// constant errors (heading drift k in rad/m, turn scale, distance scale; as
+// factors/calibrated_odometry_factor.h, to first order) and the sensor's constant range and
+// bearing offsets (as BiasedRangeBearingFactor), covariance P (8 x 8, the same order); the
+// calibration and the offsets start at 0 with calibration_sigma and sensor_bias_sigma and have no
+// process noise.
 // Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
 //   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
-//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist]
-//   F  = d x'/d x = I6 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
+//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing]
+//   F  = d x'/d x = I8 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
 //        F[2, 3] = s, F[2, 4] = theta_M
 //   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
 //   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad).
 // Update with a landmark l (map position, 2-D; its map covariance Sigma_l when present):
-//   d = l - t, q = |d|^2, h(x) = [sqrt(q), wrap(atan2(d_y, d_x) - theta)]
-//   H = [[-d_x/sqrt(q), -d_y/sqrt(q), 0, 0 0 0], [d_y/q, -d_x/q, -1, 0 0 0]],  H_l = -H[:, 0:2]
+//   d = l - t, q = |d|^2, h(x) = [sqrt(q) + b_range, wrap(atan2(d_y, d_x) - theta + b_bearing)]
+//   H = [[-d_x/sqrt(q), -d_y/sqrt(q), 0, 0 0 0, 1, 0], [d_y/q, -d_x/q, -1, 0 0 0, 0, 1]],  H_l = -H[:, 0:2]
 //   y = [range - h_0, wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l H_l^T,
 //   R = diag(sigma_range(range)^2, sigma_bearing^2)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
@@ -51,6 +53,8 @@ struct RangeBearingLocalizerOptions {
   int regain_updates = 3;
   // Sigmas of the calibration's start (0): k (rad/m), turn scale, distance scale.
   Eigen::Vector3d calibration_sigma = Eigen::Vector3d(0.05, 0.2, 0.2);
+  // Sigmas of the sensor's range offset (m) and bearing offset (rad) at the start (0).
+  Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
   bool Check(std::string* why) const;
 };
 
@@ -67,14 +71,16 @@ class RangeBearingLocalizer {
 
   SE2d pose() const { return SE2d(x_[0], x_[1], x_[2]); }
   Eigen::Matrix3d covariance() const { return P_.topLeftCorner<3, 3>(); }  // of the pose
-  Eigen::Vector3d calibration() const { return x_.tail<3>(); }
+  Eigen::Vector3d calibration() const { return x_.segment<3>(3); }
+  Eigen::Vector2d sensor_bias() const { return x_.tail<2>(); }
   bool lost() const { return lost_; }
   // Counts: accepted, unknown, gated, degenerate, became lost, regained.
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  using Vector6 = Eigen::Matrix<double, 6, 1>;
-  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  static constexpr int kStateSize = 8;
+  using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
+  using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
   static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b);
   static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b);
   static Eigen::Vector2d Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world);

@@ -41,7 +41,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   std::uniform_real_distribution<double> u(-3.0, 3.0);
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
-    x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng);
+    x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const auto predict = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
@@ -53,7 +53,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     EXPECT_LT((F_numeric - RangeBearingLocalizer::PredictJacobian(x6, M)).cwiseAbs().maxCoeff(), 1e-6);
     // With no calibration error the prediction is the composition T * M.
     RangeBearingLocalizer::Vector6 plain = x6;
-    plain.tail<3>().setZero();
+    plain.segment<3>(3).setZero();
     const SE2d composed = SE2d(x[0], x[1], x[2]) * M;
     const RangeBearingLocalizer::Vector6 predicted = RangeBearingLocalizer::PredictState(plain, M);
     EXPECT_NEAR(predicted[0], composed.x(), 1e-12);
