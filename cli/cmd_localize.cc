@@ -87,6 +87,10 @@ Options:
                       it for the survey): odometry stamped t is used at t - S (default 0)
   --late-frame-window S      live: how late (s) a frame may arrive after newer odometry and still
                       be used at its stamp (default 0.2)
+  --start-pose X,Y,YAW_DEG   the robot's pose in the map at its first odometry sample, roughly
+                      (within about 0.5 m and 15 deg): tells apart the map's squares (family
+                      square: no ids, all alike) until the first start. Required when the map
+                      has several squares and no code of another family (docs/online.md)
   --detect-budget-ms MS      live, image lines: wall-clock time per image after which the second
                       passes (QR, DataMatrix, AprilTag) stop (default 25; 0: no limit); the
                       attempts skipped are counted in the summary. Offline (dataset mode) detection
@@ -102,7 +106,8 @@ const std::set<std::string> kValues = {"map",
                                        "families",
                                        "odometry-time-offset",
                                        "late-frame-window",
-                                       "detect-budget-ms"};
+                                       "detect-budget-ms",
+                                       "start-pose"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -135,12 +140,36 @@ LocalizeRunOptions ParseOptions(const Args& args, const Dataset& dataset) {
   if (args.Has("odometry-time-offset"))
     options.odometry_time_offset_s = *args.GetDouble("odometry-time-offset");
   if (args.Has("late-frame-window")) options.late_frame_window_s = *args.GetDouble("late-frame-window");
+  if (const auto pose = args.GetDoubleList("start-pose")) {
+    if (pose->size() != 3) {
+      throw std::invalid_argument("option --start-pose: expected X,Y,YAW_DEG (3 numbers), got " +
+                                  std::to_string(pose->size()));
+    }
+    options.localizer.start_pose = SE2d((*pose)[0], (*pose)[1], (*pose)[2] * M_PI / 180.0).ToSE3();
+  }
   if (StderrIsTerminal()) {
     options.progress = [](const std::string& line) { std::cerr << "\r\033[K" << line << std::flush; };
   }
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument(why);
   return options;
+}
+
+// Squares carry no id and the detector needs them alike: with several and no code of another
+// family, the first square seen could be any of them; only --start-pose tells which.
+void CheckSquaresCanStart(const Args& args, const MarkerMap& map) {
+  if (args.Has("start-pose")) return;
+  int squares = 0;
+  for (const MapMarker& m : map.markers) {
+    if (!m.has_pose) continue;
+    if (m.key.family != kFamilySquare) return;
+    ++squares;
+  }
+  if (squares < 2) return;
+  throw std::invalid_argument(*args.Get("map") + ": " + std::to_string(squares) +
+                              " squares without ids and no other code: which square the robot first sees "
+                              "is ambiguous; give --start-pose X,Y,YAW_DEG (the robot's pose at its first "
+                              "odometry sample, within about 0.5 m and 15 deg)");
 }
 
 // Mean, median, p99 and max of the per-frame latencies.
@@ -248,6 +277,7 @@ int RunDataset(const Args& args) {
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
   const LocalizeRunOptions options = ParseOptions(args, dataset);
+  CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
   WriteOutputs(args, run);
@@ -265,6 +295,7 @@ int RunLive(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   LocalizeRunOptions options = ParseOptions(args, dataset);
+  CheckSquaresCanStart(args, map);
   options.progress = nullptr;
   options.detector.live_budget_ms = kDefaultLiveDetectBudgetMs;
   if (const auto budget = args.GetDouble("detect-budget-ms")) {

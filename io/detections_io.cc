@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "geometry/square_marker.h"
 #include "io/json_util.h"
 #include "io/util.h"
 
@@ -146,11 +147,13 @@ const CameraInfo* FindCamera(const JsonSource& source, const std::string& name,
 }
 
 // A code seen twice in one frame: which sighting is it? Every copy is dropped, counted once.
+// Squares not identified yet (id "*", geometry/square_marker.h) are not codes: several may be
+// in view, each is told apart later.
 void DropDuplicateMarkers(const JsonSource& source, DetectionFrame* frame, ReadWarnings* warnings) {
   std::map<MarkerKey, int> count;
   for (const MarkerObservation& marker : frame->markers) ++count[marker.key];
   for (const auto& [key, n] : count) {
-    if (n < 2) continue;
+    if (n < 2 || (key.family == kFamilySquare && key.id == kUnidentifiedSquareId)) continue;
     if (warnings) {
       warnings->Add("duplicate marker in frame", JsonErrorText(source, "markers",
                                                                key.ToString() + " seen " + std::to_string(n) +

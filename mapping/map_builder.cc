@@ -53,6 +53,7 @@ void FillOutputs(const Survey& survey, const Initialization& init, const GlobalP
     marker.size_m = survey.markers[m].size_m;
     marker.T_world_marker = problem.Marker(m);
     marker.fixed = survey.markers[m].known && survey.markers[m].known->fixed;
+    marker.square_tape = survey.markers[m].square_tape;
     marker.component = init.marker_component[m];
     result->map.markers.push_back(marker);
   }

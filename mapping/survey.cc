@@ -10,6 +10,7 @@
 #include "factors/odometry_covariance.h"
 #include "geometry/camera.h"
 #include "geometry/marker_pose.h"
+#include "mapping/square_association.h"
 #include "util/check.h"
 #include "util/format.h"
 
@@ -87,6 +88,7 @@ int AddMarker(const Dataset& dataset, const MarkerKey& key, const std::optional<
     // Size-only entries gave the size above; only a known pose makes a known marker.
     const MapMarker* known = dataset.known_markers->Find(key);
     if (known != nullptr && known->has_pose) marker.known = *known;
+    if (known != nullptr) marker.square_tape = known->square_tape;
   }
   if (parser && (key.family == kFamilyQr || key.family == kFamilyDataMatrix)) {
     std::optional<PayloadData> data = parser->Parse(key.id);
@@ -444,10 +446,21 @@ std::optional<TimeOffsetEstimate> EstimateOdometryTimeOffset(const Survey& surve
   return estimate;
 }
 
-Survey IngestDataset(const Dataset& dataset, const IngestOptions& options) {
+Survey IngestDataset(const Dataset& input, const IngestOptions& options) {
   std::string why;
   if (!options.Check(&why)) throw std::runtime_error("mapping ingest options: " + why);
   Survey survey;
+  // Square ceiling markers carry no id: told apart by the odometry first (square_association.h).
+  std::optional<Dataset> associated;
+  if (HasSquareDetections(input)) {
+    SquareAssociationStats stats;
+    associated = AssociateSquares(input, &stats);
+    survey.notes.push_back(
+        "squares: " + std::to_string(stats.sightings) + " sightings of " + std::to_string(stats.known_used) +
+        " known and " + std::to_string(stats.new_squares) + " new square(s)" +
+        (stats.unplaced > 0 ? ", " + std::to_string(stats.unplaced) + " left out (no pose)" : ""));
+  }
+  const Dataset& dataset = associated ? *associated : input;
   survey.motion = dataset.config.motion;
   survey.cameras = dataset.cameras;
   std::vector<int> frame_of_line;

@@ -45,6 +45,9 @@
 // is what a mis-stamped odometry topic gives (tagslam-test22: the T265 odometry is stamped about
 // half a second off its images).
 //
+// Square ceiling markers (family `square`) carry no id: their detections are first told apart by
+// the odometry (mapping/square_association.h), a line in notes says how many squares.
+//
 // Errors (std::runtime_error, one line naming the file): a detection for a camera that the
 // dataset does not list, a marker without a size (no markers.json entry and no
 // default_marker_size_m), a non-finite stamp.
@@ -107,8 +110,9 @@ struct SurveyFrame {
 struct SurveyMarker {
   MarkerKey key;
   double size_m = 0.0;
-  std::optional<MapMarker> known;      // entry of markers.json, if any
-  std::optional<PayloadData> payload;  // coordinates printed in the payload, if any
+  std::optional<MapMarker> known;         // entry of markers.json, if any
+  std::optional<PayloadData> payload;     // coordinates printed in the payload, if any
+  std::optional<SquareTape> square_tape;  // family square: its tape (markers.json entry)
   std::vector<int> observations;
 };
 

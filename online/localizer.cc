@@ -19,6 +19,7 @@ LocalizerOptions::~LocalizerOptions() = default;
 
 bool LocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(odometry.Check(why), nullptr);
+  WAYMARK_CHECK_OPTION(!start_pose || start_pose->IsFinite(), "localizer options: start_pose must be finite");
   WAYMARK_CHECK_OPTION(gate_probability > 0.0 && gate_probability < 1.0,
                        "localizer options: gate_probability must be in (0, 1)");
   WAYMARK_CHECK_OPTION(IsFinitePositive(default_pixel_sigma_px),
@@ -120,6 +121,7 @@ StepStatus Localizer::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
   had_motion_input_ = true;
   const std::optional<SE3d> previous = last_T_odom_robot_;
   last_T_odom_robot_ = T_odom_robot;
+  if (!first_T_odom_robot_) first_T_odom_robot_ = T_odom_robot;
   if (!previous) return StepStatus::kOk;
   const SE3d increment = previous->inverse() * T_odom_robot;
   if (options_.motion == MotionModel::kPlanar) {
@@ -634,12 +636,23 @@ FrameResult Localizer::AddDetections(const DetectionFrame& detections) {
   const Camera* camera = camera_it == cameras_.end() ? nullptr : &camera_it->second;
   // A plain pose and a pointer, not std::optional<SE3d>: GCC 12 warns (-Wmaybe-uninitialized,
   // falsely) about the optional's payload once IdentifySquareObservation is inlined.
+  // Before the first start the start pose (moved with the odometry) stands in for the track.
   const bool tracked = HasTrack();
-  const SE3d T_world_robot = tracked ? state_.T_world_robot() : SE3d();
+  const bool prior = !tracked && counters_.initializations == 0 && options_.start_pose.has_value();
+  SE3d T_world_robot;
+  if (tracked) {
+    T_world_robot = state_.T_world_robot();
+  } else if (prior) {
+    T_world_robot = *options_.start_pose;
+    if (first_T_odom_robot_ && last_T_odom_robot_) {
+      T_world_robot = T_world_robot * (first_T_odom_robot_->inverse() * *last_T_odom_robot_);
+    }
+  }
   for (const MarkerObservation& observation : detections.markers) {
     CodeSighting sighting;
     sighting.observation = observation;
-    IdentifySquareObservation(map_, camera, tracked ? &T_world_robot : nullptr, &sighting.observation);
+    IdentifySquareObservation(map_, camera, tracked || prior ? &T_world_robot : nullptr,
+                              &sighting.observation);
     sighting.solved = !map_.Find(sighting.observation.key);  // nothing to solve for an unknown code
     frame.sightings.push_back(std::move(sighting));
   }

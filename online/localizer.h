@@ -156,6 +156,11 @@ struct LocalizerOptions {
   int max_considered_markers = 16;  // kConsider: markers whose correlation is kept (most recent)
   // Codes the map puts in view but not detected (online/visibility.h; life cycle above).
   VisibilityOptions visibility;
+  // The robot's pose at its first odometry sample (at its first input without odometry),
+  // roughly: moved with the odometry, it stands in for the track until the first start, to tell
+  // apart squares that look alike (family `square`, no ids; IdentifySquare's 100 px gate: within
+  // about 0.5 m and 15 deg under [Seki]'s 2 m squares).
+  std::optional<SE3d> start_pose;
 
   bool Check(std::string* why) const;
 
@@ -340,6 +345,7 @@ class Localizer {
   std::optional<double> last_stamp_s_;
   std::optional<SE3d> last_T_odom_robot_;
   bool had_motion_input_ = false;  // an odometry or velocity input came: no random walk
+  std::optional<SE3d> first_T_odom_robot_;  // for options_.start_pose
   int rejected_frames_in_a_row_ = 0;
   // Relocalization: the latest sighting's robot poses (both solutions of an ambiguous code),
   // moved with the odometry, each with the length of the chain of agreeing sightings it ends.

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "geometry/square_marker.h"
 #include "io/util.h"
 #include "runner/image.h"
 #include "util/check.h"
@@ -275,7 +276,13 @@ void LocalizeStream::ProcessFrame(const Pending& pending) {
   }
   bool has_map_code = false;
   for (const MarkerObservation& observation : frame.markers) {
-    if (map_keys_.count(observation.key)) {
+    // A square not identified yet (id "*") is one of the map's squares, if it has any.
+    const bool unidentified_square =
+        observation.key.family == kFamilySquare && observation.key.id == kUnidentifiedSquareId;
+    if (map_keys_.count(observation.key) ||
+        (unidentified_square && std::any_of(map_keys_.begin(), map_keys_.end(), [](const MarkerKey& key) {
+           return key.family == kFamilySquare;
+         }))) {
       has_map_code = true;
     } else {
       warnings_.Add(kWarnUnknownCode, observation.key.ToString() + " in the " + example);

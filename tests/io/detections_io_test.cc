@@ -164,6 +164,15 @@ TEST(DetectionsIoTest, MarkersPerFrameAreLimitedAndDuplicatesDropped) {
   ASSERT_EQ(warnings.first_messages.size(), 1u);
   EXPECT_EQ(warnings.first_messages[0],
             "detections.jsonl:1: markers: qr:0/2/10 seen 2 times in one frame, all ignored");
+  // Unidentified squares (id "*") are not codes: two in view are both kept.
+  const std::string square =
+      R"({"family": "square", "id": "*", "corners_px": [[100, 20], [130, 20], [130, 40], [100, 40]]})";
+  ReadWarnings square_warnings;
+  const std::vector<DetectionFrame> squares =
+      ParseDetections(Line(1, square + "," + square), "detections.jsonl", &square_warnings);
+  ASSERT_EQ(squares.size(), 1u);
+  EXPECT_EQ(squares[0].markers.size(), 2u);
+  EXPECT_EQ(square_warnings.Total(), 0);
   DetectionFrame big;
   big.camera = "cam0";
   big.markers.resize(kMaxMarkersPerFrame + 1, frames[0].markers[0]);

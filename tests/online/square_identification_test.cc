@@ -129,5 +129,47 @@ TEST(SquareIdentificationTest, SeveralSquaresAreToldApartByThePose) {
   EXPECT_LT(worst_m, 0.01);
 }
 
+// A start pose (moved with the odometry until the first square) tells which of two alike squares
+// the first "*" is: near the truth it starts right; a start pose 6 m off (under the other square)
+// starts 6 m off, i.e. it is the start pose, not the look, that decides.
+TEST(SquareIdentificationTest, StartPoseTellsTheFirstSquare) {
+  MarkerMap map = Squares(2);
+  map.markers[1].square_tape.reset();  // alike, as the detector needs them
+  const CameraInfo info = UpCamera();
+  const Camera camera(info);
+  for (const double offset_m : {0.0, 6.0}) {
+    LocalizerOptions options;
+    // The robot's pose at its first odometry sample, 0.3 m and 5 deg off the truth (+ offset_m).
+    options.start_pose = SE2d(5.8 + 0.3 - offset_m, -0.3, 5.0 * M_PI / 180.0).ToSE3();
+    Localizer localizer(options, map, {info});
+    std::mt19937 rng(5);
+    ASSERT_EQ(localizer.AddOdometry(0.0, SE2d(1.0, 2.0, 0.5).ToSE3()), StepStatus::kOk);
+    // The odometry's frame is not the map's: 0.4 m forward in it before the first square.
+    const SE3d T_world_robot = SE2d(6.2, -0.3, 0.0).ToSE3();
+    ASSERT_EQ(localizer.AddOdometry(1.0, SE2d(1.0, 2.0, 0.5).ToSE3() * SE2d(0.4, 0.0, 0.0).ToSE3()),
+              StepStatus::kOk);
+    DetectionFrame frame;
+    frame.stamp_s = 1.0;
+    frame.camera = "up";
+    frame.markers.push_back(*Detect(map.markers[1], camera, T_world_robot, &rng));
+    ASSERT_EQ(localizer.AddDetections(frame).status, StepStatus::kOk);
+    const PoseOutput output = localizer.Output();
+    ASSERT_TRUE(output.T_world_robot.has_value()) << offset_m;
+    EXPECT_EQ(localizer.counters().unknown_markers, 0);
+    const double error_m =
+        (output.T_world_robot->translation() - T_world_robot.translation()).head<2>().norm();
+    EXPECT_NEAR(error_m, offset_m, 0.01) << offset_m;
+  }
+  // Without it the same detection is unknown.
+  Localizer plain(LocalizerOptions{}, map, {info});
+  std::mt19937 rng(5);
+  DetectionFrame frame;
+  frame.camera = "up";
+  frame.markers.push_back(*Detect(map.markers[1], camera, SE2d(6.2, -0.3, 0.0).ToSE3(), &rng));
+  ASSERT_EQ(plain.AddDetections(frame).status, StepStatus::kOk);
+  EXPECT_FALSE(plain.Output().T_world_robot.has_value());
+  EXPECT_EQ(plain.counters().unknown_markers, 1);
+}
+
 }  // namespace
 }  // namespace waymark
