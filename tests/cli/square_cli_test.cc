@@ -1,7 +1,7 @@
 // [Seki] end to end through the binary: `waymark sim square-ceiling --render` (LED pairs),
 // `waymark detect D --families square`, `waymark localize D --map D/markers.json`; and the
-// errors of bad LED pairs (a lone on image, a pair of different sizes, no pairs, family square on
-// a lone image): exit 1, one line, no output file.
+// errors of bad LED pairs (a lone on image, a lone off image, a pair of different sizes, no pairs, family
+// square on a lone image): exit 1, one line, no output file.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -112,6 +112,22 @@ TEST_F(SquareCli, LoneOnImageIsAnError) {
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_FALSE(fs::exists(dir_ / "out.jsonl"));
   (void)removed;
+}
+
+TEST_F(SquareCli, LoneOffImageIsAnError) {
+  std::string csv = ImagesCsv();
+  const size_t on = csv.find("-on.png");
+  ASSERT_NE(on, std::string::npos);
+  const size_t begin = csv.rfind('\n', on) + 1, end = csv.find('\n', on) + 1;
+  const size_t path_begin = csv.rfind(',', on) + 1;
+  const std::string off_path = csv.substr(path_begin, on - path_begin) + "-off.png";
+  WriteImagesCsv(csv.erase(begin, end - begin));
+  EXPECT_EQ(Detect(), 1);
+  const std::string err = Stderr();
+  EXPECT_NE(err.find("LED-off image '" + off_path + "' (camera up) has no LED-on partner"), std::string::npos)
+      << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_FALSE(fs::exists(dir_ / "out.jsonl"));
 }
 
 TEST_F(SquareCli, PairOfDifferentSizesIsAnError) {
