@@ -1,6 +1,7 @@
 // `waymark sim`: writes a simulated dataset directory with exact ground truth (sim/).
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -13,6 +14,11 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
+#include "io/map_io.h"
+#include "io/tum_io.h"
+#include "io/util.h"
+#include "plan/drive.h"
+#include "plan/route_io.h"
 #include "sim/params.h"
 #include "sim/render.h"
 #include "sim/render_io.h"
@@ -35,6 +41,7 @@ std::string Usage() {
   out << "Usage: waymark sim SCENARIO --out DIR [--seed N] [--config FILE.yaml] [--set key=value ...] "
          "[--force]\n"
          "                   [--render [--render-every N]]\n"
+         "       waymark sim SCENARIO --drive ROUTE.json --localize MAP.json --out DIR [--seed N] [keys]\n"
          "       waymark sim SCENARIO --print-config [--config FILE.yaml] [--set key=value ...]\n"
          "       waymark sim list\n\n"
          "Writes a dataset directory (docs/design.md) with detections, odometry and exact ground truth.\n"
@@ -51,7 +58,21 @@ std::string Usage() {
          "                      images.csv) and their exact code corners (groundtruth/corners.jsonl);\n"
          "                      photometry from the render.* keys; square-ceiling: infrared LED pairs\n"
          "                      images/<camera>/<n>-on.png and <n>-off.png, photometry from the ir.* keys\n"
-         "  --render-every N    render every N-th camera frame only (default 1)\n";
+         "  --render-every N    render every N-th camera frame only (default 1)\n"
+         "  --drive ROUTE.json  closed loop (docs/planning.md): instead of the scenario's path, drive the\n"
+         "                      route from `waymark route` with a pure-pursuit controller fed by the\n"
+         "                      online localizer's pose against --localize (never the truth), with the\n"
+         "                      scenario's odometry and detection noise; DIR is a dataset as usual plus\n"
+         "                      online/trajectory.tum (the localizer's poses) and drive.json (the\n"
+         "                      outcome: goal error, frames lost); planar wheel scenarios only\n"
+         "  --localize MAP.json the map the robot localizes against (required with --drive)\n"
+         "  --cold-start        --drive: the robot is set down at the route's start within 5 cm and 0.05 "
+         "rad\n"
+         "                      (drawn from the seed); by default the localizer starts from the route's\n"
+         "                      start with that uncertainty, with --cold-start from its first code\n"
+         "  --markers FILE      replace the scenario's codes by FILE's (map format, every code with its\n"
+         "                      pose; `fixed` ones are anchors): a survey of a layout from\n"
+         "                      `waymark plan-codes` in the same walls, cameras and path\n";
   for (const auto& [flag, key] : kShortcuts) {
     out << "  --" << flag << " V" << std::string(16 - flag.size(), ' ') << "same as --set " << key << "=V\n";
   }
@@ -104,10 +125,52 @@ std::vector<std::string> ExtractAssignments(const std::vector<std::string>& argv
   return assignments;
 }
 
+// --markers: the codes of a map file (with poses) as the place's codes; fixed ones are anchors.
+std::vector<sim::SimMarker> PlannedMarkers(const std::string& file) {
+  const MarkerMap map = ReadMap(file);
+  if (map.markers.empty()) throw std::invalid_argument(file + ": no code to place");
+  std::vector<sim::SimMarker> markers;
+  for (const MapMarker& m : map.markers) {
+    if (!m.has_pose) throw std::invalid_argument(file + ": " + m.key.ToString() + " has no pose");
+    sim::SimMarker s;
+    s.key = m.key;
+    s.size_m = m.size_m;
+    s.T_world_marker = m.T_world_marker;
+    s.anchor = m.fixed;
+    markers.push_back(s);
+  }
+  return markers;
+}
+
+// --drive: the closed loop of plan/drive.h.
+int RunDrive(const Args& args, const std::string& scenario, const sim::ParamSet& params, long seed) {
+  const plan::Route route = plan::ReadRoute(args.Require("drive"));
+  const MarkerMap map = ReadMap(args.Require("localize"));
+  plan::DriveOptions options;
+  options.start_pose_known = !args.Flag("cold-start");
+  if (params.Has("robot.speed_mps")) options.speed_mps = params.Double("robot.speed_mps");
+  if (params.Has("robot.turn_rate_dps"))
+    options.turn_rate_radps = params.Double("robot.turn_rate_dps") * M_PI / 180.0;
+  const plan::DriveResult drive =
+      plan::DriveRoute(scenario, params, static_cast<std::uint64_t>(seed), route, map, std::nullopt, options);
+  const std::string out_dir = args.Require("out");
+  sim::WriteSimDataset(drive.sim, params, static_cast<std::uint64_t>(seed), out_dir, args.Flag("force"),
+                       [&](const std::filesystem::path& dir) {
+                         std::filesystem::create_directories(dir / "online");
+                         WriteTum(dir / "online" / "trajectory.tum", drive.online,
+                                  "waymark sim --drive: the online localizer's T_world_robot while tracking");
+                         AtomicWriteFile(dir / "drive.json", plan::FormatDriveReport(drive.report));
+                       });
+  std::cerr << sim::SummaryLine(drive.sim) << " -> " << out_dir << "\n"
+            << "drive: " << plan::DriveSummaryLine(drive.report) << "\n";
+  return drive.report.reached ? 0 : 2;
+}
+
 int RunSim(const std::vector<std::string>& argv) {
   std::vector<std::string> rest;
   const std::vector<std::string> assignments = ExtractAssignments(argv, &rest);
-  const Args args(rest, {"out", "seed", "config", "render-every"}, {"force", "print-config", "render"});
+  const Args args(rest, {"out", "seed", "config", "render-every", "drive", "localize", "markers"},
+                  {"force", "print-config", "render", "cold-start"});
   if (args.Help()) {
     std::cout << Usage();
     return 0;
@@ -133,7 +196,19 @@ int RunSim(const std::vector<std::string>& argv) {
   if (args.Get("render-every") && !args.Flag("render")) {
     throw std::invalid_argument("option --render-every needs --render");
   }
-  const sim::SimResult result = sim::Simulate(scenario, params, static_cast<std::uint64_t>(seed));
+  if (args.Flag("cold-start") && !args.Has("drive"))
+    throw std::invalid_argument("--cold-start needs --drive");
+  if (args.Has("drive") || args.Has("localize")) {
+    if (!args.Has("drive") || !args.Has("localize"))
+      throw std::invalid_argument("--drive and --localize go together");
+    if (args.Flag("render")) throw std::invalid_argument("--drive does not render (no --render)");
+    if (args.Has("markers")) throw std::invalid_argument("--drive does not take --markers");
+    return RunDrive(args, scenario, params, seed);
+  }
+  std::optional<std::vector<sim::SimMarker>> markers;
+  if (const auto file = args.Get("markers")) markers = PlannedMarkers(*file);
+  const sim::SimResult result =
+      sim::Simulate(scenario, params, static_cast<std::uint64_t>(seed), markers ? &*markers : nullptr);
   sim::RenderStats render_stats;
   std::function<void(const std::filesystem::path&)> render;
   if (args.Flag("render") && result.scene.ir_room) {

@@ -6,7 +6,11 @@ get_property(_libraries GLOBAL PROPERTY WAYMARK_LIBRARIES)
 function(_waymark_strip out)
   set(_names "")
   foreach(_item ${ARGN})
-    string(REGEX REPLACE "^\\$<LINK_ONLY:(.*)>$" "\\1" _item "${_item}")
+    # $<LINK_ONLY:x> in a static library's INTERFACE_LINK_LIBRARIES is a PRIVATE dependency
+    # (linked by its users, not part of its interface): not a public one.
+    if(_item MATCHES "^\\$<LINK_ONLY:")
+      continue()
+    endif()
     string(REGEX REPLACE "^\\$<BUILD_INTERFACE:(.*)>$" "\\1" _item "${_item}")
     if(_item MATCHES "^waymark_(.*)$" AND NOT _item STREQUAL "waymark_warnings")
       list(APPEND _names ${CMAKE_MATCH_1})

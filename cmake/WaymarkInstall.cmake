@@ -28,7 +28,7 @@ install(FILES ${PROJECT_BINARY_DIR}/WaymarkConfig.cmake ${PROJECT_BINARY_DIR}/Wa
 # pkg-config: every library, most dependent first (static archives), and the dependencies that have
 # a .pc file on Debian; Ceres has none, so it is named in Libs.
 set(_waymark_pc_libs "")
-foreach(_folder eval sim runner online mapping detect io geometry util)
+foreach(_folder plan eval sim runner online mapping detect io geometry util)
   if(TARGET waymark_${_folder})
     get_target_property(_type waymark_${_folder} TYPE)
     if(NOT _type STREQUAL "INTERFACE_LIBRARY")

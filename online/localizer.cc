@@ -836,6 +836,27 @@ bool Localizer::Initialize(const Camera& camera, const MapMarker& marker, const 
   return true;
 }
 
+StepStatus Localizer::InitializeAt(double stamp_s, const SE3d& T_world_robot,
+                                   const Eigen::MatrixXd& covariance) {
+  const int dim = state_.dim();
+  if (covariance.rows() != dim || covariance.cols() != dim || !covariance.allFinite() ||
+      !T_world_robot.IsFinite() || Eigen::LLT<Eigen::MatrixXd>(covariance).info() != Eigen::Success) {
+    ++counters_.rejected_inputs;
+    return StepStatus::kInvalidInput;
+  }
+  if (const StepStatus status = Accept(stamp_s); status != StepStatus::kOk) return status;
+  const StepStatus status = state_.Reset(PoseToStateVector(T_world_robot, options_.motion), covariance);
+  if (status != StepStatus::kOk) return status;
+  state_.SetLevel(T_world_robot.rotation_matrix());
+  tracking_ = TrackingStatus::kTracking;
+  ++counters_.initializations;
+  rejected_frames_in_a_row_ = 0;
+  hypotheses_.clear();
+  negative_.Restart();
+  component_.reset();
+  return StepStatus::kOk;
+}
+
 std::pair<double, double> Localizer::Distance(const SE3d& a, const SE3d& b) const {
   const int yaw_index = state_.yaw_index();
   const Eigen::VectorXd delta = EkfState::BoxMinus(PoseToStateVector(a, options_.motion),

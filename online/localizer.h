@@ -236,6 +236,12 @@ class Localizer {
   // Throws std::invalid_argument when options.Check fails or a camera is listed twice.
   Localizer(LocalizerOptions options, MarkerMap map, const std::vector<CameraInfo>& cameras);
 
+  // Starts tracking from a pose known before any code (a robot set down at a known place, as
+  // AMCL's initial pose): mean T_world_robot (level for planar), covariance of the error state
+  // (ekf_state.h: x y yaw planar, x y z yaw free). kInvalidInput (nothing changes) for a
+  // covariance of the wrong size, not finite or not positive definite; kTimeWentBackwards for a
+  // stamp older than the last input. Counts as an initialization.
+  StepStatus InitializeAt(double stamp_s, const SE3d& T_world_robot, const Eigen::MatrixXd& covariance);
   // Odometry pose T_odom_robot at stamp_s; only increments between calls are used.
   StepStatus AddOdometry(double stamp_s, const SE3d& T_odom_robot);
   // Planar only: the robot moved with (v, omega) since the previous input ([Bach], eq. 5).

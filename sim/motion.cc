@@ -145,29 +145,34 @@ SimTrajectory FlightPathBuilder::Build() const {
   return out;
 }
 
+SE2d WheelOdometryStep(const SE2d& step, const WheelOdometryModel& model, std::mt19937_64* rng,
+                       std::normal_distribution<double>* normal) {
+  const double half_track_m = 0.5 * model.track_width_m;
+  const double nominal_track_m = model.track_width_m * (1.0 + model.track_width_error);
+  const double dtheta = step.theta();
+  const double s = ArcLength(step.x(), step.y(), dtheta);
+  const double s_left = (s - dtheta * half_track_m) / (1.0 + model.wheel_radius_error_left);
+  const double s_right = (s + dtheta * half_track_m) / (1.0 + model.wheel_radius_error_right);
+  const double s_meas = 0.5 * (s_left + s_right);
+  const double dtheta_meas = (s_right - s_left) / nominal_track_m;
+  Eigen::Vector2d d = ArcChord(s_meas, dtheta_meas);
+  const double sigma_t = model.sigma.trans_per_m * std::abs(s);
+  const double sigma_r = model.sigma.rot_per_rad * std::abs(dtheta);
+  d.x() += sigma_t * (*normal)(*rng);
+  d.y() += sigma_t * (*normal)(*rng);
+  return SE2d(d.x(), d.y(), dtheta_meas + sigma_r * (*normal)(*rng));
+}
+
 Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometryModel& model,
                                  std::mt19937_64* rng) {
   std::normal_distribution<double> normal(0.0, 1.0);
-  const double half_track_m = 0.5 * model.track_width_m;
-  const double nominal_track_m = model.track_width_m * (1.0 + model.track_width_error);
   Trajectory odometry;
   SE2d T_odom_robot;
   for (size_t k = 0; k < truth.T_world_robot.size(); ++k) {
     if (k > 0 && truth.segment[k] == truth.segment[k - 1]) {
       const SE2d step =
           SE2d::FromSE3(truth.T_world_robot[k - 1].T).inverse() * SE2d::FromSE3(truth.T_world_robot[k].T);
-      const double dtheta = step.theta();
-      const double s = ArcLength(step.x(), step.y(), dtheta);
-      const double s_left = (s - dtheta * half_track_m) / (1.0 + model.wheel_radius_error_left);
-      const double s_right = (s + dtheta * half_track_m) / (1.0 + model.wheel_radius_error_right);
-      const double s_meas = 0.5 * (s_left + s_right);
-      const double dtheta_meas = (s_right - s_left) / nominal_track_m;
-      Eigen::Vector2d d = ArcChord(s_meas, dtheta_meas);
-      const double sigma_t = model.sigma.trans_per_m * std::abs(s);
-      const double sigma_r = model.sigma.rot_per_rad * std::abs(dtheta);
-      d.x() += sigma_t * normal(*rng);
-      d.y() += sigma_t * normal(*rng);
-      T_odom_robot = T_odom_robot * SE2d(d.x(), d.y(), dtheta_meas + sigma_r * normal(*rng));
+      T_odom_robot = T_odom_robot * WheelOdometryStep(step, model, rng, &normal);
     } else {
       T_odom_robot = SE2d();  // first sample, or set down after a carry
     }

@@ -100,6 +100,11 @@ struct VisualOdometryModel {
   OdometrySigma sigma;
 };
 
+// One step of wheel odometry: the measured increment for the true increment `step` (the model
+// above), drawing from `normal` (N(0, 1), kept by the caller: it caches every other draw) and rng.
+SE2d WheelOdometryStep(const SE2d& step, const WheelOdometryModel& model, std::mt19937_64* rng,
+                       std::normal_distribution<double>* normal);
+
 // T_odom_robot at the stamps of `truth`, identity at the first sample of every segment.
 Trajectory SimulateWheelOdometry(const SimTrajectory& truth, const WheelOdometryModel& model,
                                  std::mt19937_64* rng);

@@ -178,12 +178,14 @@ void CheckParams(const ParamSet& params) {
 
 }  // namespace
 
-SimResult Simulate(const std::string& scenario, const ParamSet& params, std::uint64_t seed) {
+SimResult Simulate(const std::string& scenario, const ParamSet& params, std::uint64_t seed,
+                   const std::vector<SimMarker>* markers) {
   CheckParams(params);
   const int stride = CameraStride(params);
   SimResult result;
   result.scenario = scenario;
   result.scene = BuildScene(scenario, params);
+  if (markers) result.scene.world.markers = *markers;
   const World& world = result.scene.world;
   const Trajectory& truth = result.scene.truth.T_world_robot;
   Dataset& dataset = result.dataset;
@@ -218,6 +220,117 @@ SimResult Simulate(const std::string& scenario, const ParamSet& params, std::uin
   result.stats.path_length_m = result.scene.truth.LengthM();
   result.stats.duration_s = truth.empty() ? 0.0 : truth.back().stamp_s - truth.front().stamp_s;
   return result;
+}
+
+struct SimStepper::Impl {
+  ParamSet params;
+  SimResult result;
+  int stride = 1;
+  double period_s = 0.0;
+  double height_m = 0.0;
+  std::mt19937_64 odometry_rng, detection_rng;
+  std::normal_distribution<double> normal{0.0, 1.0};
+  WheelOdometryModel model;
+  std::unique_ptr<DetectionDrawer> drawer;
+  std::vector<Camera> cameras;
+  std::vector<int> frame_segments;
+  SE2d T_world_robot, T_odom_robot;
+  long k = 0;
+  Sample first;
+
+  Sample Record() {
+    Sample sample;
+    sample.stamp_s = k * period_s;
+    sample.T_odom_robot = T_odom_robot.ToSE3();
+    const SE3d T_world = T_world_robot.ToSE3(height_m);
+    result.scene.truth.T_world_robot.push_back({sample.stamp_s, T_world});
+    result.scene.truth.segment.push_back(0);
+    result.dataset.odometry.push_back({sample.stamp_s, sample.T_odom_robot});
+    if (k % stride == 0) {
+      for (const Camera& camera : cameras) {
+        result.true_keys.emplace_back();
+        const SE3d T_world_camera = T_world * camera.info().T_robot_camera;
+        sample.frames.push_back(
+            drawer->Draw(camera, sample.stamp_s, T_world_camera, &result.true_keys.back(), &result.stats));
+        result.dataset.detections.push_back(sample.frames.back());
+        frame_segments.push_back(0);
+        ++result.stats.frames;
+      }
+    }
+    return sample;
+  }
+};
+
+SimStepper::SimStepper(const std::string& scenario, const ParamSet& params, std::uint64_t seed,
+                       const SE2d& T_world_start)
+    : impl_(std::make_unique<Impl>()) {
+  CheckParams(params);
+  Impl& m = *impl_;
+  m.params = params;
+  m.stride = CameraStride(params);
+  m.period_s = 1.0 / params.Double("rate.odometry_hz");
+  m.result.scenario = scenario;
+  m.result.scene = BuildScene(scenario, params);
+  if (m.result.scene.odometry != OdometryKind::kWheel ||
+      m.result.scene.world.motion != MotionModel::kPlanar) {
+    throw std::invalid_argument("scenario " + scenario + " is not a planar robot with wheel odometry");
+  }
+  if (!m.result.scene.truth.T_world_robot.empty()) {
+    m.height_m = m.result.scene.truth.T_world_robot.front().T.translation().z();
+  }
+  m.result.scene.truth = SimTrajectory();
+  FillPlace(m.result, params, &m.result.dataset);
+  m.result.dataset.has_odometry_file = true;
+  m.result.dataset.has_detections_file = true;
+  m.odometry_rng = MakeRng(seed, kOdometryStream);
+  m.detection_rng = MakeRng(seed, kDetectionStream);
+  m.model.track_width_m = params.Double("robot.track_width_m");
+  m.model.wheel_radius_error_left = params.Double("odometry.wheel_radius_error_left");
+  m.model.wheel_radius_error_right = params.Double("odometry.wheel_radius_error_right");
+  m.model.track_width_error = params.Double("odometry.track_width_error");
+  m.model.sigma = OdometrySigma{params.Double("odometry.trans_per_m"), params.Double("odometry.rot_per_rad")};
+  const VisibilityLimits limits{params.Double("detect.min_range_m"), params.Double("detect.max_range_m"),
+                                params.Double("detect.max_angle_deg"), params.Double("detect.border_px")};
+  const DetectionNoise noise{params.Double("detect.pixel_sigma_px"), params.Double("detect.miss_fraction"),
+                             params.Double("detect.misdecode_fraction"),
+                             params.Double("detect.misdecode_random_share")};
+  m.drawer = std::make_unique<DetectionDrawer>(m.result.scene.world, limits, noise, &m.detection_rng);
+  for (const CameraInfo& info : m.result.scene.world.cameras) m.cameras.emplace_back(info);
+  m.T_world_robot = T_world_start;
+  m.first = m.Record();
+}
+
+SimStepper::~SimStepper() = default;
+
+const SimStepper::Sample& SimStepper::first() const { return impl_->first; }
+const SE2d& SimStepper::T_world_robot() const { return impl_->T_world_robot; }
+double SimStepper::period_s() const { return impl_->period_s; }
+const Dataset& SimStepper::dataset() const { return impl_->result.dataset; }
+
+SimStepper::Sample SimStepper::Advance(double v_mps, double omega_radps) {
+  Impl& m = *impl_;
+  const double s = v_mps * m.period_s, dtheta = omega_radps * m.period_s;
+  const SE2d step = std::abs(dtheta) < 1e-12
+                        ? SE2d(s, 0.0, 0.0)
+                        : SE2d(s / dtheta * std::sin(dtheta), s / dtheta * (1.0 - std::cos(dtheta)), dtheta);
+  m.T_world_robot = m.T_world_robot * step;
+  m.T_odom_robot = m.T_odom_robot * WheelOdometryStep(step, m.model, &m.odometry_rng, &m.normal);
+  ++m.k;
+  return m.Record();
+}
+
+SimResult SimStepper::Finish() {
+  Impl& m = *impl_;
+  m.result.dataset.groundtruth_trajectory = m.result.scene.truth.T_world_robot;
+  SetComponents(&m.result, m.frame_segments);
+  m.result.stats.markers = static_cast<long>(m.result.scene.world.markers.size());
+  m.result.stats.path_length_m = m.result.scene.truth.LengthM();
+  const Trajectory& truth = m.result.scene.truth.T_world_robot;
+  m.result.stats.duration_s = truth.empty() ? 0.0 : truth.back().stamp_s - truth.front().stamp_s;
+  m.drawer.reset();
+  SimResult out = std::move(m.result);
+  impl_.reset();
+  return out;
 }
 
 std::string SummaryLine(const SimResult& result) {

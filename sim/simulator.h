@@ -18,9 +18,11 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "geometry/pose.h"
 #include "geometry/types.h"
 #include "sim/params.h"
 #include "sim/scenarios.h"
@@ -50,7 +52,46 @@ struct SimResult {
 // Simulates `scenario` with `params` (from ScenarioParams, possibly overridden). Throws
 // std::invalid_argument for inconsistent parameters (e.g. camera rate not dividing the
 // odometry rate, min range above max range).
-SimResult Simulate(const std::string& scenario, const ParamSet& params, std::uint64_t seed);
+// `markers`, when given, replace the scenario's codes (same walls, cameras and path): a survey
+// of a planned layout (`waymark plan-codes`, `waymark sim --markers`).
+SimResult Simulate(const std::string& scenario, const ParamSet& params, std::uint64_t seed,
+                   const std::vector<SimMarker>* markers = nullptr);
+
+// The closed loop (plan/drive.h): the same place, cameras, odometry and detection noise as
+// Simulate, but the robot's motion is decided step by step by a caller (a controller fed by
+// the localizer) instead of by the scenario's path. Planar wheel-odometry scenarios only. The
+// robot starts at the true pose `T_world_start` at stamp 0 and each Advance moves it for one
+// odometry period with constant (v, omega) (an exact arc); camera frames are drawn at every
+// (rate.odometry_hz / rate.camera_hz)-th sample, from the first one, as Simulate does. The noise
+// streams are seeded as in Simulate.
+class SimStepper {
+ public:
+  struct Sample {
+    double stamp_s = 0.0;
+    SE3d T_odom_robot;                   // the odometry at this sample
+    std::vector<DetectionFrame> frames;  // one per camera on camera samples, else none
+  };
+
+  // Throws std::invalid_argument for a scenario without wheel odometry or inconsistent params.
+  SimStepper(const std::string& scenario, const ParamSet& params, std::uint64_t seed,
+             const SE2d& T_world_start);
+  ~SimStepper();
+  SimStepper(const SimStepper&) = delete;
+  SimStepper& operator=(const SimStepper&) = delete;
+
+  const Sample& first() const;  // the sample at the start (stamp 0)
+  Sample Advance(double v_mps, double omega_radps);
+  const SE2d& T_world_robot() const;  // the true pose now
+  double period_s() const;
+  const Dataset& dataset() const;  // cameras (as calibrated), known markers, config
+  // Everything driven so far as a SimResult (truth, odometry, detections, ground truth); the
+  // stepper is spent afterwards.
+  SimResult Finish();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // One line: "corridor: 1335 frames (2 cameras), 1234 detections, 64 markers, 40.0 m path, 140.2 s".
 std::string SummaryLine(const SimResult& result);

@@ -15,9 +15,12 @@ foreach(_row ${_table})
     message(FATAL_ERROR "library_graph_test: cannot read the row of docs/design.md: ${_row}")
   endif()
   set(_folder ${CMAKE_MATCH_1})
+  # Kept apart: the MATCHALL below overwrites CMAKE_MATCH_<n>.
+  set(_column_2 "${CMAKE_MATCH_2}")
+  set(_column_3 "${CMAKE_MATCH_3}")
   foreach(_col 2 3)
-    string(REGEX MATCHALL "(^|[ ,])(util|geometry|io|detect|factors|mapping|online|runner|sim|eval)([ ,]|$)" _names
-           "${CMAKE_MATCH_${_col}}")
+    string(REGEX MATCHALL "(^|[ ,])(util|geometry|io|detect|factors|mapping|online|runner|sim|eval|plan)([ ,]|$)"
+           _names "${_column_${_col}}")
     set(_list "")
     foreach(_n ${_names})
       string(REGEX REPLACE "[ ,]" "" _n "${_n}")
