@@ -94,7 +94,7 @@ void CheckPath(const FloorPlan& plan, const Trajectory& path) {
     const Eigen::Vector2d p = path[i].T.translation().head<2>();
     if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) {
       throw std::invalid_argument(
-          "pose " + std::to_string(i + 1) + " of the path (t = " + FormatDouble(path[i].stamp_s) +
+          "pose " + std::to_string(i + 1) + " of the path (t = " + FormatFixed(path[i].stamp_s, 3) +
           " s) at (" + FormatFixed(p.x(), 2) + ", " + FormatFixed(p.y(), 2) +
           ") is outside the floor plan (walls span [" + FormatDouble(lo.x()) + ", " + FormatDouble(hi.x()) +
           "] x [" + FormatDouble(lo.y()) + ", " + FormatDouble(hi.y()) + "])");
@@ -104,7 +104,7 @@ void CheckPath(const FloorPlan& plan, const Trajectory& path) {
     for (size_t w = 0; w < plan.walls.size(); ++w) {
       if (SegmentsCross(q, p, plan.walls[w].from_world, plan.walls[w].to_world)) {
         throw std::invalid_argument("pose " + std::to_string(i + 1) +
-                                    " of the path (t = " + FormatDouble(path[i].stamp_s) +
+                                    " of the path (t = " + FormatFixed(path[i].stamp_s, 3) +
                                     " s) is behind wall " + std::to_string(w + 1) + ": the path crosses it");
       }
     }
@@ -203,8 +203,11 @@ LayoutPrediction PredictLayout(const FloorPlan& plan, const Trajectory& path, do
     mapped.push_back(m);
   }
   out.markers.markers = mapped;
+  // The pose relative to the map (the map taken as exact): routes and goals are given in the
+  // map's frame, so the map's own frame error moves them with the robot; it is the map criterion.
   LocalizeRunOptions options;
   options.localizer = DefaultLocalizerOptions(survey);
+  options.localizer.map_uncertainty = MapUncertainty::kIgnore;
   const LocalizeRun run = RunLocalizer(survey, build.map, options);
   // Arc length along the path at each stamp.
   std::map<double, double> along;

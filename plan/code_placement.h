@@ -17,8 +17,13 @@
 //                  --map` fits (eval/map_metrics.h PredictMapError, pooled): what a sim survey
 //                  of the layout should measure;
 //   online error   the localizer (runner/run.h, the options `waymark localize` uses) run on the
-//                  same noise-free survey against the predicted map: the RMS over its frames of
-//                  the position sigma sqrt(P_xx + P_yy) (the map's error considered, online/).
+//                  same noise-free survey against the predicted map taken as exact
+//                  (MapUncertainty::kIgnore): the RMS over its frames of the position sigma
+//                  sqrt(P_xx + P_yy) of the pose relative to the map. Routes and goals are given in
+//                  the map's frame, so the map's own frame error (the gauge drift, 2-3 times its
+//                  aligned error in a 40 m loop) moves them with the robot; it is judged by the
+//                  map criterion. (With the map's error considered, the filter's sigma is about
+//                  the map's unaligned error: 21.7 mm for the default corridor.)
 // A layout meets a target E when both are at most E, the map is one component and the localizer
 // tracks at least 95 % of the frames from its first code on. Codes the build leaves unmapped are
 // dropped from the layout (`unmapped` counts them).

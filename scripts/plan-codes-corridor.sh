@@ -38,9 +38,6 @@ walls:
 YAML
 path="$work/rig/groundtruth/trajectory.tum"
 
-# First number after a key in a JSON file.
-json() { grep -o "\"$2\": *[-0-9.eE+]*" "$1" | head -n 1 | sed 's/.*: *//'; }
-
 # measure LAYOUT.json: mean and max over the seeds of the measured map position RMSE (mm), and the
 # build's own prediction on the first seed.
 measure() {
@@ -49,9 +46,8 @@ measure() {
     local d="$work/survey-$seed"
     "$waymark" sim corridor --markers "$layout" --seed "$seed" --out "$d" --force 2>/dev/null
     "$waymark" map build "$d" --out "$work/map.json" >"$work/build.txt" 2>&1
-    "$waymark" eval --map "$work/map.json" --gt-map "$d/groundtruth/markers.json" --json "$work/eval.json" >/dev/null
     local e
-    e=$(jq ".map.position_rmse" "$work/eval.json")
+    e=$("$waymark" eval --map "$work/map.json" --gt-map "$d/groundtruth/markers.json" | awk '/^map position/ { print $4 }')
     sum=$(awk -v s="$sum" -v e="$e" 'BEGIN { print s + e }')
     max=$(awk -v m="$max" -v e="$e" 'BEGIN { print (e > m ? e : m) }')
   done

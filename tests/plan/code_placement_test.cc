@@ -77,7 +77,7 @@ TEST(CodePlacementTest, PathOutsideOrThroughAWallIsAnError) {
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_THAT(e.what(),
-                HasSubstr("pose 11 of the path (t = 0.5 s) at (7.00, 0.00) is outside the floor plan"));
+                HasSubstr("pose 11 of the path (t = 0.500 s) at (7.00, 0.00) is outside the floor plan"));
   }
   path = Path();
   path[10].T = SE3d::FromXYZYaw(0.5, -0.8, 0.0, 0.0);  // outside the bounding box? no: y -0.8 < -0.6
