@@ -350,7 +350,7 @@ class Localizer {
   Trajectory predicted_before_correction_;
   std::optional<double> last_stamp_s_;
   std::optional<SE3d> last_T_odom_robot_;
-  bool had_motion_input_ = false;  // an odometry or velocity input came: no random walk
+  bool had_motion_input_ = false;           // an odometry or velocity input came: no random walk
   std::optional<SE3d> first_T_odom_robot_;  // for options_.start_pose
   int rejected_frames_in_a_row_ = 0;
   // Relocalization: the latest sighting's robot poses (both solutions of an ambiguous code),
