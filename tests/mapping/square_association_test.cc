@@ -125,7 +125,9 @@ TEST(SquareAssociationTest, UnnamedSquaresGetTheirTrueSquare) {
   for (const SurveyMarker& m : survey.markers) {
     EXPECT_EQ(m.key.family, kFamilySquare);
     EXPECT_EQ(m.size_m, 2.0);
-    if (m.key.id != "S0") EXPECT_TRUE(m.square_tape.has_value()) << m.key.ToString();  // new: the tape
+    if (m.key.id != "S0") {
+      EXPECT_TRUE(m.square_tape.has_value()) << m.key.ToString();  // new: the tape
+    }
   }
 }
 
