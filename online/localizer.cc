@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <utility>
@@ -433,15 +434,10 @@ std::optional<Localizer::FrameFit> Localizer::FitFrame(const Camera& camera, con
   return fit;
 }
 
-bool Localizer::StartFromFit(const FrameFit& fit, const CameraFrame& frame, FrameResult* result) {
-  if (state_.Reset(PoseToStateVector(fit.T_world_robot, options_.motion), fit.covariance) != StepStatus::kOk)
-    return false;
-  state_.SetLevel(fit.T_world_robot.rotation_matrix());
-  const bool started = tracking_ == TrackingStatus::kUninitialized;
-  tracking_ = TrackingStatus::kTracking;
-  rejected_frames_in_a_row_ = 0;
-  hypotheses_.clear();
-  size_t v = 0;
+void Localizer::ReportFrameCodes(
+    const CameraFrame& frame, FrameResult* result,
+    const std::function<void(const CodeSighting&, const MapMarker&, size_t, CorrectionResult*)>& report) {
+  size_t v = 0;  // index of the known codes, as in FrameViews
   for (const CodeSighting& sighting : frame.sightings) {
     CorrectionResult correction;
     correction.key = sighting.observation.key;
@@ -450,16 +446,30 @@ bool Localizer::StartFromFit(const FrameFit& fit, const CameraFrame& frame, Fram
       ++counters_.unknown_markers;
       correction.outcome = CorrectionOutcome::kUnknownMarker;
     } else {
-      const bool inlier = fit.inliers[v++];
-      correction.outcome = !inlier   ? CorrectionOutcome::kGated
-                           : started ? CorrectionOutcome::kInitialized
-                                     : CorrectionOutcome::kAccepted;
-      counters_.accepted += inlier && !started;
-      counters_.gated += !inlier;
-      if (inlier) component_ = marker->component;
+      report(sighting, *marker, v++, &correction);
     }
     result->corrections.push_back(correction);
   }
+}
+
+bool Localizer::StartFromFit(const FrameFit& fit, const CameraFrame& frame, FrameResult* result) {
+  if (state_.Reset(PoseToStateVector(fit.T_world_robot, options_.motion), fit.covariance) != StepStatus::kOk)
+    return false;
+  state_.SetLevel(fit.T_world_robot.rotation_matrix());
+  const bool started = tracking_ == TrackingStatus::kUninitialized;
+  tracking_ = TrackingStatus::kTracking;
+  rejected_frames_in_a_row_ = 0;
+  hypotheses_.clear();
+  ReportFrameCodes(frame, result,
+                   [&](const CodeSighting&, const MapMarker& marker, size_t v, CorrectionResult* correction) {
+                     const bool inlier = fit.inliers[v];
+                     correction->outcome = !inlier   ? CorrectionOutcome::kGated
+                                           : started ? CorrectionOutcome::kInitialized
+                                                     : CorrectionOutcome::kAccepted;
+                     counters_.accepted += inlier && !started;
+                     counters_.gated += !inlier;
+                     if (inlier) component_ = marker.component;
+                   });
   if (started) {
     ++counters_.initializations;
     negative_.Restart();
@@ -484,47 +494,34 @@ void Localizer::CorrectWithFrameFit(const Camera& camera, const CameraFrame& fra
     update = state_.Update(innovation, Eigen::MatrixXd::Identity(dim, dim), R, gate_loose_);
     if (update.accepted) state_.SetLevel(fit->T_world_robot.rotation_matrix());
   }
-  size_t v = 0;
-  for (const CodeSighting& sighting : frame.sightings) {
-    CorrectionResult correction;
-    correction.key = sighting.observation.key;
-    const MapMarker* marker = map_.Find(sighting.observation.key);
-    if (marker == nullptr || !marker->has_pose) {
-      ++counters_.unknown_markers;
-      correction.outcome = CorrectionOutcome::kUnknownMarker;
-      result->corrections.push_back(correction);
-      continue;
-    }
-    const bool used = fit && update.accepted && fit->inliers[v++];
-    correction.status = update.status;
-    correction.nis = update.nis;
-    correction.gate = gate_loose_;
-    correction.innovation = update.innovation;
-    correction.outcome = used ? CorrectionOutcome::kAccepted : CorrectionOutcome::kGated;
-    counters_.accepted += used;
-    counters_.gated += !used;
-    if (used) component_ = marker->component;
-    if (!used) {
-      CodeSighting storage;
-      gated_.push_back({&camera, marker, Solved(camera, *marker, sighting, &storage)});
-    }
-    result->corrections.push_back(correction);
-  }
+  ReportFrameCodes(
+      frame, result,
+      [&](const CodeSighting& sighting, const MapMarker& marker, size_t v, CorrectionResult* correction) {
+        const bool used = fit && update.accepted && fit->inliers[v];
+        correction->status = update.status;
+        correction->nis = update.nis;
+        correction->gate = gate_loose_;
+        correction->innovation = update.innovation;
+        correction->outcome = used ? CorrectionOutcome::kAccepted : CorrectionOutcome::kGated;
+        counters_.accepted += used;
+        counters_.gated += !used;
+        if (used) {
+          component_ = marker.component;
+        } else {
+          CodeSighting storage;
+          gated_.push_back({&camera, &marker, Solved(camera, marker, sighting, &storage)});
+        }
+      });
 }
 
 void Localizer::FitSingleFrame(const Camera& camera, const CameraFrame& frame, FrameResult* result) {
   const std::optional<FrameFit> fit = FitFrame(camera, frame);
   if (fit && StartFromFit(*fit, frame, result)) return;
-  for (const CodeSighting& sighting : frame.sightings) {
-    CorrectionResult correction;
-    correction.key = sighting.observation.key;
-    const MapMarker* marker = map_.Find(sighting.observation.key);
-    correction.outcome = marker == nullptr || !marker->has_pose ? CorrectionOutcome::kUnknownMarker
-                                                                : CorrectionOutcome::kGated;
-    counters_.unknown_markers += correction.outcome == CorrectionOutcome::kUnknownMarker;
-    counters_.gated += correction.outcome == CorrectionOutcome::kGated;
-    result->corrections.push_back(correction);
-  }
+  ReportFrameCodes(frame, result,
+                   [&](const CodeSighting&, const MapMarker&, size_t, CorrectionResult* correction) {
+                     correction->outcome = CorrectionOutcome::kGated;
+                     ++counters_.gated;
+                   });
   // No pose for this frame; the next frame with codes has one again (no relocalization here).
   if (HasTrack()) tracking_ = TrackingStatus::kLost;
 }

@@ -92,6 +92,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -329,6 +330,11 @@ class Localizer {
     Eigen::MatrixXd covariance;  // of the state's error, from the inliers
   };
   std::optional<FrameFit> FitFrame(const Camera& camera, const CameraFrame& frame) const;
+  // One CorrectionResult per code of the frame: unknown codes counted here, every known one
+  // (with its index among the frame's known codes) filled in by `report`.
+  void ReportFrameCodes(
+      const CameraFrame& frame, FrameResult* result,
+      const std::function<void(const CodeSighting&, const MapMarker&, size_t, CorrectionResult*)>& report);
   // Sets the state to the fit (a start when there was no track) and reports every code.
   bool StartFromFit(const FrameFit& fit, const CameraFrame& frame, FrameResult* result);
   // Without odometry: the frame's fit as one measurement of the pose (header comment).
