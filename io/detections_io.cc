@@ -212,15 +212,8 @@ std::vector<DetectionFrame> ParseDetections(const std::string& text, const std::
                                             const std::map<std::string, CameraInfo>* cameras) {
   std::vector<DetectionFrame> frames;
   std::map<std::string, double> last_stamp_s;  // per camera
-  long line_number = 0;
-  size_t begin = 0;
-  while (begin < text.size()) {
-    size_t end = text.find('\n', begin);
-    if (end == std::string::npos) end = text.size();
-    const std::string_view line(text.data() + begin, end - begin);
-    begin = end + 1;
-    ++line_number;
-    if (line.find_first_not_of(" \t\r") == std::string_view::npos) continue;
+  ForEachLine(text, [&](long line_number, std::string_view line) {
+    if (line.find_first_not_of(" \t") == std::string_view::npos) return;
     const JsonSource source = LineSource(path, line_number);
     const nlohmann::json root = ParseJsonLine(NonFiniteLiteralsToNull(line), path, line_number);
     DetectionFrame frame = ParseFrame(source, root, cameras, warnings);
@@ -234,7 +227,7 @@ std::vector<DetectionFrame> ParseDetections(const std::string& text, const std::
       it->second = frame.stamp_s;
     }
     frames.push_back(std::move(frame));
-  }
+  });
   return frames;
 }
 

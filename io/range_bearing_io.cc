@@ -153,15 +153,8 @@ RangeBearingFrame ParseFrame(const JsonSource& source, const nlohmann::json& roo
 std::vector<RangeBearingFrame> ParseRangeBearing(const std::string& text, const std::filesystem::path& path,
                                                  ReadWarnings* warnings) {
   std::vector<RangeBearingFrame> frames;
-  long line_number = 0;
-  size_t begin = 0;
-  while (begin < text.size()) {
-    size_t end = text.find('\n', begin);
-    if (end == std::string::npos) end = text.size();
-    const std::string_view line(text.data() + begin, end - begin);
-    begin = end + 1;
-    ++line_number;
-    if (line.find_first_not_of(" \t\r") == std::string_view::npos) continue;
+  ForEachLine(text, [&](long line_number, std::string_view line) {
+    if (line.find_first_not_of(" \t") == std::string_view::npos) return;
     const JsonSource source = LineSource(path, line_number);
     const nlohmann::json root = ParseJsonLine(line, path, line_number);
     RangeBearingFrame frame = ParseFrame(source, root, warnings);
@@ -171,7 +164,7 @@ std::vector<RangeBearingFrame> ParseRangeBearing(const std::string& text, const 
                          FormatDouble(frames.back().stamp_s));
     }
     frames.push_back(std::move(frame));
-  }
+  });
   return frames;
 }
 
