@@ -85,6 +85,22 @@ SquareTape ParseSquareTape(const JsonSource& source, const nlohmann::json& value
 
 // A point landmark: {"family", "id", "p_world_marker": [x, y, z], "position_covariance": [9],
 // "fixed", "component"}; no size_m, T_world_marker, covariance or square.
+// The optional `fixed` and `component` of a marker entry of either kind.
+void ParseFixedAndComponent(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                            MapMarker* marker) {
+  if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
+    marker->fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
+  }
+  if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
+    const long number = JsonInteger(source, *component, JsonField(field, "component"));
+    if (number < 0 || number > std::numeric_limits<int>::max()) {
+      ThrowJsonError(source, JsonField(field, "component"),
+                     "expected a non-negative integer, got " + component->dump());
+    }
+    marker->component = static_cast<int>(number);
+  }
+}
+
 MapMarker ParsePointMarker(const JsonSource& source, const nlohmann::json& value, const std::string& field,
                            ReadWarnings* warnings) {
   MapMarker marker;
@@ -123,17 +139,7 @@ MapMarker ParsePointMarker(const JsonSource& source, const nlohmann::json& value
       ThrowJsonError(source, cov_field, "expected a non-negative diagonal (variances)");
     marker.position_covariance = covariance;
   }
-  if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
-    marker.fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
-  }
-  if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
-    const long number = JsonInteger(source, *component, JsonField(field, "component"));
-    if (number < 0 || number > std::numeric_limits<int>::max()) {
-      ThrowJsonError(source, JsonField(field, "component"),
-                     "expected a non-negative integer, got " + component->dump());
-    }
-    marker.component = static_cast<int>(number);
-  }
+  ParseFixedAndComponent(source, value, field, &marker);
   for (const char* key : {"size_m", "T_world_marker", "covariance", "covariance_factor", "square"}) {
     if (JsonMember(source, value, field, key, false)) {
       ThrowJsonError(source, JsonField(field, key),
@@ -183,17 +189,7 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
     marker.covariance_factor =
         ParseCovarianceFactor(source, *factor, JsonField(field, "covariance_factor"), marker.covariance);
   }
-  if (const nlohmann::json* fixed = JsonMember(source, value, field, "fixed", false)) {
-    marker.fixed = JsonBool(source, *fixed, JsonField(field, "fixed"));
-  }
-  if (const nlohmann::json* component = JsonMember(source, value, field, "component", false)) {
-    const long number = JsonInteger(source, *component, JsonField(field, "component"));
-    if (number < 0 || number > std::numeric_limits<int>::max()) {
-      ThrowJsonError(source, JsonField(field, "component"),
-                     "expected a non-negative integer, got " + component->dump());
-    }
-    marker.component = static_cast<int>(number);
-  }
+  ParseFixedAndComponent(source, value, field, &marker);
   if (!marker.has_pose && (marker.fixed || marker.covariance)) {
     ThrowJsonError(source, JsonField(field, "T_world_marker"),
                    "expected a pose for a fixed marker or one with a covariance");
