@@ -51,9 +51,26 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
       AddRobotBlock(problem_.get(), survey_.motion, &robot_[obs.frame]);
     }
     if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
-    AddCornerResidual(problem_.get(), survey_.motion, survey_.cameras.at(obs.camera),
-                      survey_.markers[obs.marker].size_m, obs.corners_px, &robot_[obs.frame],
-                      &marker_[obs.marker], loss);
+    const CameraInfo& camera = survey_.cameras.at(obs.camera);
+    const auto mount = mount_.find(obs.camera);
+    if (mount == mount_.end()) {
+      AddCornerResidual(problem_.get(), survey_.motion, camera, survey_.markers[obs.marker].size_m, obs.corners_px,
+                        &robot_[obs.frame], &marker_[obs.marker], loss);
+      continue;
+    }
+    if (!problem_->HasParameterBlock(mount->second.data())) {
+      // The camera file's mount is the prior's mean, its T_robot_camera_sigma the prior's
+      // spread (rotation and translation in the camera's body frame).
+      const double rot = (*camera.T_robot_camera_sigma)[0], trans = (*camera.T_robot_camera_sigma)[1];
+      Vector6d variances;
+      variances << rot * rot, rot * rot, rot * rot, trans * trans, trans * trans, trans * trans;
+      AddMarkerBlock(problem_.get(), &mount->second);
+      problem_->AddResidualBlock(
+          PosePriorSE3Factor::Create(camera.T_robot_camera, Matrix6d(variances.asDiagonal())), nullptr,
+          mount->second.data());
+    }
+    AddCornerResidualWithMount(problem_.get(), survey_.motion, camera, survey_.markers[obs.marker].size_m,
+                               obs.corners_px, &robot_[obs.frame], &mount->second, &marker_[obs.marker], loss);
   }
   if (loss != nullptr && active.empty()) delete loss;
   AddOdometry();
@@ -267,9 +284,31 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
   }
 }
 
+std::map<std::string, SE3d> GlobalProblem::Mounts() const {
+  std::map<std::string, SE3d> mounts;
+  for (const auto& [name, block] : mount_) {
+    if (problem_ && problem_->HasParameterBlock(block.data())) mounts[name] = SE3FromBlock(block.data());
+  }
+  return mounts;
+}
+
 double GlobalProblem::SquaredError(int o) const {
   const SurveyObservation& obs = survey_.observations[o];
   const CameraInfo& camera = survey_.cameras.at(obs.camera);
+  double residuals[8];
+  if (const auto mount = mount_.find(obs.camera); mount != mount_.end()) {
+    const double size_m = survey_.markers[obs.marker].size_m;
+    const double sigma_px = CornerSigmaPx(camera);
+    std::unique_ptr<ceres::CostFunction> cost(
+        survey_.motion == MotionModel::kPlanar
+            ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
+            : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px));
+    const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
+    if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+    double s = 0.0;
+    for (double r : residuals) s += r * r;
+    return s;
+  }
   std::unique_ptr<ceres::CostFunction> cost(
       survey_.motion == MotionModel::kPlanar
           ? PlanarMarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
@@ -277,7 +316,6 @@ double GlobalProblem::SquaredError(int o) const {
           : MarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
                                              CornerSigmaPx(camera)));
   const double* blocks[2] = {robot_[obs.frame].data(), marker_[obs.marker].data()};
-  double residuals[8];
   if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
   double s = 0.0;
   for (double r : residuals) s += r * r;
@@ -286,19 +324,33 @@ double GlobalProblem::SquaredError(int o) const {
 
 bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
                                 std::vector<std::optional<CovarianceFactor>>* factors,
-                                std::optional<Eigen::Matrix3d>* calibration_covariance) const {
+                                std::optional<Eigen::Matrix3d>* calibration_covariance,
+                                std::map<std::string, Matrix6d>* mount_covariance) const {
   covariance->assign(survey_.markers.size(), std::nullopt);
   factors->assign(survey_.markers.size(), std::nullopt);
   calibration_covariance->reset();
+  mount_covariance->clear();
   MarginalCovarianceOptions marginal_options;
   marginal_options.num_threads = options_.num_threads;
-  std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, then c
+  std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, mounts, then c
+  std::vector<std::string> mounts;
+  for (const auto& [name, block] : mount_) {
+    if (problem_->HasParameterBlock(block.data())) {
+      marginal_blocks.push_back(block.data());
+      mounts.push_back(name);
+    }
+  }
   if (CalibrationEstimated()) marginal_blocks.push_back(calibration_.data());
   const InformationFactor information(problem_.get(), marginal_blocks, marginal_options);
   if (information.size() == 0) return covariance_markers_.empty();
   if (!information.positive_definite()) return false;
   const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // marginal_blocks order
   if (CalibrationEstimated()) *calibration_covariance = Eigen::Matrix3d(manifold.back());
+  for (size_t i = 0; i < mounts.size(); ++i) {
+    const Matrix6d J = ManifoldToBodyTangentJacobian(SE3FromBlock(mount_.at(mounts[i]).data()));
+    const Matrix6d body = J * Matrix6d(manifold[covariance_markers_.size() + i]) * J.transpose();
+    (*mount_covariance)[mounts[i]] = 0.5 * (body + body.transpose());
+  }
   std::map<const double*, size_t> index_of;
   for (size_t i = 0; i < covariance_markers_.size(); ++i) index_of[covariance_markers_[i]] = i;
   const size_t count = covariance_markers_.size();

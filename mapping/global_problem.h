@@ -38,6 +38,9 @@ class GlobalProblem {
     for (size_t m = 0; m < marker_.size(); ++m) {
       if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
     }
+    for (const auto& [name, camera] : survey.cameras) {
+      if (camera.T_robot_camera_sigma) SE3ToBlock(camera.T_robot_camera, mount_[name].data());
+    }
     const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
     for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
   }
@@ -49,10 +52,12 @@ class GlobalProblem {
   // Marker covariances in map.json's convention and, with factor_rank > 0, the markers' rows of
   // the joint covariance factor (mapping/map_covariance.h), both from one factorization of H
   // (mapping/marginal_covariance.h); false when H is not positive definite (a free gauge).
-  // With the odometry calibration estimated, its covariance goes to *calibration_covariance.
+  // With the odometry calibration estimated, its covariance goes to *calibration_covariance;
+  // each estimated camera mount's (body tangent [r, t], geometry/pose.h) to *mount_covariance.
   bool Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
                    std::vector<std::optional<CovarianceFactor>>* factors,
-                   std::optional<Eigen::Matrix3d>* calibration_covariance) const;
+                   std::optional<Eigen::Matrix3d>* calibration_covariance,
+                   std::map<std::string, Matrix6d>* mount_covariance) const;
   // The odometry calibration of the problem, nullopt when it has no calibrated odometry link.
   std::optional<Eigen::Vector3d> Calibration() const {
     if (!problem_->HasParameterBlock(calibration_.data())) return std::nullopt;
@@ -67,6 +72,10 @@ class GlobalProblem {
   // views at the current frame poses (mapping/initializer.h), and moves the codes whose other
   // planar-flip branch fits better there (OtherFlipBranch); returns how many moved.
   size_t ReplaceOutlyingMarkers(const std::vector<int>& active, const std::map<std::string, Camera>& cameras);
+
+  // The estimated mounts (T_robot_camera) of the cameras with a T_robot_camera_sigma that
+  // observe something in the problem, by camera name.
+  std::map<std::string, SE3d> Mounts() const;
 
   bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
   SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
@@ -84,6 +93,7 @@ class GlobalProblem {
   const Initialization& init_;
   const MapBuildOptions& options_;
   std::vector<PoseBlock> robot_, marker_;
+  std::map<std::string, PoseBlock> mount_;  // cameras whose T_robot_camera is estimated
   std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
   std::unique_ptr<ceres::Problem> problem_;
   std::vector<const double*> covariance_markers_;

@@ -207,6 +207,9 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
   result.final_cost = final_summary.final_cost;
   result.odometry_calibration = problem.Calibration();
   result.odometry_calibration_given = result.odometry_calibration && !problem.CalibrationEstimated();
+  for (const auto& [name, T_robot_camera] : problem.Mounts()) {
+    result.mounts.push_back({name, survey.cameras.at(name).T_robot_camera, T_robot_camera, std::nullopt});
+  }
   FillReprojection(survey, problem, kept, &result);
   FillOutputs(survey, init, problem, kept, gauges, &result);
   clock.Lap("outputs");
@@ -215,9 +218,14 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
     const auto covariance_start = std::chrono::steady_clock::now();
     std::vector<std::optional<Matrix6d>> covariance;
     std::vector<std::optional<CovarianceFactor>> factors;
+    std::map<std::string, Matrix6d> mount_covariance;
     result.covariance_computed = problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
-                                                     &result.odometry_calibration_covariance);
+                                                     &result.odometry_calibration_covariance, &mount_covariance);
     if (result.covariance_computed) {
+      for (CameraMountEstimate& mount : result.mounts) {
+        if (const auto it = mount_covariance.find(mount.camera); it != mount_covariance.end())
+          mount.covariance = it->second;
+      }
       for (MapMarker& marker : result.map.markers) {
         const int m = survey.FindMarker(marker.key);
         marker.covariance = covariance[m];

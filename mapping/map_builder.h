@@ -110,6 +110,16 @@ struct SolveStageSummary {
   double residual_s = 0.0;  // residual-only evaluations
 };
 
+// A camera mount estimated by the build (extrinsic self-calibration: the camera file gives
+// T_robot_camera_sigma): the file's mount, the estimate and, with the covariances computed,
+// the estimate's covariance in its body tangent [r, t] (geometry/pose.h).
+struct CameraMountEstimate {
+  std::string camera;
+  SE3d given;
+  SE3d estimated;
+  std::optional<Matrix6d> covariance;
+};
+
 struct MapBuildResult {
   MarkerMap map;
   Trajectory trajectory;                 // smoothed T_world_robot of the frames of component 0
@@ -140,6 +150,7 @@ struct MapBuildResult {
   std::optional<Eigen::Vector3d> odometry_calibration;
   bool odometry_calibration_given = false;
   std::optional<Eigen::Matrix3d> odometry_calibration_covariance;
+  std::vector<CameraMountEstimate> mounts;  // by camera name
   std::vector<std::string> notes;
 };
 

@@ -14,6 +14,8 @@
 #include <string>
 
 #include "eval/map_metrics.h"
+#include "geometry/pose.h"
+#include "io/camera_io.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
 #include "io/util.h"
@@ -89,6 +91,75 @@ TEST_F(MapCliTest, SeveralOutputsAreAllOrNothing) {
   EXPECT_EQ(same.exit_code, 1);
   EXPECT_NE(same.err.find("--out and --report name the same file"), std::string::npos) << same.err;
   EXPECT_FALSE(fs::exists(dir_ / "m.json"));
+}
+
+// Extrinsic self-calibration (issue 13, item 4): a camera file with T_robot_camera_sigma has its
+// mount estimated; --cameras-out writes every camera with the estimate in place of the given one.
+TEST_F(MapCliTest, CameraMountWithASigmaIsCalibratedAndWritten) {
+  const fs::path survey = SmallSurvey();
+  const CameraInfo truth = ReadCameraYaml(survey / "cameras" / "right.yaml");
+  CameraInfo perturbed = truth;
+  Vector6d delta;
+  delta << 0.6, -0.5, 0.62, 0.5, 0.4, -0.77;  // 2 deg about a tilted axis, 3 cm
+  delta.head<3>() *= (2.0 * M_PI / 180.0) / delta.head<3>().norm();
+  delta.tail<3>() *= 0.03 / delta.tail<3>().norm();
+  perturbed.T_robot_camera = truth.T_robot_camera * SE3d::Exp(delta);
+  perturbed.T_robot_camera_sigma = std::array<double, 2>{0.05, 0.05};
+  WriteCameraYaml(survey / "cameras" / "right.yaml", perturbed);
+
+  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
+                              " --report " + (dir_ / "report.json").string() + " --cameras-out " +
+                              (dir_ / "calibrated").string());
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_NE(build.out.find("camera mount right (estimated): t ["), std::string::npos) << build.out;
+  EXPECT_NE(build.out.find("cameras: 2 file(s) in "), std::string::npos) << build.out;
+  const CameraInfo calibrated = ReadCameraYaml(dir_ / "calibrated" / "right.yaml");
+  EXPECT_FALSE(calibrated.T_robot_camera_sigma.has_value());
+  const double rotation_deg = RotationAngleBetween(calibrated.T_robot_camera, truth.T_robot_camera) * 180.0 / M_PI;
+  // A planar survey cannot see the mount's height (it trades with the codes' heights; the prior
+  // holds it): the horizontal offset is what the survey determines.
+  const double translation_mm =
+      1e3 * (calibrated.T_robot_camera.translation() - truth.T_robot_camera.translation()).head<2>().norm();
+  EXPECT_LT(rotation_deg, 0.2) << build.out;
+  EXPECT_LT(translation_mm, 5.0) << build.out;
+  const CameraInfo left = ReadCameraYaml(dir_ / "calibrated" / "left.yaml");  // as given
+  EXPECT_EQ(left.T_robot_camera.translation(), ReadCameraYaml(survey / "cameras" / "left.yaml").T_robot_camera.translation());
+  const nlohmann::json report = nlohmann::json::parse(ReadTextFile(dir_ / "report.json"));
+  ASSERT_EQ(report["camera_mounts"].size(), 1u);
+  EXPECT_EQ(report["camera_mounts"][0]["camera"], "right");
+  EXPECT_NEAR(report["camera_mounts"][0]["moved_m"].get<double>(), 0.03, 0.005);
+  // Sigmas from the covariance: the rotation well determined; a translation sigma never above
+  // the prior's (in a planar survey the mount's height trades with the codes' heights).
+  ASSERT_TRUE(report["camera_mounts"][0].contains("sigma_t_m"));
+  for (const auto& sigma : report["camera_mounts"][0]["sigma_rot_rad"]) EXPECT_LT(sigma.get<double>(), 0.2 * M_PI / 180.0);
+  for (const auto& sigma : report["camera_mounts"][0]["sigma_t_m"]) EXPECT_LE(sigma.get<double>(), 0.05 + 1e-9);
+  EXPECT_TRUE(report["outliers"].empty()) << build.out;
+
+  // The perturbed mount held as given instead: the build rejects views it cannot fit.
+  perturbed.T_robot_camera_sigma.reset();
+  WriteCameraYaml(survey / "cameras" / "right.yaml", perturbed);
+  const RunResult fixed = Run("map build " + survey.string() + " --out " + (dir_ / "fixed.json").string() +
+                              " --report " + (dir_ / "fixed.json.report").string());
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.err;
+  const nlohmann::json fixed_report = nlohmann::json::parse(ReadTextFile(dir_ / "fixed.json.report"));
+  EXPECT_TRUE(fixed_report["camera_mounts"].empty());
+  EXPECT_LT(fixed_report["observations_used"].get<size_t>(), report["observations_used"].get<size_t>());
+}
+
+// --cameras-out: one camera survey only; an impossible directory writes nothing.
+TEST_F(MapCliTest, CamerasOutErrors) {
+  const fs::path survey = SmallSurvey();
+  const RunResult two = Run("map build " + survey.string() + " " + survey.string() + " --out " +
+                            (dir_ / "m.json").string() + " --cameras-out " + (dir_ / "c").string());
+  EXPECT_EQ(two.exit_code, 1);
+  EXPECT_NE(two.err.find("--cameras-out is for one dataset"), std::string::npos) << two.err;
+  AtomicWriteFile(dir_ / "afile", "a plain file\n");
+  const RunResult bad = Run("map build " + survey.string() + " --out " + (dir_ / "m.json").string() +
+                            " --cameras-out " + (dir_ / "afile" / "cams").string());
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("afile/cams"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir_ / "m.json"));
+  EXPECT_FALSE(fs::exists(dir_ / "c"));
 }
 
 TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {

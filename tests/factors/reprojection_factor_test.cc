@@ -148,10 +148,14 @@ TEST_P(ReprojectionByModel, ZeroAtTheTruth) {
         ExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
     const double* free_parameters[] = {robot, marker};
     const double* planar_parameters[] = {robot_2d, marker};
+    const std::unique_ptr<ceres::CostFunction> planar_extrinsic_cost(
+        PlanarExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
     const double* extrinsic_parameters[] = {robot, extrinsic, marker};
+    const double* planar_extrinsic_parameters[] = {robot_2d, extrinsic, marker};
     for (auto [cost, parameters] :
          {std::pair{free_cost.get(), free_parameters}, std::pair{planar_cost.get(), planar_parameters},
-          std::pair{extrinsic_cost.get(), extrinsic_parameters}}) {
+          std::pair{extrinsic_cost.get(), extrinsic_parameters},
+          std::pair{planar_extrinsic_cost.get(), planar_extrinsic_parameters}}) {
       Eigen::Matrix<double, 8, 1> residuals = Eigen::Matrix<double, 8, 1>::Constant(kNaN);
       ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
       EXPECT_LT(residuals.cwiseAbs().maxCoeff(), 1e-6) << "trial " << trial;
@@ -187,6 +191,10 @@ TEST_P(ReprojectionByModel, GradientCheckTenRandomStates) {
     const std::unique_ptr<ceres::CostFunction> planar_cost(
         PlanarMarkerReprojectionFactor::Create(camera, kSizeM, planar_scene.corners_px, kSigmaPx));
     testing::ExpectGradientsMatch(*planar_cost, {nullptr, &se3}, {robot_2d, marker}, 1e-6, "planar");
+    const std::unique_ptr<ceres::CostFunction> planar_extrinsic_cost(
+        PlanarExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, planar_scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*planar_extrinsic_cost, {nullptr, &se3, &se3}, {robot_2d, extrinsic, marker},
+                                  1e-6, "planar extrinsic");
   }
 }
 
