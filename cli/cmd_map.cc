@@ -140,9 +140,9 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   return options;
 }
 
-const std::set<std::string> kBuildValues = {"out",           "trajectory",    "report",
-                                            "threads",       "min-frames",    "outlier-chi2",
-                                            "max-gap",       "families",      "odometry-calibration",
+const std::set<std::string> kBuildValues = {"out",           "trajectory",     "report",
+                                            "threads",       "min-frames",     "outlier-chi2",
+                                            "max-gap",       "families",       "odometry-calibration",
                                             "payload-sigma", "trajectory-dir", "cameras-out"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
 
@@ -244,6 +244,15 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
     }
     report["camera_mounts"].push_back(entry);
   }
+  report["camera_wiggles"] = nlohmann::json::array();
+  for (const CameraWiggleSummary& w : result.wiggles) {
+    report["camera_wiggles"].push_back({{"camera", w.camera},
+                                        {"frames", w.frames},
+                                        {"rms_rad", w.rms_rad},
+                                        {"rms_m", w.rms_m},
+                                        {"max_rad", w.max_rad},
+                                        {"max_m", w.max_m}});
+  }
   if (result.odometry_calibration) {
     const Eigen::Vector3d& c = *result.odometry_calibration;
     nlohmann::json calibration = {{"k_rad_per_m", c[0]},
@@ -279,7 +288,8 @@ void AddCameraFiles(const std::string& dir, const std::map<std::string, CameraIn
 }
 
 // Formats every output first, then writes them: a failure leaves no partial output.
-void WriteOutputs(const Args& args, const MapBuildResult& result, const std::map<std::string, CameraInfo>& cameras) {
+void WriteOutputs(const Args& args, const MapBuildResult& result,
+                  const std::map<std::string, CameraInfo>& cameras) {
   std::vector<std::pair<std::string, std::string>> files;  // path, text
   files.emplace_back(args.Require("out"), FormatMap(result.map));
   if (const auto path = args.Get("trajectory")) {
@@ -482,7 +492,8 @@ int RunBuild(const std::vector<std::string>& argv) {
   args.ExpectDistinctOutputs({"out", "trajectory", "report", "trajectory-dir", "cameras-out"});
   if (args.positionals().size() > 1 || args.Has("trajectory-dir")) {
     if (args.Has("cameras-out"))
-      throw std::invalid_argument("--cameras-out is for one dataset (its cameras are calibrated by its own build)");
+      throw std::invalid_argument(
+          "--cameras-out is for one dataset (its cameras are calibrated by its own build)");
     std::vector<Dataset> datasets;
     for (const std::string& dir : args.positionals()) datasets.push_back(LoadDataset(dir));
     UniqueNames(&datasets);
@@ -494,7 +505,8 @@ int RunBuild(const std::vector<std::string>& argv) {
   Dataset dataset = LoadDataset(args.positionals()[0]);
   const std::vector<const Dataset*> one = {&dataset};
   if (args.Has("cameras-out") && HasRangeBearing(one))
-    throw std::invalid_argument("--cameras-out is for camera surveys (range-bearing datasets have no camera mount)");
+    throw std::invalid_argument(
+        "--cameras-out is for camera surveys (range-bearing datasets have no camera mount)");
   if (HasRangeBearing(one)) return RunRangeBearingBuild(args, {dataset});
   const MapBuildOptions options = ParseBuildOptions(args);
   PrepareSurvey(args, &dataset);

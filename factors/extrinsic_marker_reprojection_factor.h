@@ -84,4 +84,43 @@ class PlanarExtrinsicMarkerReprojectionFactor {
   const CornerObservation observation_;
 };
 
+// The same with a per-frame deviation W of the camera off its mount (camera YAML
+// `frame_wiggle_sigma`: cameras not synchronized with the rig's frame stamp, or a rig that
+// flexes), one SE(3) block per frame and camera, held near identity by a prior:
+//
+//   T_world_camera = T_world_robot * T_robot_camera * W
+//
+// Blocks: T_world_robot (SE(3), or [x y theta] when Planar), T_robot_camera, W, T_world_marker.
+template <bool Planar>
+class WiggleMarkerReprojectionFactor {
+ public:
+  // Throws std::invalid_argument on bad input (see CornerObservation).
+  WiggleMarkerReprojectionFactor(const CameraInfo& camera, double size_m,
+                                 const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
+      : observation_(camera, size_m, corners_px, sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* const T_world_robot, const T* const T_robot_camera, const T* const wiggle,
+                  const T* const T_world_marker, T* residuals) const {
+    SE3T<T> robot;
+    if constexpr (Planar) {
+      robot = SE3TFromSE2Block(T_world_robot);
+    } else {
+      robot = SE3TFromBlock(T_world_robot);
+    }
+    const SE3T<T> T_world_camera = robot * SE3TFromBlock(T_robot_camera) * SE3TFromBlock(wiggle);
+    return observation_.Residuals(T_world_camera.inverse() * SE3TFromBlock(T_world_marker), residuals);
+  }
+
+  static ceres::CostFunction* Create(const CameraInfo& camera, double size_m,
+                                     const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px) {
+    return new ceres::AutoDiffCostFunction < WiggleMarkerReprojectionFactor, 8,
+           Planar ? kSE2BlockSize : kSE3BlockSize, kSE3BlockSize, kSE3BlockSize,
+           kSE3BlockSize > (new WiggleMarkerReprojectionFactor(camera, size_m, corners_px, sigma_px));
+  }
+
+ private:
+  const CornerObservation observation_;
+};
+
 }  // namespace waymark

@@ -129,9 +129,16 @@ CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path&
     }
     camera.T_robot_camera_sigma = std::array<double, 2>{values[0], values[1]};
   }
+  if (const YAML::Node sigma = root["frame_wiggle_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
+    const std::vector<double> values = YamlNumbers(path, sigma, "frame_wiggle_sigma", 2);
+    if (const std::string why = CheckMountSigma(values[0], values[1]); !why.empty()) {
+      ThrowYamlError(path, sigma, "frame_wiggle_sigma: " + why);
+    }
+    camera.frame_wiggle_sigma = std::array<double, 2>{values[0], values[1]};
+  }
   YamlWarnUnknownKeys(path, root,
-                      {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera", "pixel_sigma",
-                       "T_robot_camera_sigma"},
+                      {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera",
+                       "pixel_sigma", "T_robot_camera_sigma", "frame_wiggle_sigma"},
                       "", warnings);
   return camera;
 }
@@ -176,8 +183,13 @@ void CheckWritable(const CameraInfo& camera) {
     throw std::invalid_argument(name + "pixel_sigma must be positive");
   }
   if (camera.T_robot_camera_sigma) {
-    const std::string why = CheckMountSigma((*camera.T_robot_camera_sigma)[0], (*camera.T_robot_camera_sigma)[1]);
+    const std::string why =
+        CheckMountSigma((*camera.T_robot_camera_sigma)[0], (*camera.T_robot_camera_sigma)[1]);
     if (!why.empty()) throw std::invalid_argument(name + "T_robot_camera_sigma: " + why);
+  }
+  if (camera.frame_wiggle_sigma) {
+    const std::string why = CheckMountSigma((*camera.frame_wiggle_sigma)[0], (*camera.frame_wiggle_sigma)[1]);
+    if (!why.empty()) throw std::invalid_argument(name + "frame_wiggle_sigma: " + why);
   }
 }
 
@@ -195,6 +207,9 @@ std::string FormatCameraYaml(const CameraInfo& camera) {
   if (camera.pixel_sigma) out << "pixel_sigma: " << FormatDouble(*camera.pixel_sigma) << "\n";
   if (camera.T_robot_camera_sigma) {
     out << "T_robot_camera_sigma: " << NumberList(camera.T_robot_camera_sigma->data(), 2) << "\n";
+  }
+  if (camera.frame_wiggle_sigma) {
+    out << "frame_wiggle_sigma: " << NumberList(camera.frame_wiggle_sigma->data(), 2) << "\n";
   }
   return out.str();
 }

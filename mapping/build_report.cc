@@ -81,8 +81,8 @@ std::string FormatCameraMounts(const MapBuildResult& result) {
   };
   for (const CameraMountEstimate& mount : result.mounts) {
     const Eigen::Vector3d r = LogSO3(mount.estimated.rotation());
-    out << "camera mount " << mount.camera << " (estimated): t " << triple(mount.estimated.translation(), 1.0, 4)
-        << " m";
+    out << "camera mount " << mount.camera << " (estimated): t "
+        << triple(mount.estimated.translation(), 1.0, 4) << " m";
     if (mount.covariance) {
       const Vector6d sd = mount.covariance->diagonal().cwiseMax(0.0).cwiseSqrt();
       out << " +- " << triple(sd.tail<3>(), 1e3, 2) << " mm";
@@ -93,8 +93,15 @@ std::string FormatCameraMounts(const MapBuildResult& result) {
       out << " +- " << triple(sd.head<3>(), 180.0 / M_PI, 3) << " deg";
     }
     out << "; moved " << FormatFixed(RotationAngleBetween(mount.estimated, mount.given) * 180.0 / M_PI, 3)
-        << " deg, " << FormatFixed(1e3 * (mount.estimated.translation() - mount.given.translation()).norm(), 1)
+        << " deg, "
+        << FormatFixed(1e3 * (mount.estimated.translation() - mount.given.translation()).norm(), 1)
         << " mm from the camera file\n";
+  }
+  for (const CameraWiggleSummary& w : result.wiggles) {
+    out << "camera wiggle " << w.camera << " (each frame's pose off the mount, " << w.frames
+        << " frames): RMS " << FormatFixed(w.rms_rad * 180.0 / M_PI, 3) << " deg, "
+        << FormatFixed(1e3 * w.rms_m, 1) << " mm; max " << FormatFixed(w.max_rad * 180.0 / M_PI, 3)
+        << " deg, " << FormatFixed(1e3 * w.max_m, 1) << " mm\n";
   }
   return out.str();
 }

@@ -38,6 +38,20 @@ class ProgressCallback : public ceres::IterationCallback {
   std::string stage_;
 };
 
+// A diagonal covariance from sigmas [rotation rad, translation m] (body tangent [r, t]).
+Matrix6d SigmasToCovariance(const std::array<double, 2>& sigma) {
+  Vector6d variances;
+  variances << sigma[0] * sigma[0], sigma[0] * sigma[0], sigma[0] * sigma[0], sigma[1] * sigma[1],
+      sigma[1] * sigma[1], sigma[1] * sigma[1];
+  return variances.asDiagonal();
+}
+
+PoseBlock IdentityBlock() {
+  PoseBlock block;
+  SE3ToBlock(SE3d(), block.data());
+  return block;
+}
+
 }  // namespace
 
 ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool robust,
@@ -52,25 +66,45 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     }
     if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
     const CameraInfo& camera = survey_.cameras.at(obs.camera);
+    const double size_m = survey_.markers[obs.marker].size_m;
     const auto mount = mount_.find(obs.camera);
     if (mount == mount_.end()) {
-      AddCornerResidual(problem_.get(), survey_.motion, camera, survey_.markers[obs.marker].size_m, obs.corners_px,
-                        &robot_[obs.frame], &marker_[obs.marker], loss);
+      AddCornerResidual(problem_.get(), survey_.motion, camera, size_m, obs.corners_px, &robot_[obs.frame],
+                        &marker_[obs.marker], loss);
       continue;
     }
     if (!problem_->HasParameterBlock(mount->second.data())) {
-      // The camera file's mount is the prior's mean, its T_robot_camera_sigma the prior's
-      // spread (rotation and translation in the camera's body frame).
-      const double rot = (*camera.T_robot_camera_sigma)[0], trans = (*camera.T_robot_camera_sigma)[1];
-      Vector6d variances;
-      variances << rot * rot, rot * rot, rot * rot, trans * trans, trans * trans, trans * trans;
       AddMarkerBlock(problem_.get(), &mount->second);
-      problem_->AddResidualBlock(
-          PosePriorSE3Factor::Create(camera.T_robot_camera, Matrix6d(variances.asDiagonal())), nullptr,
-          mount->second.data());
+      if (camera.T_robot_camera_sigma) {
+        // The camera file's mount is the prior's mean, its T_robot_camera_sigma the prior's
+        // spread (rotation and translation in the camera's body frame).
+        problem_->AddResidualBlock(
+            PosePriorSE3Factor::Create(camera.T_robot_camera,
+                                       SigmasToCovariance(*camera.T_robot_camera_sigma)),
+            nullptr, mount->second.data());
+      } else {
+        problem_->SetParameterBlockConstant(mount->second.data());  // held; only the wiggle moves
+      }
     }
-    AddCornerResidualWithMount(problem_.get(), survey_.motion, camera, survey_.markers[obs.marker].size_m,
-                               obs.corners_px, &robot_[obs.frame], &mount->second, &marker_[obs.marker], loss);
+    if (!camera.frame_wiggle_sigma) {
+      AddCornerResidualWithMount(problem_.get(), survey_.motion, camera, size_m, obs.corners_px,
+                                 &robot_[obs.frame], &mount->second, &marker_[obs.marker], loss);
+      continue;
+    }
+    PoseBlock& wiggle = wiggle_.try_emplace({obs.frame, obs.camera}, IdentityBlock()).first->second;
+    if (!problem_->HasParameterBlock(wiggle.data())) {
+      AddMarkerBlock(problem_.get(), &wiggle);
+      problem_->AddResidualBlock(
+          PosePriorSE3Factor::Create(SE3d(), SigmasToCovariance(*camera.frame_wiggle_sigma)), nullptr,
+          wiggle.data());
+    }
+    const double sigma_px = CornerSigmaPx(camera);
+    ceres::CostFunction* cost =
+        survey_.motion == MotionModel::kPlanar
+            ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
+            : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px);
+    problem_->AddResidualBlock(cost, loss, robot_[obs.frame].data(), mount->second.data(), wiggle.data(),
+                               marker_[obs.marker].data());
   }
   if (loss != nullptr && active.empty()) delete loss;
   AddOdometry();
@@ -106,7 +140,18 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
   // the linear solver took 0.50 of the Jacobian evaluation time with Cholesky of the normal
   // equations, 0.21 with this (16.0 of 32.1 s, then 10.5 of 49.7 s on a busier machine); the
   // map is the same within 1e-15 m.
-  if (!FramesJoined()) {
+  if (HasWiggle()) {
+    // Each frame's camera deviations touch only that frame and camera's residuals: they are
+    // the independent set eliminated first; frames, codes and mounts form the reduced system.
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    std::vector<double*> blocks;
+    problem_->GetParameterBlocks(&blocks);
+    std::set<const double*> wiggles;
+    for (const auto& [key, block] : wiggle_) wiggles.insert(block.data());
+    for (double* block : blocks) ordering->AddElementToGroup(block, wiggles.count(block) > 0 ? 0 : 1);
+    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+    solver_options.linear_solver_ordering = ordering;
+  } else if (!FramesJoined()) {
     auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
     std::vector<double*> blocks;
     problem_->GetParameterBlocks(&blocks);
@@ -287,9 +332,27 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
 std::map<std::string, SE3d> GlobalProblem::Mounts() const {
   std::map<std::string, SE3d> mounts;
   for (const auto& [name, block] : mount_) {
-    if (problem_ && problem_->HasParameterBlock(block.data())) mounts[name] = SE3FromBlock(block.data());
+    if (problem_ && problem_->HasParameterBlock(block.data()) &&
+        !problem_->IsParameterBlockConstant(block.data()))
+      mounts[name] = SE3FromBlock(block.data());
   }
   return mounts;
+}
+
+bool GlobalProblem::HasWiggle() const {
+  for (const auto& [key, block] : wiggle_) {
+    if (problem_->HasParameterBlock(block.data())) return true;
+  }
+  return false;
+}
+
+std::map<std::string, std::vector<SE3d>> GlobalProblem::Wiggles() const {
+  std::map<std::string, std::vector<SE3d>> wiggles;
+  for (const auto& [key, block] : wiggle_) {
+    if (problem_ && problem_->HasParameterBlock(block.data()))
+      wiggles[key.second].push_back(SE3FromBlock(block.data()));
+  }
+  return wiggles;
 }
 
 double GlobalProblem::SquaredError(int o) const {
@@ -299,13 +362,31 @@ double GlobalProblem::SquaredError(int o) const {
   if (const auto mount = mount_.find(obs.camera); mount != mount_.end()) {
     const double size_m = survey_.markers[obs.marker].size_m;
     const double sigma_px = CornerSigmaPx(camera);
-    std::unique_ptr<ceres::CostFunction> cost(
-        survey_.motion == MotionModel::kPlanar
-            ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
-            : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px));
-    const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
-    if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
     double s = 0.0;
+    if (camera.frame_wiggle_sigma) {
+      // The frame's deviation counts in the gate (whitened by its prior): a view that only fits
+      // by moving its camera far off the mount is not hidden by the wiggle.
+      const auto wiggle = wiggle_.find({obs.frame, obs.camera});
+      const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : wiggle->second;
+      std::unique_ptr<ceres::CostFunction> cost(
+          survey_.motion == MotionModel::kPlanar
+              ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
+              : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px));
+      const double* blocks[4] = {robot_[obs.frame].data(), mount->second.data(), W.data(),
+                                 marker_[obs.marker].data()};
+      if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+      const Vector6d delta = SE3d().BoxMinus(SE3FromBlock(W.data()));
+      const std::array<double, 2>& sigma = *camera.frame_wiggle_sigma;
+      s += delta.head<3>().squaredNorm() / (sigma[0] * sigma[0]) +
+           delta.tail<3>().squaredNorm() / (sigma[1] * sigma[1]);
+    } else {
+      std::unique_ptr<ceres::CostFunction> cost(
+          survey_.motion == MotionModel::kPlanar
+              ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
+              : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px));
+      const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
+      if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+    }
     for (double r : residuals) s += r * r;
     return s;
   }
@@ -335,7 +416,7 @@ bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matri
   std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, mounts, then c
   std::vector<std::string> mounts;
   for (const auto& [name, block] : mount_) {
-    if (problem_->HasParameterBlock(block.data())) {
+    if (problem_->HasParameterBlock(block.data()) && !problem_->IsParameterBlockConstant(block.data())) {
       marginal_blocks.push_back(block.data());
       mounts.push_back(name);
     }

@@ -39,7 +39,8 @@ class GlobalProblem {
       if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
     }
     for (const auto& [name, camera] : survey.cameras) {
-      if (camera.T_robot_camera_sigma) SE3ToBlock(camera.T_robot_camera, mount_[name].data());
+      if (camera.T_robot_camera_sigma || camera.frame_wiggle_sigma)
+        SE3ToBlock(camera.T_robot_camera, mount_[name].data());
     }
     const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
     for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
@@ -76,6 +77,9 @@ class GlobalProblem {
   // The estimated mounts (T_robot_camera) of the cameras with a T_robot_camera_sigma that
   // observe something in the problem, by camera name.
   std::map<std::string, SE3d> Mounts() const;
+  // Each frame's deviation of a camera off its mount (cameras with frame_wiggle_sigma), by
+  // camera name, over the frames in the problem.
+  std::map<std::string, std::vector<SE3d>> Wiggles() const;
 
   bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
   SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
@@ -87,13 +91,18 @@ class GlobalProblem {
   // Whether an odometry link joins two frames of the problem (else the frames are eliminated
   // first by a Schur complement).
   bool FramesJoined() const;
+  // Whether a frame's camera deviation (frame_wiggle_sigma) is in the problem.
+  bool HasWiggle() const;
   void AddCalibratedOdometry(const OdometryLink& link);
 
   const Survey& survey_;
   const Initialization& init_;
   const MapBuildOptions& options_;
   std::vector<PoseBlock> robot_, marker_;
-  std::map<std::string, PoseBlock> mount_;  // cameras whose T_robot_camera is estimated
+  // Cameras whose mount is a block: estimated (T_robot_camera_sigma), or held constant with a
+  // per-frame wiggle around it (frame_wiggle_sigma only).
+  std::map<std::string, PoseBlock> mount_;
+  std::map<std::pair<int, std::string>, PoseBlock> wiggle_;  // (frame, camera) -> W
   std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
   std::unique_ptr<ceres::Problem> problem_;
   std::vector<const double*> covariance_markers_;

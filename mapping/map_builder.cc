@@ -210,6 +210,21 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
   for (const auto& [name, T_robot_camera] : problem.Mounts()) {
     result.mounts.push_back({name, survey.cameras.at(name).T_robot_camera, T_robot_camera, std::nullopt});
   }
+  for (const auto& [name, deviations] : problem.Wiggles()) {
+    CameraWiggleSummary w;
+    w.camera = name;
+    w.frames = deviations.size();
+    for (const SE3d& W : deviations) {
+      const Vector6d delta = SE3d().BoxMinus(W);
+      w.rms_rad += delta.head<3>().squaredNorm();
+      w.rms_m += delta.tail<3>().squaredNorm();
+      w.max_rad = std::max(w.max_rad, delta.head<3>().norm());
+      w.max_m = std::max(w.max_m, delta.tail<3>().norm());
+    }
+    w.rms_rad = std::sqrt(w.rms_rad / std::max<size_t>(1, w.frames));
+    w.rms_m = std::sqrt(w.rms_m / std::max<size_t>(1, w.frames));
+    result.wiggles.push_back(w);
+  }
   FillReprojection(survey, problem, kept, &result);
   FillOutputs(survey, init, problem, kept, gauges, &result);
   clock.Lap("outputs");
@@ -219,8 +234,9 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
     std::vector<std::optional<Matrix6d>> covariance;
     std::vector<std::optional<CovarianceFactor>> factors;
     std::map<std::string, Matrix6d> mount_covariance;
-    result.covariance_computed = problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
-                                                     &result.odometry_calibration_covariance, &mount_covariance);
+    result.covariance_computed =
+        problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
+                            &result.odometry_calibration_covariance, &mount_covariance);
     if (result.covariance_computed) {
       for (CameraMountEstimate& mount : result.mounts) {
         if (const auto it = mount_covariance.find(mount.camera); it != mount_covariance.end())

@@ -120,6 +120,14 @@ struct CameraMountEstimate {
   std::optional<Matrix6d> covariance;
 };
 
+// The per-frame deviations of a camera off its mount (frame_wiggle_sigma) the build estimated:
+// how many frames, their RMS rotation and translation, the largest.
+struct CameraWiggleSummary {
+  std::string camera;
+  size_t frames = 0;
+  double rms_rad = 0.0, rms_m = 0.0, max_rad = 0.0, max_m = 0.0;
+};
+
 struct MapBuildResult {
   MarkerMap map;
   Trajectory trajectory;                 // smoothed T_world_robot of the frames of component 0
@@ -150,7 +158,8 @@ struct MapBuildResult {
   std::optional<Eigen::Vector3d> odometry_calibration;
   bool odometry_calibration_given = false;
   std::optional<Eigen::Matrix3d> odometry_calibration_covariance;
-  std::vector<CameraMountEstimate> mounts;  // by camera name
+  std::vector<CameraMountEstimate> mounts;   // by camera name
+  std::vector<CameraWiggleSummary> wiggles;  // by camera name
   std::vector<std::string> notes;
 };
 

@@ -75,7 +75,8 @@ inline ceres::ResidualBlockId AddCornerResidualWithMount(ceres::Problem* problem
       motion == MotionModel::kPlanar
           ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
           : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
-  return problem->AddResidualBlock(cost, loss, robot_block->data(), mount_block->data(), marker_block->data());
+  return problem->AddResidualBlock(cost, loss, robot_block->data(), mount_block->data(),
+                                   marker_block->data());
 }
 
 }  // namespace waymark

@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Extrinsic self-calibration on a multi-camera survey (issue 13, item 4; docs/accuracy.md):
 #
-#   scripts/extrinsics-tagslam.sh BUILD_DIR SET_DIR OUT_DIR [DEG] [M] [SIGMA_RAD] [SIGMA_M]
+#   scripts/extrinsics-tagslam.sh BUILD_DIR SET_DIR OUT_DIR [DEG] [M] [SIGMA_RAD] [SIGMA_M] [WIGGLE_RAD WIGGLE_M]
 #
 # Copies the dataset SET_DIR (e.g. ../shared/data/tagslam/tagslam-test6) to OUT_DIR/perturbed,
 # moves every camera but the first of dataset.yaml's list off its given mount by DEG degrees
 # (default 2) about an axis and M metres (default 0.03) along a direction that differ per camera
 # (fixed, not random), and gives those cameras T_robot_camera_sigma [SIGMA_RAD, SIGMA_M]
-# (default [0.05, 0.05]). Then:
+# (default [0.05, 0.05]) and, with WIGGLE_RAD WIGGLE_M, frame_wiggle_sigma [WIGGLE_RAD, WIGGLE_M]
+# (each frame's pose of those cameras may move that much off the mount). Then:
 #   1. `waymark map build` on the set as given (OUT_DIR/given.*),
 #   2. `waymark map build` on the perturbed copy with --cameras-out OUT_DIR/calibrated/cameras,
 #   3. prints, per perturbed camera, how far the given, the perturbed and the calibrated mounts
@@ -17,7 +18,7 @@
 # Each build runs under a 10 GB address-space cap.
 set -euo pipefail
 if [[ $# -lt 3 ]]; then
-  echo "usage: $0 BUILD_DIR SET_DIR OUT_DIR [DEG] [M] [SIGMA_RAD] [SIGMA_M]" >&2
+  echo "usage: $0 BUILD_DIR SET_DIR OUT_DIR [DEG] [M] [SIGMA_RAD] [SIGMA_M] [WIGGLE_RAD WIGGLE_M]" >&2
   exit 2
 fi
 build=$1
@@ -27,6 +28,8 @@ deg=${4:-2}
 metres=${5:-0.03}
 sigma_rad=${6:-0.05}
 sigma_m=${7:-0.05}
+wiggle_rad=${8:-}
+wiggle_m=${9:-}
 waymark="$build/waymark"
 [[ -x "$waymark" ]] || { echo "$0: $waymark: not built" >&2; exit 1; }
 [[ -f "$set_dir/dataset.yaml" ]] || { echo "$0: $set_dir/dataset.yaml: no such file" >&2; exit 1; }
@@ -40,10 +43,11 @@ for f in "$set_dir"/*; do
   ln -s "$(realpath "$f")" "$out/calibrated/$(basename "$f")"
 done
 
-python3 - "$set_dir" "$out/perturbed/cameras" "$deg" "$metres" "$sigma_rad" "$sigma_m" <<'EOF'
+python3 - "$set_dir" "$out/perturbed/cameras" "$deg" "$metres" "$sigma_rad" "$sigma_m" "$wiggle_rad" "$wiggle_m" <<'EOF'
 import math, os, re, sys
 set_dir, out_dir = sys.argv[1], sys.argv[2]
 deg, metres, sigma_rad, sigma_m = map(float, sys.argv[3:7])
+wiggle = sys.argv[7:9] if sys.argv[7] else None
 names = re.search(r"cameras:\s*\[([^\]]*)\]", open(os.path.join(set_dir, "dataset.yaml")).read()).group(1)
 names = [n.strip() for n in names.split(",") if n.strip()]
 
@@ -69,6 +73,8 @@ for i, name in enumerate(names):
         text = re.sub(r"\bt:\s*\[[^\]]*\]", "t: [%.9f, %.9f, %.9f]" % tuple(t), text)
         text = re.sub(r"q_xyzw:\s*\[[^\]]*\]", "q_xyzw: [%.9f, %.9f, %.9f, %.9f]" % tuple(q), text)
         text = text.rstrip("\n") + "\nT_robot_camera_sigma: [%g, %g]\n" % (sigma_rad, sigma_m)
+        if wiggle:
+            text += "frame_wiggle_sigma: [%s, %s]\n" % tuple(wiggle)
     open(os.path.join(out_dir, name + ".yaml"), "w").write(text)
 EOF
 
@@ -82,7 +88,7 @@ build_map() {  # DATASET PREFIX [extra args]
 }
 build_map "$set_dir" "$out/given"
 build_map "$out/perturbed" "$out/perturbed" --cameras-out "$out/calibrated/cameras"
-grep '^camera mount' "$out/perturbed.summary.txt" || true
+grep '^camera \(mount\|wiggle\)' "$out/perturbed.summary.txt" || true
 
 python3 - "$set_dir/cameras" "$out/perturbed/cameras" "$out/calibrated/cameras" <<'EOF'
 import math, os, re, sys

@@ -107,15 +107,16 @@ TEST_F(MapCliTest, CameraMountWithASigmaIsCalibratedAndWritten) {
   perturbed.T_robot_camera_sigma = std::array<double, 2>{0.05, 0.05};
   WriteCameraYaml(survey / "cameras" / "right.yaml", perturbed);
 
-  const RunResult build = Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() +
-                              " --report " + (dir_ / "report.json").string() + " --cameras-out " +
-                              (dir_ / "calibrated").string());
+  const RunResult build =
+      Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() + " --report " +
+          (dir_ / "report.json").string() + " --cameras-out " + (dir_ / "calibrated").string());
   ASSERT_EQ(build.exit_code, 0) << build.err;
   EXPECT_NE(build.out.find("camera mount right (estimated): t ["), std::string::npos) << build.out;
   EXPECT_NE(build.out.find("cameras: 2 file(s) in "), std::string::npos) << build.out;
   const CameraInfo calibrated = ReadCameraYaml(dir_ / "calibrated" / "right.yaml");
   EXPECT_FALSE(calibrated.T_robot_camera_sigma.has_value());
-  const double rotation_deg = RotationAngleBetween(calibrated.T_robot_camera, truth.T_robot_camera) * 180.0 / M_PI;
+  const double rotation_deg =
+      RotationAngleBetween(calibrated.T_robot_camera, truth.T_robot_camera) * 180.0 / M_PI;
   // A planar survey cannot see the mount's height (it trades with the codes' heights; the prior
   // holds it): the horizontal offset is what the survey determines.
   const double translation_mm =
@@ -123,7 +124,8 @@ TEST_F(MapCliTest, CameraMountWithASigmaIsCalibratedAndWritten) {
   EXPECT_LT(rotation_deg, 0.2) << build.out;
   EXPECT_LT(translation_mm, 5.0) << build.out;
   const CameraInfo left = ReadCameraYaml(dir_ / "calibrated" / "left.yaml");  // as given
-  EXPECT_EQ(left.T_robot_camera.translation(), ReadCameraYaml(survey / "cameras" / "left.yaml").T_robot_camera.translation());
+  EXPECT_EQ(left.T_robot_camera.translation(),
+            ReadCameraYaml(survey / "cameras" / "left.yaml").T_robot_camera.translation());
   const nlohmann::json report = nlohmann::json::parse(ReadTextFile(dir_ / "report.json"));
   ASSERT_EQ(report["camera_mounts"].size(), 1u);
   EXPECT_EQ(report["camera_mounts"][0]["camera"], "right");
@@ -131,8 +133,10 @@ TEST_F(MapCliTest, CameraMountWithASigmaIsCalibratedAndWritten) {
   // Sigmas from the covariance: the rotation well determined; a translation sigma never above
   // the prior's (in a planar survey the mount's height trades with the codes' heights).
   ASSERT_TRUE(report["camera_mounts"][0].contains("sigma_t_m"));
-  for (const auto& sigma : report["camera_mounts"][0]["sigma_rot_rad"]) EXPECT_LT(sigma.get<double>(), 0.2 * M_PI / 180.0);
-  for (const auto& sigma : report["camera_mounts"][0]["sigma_t_m"]) EXPECT_LE(sigma.get<double>(), 0.05 + 1e-9);
+  for (const auto& sigma : report["camera_mounts"][0]["sigma_rot_rad"])
+    EXPECT_LT(sigma.get<double>(), 0.2 * M_PI / 180.0);
+  for (const auto& sigma : report["camera_mounts"][0]["sigma_t_m"])
+    EXPECT_LE(sigma.get<double>(), 0.05 + 1e-9);
   EXPECT_TRUE(report["outliers"].empty()) << build.out;
 
   // The perturbed mount held as given instead: the build rejects views it cannot fit.
@@ -144,6 +148,32 @@ TEST_F(MapCliTest, CameraMountWithASigmaIsCalibratedAndWritten) {
   const nlohmann::json fixed_report = nlohmann::json::parse(ReadTextFile(dir_ / "fixed.json.report"));
   EXPECT_TRUE(fixed_report["camera_mounts"].empty());
   EXPECT_LT(fixed_report["observations_used"].get<size_t>(), report["observations_used"].get<size_t>());
+}
+
+// frame_wiggle_sigma: each frame's pose of the camera gets its own small deviation off the
+// mount; the summary and the report give their spread, and the map stays as good.
+TEST_F(MapCliTest, FrameWiggleIsEstimatedAndReported) {
+  const fs::path survey = SmallSurvey();
+  CameraInfo right = ReadCameraYaml(survey / "cameras" / "right.yaml");
+  right.frame_wiggle_sigma = std::array<double, 2>{0.01, 0.01};
+  WriteCameraYaml(survey / "cameras" / "right.yaml", right);
+  const RunResult build =
+      Run("map build " + survey.string() + " --out " + (dir_ / "map.json").string() + " --report " +
+          (dir_ / "report.json").string() + " --cameras-out " + (dir_ / "cams").string());
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_NE(build.out.find("camera wiggle right (each frame's pose off the mount, "), std::string::npos)
+      << build.out;
+  const nlohmann::json report = nlohmann::json::parse(ReadTextFile(dir_ / "report.json"));
+  ASSERT_EQ(report["camera_wiggles"].size(), 1u);
+  EXPECT_GT(report["camera_wiggles"][0]["frames"].get<size_t>(), 100u);
+  // The survey's cameras are synchronized: the deviations stay well inside their prior.
+  EXPECT_LT(report["camera_wiggles"][0]["rms_rad"].get<double>(), 0.01);
+  EXPECT_LT(report["camera_wiggles"][0]["rms_m"].get<double>(), 0.01);
+  EXPECT_TRUE(report["camera_mounts"].empty());  // the mount itself is held
+  EXPECT_EQ(ReadCameraYaml(dir_ / "cams" / "right.yaml").frame_wiggle_sigma, right.frame_wiggle_sigma);
+  const eval::MapEvalResult error =
+      eval::EvaluateMap(ReadMap(dir_ / "map.json"), ReadMap(survey / "groundtruth/markers.json"));
+  EXPECT_LE(error.position_rmse_m, 0.01);
 }
 
 // --cameras-out: one camera survey only; an impossible directory writes nothing.
