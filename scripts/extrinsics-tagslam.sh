@@ -7,8 +7,8 @@
 # moves every camera but the first of dataset.yaml's list off its given mount by DEG degrees
 # (default 2) about an axis and M metres (default 0.03) along a direction that differ per camera
 # (fixed, not random), and gives those cameras T_robot_camera_sigma [SIGMA_RAD, SIGMA_M]
-# (default [0.05, 0.05]) and, with WIGGLE_RAD WIGGLE_M, frame_wiggle_sigma [WIGGLE_RAD, WIGGLE_M]
-# (each frame's pose of those cameras may move that much off the mount). Then:
+# (default [0.05, 0.05]) and, with WIGGLE_RAD WIGGLE_M, every camera frame_wiggle_sigma
+# [WIGGLE_RAD, WIGGLE_M] (each frame's pose of a camera may move that much off its mount). Then:
 #   1. `waymark map build` on the set as given (OUT_DIR/given.*),
 #   2. `waymark map build` on the perturbed copy with --cameras-out OUT_DIR/calibrated/cameras,
 #   3. prints, per perturbed camera, how far the given, the perturbed and the calibrated mounts
@@ -73,8 +73,8 @@ for i, name in enumerate(names):
         text = re.sub(r"\bt:\s*\[[^\]]*\]", "t: [%.9f, %.9f, %.9f]" % tuple(t), text)
         text = re.sub(r"q_xyzw:\s*\[[^\]]*\]", "q_xyzw: [%.9f, %.9f, %.9f, %.9f]" % tuple(q), text)
         text = text.rstrip("\n") + "\nT_robot_camera_sigma: [%g, %g]\n" % (sigma_rad, sigma_m)
-        if wiggle:
-            text += "frame_wiggle_sigma: [%s, %s]\n" % tuple(wiggle)
+    if wiggle:  # every camera, the reference too: the frame's pose is then the rig's, not one camera's
+        text = text.rstrip("\n") + "\nframe_wiggle_sigma: [%s, %s]\n" % tuple(wiggle)
     open(os.path.join(out_dir, name + ".yaml"), "w").write(text)
 EOF
 
