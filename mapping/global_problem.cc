@@ -223,21 +223,40 @@ bool GlobalProblem::FramesJoined() const {
   return false;
 }
 
+double GlobalProblem::OdometryVarianceFactor() const {
+  double sum = 0.0;
+  size_t count = 0;
+  for (const ceres::ResidualBlockId id : odometry_residuals_) {
+    const int size = problem_->GetCostFunctionForResidualBlock(id)->num_residuals();
+    std::vector<double> residuals(size);
+    double cost = 0.0;
+    if (!problem_->EvaluateResidualBlock(id, false, &cost, residuals.data(), nullptr)) continue;
+    for (double r : residuals) sum += r * r;
+    count += size;
+  }
+  // In units of the variances the odometry links were built with (not the scaled ones).
+  return count == 0 ? 1.0 : odometry_variance_scale_ * sum / static_cast<double>(count);
+}
+
 void GlobalProblem::AddOdometry() {
+  odometry_residuals_.clear();
   for (const OdometryLink& link : survey_.odometry_links) {
     if (!FramePlaced(link.frame_a) || !FramePlaced(link.frame_b)) continue;
     for (int f : {link.frame_a, link.frame_b}) {
       if (!problem_->HasParameterBlock(robot_[f].data()))
         AddRobotBlock(problem_.get(), survey_.motion, &robot_[f]);
     }
+    const double scale = odometry_variance_scale_;
     if (options_.calibrate_odometry) {
       AddCalibratedOdometry(link);
     } else if (survey_.motion == MotionModel::kPlanar) {
-      problem_->AddResidualBlock(OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2),
-                                 nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data());
+      odometry_residuals_.push_back(problem_->AddResidualBlock(
+          OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), scale * link.covariance_se2), nullptr,
+          robot_[link.frame_a].data(), robot_[link.frame_b].data()));
     } else {
-      problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, link.covariance_se3), nullptr,
-                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+      odometry_residuals_.push_back(
+          problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, scale * link.covariance_se3),
+                                     nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data()));
     }
   }
 }
@@ -254,12 +273,13 @@ void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
       problem_->SetParameterBlockConstant(calibration_.data());
     }
   }
+  const double scale = odometry_variance_scale_;
   ceres::CostFunction* cost =
       survey_.motion == MotionModel::kPlanar
-          ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2)
-          : CalibratedOdometrySE3Factor::Create(link.T_a_b, link.covariance_se3);
-  problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data(),
-                             calibration_.data());
+          ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), scale * link.covariance_se2)
+          : CalibratedOdometrySE3Factor::Create(link.T_a_b, scale * link.covariance_se3);
+  odometry_residuals_.push_back(problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(),
+                                                           robot_[link.frame_b].data(), calibration_.data()));
 }
 
 void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {

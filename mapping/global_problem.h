@@ -74,6 +74,14 @@ class GlobalProblem {
   // planar-flip branch fits better there (OtherFlipBranch); returns how many moved.
   size_t ReplaceOutlyingMarkers(const std::vector<int>& active, const std::map<std::string, Camera>& cameras);
 
+  // The odometry's mean squared whitened residual per degree of freedom at the current values,
+  // in units of the odometry noise the survey states (1 when the statement is right; a
+  // variance component estimate, biased low since the poses absorb part of each residual).
+  double OdometryVarianceFactor() const;
+  // Scales every odometry link's covariance by `scale` from the next Solve on.
+  void SetOdometryVarianceScale(double scale) { odometry_variance_scale_ = scale; }
+  double OdometryVarianceScale() const { return odometry_variance_scale_; }
+
   // The estimated mounts (T_robot_camera) of the cameras with a T_robot_camera_sigma that
   // observe something in the problem, by camera name.
   std::map<std::string, SE3d> Mounts() const;
@@ -104,6 +112,8 @@ class GlobalProblem {
   std::map<std::string, PoseBlock> mount_;
   std::map<std::pair<int, std::string>, PoseBlock> wiggle_;  // (frame, camera) -> W
   std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
+  double odometry_variance_scale_ = 1.0;
+  std::vector<ceres::ResidualBlockId> odometry_residuals_;
   std::unique_ptr<ceres::Problem> problem_;
   std::vector<const double*> covariance_markers_;
 };

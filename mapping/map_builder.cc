@@ -12,6 +12,7 @@
 #include "mapping/outlier_rejection.h"
 #include "mapping/residuals.h"
 #include "util/check.h"
+#include "util/format.h"
 #include "util/stats.h"
 
 namespace waymark {
@@ -97,6 +98,11 @@ bool MapBuildOptions::Check(std::string* why) const {
           (odometry_calibration && OdometryCalibrationSigmaValid(*odometry_calibration_sigma)),
       "odometry_calibration_sigma needs odometry_calibration, and must be three finite numbers > 0");
   WAYMARK_CHECK_OPTION(replace_rounds >= 0, "replace_rounds must be >= 0");
+  WAYMARK_CHECK_OPTION(odometry_noise_rounds >= 0 && odometry_noise_threshold >= 1.0 &&
+                           std::isfinite(odometry_noise_threshold) && max_odometry_variance_scale >= 1.0 &&
+                           std::isfinite(max_odometry_variance_scale),
+                       "odometry_noise_rounds must be >= 0, odometry_noise_threshold and "
+                       "max_odometry_variance_scale finite and >= 1");
   WAYMARK_CHECK_OPTION(min_frames >= 1 && max_iterations >= 1 && num_threads >= 1,
                        "min_frames, max_iterations and num_threads must be >= 1");
   return true;
@@ -181,6 +187,27 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
   record("robust", robust);
   clock.Lap("robust solve");
   int iterations = static_cast<int>(robust.iterations.size());
+  // An odometry noise model that understates the odometry's real noise (a drifting VIO given a
+  // wheel odometry's figures) would let the odometry override consistent corners, which the
+  // gate below would then reject. The odometry's own residuals after the robust solve measure
+  // it: when their variance per degree of freedom is well above the stated one, the odometry's
+  // covariance is scaled by it and the robust solve repeated (a variance component estimate;
+  // never scaled down: the estimate is biased low).
+  for (int round = 0; round < options.odometry_noise_rounds; ++round) {
+    const double factor = problem.OdometryVarianceFactor();
+    if (!(factor > options.odometry_noise_threshold)) break;
+    problem.SetOdometryVarianceScale(std::min(factor, options.max_odometry_variance_scale));
+    robust = problem.Solve(in_front(active), true, &gauges);
+    record("robust with the odometry noise scaled", robust);
+    iterations += static_cast<int>(robust.iterations.size());
+    if (factor >= options.max_odometry_variance_scale) break;
+  }
+  if (problem.OdometryVarianceScale() != 1.0) {
+    result.odometry_noise_scale = std::sqrt(problem.OdometryVarianceScale());
+    result.notes.push_back(
+        "odometry noise estimated from the data: " + FormatSignificant(*result.odometry_noise_scale, 3) +
+        " x the stated odometry_sigma (its residuals after the robust solve)");
+  }
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
   for (int round = 0; round < options.replace_rounds; ++round) {
     const size_t moved = problem.ReplaceOutlyingMarkers(active, cameras);

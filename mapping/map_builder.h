@@ -50,6 +50,13 @@ struct MapBuildOptions {
   // After the robust solve, codes with outlying views are re-placed by consensus at the solved
   // frame poses and the robust solve repeated, up to this many times.
   int replace_rounds = 2;
+  // After the robust solve, when the odometry's whitened residuals have a variance per degree
+  // of freedom above odometry_noise_threshold (in units of the stated odometry_sigma), the
+  // odometry's covariance is scaled by it (at most max_odometry_variance_scale) and the robust
+  // solve repeated, up to this many times (0: the stated model is taken as is).
+  int odometry_noise_rounds = 3;
+  double odometry_noise_threshold = 2.0;
+  double max_odometry_variance_scale = 1e4;
   int min_frames = 2;  // codes seen in fewer frames are reported, not mapped
   double payload_sigma_m = 0.01;
   double payload_yaw_sigma_rad = 0.02;
@@ -158,6 +165,9 @@ struct MapBuildResult {
   std::optional<Eigen::Vector3d> odometry_calibration;
   bool odometry_calibration_given = false;
   std::optional<Eigen::Matrix3d> odometry_calibration_covariance;
+  // The factor by which the build scaled the stated odometry noise (sigma, not variance), when
+  // the odometry's residuals showed it understated (MapBuildOptions::odometry_noise_rounds).
+  std::optional<double> odometry_noise_scale;
   std::vector<CameraMountEstimate> mounts;   // by camera name
   std::vector<CameraWiggleSummary> wiggles;  // by camera name
   std::vector<std::string> notes;
