@@ -18,6 +18,8 @@
 #include "cli/dataset_detect.h"
 #include "eval/map_metrics.h"
 #include "factors/calibrated_odometry_factor.h"
+#include "geometry/pose.h"
+#include "io/camera_io.h"
 #include "io/dataset_io.h"
 #include "io/map_io.h"
 #include "io/tum_io.h"
@@ -71,6 +73,10 @@ Options (build, merge):
                       (e.g. smoothed.tum, smoothed.component1.tum), each in its component's frame
   --trajectory-dir DIR  each dataset's smoothed trajectory T_world_robot as DIR/<name>.tum
                       (<name>: dataset.yaml name, or the directory's name)
+  --cameras-out DIR   every camera of DATASET as DIR/<name>.yaml, with the mounts the build
+                      estimated (camera files that give T_robot_camera_sigma: extrinsic
+                      self-calibration, docs/mapping.md) in place of the given ones, ready
+                      to use as calibrated cameras (one dataset only)
   --report FILE       the summary as JSON: components, reprojection per camera (RMS, median),
                       every rejected observation (code, stamp, camera, reason) and their counts
                       by reason and by code, unmapped codes, time and peak memory per phase
@@ -134,10 +140,10 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
   return options;
 }
 
-const std::set<std::string> kBuildValues = {"out",           "trajectory",    "report",
-                                            "threads",       "min-frames",    "outlier-chi2",
-                                            "max-gap",       "families",      "odometry-calibration",
-                                            "payload-sigma", "trajectory-dir"};
+const std::set<std::string> kBuildValues = {"out",           "trajectory",     "report",
+                                            "threads",       "min-frames",     "outlier-chi2",
+                                            "max-gap",       "families",       "odometry-calibration",
+                                            "payload-sigma", "trajectory-dir", "cameras-out"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
 
 // The detections the build uses (cli/dataset_detect.h).
@@ -221,6 +227,32 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
                                   {"rms_px", o.rms_px},
                                   {"reason", o.reason}});
   }
+  report["camera_mounts"] = nlohmann::json::array();
+  for (const CameraMountEstimate& mount : result.mounts) {
+    const SE3d& T = mount.estimated;
+    nlohmann::json entry = {
+        {"camera", mount.camera},
+        {"T_robot_camera",
+         {{"t", {T.translation().x(), T.translation().y(), T.translation().z()}},
+          {"q_xyzw", {T.rotation().x(), T.rotation().y(), T.rotation().z(), T.rotation().w()}}}},
+        {"moved_rad", RotationAngleBetween(T, mount.given)},
+        {"moved_m", (T.translation() - mount.given.translation()).norm()}};
+    if (mount.covariance) {
+      const Vector6d sd = mount.covariance->diagonal().cwiseMax(0.0).cwiseSqrt();
+      entry["sigma_rot_rad"] = {sd[0], sd[1], sd[2]};
+      entry["sigma_t_m"] = {sd[3], sd[4], sd[5]};
+    }
+    report["camera_mounts"].push_back(entry);
+  }
+  report["camera_wiggles"] = nlohmann::json::array();
+  for (const CameraWiggleSummary& w : result.wiggles) {
+    report["camera_wiggles"].push_back({{"camera", w.camera},
+                                        {"frames", w.frames},
+                                        {"rms_rad", w.rms_rad},
+                                        {"rms_m", w.rms_m},
+                                        {"max_rad", w.max_rad},
+                                        {"max_m", w.max_m}});
+  }
   if (result.odometry_calibration) {
     const Eigen::Vector3d& c = *result.odometry_calibration;
     nlohmann::json calibration = {{"k_rad_per_m", c[0]},
@@ -240,8 +272,24 @@ nlohmann::json ReportJson(const MapBuildResult& result) {
   return report;
 }
 
+// The dataset's cameras with the mounts the build estimated in place of the given ones (their
+// prior sigma dropped: the files describe calibrated cameras), as DIR/<name>.yaml.
+void AddCameraFiles(const std::string& dir, const std::map<std::string, CameraInfo>& cameras,
+                    const MapBuildResult& result, std::vector<std::pair<std::string, std::string>>* files) {
+  for (const auto& [name, given] : cameras) {
+    CameraInfo camera = given;
+    for (const CameraMountEstimate& mount : result.mounts) {
+      if (mount.camera != name) continue;
+      camera.T_robot_camera = mount.estimated;
+      camera.T_robot_camera_sigma.reset();
+    }
+    files->emplace_back((std::filesystem::path(dir) / (name + ".yaml")).string(), FormatCameraYaml(camera));
+  }
+}
+
 // Formats every output first, then writes them: a failure leaves no partial output.
-void WriteOutputs(const Args& args, const MapBuildResult& result) {
+void WriteOutputs(const Args& args, const MapBuildResult& result,
+                  const std::map<std::string, CameraInfo>& cameras) {
   std::vector<std::pair<std::string, std::string>> files;  // path, text
   files.emplace_back(args.Require("out"), FormatMap(result.map));
   if (const auto path = args.Get("trajectory")) {
@@ -253,6 +301,7 @@ void WriteOutputs(const Args& args, const MapBuildResult& result) {
     }
   }
   if (const auto path = args.Get("report")) files.emplace_back(*path, ReportJson(result).dump(1) + "\n");
+  if (const auto dir = args.Get("cameras-out")) AddCameraFiles(*dir, cameras, result, &files);
   AtomicWriteFiles({files.begin(), files.end()});  // all or nothing
 }
 
@@ -269,11 +318,15 @@ void PrintPredictedError(const MarkerMap& map) {
   }
 }
 
-int Finish(const Args& args, const MapBuildResult& result) {
+int Finish(const Args& args, const MapBuildResult& result, const std::map<std::string, CameraInfo>& cameras) {
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
-  WriteOutputs(args, result);
+  WriteOutputs(args, result, cameras);
   std::cout << FormatBuildSummary(result);
   PrintPredictedError(result.map);
+  if (const auto dir = args.Get("cameras-out")) {
+    std::cout << "cameras: " << cameras.size() << " file(s) in " << *dir << " (" << result.mounts.size()
+              << " mount(s) estimated)\n";
+  }
   if (const auto path = args.Get("trajectory")) {
     for (size_t c = 0; c < result.trajectories.size(); ++c) {
       std::cout << "trajectory of component " << c << ": "
@@ -436,8 +489,11 @@ int RunBuild(const std::vector<std::string>& argv) {
   }
   args.ExpectPositionals(1, 1000, "dataset directory DATASET");
   args.Require("out");
-  args.ExpectDistinctOutputs({"out", "trajectory", "report", "trajectory-dir"});
+  args.ExpectDistinctOutputs({"out", "trajectory", "report", "trajectory-dir", "cameras-out"});
   if (args.positionals().size() > 1 || args.Has("trajectory-dir")) {
+    if (args.Has("cameras-out"))
+      throw std::invalid_argument(
+          "--cameras-out is for one dataset (its cameras are calibrated by its own build)");
     std::vector<Dataset> datasets;
     for (const std::string& dir : args.positionals()) datasets.push_back(LoadDataset(dir));
     UniqueNames(&datasets);
@@ -448,10 +504,13 @@ int RunBuild(const std::vector<std::string>& argv) {
   }
   Dataset dataset = LoadDataset(args.positionals()[0]);
   const std::vector<const Dataset*> one = {&dataset};
+  if (args.Has("cameras-out") && HasRangeBearing(one))
+    throw std::invalid_argument(
+        "--cameras-out is for camera surveys (range-bearing datasets have no camera mount)");
   if (HasRangeBearing(one)) return RunRangeBearingBuild(args, {dataset});
   const MapBuildOptions options = ParseBuildOptions(args);
   PrepareSurvey(args, &dataset);
-  return Finish(args, BuildMap(dataset, options));
+  return Finish(args, BuildMap(dataset, options), dataset.cameras);
 }
 
 int RunMerge(const std::vector<std::string>& argv) {
@@ -462,11 +521,11 @@ int RunMerge(const std::vector<std::string>& argv) {
   }
   args.ExpectPositionals(2, 2, "MAP.json and dataset directory DATASET");
   args.Require("out");
-  args.ExpectDistinctOutputs({"out", "trajectory", "report"});
+  args.ExpectDistinctOutputs({"out", "trajectory", "report", "cameras-out"});
   const MapBuildOptions options = ParseBuildOptions(args);
   const MarkerMap existing = ReadMap(args.positionals()[0]);
   const Dataset dataset = LoadSurvey(args, args.positionals()[1]);
-  return Finish(args, MergeSurveyIntoMap(existing, dataset, options));
+  return Finish(args, MergeSurveyIntoMap(existing, dataset, options), dataset.cameras);
 }
 
 int RunInfo(const std::vector<std::string>& argv) {

@@ -157,6 +157,13 @@ struct CameraInfo {
   std::vector<double> distortion;      // radtan: k1 k2 p1 p2 k3; equidistant, equisolid: k1 k2 k3 k4
   SE3d T_robot_camera;
   std::optional<double> pixel_sigma;  // corner noise, px
+  // Prior sigmas [rotation rad, translation m] of T_robot_camera: when set, the map build
+  // estimates the mount (extrinsic self-calibration) instead of holding it as given.
+  std::optional<std::array<double, 2>> T_robot_camera_sigma;
+  // Prior sigmas [rad, m] of the camera's pose in each frame off T_robot_camera (cameras not
+  // synchronized with the rig's frame stamp, a rig that flexes): when set, the map build gives
+  // every frame of this camera its own small deviation with this prior.
+  std::optional<std::array<double, 2>> frame_wiggle_sigma;
 
   // Number of distortion coefficients the model takes (5 or 4).
   static size_t DistortionSize(CameraModel model) { return model == CameraModel::kPinholeRadtan ? 5 : 4; }

@@ -46,6 +46,16 @@ std::string CheckCameraOffset(const SE3d& T_robot_camera) {
          FormatDouble(offset_m) + " m";
 }
 
+// The prior sigmas of an estimated mount: a rotation up to pi and a translation within the
+// camera offset limit, both > 0.
+std::string CheckMountSigma(double rot_rad, double trans_m) {
+  if (!(rot_rad > 0.0 && rot_rad <= M_PI && trans_m > 0.0 && trans_m <= kMaxCameraOffsetM)) {
+    return "expected [rotation rad in (0, pi], translation m in (0, " + FormatDouble(kMaxCameraOffsetM) +
+           "]], got [" + FormatDouble(rot_rad) + ", " + FormatDouble(trans_m) + "]";
+  }
+  return "";
+}
+
 CameraModel ReadModel(const std::filesystem::path& path, const YAML::Node& root) {
   const YAML::Node node = YamlRequire(path, root, "model");
   const std::string name = YamlString(path, node, "model");
@@ -112,9 +122,24 @@ CameraInfo ParseCameraYaml(const std::string& text, const std::filesystem::path&
                          FormatDouble(kMaxPixelSigmaPx) + ", got " + FormatDouble(*camera.pixel_sigma));
     }
   }
-  YamlWarnUnknownKeys(
-      path, root, {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera", "pixel_sigma"},
-      "", warnings);
+  if (const YAML::Node sigma = root["T_robot_camera_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
+    const std::vector<double> values = YamlNumbers(path, sigma, "T_robot_camera_sigma", 2);
+    if (const std::string why = CheckMountSigma(values[0], values[1]); !why.empty()) {
+      ThrowYamlError(path, sigma, "T_robot_camera_sigma: " + why);
+    }
+    camera.T_robot_camera_sigma = std::array<double, 2>{values[0], values[1]};
+  }
+  if (const YAML::Node sigma = root["frame_wiggle_sigma"]; sigma.IsDefined() && !sigma.IsNull()) {
+    const std::vector<double> values = YamlNumbers(path, sigma, "frame_wiggle_sigma", 2);
+    if (const std::string why = CheckMountSigma(values[0], values[1]); !why.empty()) {
+      ThrowYamlError(path, sigma, "frame_wiggle_sigma: " + why);
+    }
+    camera.frame_wiggle_sigma = std::array<double, 2>{values[0], values[1]};
+  }
+  YamlWarnUnknownKeys(path, root,
+                      {"model", "width", "height", "intrinsics", "distortion", "T_robot_camera",
+                       "pixel_sigma", "T_robot_camera_sigma", "frame_wiggle_sigma"},
+                      "", warnings);
   return camera;
 }
 
@@ -157,6 +182,15 @@ void CheckWritable(const CameraInfo& camera) {
   if (camera.pixel_sigma && !(*camera.pixel_sigma > 0.0 && std::isfinite(*camera.pixel_sigma))) {
     throw std::invalid_argument(name + "pixel_sigma must be positive");
   }
+  if (camera.T_robot_camera_sigma) {
+    const std::string why =
+        CheckMountSigma((*camera.T_robot_camera_sigma)[0], (*camera.T_robot_camera_sigma)[1]);
+    if (!why.empty()) throw std::invalid_argument(name + "T_robot_camera_sigma: " + why);
+  }
+  if (camera.frame_wiggle_sigma) {
+    const std::string why = CheckMountSigma((*camera.frame_wiggle_sigma)[0], (*camera.frame_wiggle_sigma)[1]);
+    if (!why.empty()) throw std::invalid_argument(name + "frame_wiggle_sigma: " + why);
+  }
 }
 
 }  // namespace
@@ -171,6 +205,12 @@ std::string FormatCameraYaml(const CameraInfo& camera) {
       << "distortion: " << NumberList(camera.distortion.data(), camera.distortion.size()) << "\n"
       << "T_robot_camera: " << FormatPoseYaml(camera.T_robot_camera) << "\n";
   if (camera.pixel_sigma) out << "pixel_sigma: " << FormatDouble(*camera.pixel_sigma) << "\n";
+  if (camera.T_robot_camera_sigma) {
+    out << "T_robot_camera_sigma: " << NumberList(camera.T_robot_camera_sigma->data(), 2) << "\n";
+  }
+  if (camera.frame_wiggle_sigma) {
+    out << "frame_wiggle_sigma: " << NumberList(camera.frame_wiggle_sigma->data(), 2) << "\n";
+  }
   return out.str();
 }
 

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "geometry/pose.h"
 #include "util/format.h"
 
 namespace waymark {
@@ -72,6 +73,39 @@ std::string FormatOdometryCalibration(const MapBuildResult& result) {
   return out.str();
 }
 
+std::string FormatCameraMounts(const MapBuildResult& result) {
+  std::ostringstream out;
+  const auto triple = [](const Eigen::Vector3d& v, double scale, int digits) {
+    return "[" + FormatFixed(scale * v.x(), digits) + ", " + FormatFixed(scale * v.y(), digits) + ", " +
+           FormatFixed(scale * v.z(), digits) + "]";
+  };
+  for (const CameraMountEstimate& mount : result.mounts) {
+    const Eigen::Vector3d r = LogSO3(mount.estimated.rotation());
+    out << "camera mount " << mount.camera << " (estimated): t "
+        << triple(mount.estimated.translation(), 1.0, 4) << " m";
+    if (mount.covariance) {
+      const Vector6d sd = mount.covariance->diagonal().cwiseMax(0.0).cwiseSqrt();
+      out << " +- " << triple(sd.tail<3>(), 1e3, 2) << " mm";
+    }
+    out << ", rotation vector " << triple(r, 180.0 / M_PI, 3) << " deg";
+    if (mount.covariance) {
+      const Vector6d sd = mount.covariance->diagonal().cwiseMax(0.0).cwiseSqrt();
+      out << " +- " << triple(sd.head<3>(), 180.0 / M_PI, 3) << " deg";
+    }
+    out << "; moved " << FormatFixed(RotationAngleBetween(mount.estimated, mount.given) * 180.0 / M_PI, 3)
+        << " deg, "
+        << FormatFixed(1e3 * (mount.estimated.translation() - mount.given.translation()).norm(), 1)
+        << " mm from the camera file\n";
+  }
+  for (const CameraWiggleSummary& w : result.wiggles) {
+    out << "camera wiggle " << w.camera << " (each frame's pose off the mount, " << w.frames
+        << " frames): RMS " << FormatFixed(w.rms_rad * 180.0 / M_PI, 3) << " deg, "
+        << FormatFixed(1e3 * w.rms_m, 1) << " mm; max " << FormatFixed(w.max_rad * 180.0 / M_PI, 3)
+        << " deg, " << FormatFixed(1e3 * w.max_m, 1) << " mm\n";
+  }
+  return out.str();
+}
+
 std::string FormatBuildSummary(const MapBuildResult& result) {
   std::ostringstream out;
   out << "map: " << result.map.markers.size() << " markers in " << result.components.size()
@@ -106,6 +140,7 @@ std::string FormatBuildSummary(const MapBuildResult& result) {
       << FormatSignificant(result.final_cost, 8) << ", " << result.termination << "\n";
   out << "covariance: " << (result.covariance_computed ? "computed" : "not computed") << "\n";
   if (result.odometry_calibration) out << FormatOdometryCalibration(result) << "\n";
+  out << FormatCameraMounts(result);
   for (const std::string& note : result.notes) out << "note: " << note << "\n";
   return out.str();
 }

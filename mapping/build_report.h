@@ -27,4 +27,9 @@ std::string FormatBuildSummary(const MapBuildResult& result);
 // estimated, the --odometry-calibration argument that reuses it; "" without one.
 std::string FormatOdometryCalibration(const MapBuildResult& result);
 
+// One line per camera mount the build estimated (extrinsic self-calibration): its
+// T_robot_camera (translation in m, rotation as a rotation vector in deg), its sigmas when the
+// covariances were computed, and how far it moved from the camera file; "" without any.
+std::string FormatCameraMounts(const MapBuildResult& result);
+
 }  // namespace waymark

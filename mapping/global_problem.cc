@@ -38,6 +38,20 @@ class ProgressCallback : public ceres::IterationCallback {
   std::string stage_;
 };
 
+// A diagonal covariance from sigmas [rotation rad, translation m] (body tangent [r, t]).
+Matrix6d SigmasToCovariance(const std::array<double, 2>& sigma) {
+  Vector6d variances;
+  variances << sigma[0] * sigma[0], sigma[0] * sigma[0], sigma[0] * sigma[0], sigma[1] * sigma[1],
+      sigma[1] * sigma[1], sigma[1] * sigma[1];
+  return variances.asDiagonal();
+}
+
+PoseBlock IdentityBlock() {
+  PoseBlock block;
+  SE3ToBlock(SE3d(), block.data());
+  return block;
+}
+
 }  // namespace
 
 ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool robust,
@@ -51,9 +65,46 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
       AddRobotBlock(problem_.get(), survey_.motion, &robot_[obs.frame]);
     }
     if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
-    AddCornerResidual(problem_.get(), survey_.motion, survey_.cameras.at(obs.camera),
-                      survey_.markers[obs.marker].size_m, obs.corners_px, &robot_[obs.frame],
-                      &marker_[obs.marker], loss);
+    const CameraInfo& camera = survey_.cameras.at(obs.camera);
+    const double size_m = survey_.markers[obs.marker].size_m;
+    const auto mount = mount_.find(obs.camera);
+    if (mount == mount_.end()) {
+      AddCornerResidual(problem_.get(), survey_.motion, camera, size_m, obs.corners_px, &robot_[obs.frame],
+                        &marker_[obs.marker], loss);
+      continue;
+    }
+    if (!problem_->HasParameterBlock(mount->second.data())) {
+      AddMarkerBlock(problem_.get(), &mount->second);
+      if (camera.T_robot_camera_sigma) {
+        // The camera file's mount is the prior's mean, its T_robot_camera_sigma the prior's
+        // spread (rotation and translation in the camera's body frame).
+        problem_->AddResidualBlock(
+            PosePriorSE3Factor::Create(camera.T_robot_camera,
+                                       SigmasToCovariance(*camera.T_robot_camera_sigma)),
+            nullptr, mount->second.data());
+      } else {
+        problem_->SetParameterBlockConstant(mount->second.data());  // held; only the wiggle moves
+      }
+    }
+    if (!camera.frame_wiggle_sigma) {
+      AddCornerResidualWithMount(problem_.get(), survey_.motion, camera, size_m, obs.corners_px,
+                                 &robot_[obs.frame], &mount->second, &marker_[obs.marker], loss);
+      continue;
+    }
+    PoseBlock& wiggle = wiggle_.try_emplace({obs.frame, obs.camera}, IdentityBlock()).first->second;
+    if (!problem_->HasParameterBlock(wiggle.data())) {
+      AddMarkerBlock(problem_.get(), &wiggle);
+      problem_->AddResidualBlock(
+          PosePriorSE3Factor::Create(SE3d(), SigmasToCovariance(*camera.frame_wiggle_sigma)), nullptr,
+          wiggle.data());
+    }
+    const double sigma_px = CornerSigmaPx(camera);
+    ceres::CostFunction* cost =
+        survey_.motion == MotionModel::kPlanar
+            ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
+            : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px);
+    problem_->AddResidualBlock(cost, loss, robot_[obs.frame].data(), mount->second.data(), wiggle.data(),
+                               marker_[obs.marker].data());
   }
   if (loss != nullptr && active.empty()) delete loss;
   AddOdometry();
@@ -89,7 +140,18 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
   // the linear solver took 0.50 of the Jacobian evaluation time with Cholesky of the normal
   // equations, 0.21 with this (16.0 of 32.1 s, then 10.5 of 49.7 s on a busier machine); the
   // map is the same within 1e-15 m.
-  if (!FramesJoined()) {
+  if (HasWiggle()) {
+    // Each frame's camera deviations touch only that frame and camera's residuals: they are
+    // the independent set eliminated first; frames, codes and mounts form the reduced system.
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    std::vector<double*> blocks;
+    problem_->GetParameterBlocks(&blocks);
+    std::set<const double*> wiggles;
+    for (const auto& [key, block] : wiggle_) wiggles.insert(block.data());
+    for (double* block : blocks) ordering->AddElementToGroup(block, wiggles.count(block) > 0 ? 0 : 1);
+    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+    solver_options.linear_solver_ordering = ordering;
+  } else if (!FramesJoined()) {
     auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
     std::vector<double*> blocks;
     problem_->GetParameterBlocks(&blocks);
@@ -161,21 +223,40 @@ bool GlobalProblem::FramesJoined() const {
   return false;
 }
 
+double GlobalProblem::OdometryVarianceFactor() const {
+  double sum = 0.0;
+  size_t count = 0;
+  for (const ceres::ResidualBlockId id : odometry_residuals_) {
+    const int size = problem_->GetCostFunctionForResidualBlock(id)->num_residuals();
+    std::vector<double> residuals(size);
+    double cost = 0.0;
+    if (!problem_->EvaluateResidualBlock(id, false, &cost, residuals.data(), nullptr)) continue;
+    for (double r : residuals) sum += r * r;
+    count += size;
+  }
+  // In units of the variances the odometry links were built with (not the scaled ones).
+  return count == 0 ? 1.0 : odometry_variance_scale_ * sum / static_cast<double>(count);
+}
+
 void GlobalProblem::AddOdometry() {
+  odometry_residuals_.clear();
   for (const OdometryLink& link : survey_.odometry_links) {
     if (!FramePlaced(link.frame_a) || !FramePlaced(link.frame_b)) continue;
     for (int f : {link.frame_a, link.frame_b}) {
       if (!problem_->HasParameterBlock(robot_[f].data()))
         AddRobotBlock(problem_.get(), survey_.motion, &robot_[f]);
     }
+    const double scale = odometry_variance_scale_;
     if (options_.calibrate_odometry) {
       AddCalibratedOdometry(link);
     } else if (survey_.motion == MotionModel::kPlanar) {
-      problem_->AddResidualBlock(OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2),
-                                 nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data());
+      odometry_residuals_.push_back(problem_->AddResidualBlock(
+          OdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), scale * link.covariance_se2), nullptr,
+          robot_[link.frame_a].data(), robot_[link.frame_b].data()));
     } else {
-      problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, link.covariance_se3), nullptr,
-                                 robot_[link.frame_a].data(), robot_[link.frame_b].data());
+      odometry_residuals_.push_back(
+          problem_->AddResidualBlock(OdometrySE3Factor::Create(link.T_a_b, scale * link.covariance_se3),
+                                     nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data()));
     }
   }
 }
@@ -192,12 +273,13 @@ void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
       problem_->SetParameterBlockConstant(calibration_.data());
     }
   }
+  const double scale = odometry_variance_scale_;
   ceres::CostFunction* cost =
       survey_.motion == MotionModel::kPlanar
-          ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), link.covariance_se2)
-          : CalibratedOdometrySE3Factor::Create(link.T_a_b, link.covariance_se3);
-  problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(), robot_[link.frame_b].data(),
-                             calibration_.data());
+          ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), scale * link.covariance_se2)
+          : CalibratedOdometrySE3Factor::Create(link.T_a_b, scale * link.covariance_se3);
+  odometry_residuals_.push_back(problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(),
+                                                           robot_[link.frame_b].data(), calibration_.data()));
 }
 
 void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {
@@ -267,9 +349,67 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
   }
 }
 
+std::map<std::string, SE3d> GlobalProblem::Mounts() const {
+  std::map<std::string, SE3d> mounts;
+  for (const auto& [name, block] : mount_) {
+    if (problem_ && problem_->HasParameterBlock(block.data()) &&
+        !problem_->IsParameterBlockConstant(block.data()))
+      mounts[name] = SE3FromBlock(block.data());
+  }
+  return mounts;
+}
+
+bool GlobalProblem::HasWiggle() const {
+  for (const auto& [key, block] : wiggle_) {
+    if (problem_->HasParameterBlock(block.data())) return true;
+  }
+  return false;
+}
+
+std::map<std::string, std::vector<SE3d>> GlobalProblem::Wiggles() const {
+  std::map<std::string, std::vector<SE3d>> wiggles;
+  for (const auto& [key, block] : wiggle_) {
+    if (problem_ && problem_->HasParameterBlock(block.data()))
+      wiggles[key.second].push_back(SE3FromBlock(block.data()));
+  }
+  return wiggles;
+}
+
 double GlobalProblem::SquaredError(int o) const {
   const SurveyObservation& obs = survey_.observations[o];
   const CameraInfo& camera = survey_.cameras.at(obs.camera);
+  double residuals[8];
+  if (const auto mount = mount_.find(obs.camera); mount != mount_.end()) {
+    const double size_m = survey_.markers[obs.marker].size_m;
+    const double sigma_px = CornerSigmaPx(camera);
+    double s = 0.0;
+    if (camera.frame_wiggle_sigma) {
+      // The frame's deviation counts in the gate (whitened by its prior): a view that only fits
+      // by moving its camera far off the mount is not hidden by the wiggle.
+      const auto wiggle = wiggle_.find({obs.frame, obs.camera});
+      const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : wiggle->second;
+      std::unique_ptr<ceres::CostFunction> cost(
+          survey_.motion == MotionModel::kPlanar
+              ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
+              : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px));
+      const double* blocks[4] = {robot_[obs.frame].data(), mount->second.data(), W.data(),
+                                 marker_[obs.marker].data()};
+      if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+      const Vector6d delta = SE3d().BoxMinus(SE3FromBlock(W.data()));
+      const std::array<double, 2>& sigma = *camera.frame_wiggle_sigma;
+      s += delta.head<3>().squaredNorm() / (sigma[0] * sigma[0]) +
+           delta.tail<3>().squaredNorm() / (sigma[1] * sigma[1]);
+    } else {
+      std::unique_ptr<ceres::CostFunction> cost(
+          survey_.motion == MotionModel::kPlanar
+              ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
+              : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px));
+      const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
+      if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
+    }
+    for (double r : residuals) s += r * r;
+    return s;
+  }
   std::unique_ptr<ceres::CostFunction> cost(
       survey_.motion == MotionModel::kPlanar
           ? PlanarMarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
@@ -277,7 +417,6 @@ double GlobalProblem::SquaredError(int o) const {
           : MarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
                                              CornerSigmaPx(camera)));
   const double* blocks[2] = {robot_[obs.frame].data(), marker_[obs.marker].data()};
-  double residuals[8];
   if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
   double s = 0.0;
   for (double r : residuals) s += r * r;
@@ -286,19 +425,33 @@ double GlobalProblem::SquaredError(int o) const {
 
 bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
                                 std::vector<std::optional<CovarianceFactor>>* factors,
-                                std::optional<Eigen::Matrix3d>* calibration_covariance) const {
+                                std::optional<Eigen::Matrix3d>* calibration_covariance,
+                                std::map<std::string, Matrix6d>* mount_covariance) const {
   covariance->assign(survey_.markers.size(), std::nullopt);
   factors->assign(survey_.markers.size(), std::nullopt);
   calibration_covariance->reset();
+  mount_covariance->clear();
   MarginalCovarianceOptions marginal_options;
   marginal_options.num_threads = options_.num_threads;
-  std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, then c
+  std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, mounts, then c
+  std::vector<std::string> mounts;
+  for (const auto& [name, block] : mount_) {
+    if (problem_->HasParameterBlock(block.data()) && !problem_->IsParameterBlockConstant(block.data())) {
+      marginal_blocks.push_back(block.data());
+      mounts.push_back(name);
+    }
+  }
   if (CalibrationEstimated()) marginal_blocks.push_back(calibration_.data());
   const InformationFactor information(problem_.get(), marginal_blocks, marginal_options);
   if (information.size() == 0) return covariance_markers_.empty();
   if (!information.positive_definite()) return false;
   const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // marginal_blocks order
   if (CalibrationEstimated()) *calibration_covariance = Eigen::Matrix3d(manifold.back());
+  for (size_t i = 0; i < mounts.size(); ++i) {
+    const Matrix6d J = ManifoldToBodyTangentJacobian(SE3FromBlock(mount_.at(mounts[i]).data()));
+    const Matrix6d body = J * Matrix6d(manifold[covariance_markers_.size() + i]) * J.transpose();
+    (*mount_covariance)[mounts[i]] = 0.5 * (body + body.transpose());
+  }
   std::map<const double*, size_t> index_of;
   for (size_t i = 0; i < covariance_markers_.size(); ++i) index_of[covariance_markers_[i]] = i;
   const size_t count = covariance_markers_.size();

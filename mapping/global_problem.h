@@ -38,6 +38,10 @@ class GlobalProblem {
     for (size_t m = 0; m < marker_.size(); ++m) {
       if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
     }
+    for (const auto& [name, camera] : survey.cameras) {
+      if (camera.T_robot_camera_sigma || camera.frame_wiggle_sigma)
+        SE3ToBlock(camera.T_robot_camera, mount_[name].data());
+    }
     const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
     for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
   }
@@ -49,10 +53,12 @@ class GlobalProblem {
   // Marker covariances in map.json's convention and, with factor_rank > 0, the markers' rows of
   // the joint covariance factor (mapping/map_covariance.h), both from one factorization of H
   // (mapping/marginal_covariance.h); false when H is not positive definite (a free gauge).
-  // With the odometry calibration estimated, its covariance goes to *calibration_covariance.
+  // With the odometry calibration estimated, its covariance goes to *calibration_covariance;
+  // each estimated camera mount's (body tangent [r, t], geometry/pose.h) to *mount_covariance.
   bool Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
                    std::vector<std::optional<CovarianceFactor>>* factors,
-                   std::optional<Eigen::Matrix3d>* calibration_covariance) const;
+                   std::optional<Eigen::Matrix3d>* calibration_covariance,
+                   std::map<std::string, Matrix6d>* mount_covariance) const;
   // The odometry calibration of the problem, nullopt when it has no calibrated odometry link.
   std::optional<Eigen::Vector3d> Calibration() const {
     if (!problem_->HasParameterBlock(calibration_.data())) return std::nullopt;
@@ -68,6 +74,21 @@ class GlobalProblem {
   // planar-flip branch fits better there (OtherFlipBranch); returns how many moved.
   size_t ReplaceOutlyingMarkers(const std::vector<int>& active, const std::map<std::string, Camera>& cameras);
 
+  // The odometry's mean squared whitened residual per degree of freedom at the current values,
+  // in units of the odometry noise the survey states (1 when the statement is right; a
+  // variance component estimate, biased low since the poses absorb part of each residual).
+  double OdometryVarianceFactor() const;
+  // Scales every odometry link's covariance by `scale` from the next Solve on.
+  void SetOdometryVarianceScale(double scale) { odometry_variance_scale_ = scale; }
+  double OdometryVarianceScale() const { return odometry_variance_scale_; }
+
+  // The estimated mounts (T_robot_camera) of the cameras with a T_robot_camera_sigma that
+  // observe something in the problem, by camera name.
+  std::map<std::string, SE3d> Mounts() const;
+  // Each frame's deviation of a camera off its mount (cameras with frame_wiggle_sigma), by
+  // camera name, over the frames in the problem.
+  std::map<std::string, std::vector<SE3d>> Wiggles() const;
+
   bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
   SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
   SE3d Marker(int m) const { return SE3FromBlock(marker_[m].data()); }
@@ -78,13 +99,21 @@ class GlobalProblem {
   // Whether an odometry link joins two frames of the problem (else the frames are eliminated
   // first by a Schur complement).
   bool FramesJoined() const;
+  // Whether a frame's camera deviation (frame_wiggle_sigma) is in the problem.
+  bool HasWiggle() const;
   void AddCalibratedOdometry(const OdometryLink& link);
 
   const Survey& survey_;
   const Initialization& init_;
   const MapBuildOptions& options_;
   std::vector<PoseBlock> robot_, marker_;
+  // Cameras whose mount is a block: estimated (T_robot_camera_sigma), or held constant with a
+  // per-frame wiggle around it (frame_wiggle_sigma only).
+  std::map<std::string, PoseBlock> mount_;
+  std::map<std::pair<int, std::string>, PoseBlock> wiggle_;  // (frame, camera) -> W
   std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
+  double odometry_variance_scale_ = 1.0;
+  std::vector<ceres::ResidualBlockId> odometry_residuals_;
   std::unique_ptr<ceres::Problem> problem_;
   std::vector<const double*> covariance_markers_;
 };

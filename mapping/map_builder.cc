@@ -12,6 +12,7 @@
 #include "mapping/outlier_rejection.h"
 #include "mapping/residuals.h"
 #include "util/check.h"
+#include "util/format.h"
 #include "util/stats.h"
 
 namespace waymark {
@@ -97,6 +98,11 @@ bool MapBuildOptions::Check(std::string* why) const {
           (odometry_calibration && OdometryCalibrationSigmaValid(*odometry_calibration_sigma)),
       "odometry_calibration_sigma needs odometry_calibration, and must be three finite numbers > 0");
   WAYMARK_CHECK_OPTION(replace_rounds >= 0, "replace_rounds must be >= 0");
+  WAYMARK_CHECK_OPTION(odometry_noise_rounds >= 0 && odometry_noise_threshold >= 1.0 &&
+                           std::isfinite(odometry_noise_threshold) && max_odometry_variance_scale >= 1.0 &&
+                           std::isfinite(max_odometry_variance_scale),
+                       "odometry_noise_rounds must be >= 0, odometry_noise_threshold and "
+                       "max_odometry_variance_scale finite and >= 1");
   WAYMARK_CHECK_OPTION(min_frames >= 1 && max_iterations >= 1 && num_threads >= 1,
                        "min_frames, max_iterations and num_threads must be >= 1");
   return true;
@@ -181,6 +187,27 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
   record("robust", robust);
   clock.Lap("robust solve");
   int iterations = static_cast<int>(robust.iterations.size());
+  // An odometry noise model that understates the odometry's real noise (a drifting VIO given a
+  // wheel odometry's figures) would let the odometry override consistent corners, which the
+  // gate below would then reject. The odometry's own residuals after the robust solve measure
+  // it: when their variance per degree of freedom is well above the stated one, the odometry's
+  // covariance is scaled by it and the robust solve repeated (a variance component estimate;
+  // never scaled down: the estimate is biased low).
+  for (int round = 0; round < options.odometry_noise_rounds; ++round) {
+    const double factor = problem.OdometryVarianceFactor();
+    if (!(factor > options.odometry_noise_threshold)) break;
+    problem.SetOdometryVarianceScale(std::min(factor, options.max_odometry_variance_scale));
+    robust = problem.Solve(in_front(active), true, &gauges);
+    record("robust with the odometry noise scaled", robust);
+    iterations += static_cast<int>(robust.iterations.size());
+    if (factor >= options.max_odometry_variance_scale) break;
+  }
+  if (problem.OdometryVarianceScale() != 1.0) {
+    result.odometry_noise_scale = std::sqrt(problem.OdometryVarianceScale());
+    result.notes.push_back(
+        "odometry noise estimated from the data: " + FormatSignificant(*result.odometry_noise_scale, 3) +
+        " x the stated odometry_sigma (its residuals after the robust solve)");
+  }
   const std::map<std::string, Camera> cameras = MakeCameras(survey);
   for (int round = 0; round < options.replace_rounds; ++round) {
     const size_t moved = problem.ReplaceOutlyingMarkers(active, cameras);
@@ -207,6 +234,24 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
   result.final_cost = final_summary.final_cost;
   result.odometry_calibration = problem.Calibration();
   result.odometry_calibration_given = result.odometry_calibration && !problem.CalibrationEstimated();
+  for (const auto& [name, T_robot_camera] : problem.Mounts()) {
+    result.mounts.push_back({name, survey.cameras.at(name).T_robot_camera, T_robot_camera, std::nullopt});
+  }
+  for (const auto& [name, deviations] : problem.Wiggles()) {
+    CameraWiggleSummary w;
+    w.camera = name;
+    w.frames = deviations.size();
+    for (const SE3d& W : deviations) {
+      const Vector6d delta = SE3d().BoxMinus(W);
+      w.rms_rad += delta.head<3>().squaredNorm();
+      w.rms_m += delta.tail<3>().squaredNorm();
+      w.max_rad = std::max(w.max_rad, delta.head<3>().norm());
+      w.max_m = std::max(w.max_m, delta.tail<3>().norm());
+    }
+    w.rms_rad = std::sqrt(w.rms_rad / std::max<size_t>(1, w.frames));
+    w.rms_m = std::sqrt(w.rms_m / std::max<size_t>(1, w.frames));
+    result.wiggles.push_back(w);
+  }
   FillReprojection(survey, problem, kept, &result);
   FillOutputs(survey, init, problem, kept, gauges, &result);
   clock.Lap("outputs");
@@ -215,9 +260,15 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
     const auto covariance_start = std::chrono::steady_clock::now();
     std::vector<std::optional<Matrix6d>> covariance;
     std::vector<std::optional<CovarianceFactor>> factors;
-    result.covariance_computed = problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
-                                                     &result.odometry_calibration_covariance);
+    std::map<std::string, Matrix6d> mount_covariance;
+    result.covariance_computed =
+        problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
+                            &result.odometry_calibration_covariance, &mount_covariance);
     if (result.covariance_computed) {
+      for (CameraMountEstimate& mount : result.mounts) {
+        if (const auto it = mount_covariance.find(mount.camera); it != mount_covariance.end())
+          mount.covariance = it->second;
+      }
       for (MapMarker& marker : result.map.markers) {
         const int m = survey.FindMarker(marker.key);
         marker.covariance = covariance[m];

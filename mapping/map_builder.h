@@ -50,6 +50,13 @@ struct MapBuildOptions {
   // After the robust solve, codes with outlying views are re-placed by consensus at the solved
   // frame poses and the robust solve repeated, up to this many times.
   int replace_rounds = 2;
+  // After the robust solve, when the odometry's whitened residuals have a variance per degree
+  // of freedom above odometry_noise_threshold (in units of the stated odometry_sigma), the
+  // odometry's covariance is scaled by it (at most max_odometry_variance_scale) and the robust
+  // solve repeated, up to this many times (0: the stated model is taken as is).
+  int odometry_noise_rounds = 3;
+  double odometry_noise_threshold = 2.0;
+  double max_odometry_variance_scale = 1e4;
   int min_frames = 2;  // codes seen in fewer frames are reported, not mapped
   double payload_sigma_m = 0.01;
   double payload_yaw_sigma_rad = 0.02;
@@ -110,6 +117,24 @@ struct SolveStageSummary {
   double residual_s = 0.0;  // residual-only evaluations
 };
 
+// A camera mount estimated by the build (extrinsic self-calibration: the camera file gives
+// T_robot_camera_sigma): the file's mount, the estimate and, with the covariances computed,
+// the estimate's covariance in its body tangent [r, t] (geometry/pose.h).
+struct CameraMountEstimate {
+  std::string camera;
+  SE3d given;
+  SE3d estimated;
+  std::optional<Matrix6d> covariance;
+};
+
+// The per-frame deviations of a camera off its mount (frame_wiggle_sigma) the build estimated:
+// how many frames, their RMS rotation and translation, the largest.
+struct CameraWiggleSummary {
+  std::string camera;
+  size_t frames = 0;
+  double rms_rad = 0.0, rms_m = 0.0, max_rad = 0.0, max_m = 0.0;
+};
+
 struct MapBuildResult {
   MarkerMap map;
   Trajectory trajectory;                 // smoothed T_world_robot of the frames of component 0
@@ -140,6 +165,11 @@ struct MapBuildResult {
   std::optional<Eigen::Vector3d> odometry_calibration;
   bool odometry_calibration_given = false;
   std::optional<Eigen::Matrix3d> odometry_calibration_covariance;
+  // The factor by which the build scaled the stated odometry noise (sigma, not variance), when
+  // the odometry's residuals showed it understated (MapBuildOptions::odometry_noise_rounds).
+  std::optional<double> odometry_noise_scale;
+  std::vector<CameraMountEstimate> mounts;   // by camera name
+  std::vector<CameraWiggleSummary> wiggles;  // by camera name
   std::vector<std::string> notes;
 };
 

@@ -11,6 +11,7 @@
 
 #include <array>
 
+#include "factors/extrinsic_marker_reprojection_factor.h"
 #include "factors/marker_reprojection_factor.h"
 #include "factors/planar_marker_reprojection_factor.h"
 #include "factors/pose_block.h"
@@ -60,6 +61,22 @@ inline ceres::ResidualBlockId AddCornerResidual(ceres::Problem* problem, MotionM
           ? PlanarMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
           : MarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
   return problem->AddResidualBlock(cost, loss, robot_block->data(), marker_block->data());
+}
+
+// The same with the camera mount as a parameter block (T_robot_camera, SE(3), declared first):
+// the map build's extrinsic self-calibration (camera YAML T_robot_camera_sigma).
+inline ceres::ResidualBlockId AddCornerResidualWithMount(ceres::Problem* problem, MotionModel motion,
+                                                         const CameraInfo& camera, double size_m,
+                                                         const std::array<Eigen::Vector2d, 4>& corners_px,
+                                                         PoseBlock* robot_block, PoseBlock* mount_block,
+                                                         PoseBlock* marker_block, ceres::LossFunction* loss) {
+  const double sigma_px = CornerSigmaPx(camera);
+  ceres::CostFunction* cost =
+      motion == MotionModel::kPlanar
+          ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
+          : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
+  return problem->AddResidualBlock(cost, loss, robot_block->data(), mount_block->data(),
+                                   marker_block->data());
 }
 
 }  // namespace waymark

@@ -148,10 +148,14 @@ TEST_P(ReprojectionByModel, ZeroAtTheTruth) {
         ExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
     const double* free_parameters[] = {robot, marker};
     const double* planar_parameters[] = {robot_2d, marker};
+    const std::unique_ptr<ceres::CostFunction> planar_extrinsic_cost(
+        PlanarExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
     const double* extrinsic_parameters[] = {robot, extrinsic, marker};
+    const double* planar_extrinsic_parameters[] = {robot_2d, extrinsic, marker};
     for (auto [cost, parameters] :
          {std::pair{free_cost.get(), free_parameters}, std::pair{planar_cost.get(), planar_parameters},
-          std::pair{extrinsic_cost.get(), extrinsic_parameters}}) {
+          std::pair{extrinsic_cost.get(), extrinsic_parameters},
+          std::pair{planar_extrinsic_cost.get(), planar_extrinsic_parameters}}) {
       Eigen::Matrix<double, 8, 1> residuals = Eigen::Matrix<double, 8, 1>::Constant(kNaN);
       ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
       EXPECT_LT(residuals.cwiseAbs().maxCoeff(), 1e-6) << "trial " << trial;
@@ -187,7 +191,43 @@ TEST_P(ReprojectionByModel, GradientCheckTenRandomStates) {
     const std::unique_ptr<ceres::CostFunction> planar_cost(
         PlanarMarkerReprojectionFactor::Create(camera, kSizeM, planar_scene.corners_px, kSigmaPx));
     testing::ExpectGradientsMatch(*planar_cost, {nullptr, &se3}, {robot_2d, marker}, 1e-6, "planar");
+    const std::unique_ptr<ceres::CostFunction> planar_extrinsic_cost(
+        PlanarExtrinsicMarkerReprojectionFactor::Create(camera, kSizeM, planar_scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*planar_extrinsic_cost, {nullptr, &se3, &se3},
+                                  {robot_2d, extrinsic, marker}, 1e-6, "planar extrinsic");
+    // A frame's camera deviation off the mount (frame_wiggle_sigma): a small random pose.
+    double wiggle[7];
+    Vector6d small;
+    small << 0.004, -0.006, 0.002, 0.005, -0.003, 0.008;
+    SE3ToBlock(SE3d::Exp(small * (trial + 1) / 10.0), wiggle);
+    const std::unique_ptr<ceres::CostFunction> planar_wiggle_cost(
+        WiggleMarkerReprojectionFactor<true>::Create(camera, kSizeM, planar_scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*planar_wiggle_cost, {nullptr, &se3, &se3, &se3},
+                                  {robot_2d, extrinsic, wiggle, marker}, 1e-6, "planar wiggle");
+    SE3ToBlock(scene.T_world_robot, robot);
+    SE3ToBlock(scene.T_world_marker, marker);
+    const std::unique_ptr<ceres::CostFunction> wiggle_cost(
+        WiggleMarkerReprojectionFactor<false>::Create(camera, kSizeM, scene.corners_px, kSigmaPx));
+    testing::ExpectGradientsMatch(*wiggle_cost, {&se3, &se3, &se3, &se3}, {robot, extrinsic, wiggle, marker},
+                                  1e-6, "wiggle");
   }
+}
+
+// With the identity deviation the wiggle factor is the extrinsic one.
+TEST(WiggleMarkerReprojectionFactor, IdentityWiggleEqualsTheExtrinsicFactor) {
+  const CameraInfo camera = SimpleCamera();
+  double robot[7], extrinsic[7], wiggle[7], marker[7];
+  SE3ToBlock(SE3d(), robot);
+  SE3ToBlock(camera.T_robot_camera, extrinsic);
+  SE3ToBlock(SE3d(), wiggle);
+  SE3ToBlock(MarkerAheadOfIdentityRobot(), marker);
+  const std::unique_ptr<ceres::CostFunction> cost(
+      WiggleMarkerReprojectionFactor<false>::Create(camera, kSizeM, ObservedCorners(), kSigmaPx));
+  const double* parameters[] = {robot, extrinsic, wiggle, marker};
+  std::array<double, 8> residuals;
+  residuals.fill(kNaN);
+  ASSERT_TRUE(cost->Evaluate(parameters, residuals.data(), nullptr));
+  ExpectHandComputed(residuals);
 }
 
 // Squared norm of the factor's residuals with the marker at T_camera_marker (identity robot).

@@ -118,6 +118,44 @@ TEST(CameraIoTest, PhysicallyMeaninglessValuesAreErrors) {
   EXPECT_THROW(FormatCameraYaml(camera), std::invalid_argument);  // the writer refuses it too
 }
 
+// Extrinsic self-calibration (issue 13, item 4): the mount's prior sigmas, [rad, m].
+TEST(CameraIoTest, MountSigmaIsReadCheckedAndWritten) {
+  const CameraInfo plain = ParseCameraYaml(kGoodCamera, "cameras/cam0.yaml", "cam0");
+  EXPECT_FALSE(plain.T_robot_camera_sigma.has_value());
+  ReadWarnings warnings;
+  const CameraInfo calibrating =
+      ParseCameraYaml(std::string(kGoodCamera) + "T_robot_camera_sigma: [0.035, 0.03]\n", "cameras/cam0.yaml",
+                      "cam0", &warnings);
+  EXPECT_EQ(warnings.Total(), 0);
+  ASSERT_TRUE(calibrating.T_robot_camera_sigma.has_value());
+  EXPECT_EQ((*calibrating.T_robot_camera_sigma)[0], 0.035);
+  EXPECT_EQ((*calibrating.T_robot_camera_sigma)[1], 0.03);
+  const CameraInfo again = ParseCameraYaml(FormatCameraYaml(calibrating), "cameras/cam0.yaml", "cam0");
+  EXPECT_EQ(again.T_robot_camera_sigma, calibrating.T_robot_camera_sigma);
+
+  EXPECT_EQ(ParseError(std::string(kGoodCamera) + "T_robot_camera_sigma: [0.035]\n"),
+            "cameras/cam0.yaml:10: T_robot_camera_sigma: expected 2 numbers, got 1");
+  EXPECT_EQ(
+      ParseError(std::string(kGoodCamera) + "T_robot_camera_sigma: [0, 0.03]\n"),
+      "cameras/cam0.yaml:10: T_robot_camera_sigma: expected [rotation rad in (0, pi], translation m in (0, "
+      "100]], got [0, 0.03]");
+  EXPECT_THAT(ParseError(std::string(kGoodCamera) + "T_robot_camera_sigma: [0.1, 1e9]\n"),
+              HasSubstr("cameras/cam0.yaml:10: T_robot_camera_sigma: expected"));
+  EXPECT_THAT(ParseError(std::string(kGoodCamera) + "T_robot_camera_sigma: [4, 0.1]\n"),
+              HasSubstr("cameras/cam0.yaml:10: T_robot_camera_sigma: expected"));
+  const CameraInfo wiggling = ParseCameraYaml(std::string(kGoodCamera) + "frame_wiggle_sigma: [0.01, 0.02]\n",
+                                              "cameras/cam0.yaml", "cam0");
+  ASSERT_TRUE(wiggling.frame_wiggle_sigma.has_value());
+  EXPECT_EQ((*wiggling.frame_wiggle_sigma)[1], 0.02);
+  EXPECT_EQ(ParseCameraYaml(FormatCameraYaml(wiggling), "cameras/cam0.yaml", "cam0").frame_wiggle_sigma,
+            wiggling.frame_wiggle_sigma);
+  EXPECT_THAT(ParseError(std::string(kGoodCamera) + "frame_wiggle_sigma: [-0.01, 0.02]\n"),
+              HasSubstr("cameras/cam0.yaml:10: frame_wiggle_sigma: expected"));
+  CameraInfo bad = calibrating;
+  (*bad.T_robot_camera_sigma)[1] = -1.0;
+  EXPECT_THROW(FormatCameraYaml(bad), std::invalid_argument);  // the writer refuses it too
+}
+
 TEST(CameraIoTest, MissingFileAndUnknownKeys) {
   try {
     ReadCameraYaml("/nonexistent/cameras/cam9.yaml");
