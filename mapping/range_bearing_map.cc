@@ -30,6 +30,9 @@ bool RangeBearingBuildOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(noise_rounds >= 0, "noise_rounds must be >= 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(noise_window_s), "noise_window_s must be > 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_sigma), "calibration_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_odometry_delay_s, 0.0) && max_odometry_delay_s <= 10.0,
+                       "max_odometry_delay_s must be in [0, 10]");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(odometry_delay_step_s), "odometry_delay_step_s must be > 0");
   WAYMARK_CHECK_OPTION(max_iterations >= 1, "max_iterations must be >= 1");
   WAYMARK_CHECK_OPTION(num_threads >= 1, "num_threads must be >= 1");
   const RangeBearingNoise& n = initial_noise;
@@ -52,6 +55,7 @@ namespace {
 constexpr double kLinkFloorM = 1e-3;    // d0 of the header
 constexpr double kLinkFloorRad = 1e-3;  // th0
 constexpr int kMinRangeBinCount = 30;
+constexpr double kDelayTestChi2 = 3.841;  // chi-square, 1 dof, 95 %
 
 struct Node {
   double stamp_s = 0.0;
@@ -85,6 +89,7 @@ struct DatasetState {
   double calibration[3] = {0.0, 0.0, 0.0};
   double sensor[2] = {0.0, 0.0};  // range offset, bearing offset (factors/range_bearing_factor.h)
   RangeBearingNoise noise;        // this dataset's own, estimated in stage (2)
+  double delay_s = 0.0;           // the odometry's lag (stage 2b); nodes' T_odom_robot use it
   bool placed = false;            // nodes have world poses
   size_t active = 0;              // nodes [0, active) are in the problem
   RangeBearingDatasetSummary summary;
@@ -185,6 +190,9 @@ class Builder {
   double Solve(bool robust);
   size_t MarkOutliers();
   void EstimateNoise();
+  void SetDelay(DatasetState* state, double delay_s);
+  void EstimateDelays();
+  void NoiseRound(int round);
   RangeBearingBuildResult Collect();
 
   RangeBearingBuildOptions options_;
@@ -194,6 +202,7 @@ class Builder {
   std::map<MarkerKey, Landmark> landmarks_;
   double solver_time_s_ = 0.0;
   std::vector<std::string> notes_;
+  std::vector<double> dataset_cost_;  // each dataset's share of the last Solve's cost
 };
 
 void Builder::Ingest(size_t k, const Dataset& dataset) {
@@ -220,7 +229,7 @@ void Builder::Ingest(size_t k, const Dataset& dataset) {
   for (const double t : stamps) {
     Node node;
     node.stamp_s = t;
-    node.T_odom_robot = OdometryAt(odometry, t);
+    node.T_odom_robot = OdometryAt(odometry, t);  // delay 0 until stage (2b)
     state.nodes.push_back(node);
   }
   for (const RangeBearingFrame& frame : dataset.range_bearing) {
@@ -326,7 +335,9 @@ double Builder::Solve(bool robust) {
   problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   bool any_prior = false;
-  for (DatasetState& state : states_) {
+  std::vector<std::vector<ceres::ResidualBlockId>> blocks(states_.size());
+  for (size_t k = 0; k < states_.size(); ++k) {
+    DatasetState& state = states_[k];
     if (state.active == 0) continue;
     for (size_t i = 0; i < state.active; ++i) problem.AddParameterBlock(state.nodes[i].block, 3);
     bool links = false;
@@ -334,15 +345,15 @@ double Builder::Solve(bool robust) {
       const Node& a = state.nodes[i - 1];
       const Node& b = state.nodes[i];
       const SE2d M = a.T_odom_robot.inverse() * b.T_odom_robot;
-      problem.AddResidualBlock(
+      blocks[k].push_back(problem.AddResidualBlock(
           CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)),
-          nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration);
+          nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration));
       links = true;
     }
     if (links) {
-      problem.AddResidualBlock(
+      blocks[k].push_back(problem.AddResidualBlock(
           OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(options_.calibration_sigma)), nullptr,
-          state.calibration);
+          state.calibration));
     }
     const auto& prior = state.dataset->config.start_prior;
     if (options_.use_start_priors && prior) {
@@ -359,10 +370,10 @@ double Builder::Solve(bool robust) {
     Landmark& l = landmarks_.at(obs.key);
     DatasetState& state = states_[obs.dataset];
     ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
-    problem.AddResidualBlock(
+    blocks[obs.dataset].push_back(problem.AddResidualBlock(
         BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
                                          SigmaBearing(obs, state.noise)),
-        loss, state.nodes[obs.node].block, l.block, state.sensor);
+        loss, state.nodes[obs.node].block, l.block, state.sensor));
   }
   for (DatasetState& state : states_) {
     if (problem.HasParameterBlock(state.sensor)) {
@@ -380,6 +391,14 @@ double Builder::Solve(bool robust) {
   const auto start = std::chrono::steady_clock::now();
   ceres::Solve(solver_options, &problem, &summary);
   solver_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  dataset_cost_.assign(states_.size(), 0.0);
+  for (size_t k = 0; k < states_.size(); ++k) {
+    if (blocks[k].empty()) continue;
+    ceres::Problem::EvaluateOptions evaluate;
+    evaluate.residual_blocks = blocks[k];
+    evaluate.num_threads = options_.num_threads;
+    problem.Evaluate(evaluate, &dataset_cost_[k], nullptr, nullptr, nullptr);
+  }
   return summary.final_cost;
 }
 
@@ -510,6 +529,67 @@ void Builder::EstimateNoise() {
   noise_.odometry_q_r = Median(q_r);
 }
 
+void Builder::NoiseRound(int round) {
+  EstimateNoise();
+  const size_t outliers = MarkOutliers();
+  Solve(true);
+  Progress("noise round " + std::to_string(round + 1) + ": sigma_range " +
+           FormatSignificant(noise_.range_a_m, 3) + " m + " + FormatSignificant(noise_.range_b, 3) +
+           " r, sigma_bearing " + FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " +
+           FormatSignificant(noise_.odometry_q_t, 3) + ", q_r " + FormatSignificant(noise_.odometry_q_r, 3) +
+           ", " + std::to_string(outliers) + " outliers");
+}
+
+void Builder::SetDelay(DatasetState* state, double delay_s) {
+  state->delay_s = delay_s;
+  const Trajectory& odometry = state->dataset->odometry;
+  for (Node& node : state->nodes) {
+    // Held at the odometry's ends beyond them.
+    const double stamp_s =
+        std::clamp(node.stamp_s - delay_s, odometry.front().stamp_s, odometry.back().stamp_s);
+    node.T_odom_robot = OdometryAt(odometry, stamp_s);
+  }
+}
+
+// Stage (2b): the profile of each dataset's own cost (its odometry links and observations, the
+// noise held) over delays on a grid of odometry_delay_step_s in [-max, max], every dataset shifted
+// by the same grid delay and the problem re-solved from the last solution; each dataset's delay is
+// its grid minimum refined by a parabola through it and its two neighbours, kept only when a
+// likelihood-ratio test prefers it to no delay. The map's delay is
+// the median of the datasets'.
+void Builder::EstimateDelays() {
+  const double step = options_.odometry_delay_step_s, max = options_.max_odometry_delay_s;
+  const int half = static_cast<int>(std::floor(max / step + 1e-9));
+  if (half < 1) return;
+  std::vector<double> grid;
+  for (int i = -half; i <= half; ++i) grid.push_back(i * step);
+  std::vector<std::vector<double>> cost(states_.size(), std::vector<double>(grid.size(), 0.0));
+  for (size_t g = 0; g < grid.size(); ++g) {
+    for (DatasetState& state : states_) SetDelay(&state, grid[g]);
+    Solve(true);
+    for (size_t k = 0; k < states_.size(); ++k) cost[k][g] = dataset_cost_[k];
+  }
+  std::vector<double> delays;
+  for (size_t k = 0; k < states_.size(); ++k) {
+    const std::vector<double>& c = cost[k];
+    const size_t best = static_cast<size_t>(std::min_element(c.begin(), c.end()) - c.begin());
+    double delay = grid[best];
+    // A likelihood-ratio test against no delay (1 degree of freedom, 95 %: 2 delta cost > 3.84):
+    // a delay the data do not call for (e.g. motion at constant velocity) stays 0.
+    if (2.0 * (c[static_cast<size_t>(half)] - c[best]) <= kDelayTestChi2) {
+      delay = 0.0;
+    } else if (best > 0 && best + 1 < grid.size()) {
+      const double curvature = c[best - 1] - 2.0 * c[best] + c[best + 1];
+      if (curvature > 0.0) delay += 0.5 * step * (c[best - 1] - c[best + 1]) / curvature;
+    }
+    SetDelay(&states_[k], delay);
+    delays.push_back(delay);
+    Progress(states_[k].summary.name + ": odometry delay " + FormatFixed(delay, 3) + " s");
+  }
+  noise_.odometry_delay_s = Median(delays);
+  Solve(true);
+}
+
 RangeBearingBuildResult Builder::Run() {
   double t_begin = std::numeric_limits<double>::infinity(), t_end = -t_begin;
   for (const DatasetState& state : states_) {
@@ -531,16 +611,11 @@ RangeBearingBuildResult Builder::Run() {
           "it cannot be placed in their map");
     }
   }
-  // (2) outliers and noise.
-  for (int round = 0; round < options_.noise_rounds; ++round) {
-    EstimateNoise();
-    const size_t outliers = MarkOutliers();
-    Solve(true);
-    Progress("noise round " + std::to_string(round + 1) + ": sigma_range " +
-             FormatSignificant(noise_.range_a_m, 3) + " m + " + FormatSignificant(noise_.range_b, 3) +
-             " r, sigma_bearing " + FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " +
-             FormatSignificant(noise_.odometry_q_t, 3) + ", q_r " +
-             FormatSignificant(noise_.odometry_q_r, 3) + ", " + std::to_string(outliers) + " outliers");
+  // (2) outliers and noise; (2b) the odometry's delay, then one more round of (2) with it.
+  for (int round = 0; round < options_.noise_rounds; ++round) NoiseRound(round);
+  if (options_.max_odometry_delay_s > 0.0) {
+    EstimateDelays();
+    if (options_.noise_rounds > 0) NoiseRound(options_.noise_rounds);
   }
   // (3) final.
   MarkOutliers();
@@ -599,6 +674,7 @@ RangeBearingBuildResult Builder::Collect() {
         Eigen::Vector3d(state.calibration[0], state.calibration[1], state.calibration[2]);
     state.summary.sensor_bias = Eigen::Vector2d(state.sensor[0], state.sensor[1]);
     state.summary.noise = state.noise;
+    state.summary.noise.odometry_delay_s = state.delay_s;
     result.trajectories[state.summary.name] = std::move(trajectory);
     result.datasets.push_back(state.summary);
   }

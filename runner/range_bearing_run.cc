@@ -26,7 +26,9 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
                              ": the range-bearing localizer needs dataset.yaml start_prior (the start pose; "
                              "e.g. `waymark import mrclam --known-start`)");
   }
-  const Trajectory& odometry = dataset.odometry;
+  // The odometry pose stamped t describes the robot at t + odometry_delay_s.
+  Trajectory odometry = dataset.odometry;
+  for (StampedSE3& point : odometry) point.stamp_s += options.noise.odometry_delay_s;
   const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);
   RangeBearingLocalizer filter(map, options, SE2d::FromSE3(prior->T_world_robot),
                                Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal()));

@@ -368,5 +368,26 @@ TEST(MapIoTest, SizeOnlyEntriesOnlyWhereAllowed) {
   }
 }
 
+TEST(MapIoTest, RangeBearingNoiseRoundTripWithOptionalOdometryDelay) {
+  const std::string noise =
+      R"("range_bearing_noise": {"range_a_m": 0.02, "range_b": 0.03, "bearing_rad": 0.005, )"
+      R"("odometry_q_t": 0.001, "odometry_q_r": 0.004, "odometry_c_d": 0.1)";
+  const MarkerMap without = ParseMap(GoodMapWith("\"markers\"", noise + "},\n \"markers\""), "map.json");
+  ASSERT_TRUE(without.range_bearing_noise);
+  EXPECT_EQ(without.range_bearing_noise->odometry_delay_s, 0.0);  // absent: 0
+  EXPECT_EQ(FormatMap(without).find("odometry_delay_s"), std::string::npos);
+  const MarkerMap with = ParseMap(
+      GoodMapWith("\"markers\"", noise + ", \"odometry_delay_s\": 0.25},\n \"markers\""), "map.json");
+  ASSERT_TRUE(with.range_bearing_noise);
+  EXPECT_EQ(with.range_bearing_noise->odometry_delay_s, 0.25);
+  const MarkerMap again = ParseMap(FormatMap(with), "again.json");
+  EXPECT_EQ(again.range_bearing_noise->odometry_delay_s, 0.25);
+  EXPECT_EQ(again.range_bearing_noise->odometry_q_r, 0.004);
+  EXPECT_THAT(
+      ParseError(GoodMapWith("\"markers\"", noise + ", \"odometry_delay_s\": 11},\n \"markers\"")),
+      HasSubstr(
+          "range_bearing_noise.odometry_delay_s: expected a number of at most 10 s either way, got 11"));
+}
+
 }  // namespace
 }  // namespace waymark

@@ -19,6 +19,10 @@ struct RangeBearingWorldOptions {
   double outlier_share = 0.0;  // share of sightings replaced by a random range and bearing
   double duration_s = 120.0;
   bool start_prior = true;
+  // The commands take effect this much later (the odometry lags the motion it commands), and
+  // the turn rate swings by this much (rad/s) with a period of 8 s so that the lag shows.
+  double odometry_delay_s = 0.0;
+  double turn_swing_rad_s = 0.0;
 };
 
 inline MarkerMap RangeBearingLandmarks() {
@@ -54,9 +58,14 @@ inline Dataset RangeBearingRobot(int index, unsigned seed, const RangeBearingWor
   for (int i = 0; i <= steps; ++i) {
     const double t = 1000.0 + i / rate_hz;
     truth.push_back({t, T_world_true.ToSE3()});
-    // The wheels do 3 % more than commanded, with noise; the command is what the file holds.
-    commanded.push_back({t, v, w});
-    const double v_true = 1.03 * v * (1.0 + 0.02 * normal(rng)), w_true = w + 0.01 * normal(rng);
+    // The wheels do 3 % more than commanded, with noise, the command of odometry_delay_s ago;
+    // the command is what the file holds.
+    const auto turn = [&](double at_s) {
+      return w + options.turn_swing_rad_s * std::sin(2.0 * M_PI * (at_s - 1000.0) / 8.0);
+    };
+    commanded.push_back({t, v, turn(t)});
+    const double w_applied = turn(std::max(1000.0, t - options.odometry_delay_s));
+    const double v_true = 1.03 * v * (1.0 + 0.02 * normal(rng)), w_true = w_applied + 0.01 * normal(rng);
     T_world_true = IntegrateArc(T_world_true, v_true, w_true, 1.0 / rate_hz);
     if (i % 4 == 0 && i > 0) {
       RangeBearingFrame frame;
