@@ -383,7 +383,9 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
                                {"sigma_bearing_rad", result.noise.bearing_rad},
                                {"odometry_q_t", result.noise.odometry_q_t},
                                {"odometry_q_r", result.noise.odometry_q_r},
-                               {"odometry_delay_s", result.noise.odometry_delay_s}}}};
+                               {"odometry_delay_s", result.noise.odometry_delay_s},
+                               {"range_scale_sigma", result.noise.range_scale_sigma},
+                               {"range_scale_time_s", result.noise.range_scale_time_s}}}};
     for (const RangeBearingDatasetSummary& d : result.datasets) {
       report["datasets"].push_back(
           {{"name", d.name},
@@ -413,7 +415,9 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
             << FormatSignificant(result.noise.bearing_rad, 3) << " rad, odometry q_t "
             << FormatSignificant(result.noise.odometry_q_t, 3) << " m^2/m, q_r "
             << FormatSignificant(result.noise.odometry_q_r, 3) << " rad^2/rad, odometry delay "
-            << FormatFixed(result.noise.odometry_delay_s, 3) << " s\n";
+            << FormatFixed(result.noise.odometry_delay_s, 3) << " s, range scale sigma "
+            << FormatSignificant(result.noise.range_scale_sigma, 3) << " (correlation time "
+            << FormatSignificant(result.noise.range_scale_time_s, 3) << " s)\n";
   for (const RangeBearingDatasetSummary& d : result.datasets) {
     std::cout << d.name << ": " << d.nodes << " nodes, " << d.observations << " observations, " << d.outliers
               << " outliers, " << d.gauge << ", odometry calibration "

@@ -192,6 +192,7 @@ class Builder {
   void EstimateNoise();
   void SetDelay(DatasetState* state, double delay_s);
   void EstimateDelays();
+  void EstimateRangeScale();
   void NoiseRound(int round);
   RangeBearingBuildResult Collect();
 
@@ -590,6 +591,71 @@ void Builder::EstimateDelays() {
   Solve(true);
 }
 
+// Stage (4): the range error common to a frame's landmarks, from the final residuals of each
+// dataset's frames with two or more inlier landmarks: u = range residual / range per
+// observation, m_f its mean over frame f (k_f observations), w the pooled within-frame variance
+// of u; the common part's variance sigma_s^2 = var(m_f) - mean(w / k_f); its correlation between
+// consecutive such frames (dt apart, at most 2 s), rho = cov(m_f, m_g) / sigma_s^2, gives the
+// correlation time tau = mean(dt) / -ln(rho) (rho clamped to [0.01, 0.99]). The map's: the median
+// over the datasets that have at least 30 such frames (none: no common part).
+void Builder::EstimateRangeScale() {
+  std::vector<double> sigmas, times;
+  for (size_t k = 0; k < states_.size(); ++k) {
+    std::map<size_t, std::vector<double>> frames;
+    for (const Observation& obs : observations_) {
+      if (obs.dataset != k || obs.outlier || obs.node >= states_[k].active || obs.range_m <= 0.0) continue;
+      frames[obs.node].push_back(Error(obs, states_, landmarks_)[0] / obs.range_m);
+    }
+    std::vector<std::pair<double, double>> means;  // (stamp, m_f)
+    double within_sum = 0.0, within_dof = 0.0, within_over_k = 0.0;
+    std::vector<size_t> sizes;
+    for (const auto& [node, u] : frames) {
+      if (u.size() < 2) continue;
+      double mean = 0.0;
+      for (const double v : u) mean += v;
+      mean /= static_cast<double>(u.size());
+      for (const double v : u) within_sum += (v - mean) * (v - mean);
+      within_dof += static_cast<double>(u.size() - 1);
+      means.emplace_back(states_[k].nodes[node].stamp_s, mean);
+      sizes.push_back(u.size());
+    }
+    if (means.size() < 30) continue;
+    const double within = within_sum / within_dof;
+    double grand = 0.0;
+    for (const auto& m : means) grand += m.second;
+    grand /= static_cast<double>(means.size());
+    double var_m = 0.0;
+    for (size_t i = 0; i < means.size(); ++i) {
+      var_m += (means[i].second - grand) * (means[i].second - grand);
+      within_over_k += within / static_cast<double>(sizes[i]);
+    }
+    var_m /= static_cast<double>(means.size() - 1);
+    const double var_s = var_m - within_over_k / static_cast<double>(means.size());
+    if (!(var_s > 0.0)) {
+      sigmas.push_back(0.0);
+      continue;
+    }
+    double cov = 0.0, dt = 0.0;
+    long pairs = 0;
+    for (size_t i = 1; i < means.size(); ++i) {
+      const double gap = means[i].first - means[i - 1].first;
+      if (gap > 2.0) continue;
+      cov += (means[i].second - grand) * (means[i - 1].second - grand);
+      dt += gap;
+      ++pairs;
+    }
+    sigmas.push_back(std::sqrt(var_s));
+    if (pairs >= 10) {
+      const double rho = std::clamp(cov / pairs / var_s, 0.01, 0.99);
+      times.push_back(dt / pairs / -std::log(rho));
+    }
+    states_[k].noise.range_scale_sigma = sigmas.back();
+    if (pairs >= 10) states_[k].noise.range_scale_time_s = times.back();
+  }
+  if (!sigmas.empty()) noise_.range_scale_sigma = Median(sigmas);
+  if (!times.empty()) noise_.range_scale_time_s = Median(times);
+}
+
 RangeBearingBuildResult Builder::Run() {
   double t_begin = std::numeric_limits<double>::infinity(), t_end = -t_begin;
   for (const DatasetState& state : states_) {
@@ -621,6 +687,7 @@ RangeBearingBuildResult Builder::Run() {
   MarkOutliers();
   Solve(false);
   MarkOutliers();
+  EstimateRangeScale();
   return Collect();
 }
 

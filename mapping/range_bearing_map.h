@@ -31,7 +31,9 @@
 // [-max_odometry_delay_s, max_odometry_delay_s] (every grid delay re-solved), refined by a
 // parabola, kept when a likelihood-ratio test (1 dof, 95 %) prefers it to 0; one more round of (2) follows.
 // (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations times are
-// reported, not mapped. (No landmark covariance is written yet.)
+// reported, not mapped. (No landmark covariance is written yet.) (4) The range error common to
+// the landmarks of one frame (RangeBearingNoise::range_scale_sigma and range_scale_time_s, for
+// the EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale).
 #pragma once
 
 #include <functional>

@@ -34,10 +34,12 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
                                Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal()));
   RangeBearingRun run;
   SE2d T_odom_last = SE2d::FromSE3(odometry.front().T);
+  double t_last = odometry.front().stamp_s;
   const auto advance = [&](double stamp_s) {
     const SE2d T_odom_now = OdometryAt(odometry, stamp_s);
-    filter.Predict(T_odom_last.inverse() * T_odom_now);
+    filter.Predict(T_odom_last.inverse() * T_odom_now, stamp_s - t_last);
     T_odom_last = T_odom_now;
+    t_last = stamp_s;
   };
   const auto output = [&](double stamp_s) {
     if (filter.lost()) {

@@ -80,6 +80,22 @@ TEST(RangeBearingMap, TheOdometryDelayIsEstimatedPerDataset) {
   EXPECT_NEAR(BuildRangeBearingMap({&c}).datasets[0].noise.odometry_delay_s, 0.0, 0.05);
 }
 
+TEST(RangeBearingMap, TheRangeErrorCommonToAFrameIsEstimated) {
+  testing::RangeBearingWorldOptions world;
+  world.range_scale_sigma = 0.04;
+  world.range_scale_time_s = 1.0;
+  world.duration_s = 240.0;
+  const Dataset a = testing::RangeBearingRobot(0, 8, world), b = testing::RangeBearingRobot(1, 9, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  ASSERT_TRUE(result.map.range_bearing_noise);
+  // The poses absorb a part of it: the estimate is at most the truth and not far below.
+  EXPECT_NEAR(result.map.range_bearing_noise->range_scale_sigma, 0.035, 0.01);
+  EXPECT_NEAR(result.map.range_bearing_noise->range_scale_time_s, 1.0, 0.6);
+  // None simulated: (nearly) none found.
+  const Dataset c = testing::RangeBearingRobot(0, 10, {}), d = testing::RangeBearingRobot(1, 11, {});
+  EXPECT_LT(BuildRangeBearingMap({&c, &d}).map.range_bearing_noise->range_scale_sigma, 0.01);
+}
+
 TEST(RangeBearingMap, WithoutPriorsTheSecondRobotIsPlacedByTheLandmarks) {
   testing::RangeBearingWorldOptions world;
   world.start_prior = false;
