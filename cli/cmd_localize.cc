@@ -36,7 +36,8 @@ constexpr const char* kUsage = R"(Usage:
 
 A dataset with range-bearing observations (range_bearing.jsonl) is localized against the
 point landmarks of MAP.json by the range-bearing EKF (online/range_bearing_localizer.h) with
-the map's range_bearing_noise, starting at dataset.yaml's start_prior; it writes --out (the
+the map's range_bearing_noise (with its odometry_delay_s: the odometry's lag behind the
+measurements, estimated by the map build), starting at dataset.yaml's start_prior; it writes --out (the
 poses while not lost) and, when the dataset has a ground truth, prints the ATE and the NEES.
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
@@ -240,6 +241,7 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
   AtomicWriteFile(
       args.Require("out"),
       FormatTum(run.poses, "waymark localize: T_world_robot of the range-bearing EKF while not lost"));
+  std::cout << "odometry delay: " << FormatFixed(options.noise.odometry_delay_s, 3) << " s (the map's)\n";
   std::cout << "poses: " << run.poses.size() << " written, " << run.outputs_withheld
             << " withheld while lost\n";
   std::cout << "observations:";

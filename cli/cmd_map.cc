@@ -435,7 +435,10 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
                                {"sigma_range_b", result.noise.range_b},
                                {"sigma_bearing_rad", result.noise.bearing_rad},
                                {"odometry_q_t", result.noise.odometry_q_t},
-                               {"odometry_q_r", result.noise.odometry_q_r}}}};
+                               {"odometry_q_r", result.noise.odometry_q_r},
+                               {"odometry_delay_s", result.noise.odometry_delay_s},
+                               {"range_scale_sigma", result.noise.range_scale_sigma},
+                               {"range_scale_time_s", result.noise.range_scale_time_s}}}};
     for (const RangeBearingDatasetSummary& d : result.datasets) {
       report["datasets"].push_back(
           {{"name", d.name},
@@ -447,6 +450,7 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
            {"sigma_range", {d.noise.range_a_m, d.noise.range_b}},
            {"sigma_bearing_rad", d.noise.bearing_rad},
            {"odometry_q", {d.noise.odometry_q_t, d.noise.odometry_q_r}},
+           {"odometry_delay_s", d.noise.odometry_delay_s},
            {"odometry_calibration",
             {d.odometry_calibration[0], d.odometry_calibration[1], d.odometry_calibration[2]}}});
     }
@@ -463,7 +467,10 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
             << FormatSignificant(result.noise.range_b, 3) << " x range, sigma_bearing "
             << FormatSignificant(result.noise.bearing_rad, 3) << " rad, odometry q_t "
             << FormatSignificant(result.noise.odometry_q_t, 3) << " m^2/m, q_r "
-            << FormatSignificant(result.noise.odometry_q_r, 3) << " rad^2/rad\n";
+            << FormatSignificant(result.noise.odometry_q_r, 3) << " rad^2/rad, odometry delay "
+            << FormatFixed(result.noise.odometry_delay_s, 3) << " s, range scale sigma "
+            << FormatSignificant(result.noise.range_scale_sigma, 3) << " (correlation time "
+            << FormatSignificant(result.noise.range_scale_time_s, 3) << " s)\n";
   for (const RangeBearingDatasetSummary& d : result.datasets) {
     std::cout << d.name << ": " << d.nodes << " nodes, " << d.observations << " observations, " << d.outliers
               << " outliers, " << d.gauge << ", odometry calibration "
@@ -473,7 +480,8 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
               << FormatFixed(d.sensor_bias[0], 3) << " m, " << FormatFixed(d.sensor_bias[1], 4)
               << " rad, sigma_range " << FormatSignificant(d.noise.range_a_m, 3) << " m + "
               << FormatSignificant(d.noise.range_b, 3) << " x range, sigma_bearing "
-              << FormatSignificant(d.noise.bearing_rad, 3) << " rad\n";
+              << FormatSignificant(d.noise.bearing_rad, 3) << " rad, odometry delay "
+              << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
   }
   for (const auto& [key, reason] : result.unmapped)
     std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";

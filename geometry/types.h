@@ -109,6 +109,14 @@ struct RangeBearingNoise {
   double odometry_q_t = 1e-3;  // m^2 per metre travelled
   double odometry_q_r = 1e-3;  // rad^2 per radian turned
   double odometry_c_d = 0.1;   // rad per metre travelled, in the turn's variance
+  // The odometry's lag behind the measurements (s): the odometry pose stamped t describes the
+  // robot at t + odometry_delay_s (commanded velocities lead the motion they command).
+  double odometry_delay_s = 0.0;
+  // The range error common to the landmarks of one frame, relative to the range (a scale error,
+  // e.g. of the apparent size): stationary sigma and correlation time of a first-order
+  // Gauss-Markov process; 0 = none (the range sigma above then holds all the range noise).
+  double range_scale_sigma = 0.0;
+  double range_scale_time_s = 1.0;
 };
 
 // A marker in a map (map.json; also ground-truth and known markers).

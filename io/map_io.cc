@@ -214,7 +214,8 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
 }
 
 // {"range_a_m", "range_b", "bearing_rad", "odometry_q_t", "odometry_q_r", "odometry_c_d"}, all
-// required: sigmas and q > 0, range_b and odometry_c_d >= 0.
+// required: sigmas and q > 0, range_b and odometry_c_d >= 0; "odometry_delay_s" optional (0 when
+// absent), a finite number of at most 10 s either way.
 RangeBearingNoise ParseRangeBearingNoise(const JsonSource& source, const nlohmann::json& value,
                                          ReadWarnings* warnings) {
   const std::string field = "range_bearing_noise";
@@ -236,8 +237,28 @@ RangeBearingNoise ParseRangeBearingNoise(const JsonSource& source, const nlohman
     if (!(*out >= 0.0))
       ThrowJsonError(source, JsonField(field, key), "expected a number >= 0, got " + FormatDouble(*out));
   }
+  if (const nlohmann::json* delay = JsonMember(source, value, field, "odometry_delay_s", false)) {
+    noise.odometry_delay_s = JsonNumber(source, *delay, JsonField(field, "odometry_delay_s"));
+    if (!(std::abs(noise.odometry_delay_s) <= 10.0))
+      ThrowJsonError(
+          source, JsonField(field, "odometry_delay_s"),
+          "expected a number of at most 10 s either way, got " + FormatDouble(noise.odometry_delay_s));
+  }
+  if (const nlohmann::json* scale = JsonMember(source, value, field, "range_scale_sigma", false)) {
+    noise.range_scale_sigma = JsonNumber(source, *scale, JsonField(field, "range_scale_sigma"));
+    if (!(noise.range_scale_sigma >= 0.0 && noise.range_scale_sigma < 1.0))
+      ThrowJsonError(source, JsonField(field, "range_scale_sigma"),
+                     "expected a number in [0, 1), got " + FormatDouble(noise.range_scale_sigma));
+  }
+  if (const nlohmann::json* time = JsonMember(source, value, field, "range_scale_time_s", false)) {
+    noise.range_scale_time_s = JsonNumber(source, *time, JsonField(field, "range_scale_time_s"));
+    if (!(noise.range_scale_time_s > 0.0 && std::isfinite(noise.range_scale_time_s)))
+      ThrowJsonError(source, JsonField(field, "range_scale_time_s"),
+                     "expected a positive number, got " + FormatDouble(noise.range_scale_time_s));
+  }
   JsonWarnUnknownKeys(source, value, field,
-                      {"range_a_m", "range_b", "bearing_rad", "odometry_q_t", "odometry_q_r", "odometry_c_d"},
+                      {"range_a_m", "range_b", "bearing_rad", "odometry_q_t", "odometry_q_r", "odometry_c_d",
+                       "odometry_delay_s", "range_scale_sigma", "range_scale_time_s"},
                       warnings);
   return noise;
 }
@@ -412,10 +433,19 @@ std::string FormatMap(const MarkerMap& map) {
       if (!std::isfinite(v) || v < 0.0)
         throw std::invalid_argument("map writer: range_bearing_noise not finite or negative");
     }
+    if (!std::isfinite(noise->odometry_delay_s) || !(noise->range_scale_sigma >= 0.0) ||
+        !(noise->range_scale_time_s > 0.0) || !std::isfinite(noise->range_scale_time_s))
+      throw std::invalid_argument(
+          "map writer: range_bearing_noise odometry_delay_s or range scale not valid");
     nlohmann::ordered_json json = {
         {"range_a_m", noise->range_a_m},       {"range_b", noise->range_b},
         {"bearing_rad", noise->bearing_rad},   {"odometry_q_t", noise->odometry_q_t},
         {"odometry_q_r", noise->odometry_q_r}, {"odometry_c_d", noise->odometry_c_d}};
+    if (noise->odometry_delay_s != 0.0) json["odometry_delay_s"] = noise->odometry_delay_s;
+    if (noise->range_scale_sigma > 0.0) {
+      json["range_scale_sigma"] = noise->range_scale_sigma;
+      json["range_scale_time_s"] = noise->range_scale_time_s;
+    }
     text += ",\n \"range_bearing_noise\": " + json.dump();
   }
   return text + "}\n";

@@ -30,6 +30,9 @@ bool RangeBearingBuildOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(noise_rounds >= 0, "noise_rounds must be >= 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(noise_window_s), "noise_window_s must be > 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_sigma), "calibration_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_odometry_delay_s, 0.0) && max_odometry_delay_s <= 10.0,
+                       "max_odometry_delay_s must be in [0, 10]");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(odometry_delay_step_s), "odometry_delay_step_s must be > 0");
   WAYMARK_CHECK_OPTION(max_iterations >= 1, "max_iterations must be >= 1");
   WAYMARK_CHECK_OPTION(num_threads >= 1, "num_threads must be >= 1");
   const RangeBearingNoise& n = initial_noise;
@@ -52,6 +55,7 @@ namespace {
 constexpr double kLinkFloorM = 1e-3;    // d0 of the header
 constexpr double kLinkFloorRad = 1e-3;  // th0
 constexpr int kMinRangeBinCount = 30;
+constexpr double kDelayTestChi2 = 3.841;  // chi-square, 1 dof, 95 %
 
 struct Node {
   double stamp_s = 0.0;
@@ -85,6 +89,7 @@ struct DatasetState {
   double calibration[3] = {0.0, 0.0, 0.0};
   double sensor[2] = {0.0, 0.0};  // range offset, bearing offset (factors/range_bearing_factor.h)
   RangeBearingNoise noise;        // this dataset's own, estimated in stage (2)
+  double delay_s = 0.0;           // the odometry's lag (stage 2b); nodes' T_odom_robot use it
   bool placed = false;            // nodes have world poses
   size_t active = 0;              // nodes [0, active) are in the problem
   RangeBearingDatasetSummary summary;
@@ -185,6 +190,10 @@ class Builder {
   double Solve(bool robust);
   size_t MarkOutliers();
   void EstimateNoise();
+  void SetDelay(DatasetState* state, double delay_s);
+  void EstimateDelays();
+  void EstimateRangeScale();
+  void NoiseRound(int round);
   RangeBearingBuildResult Collect();
 
   RangeBearingBuildOptions options_;
@@ -194,6 +203,7 @@ class Builder {
   std::map<MarkerKey, Landmark> landmarks_;
   double solver_time_s_ = 0.0;
   std::vector<std::string> notes_;
+  std::vector<double> dataset_cost_;  // each dataset's share of the last Solve's cost
 };
 
 void Builder::Ingest(size_t k, const Dataset& dataset) {
@@ -220,7 +230,7 @@ void Builder::Ingest(size_t k, const Dataset& dataset) {
   for (const double t : stamps) {
     Node node;
     node.stamp_s = t;
-    node.T_odom_robot = OdometryAt(odometry, t);
+    node.T_odom_robot = OdometryAt(odometry, t);  // delay 0 until stage (2b)
     state.nodes.push_back(node);
   }
   for (const RangeBearingFrame& frame : dataset.range_bearing) {
@@ -326,7 +336,9 @@ double Builder::Solve(bool robust) {
   problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   bool any_prior = false;
-  for (DatasetState& state : states_) {
+  std::vector<std::vector<ceres::ResidualBlockId>> blocks(states_.size());
+  for (size_t k = 0; k < states_.size(); ++k) {
+    DatasetState& state = states_[k];
     if (state.active == 0) continue;
     for (size_t i = 0; i < state.active; ++i) problem.AddParameterBlock(state.nodes[i].block, 3);
     bool links = false;
@@ -334,15 +346,15 @@ double Builder::Solve(bool robust) {
       const Node& a = state.nodes[i - 1];
       const Node& b = state.nodes[i];
       const SE2d M = a.T_odom_robot.inverse() * b.T_odom_robot;
-      problem.AddResidualBlock(
+      blocks[k].push_back(problem.AddResidualBlock(
           CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)),
-          nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration);
+          nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration));
       links = true;
     }
     if (links) {
-      problem.AddResidualBlock(
+      blocks[k].push_back(problem.AddResidualBlock(
           OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(options_.calibration_sigma)), nullptr,
-          state.calibration);
+          state.calibration));
     }
     const auto& prior = state.dataset->config.start_prior;
     if (options_.use_start_priors && prior) {
@@ -359,10 +371,10 @@ double Builder::Solve(bool robust) {
     Landmark& l = landmarks_.at(obs.key);
     DatasetState& state = states_[obs.dataset];
     ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
-    problem.AddResidualBlock(
+    blocks[obs.dataset].push_back(problem.AddResidualBlock(
         BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
                                          SigmaBearing(obs, state.noise)),
-        loss, state.nodes[obs.node].block, l.block, state.sensor);
+        loss, state.nodes[obs.node].block, l.block, state.sensor));
   }
   for (DatasetState& state : states_) {
     if (problem.HasParameterBlock(state.sensor)) {
@@ -380,6 +392,14 @@ double Builder::Solve(bool robust) {
   const auto start = std::chrono::steady_clock::now();
   ceres::Solve(solver_options, &problem, &summary);
   solver_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  dataset_cost_.assign(states_.size(), 0.0);
+  for (size_t k = 0; k < states_.size(); ++k) {
+    if (blocks[k].empty()) continue;
+    ceres::Problem::EvaluateOptions evaluate;
+    evaluate.residual_blocks = blocks[k];
+    evaluate.num_threads = options_.num_threads;
+    problem.Evaluate(evaluate, &dataset_cost_[k], nullptr, nullptr, nullptr);
+  }
   return summary.final_cost;
 }
 
@@ -510,6 +530,132 @@ void Builder::EstimateNoise() {
   noise_.odometry_q_r = Median(q_r);
 }
 
+void Builder::NoiseRound(int round) {
+  EstimateNoise();
+  const size_t outliers = MarkOutliers();
+  Solve(true);
+  Progress("noise round " + std::to_string(round + 1) + ": sigma_range " +
+           FormatSignificant(noise_.range_a_m, 3) + " m + " + FormatSignificant(noise_.range_b, 3) +
+           " r, sigma_bearing " + FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " +
+           FormatSignificant(noise_.odometry_q_t, 3) + ", q_r " + FormatSignificant(noise_.odometry_q_r, 3) +
+           ", " + std::to_string(outliers) + " outliers");
+}
+
+void Builder::SetDelay(DatasetState* state, double delay_s) {
+  state->delay_s = delay_s;
+  const Trajectory& odometry = state->dataset->odometry;
+  for (Node& node : state->nodes) {
+    // Held at the odometry's ends beyond them.
+    const double stamp_s =
+        std::clamp(node.stamp_s - delay_s, odometry.front().stamp_s, odometry.back().stamp_s);
+    node.T_odom_robot = OdometryAt(odometry, stamp_s);
+  }
+}
+
+// Stage (2b): the profile of each dataset's own cost (its odometry links and observations, the
+// noise held) over delays on a grid of odometry_delay_step_s in [-max, max], every dataset shifted
+// by the same grid delay and the problem re-solved from the last solution; each dataset's delay is
+// its grid minimum refined by a parabola through it and its two neighbours, kept only when a
+// likelihood-ratio test prefers it to no delay. The map's delay is
+// the median of the datasets'.
+void Builder::EstimateDelays() {
+  const double step = options_.odometry_delay_step_s, max = options_.max_odometry_delay_s;
+  const int half = static_cast<int>(std::floor(max / step + 1e-9));
+  if (half < 1) return;
+  std::vector<double> grid;
+  for (int i = -half; i <= half; ++i) grid.push_back(i * step);
+  std::vector<std::vector<double>> cost(states_.size(), std::vector<double>(grid.size(), 0.0));
+  for (size_t g = 0; g < grid.size(); ++g) {
+    for (DatasetState& state : states_) SetDelay(&state, grid[g]);
+    Solve(true);
+    for (size_t k = 0; k < states_.size(); ++k) cost[k][g] = dataset_cost_[k];
+  }
+  std::vector<double> delays;
+  for (size_t k = 0; k < states_.size(); ++k) {
+    const std::vector<double>& c = cost[k];
+    const size_t best = static_cast<size_t>(std::min_element(c.begin(), c.end()) - c.begin());
+    double delay = grid[best];
+    // A likelihood-ratio test against no delay (1 degree of freedom, 95 %: 2 delta cost > 3.84):
+    // a delay the data do not call for (e.g. motion at constant velocity) stays 0.
+    if (2.0 * (c[static_cast<size_t>(half)] - c[best]) <= kDelayTestChi2) {
+      delay = 0.0;
+    } else if (best > 0 && best + 1 < grid.size()) {
+      const double curvature = c[best - 1] - 2.0 * c[best] + c[best + 1];
+      if (curvature > 0.0) delay += 0.5 * step * (c[best - 1] - c[best + 1]) / curvature;
+    }
+    SetDelay(&states_[k], delay);
+    delays.push_back(delay);
+    Progress(states_[k].summary.name + ": odometry delay " + FormatFixed(delay, 3) + " s");
+  }
+  noise_.odometry_delay_s = Median(delays);
+  Solve(true);
+}
+
+// Stage (4): the range error common to a frame's landmarks, from the final residuals of each
+// dataset's frames with two or more inlier landmarks: u = range residual / range per
+// observation, m_f its mean over frame f (k_f observations), w the pooled within-frame variance
+// of u; the common part's variance sigma_s^2 = var(m_f) - mean(w / k_f); its correlation between
+// consecutive such frames (dt apart, at most 2 s), rho = cov(m_f, m_g) / sigma_s^2, gives the
+// correlation time tau = mean(dt) / -ln(rho) (rho clamped to [0.01, 0.99]). The map's: the median
+// over the datasets that have at least 30 such frames (none: no common part).
+void Builder::EstimateRangeScale() {
+  std::vector<double> sigmas, times;
+  for (size_t k = 0; k < states_.size(); ++k) {
+    std::map<size_t, std::vector<double>> frames;
+    for (const Observation& obs : observations_) {
+      if (obs.dataset != k || obs.outlier || obs.node >= states_[k].active || obs.range_m <= 0.0) continue;
+      frames[obs.node].push_back(Error(obs, states_, landmarks_)[0] / obs.range_m);
+    }
+    std::vector<std::pair<double, double>> means;  // (stamp, m_f)
+    double within_sum = 0.0, within_dof = 0.0, within_over_k = 0.0;
+    std::vector<size_t> sizes;
+    for (const auto& [node, u] : frames) {
+      if (u.size() < 2) continue;
+      double mean = 0.0;
+      for (const double v : u) mean += v;
+      mean /= static_cast<double>(u.size());
+      for (const double v : u) within_sum += (v - mean) * (v - mean);
+      within_dof += static_cast<double>(u.size() - 1);
+      means.emplace_back(states_[k].nodes[node].stamp_s, mean);
+      sizes.push_back(u.size());
+    }
+    if (means.size() < 30) continue;
+    const double within = within_sum / within_dof;
+    double grand = 0.0;
+    for (const auto& m : means) grand += m.second;
+    grand /= static_cast<double>(means.size());
+    double var_m = 0.0;
+    for (size_t i = 0; i < means.size(); ++i) {
+      var_m += (means[i].second - grand) * (means[i].second - grand);
+      within_over_k += within / static_cast<double>(sizes[i]);
+    }
+    var_m /= static_cast<double>(means.size() - 1);
+    const double var_s = var_m - within_over_k / static_cast<double>(means.size());
+    if (!(var_s > 0.0)) {
+      sigmas.push_back(0.0);
+      continue;
+    }
+    double cov = 0.0, dt = 0.0;
+    long pairs = 0;
+    for (size_t i = 1; i < means.size(); ++i) {
+      const double gap = means[i].first - means[i - 1].first;
+      if (gap > 2.0) continue;
+      cov += (means[i].second - grand) * (means[i - 1].second - grand);
+      dt += gap;
+      ++pairs;
+    }
+    sigmas.push_back(std::sqrt(var_s));
+    if (pairs >= 10) {
+      const double rho = std::clamp(cov / pairs / var_s, 0.01, 0.99);
+      times.push_back(dt / pairs / -std::log(rho));
+    }
+    states_[k].noise.range_scale_sigma = sigmas.back();
+    if (pairs >= 10) states_[k].noise.range_scale_time_s = times.back();
+  }
+  if (!sigmas.empty()) noise_.range_scale_sigma = Median(sigmas);
+  if (!times.empty()) noise_.range_scale_time_s = Median(times);
+}
+
 RangeBearingBuildResult Builder::Run() {
   double t_begin = std::numeric_limits<double>::infinity(), t_end = -t_begin;
   for (const DatasetState& state : states_) {
@@ -531,21 +677,17 @@ RangeBearingBuildResult Builder::Run() {
           "it cannot be placed in their map");
     }
   }
-  // (2) outliers and noise.
-  for (int round = 0; round < options_.noise_rounds; ++round) {
-    EstimateNoise();
-    const size_t outliers = MarkOutliers();
-    Solve(true);
-    Progress("noise round " + std::to_string(round + 1) + ": sigma_range " +
-             FormatSignificant(noise_.range_a_m, 3) + " m + " + FormatSignificant(noise_.range_b, 3) +
-             " r, sigma_bearing " + FormatSignificant(noise_.bearing_rad, 3) + " rad, q_t " +
-             FormatSignificant(noise_.odometry_q_t, 3) + ", q_r " +
-             FormatSignificant(noise_.odometry_q_r, 3) + ", " + std::to_string(outliers) + " outliers");
+  // (2) outliers and noise; (2b) the odometry's delay, then one more round of (2) with it.
+  for (int round = 0; round < options_.noise_rounds; ++round) NoiseRound(round);
+  if (options_.max_odometry_delay_s > 0.0) {
+    EstimateDelays();
+    if (options_.noise_rounds > 0) NoiseRound(options_.noise_rounds);
   }
   // (3) final.
   MarkOutliers();
   Solve(false);
   MarkOutliers();
+  EstimateRangeScale();
   return Collect();
 }
 
@@ -599,6 +741,7 @@ RangeBearingBuildResult Builder::Collect() {
         Eigen::Vector3d(state.calibration[0], state.calibration[1], state.calibration[2]);
     state.summary.sensor_bias = Eigen::Vector2d(state.sensor[0], state.sensor[1]);
     state.summary.noise = state.noise;
+    state.summary.noise.odometry_delay_s = state.delay_s;
     result.trajectories[state.summary.name] = std::move(trajectory);
     result.datasets.push_back(state.summary);
   }

@@ -25,8 +25,15 @@
 // observation in range bins, the bearing sigma to that of the bearing residuals; observations
 // whose whitened squared residual exceeds outlier_chi2 are set aside as outliers; q_t, q_r are scaled so that
 // the odometry's disagreement with the solved trajectory over windows of noise_window_s matches the model;
-// solve again. (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations
-// times are reported, not mapped. (No landmark covariance is written yet.)
+// solve again. (2b) the odometry's delay behind the measurements (commanded velocities lead the
+// motion; RangeBearingNoise::odometry_delay_s), per dataset: nodes take the odometry at
+// stamp - delay; the delay minimizes the dataset's own cost over a grid in
+// [-max_odometry_delay_s, max_odometry_delay_s] (every grid delay re-solved), refined by a
+// parabola, kept when a likelihood-ratio test (1 dof, 95 %) prefers it to 0; one more round of (2) follows.
+// (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations times are
+// reported, not mapped. (No landmark covariance is written yet.) (4) The range error common to
+// the landmarks of one frame (RangeBearingNoise::range_scale_sigma and range_scale_time_s, for
+// the EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale).
 #pragma once
 
 #include <functional>
@@ -52,6 +59,9 @@ struct RangeBearingBuildOptions {
   // prior of these sigmas (factors/range_bearing_factor.h, BiasedRangeBearingFactor).
   double sensor_bias_sigma_m = 0.2;
   double sensor_bias_sigma_rad = 0.05;
+  // Stage (2b): the odometry delay's search range and grid step; 0 = no delay estimated.
+  double max_odometry_delay_s = 0.5;
+  double odometry_delay_step_s = 0.1;
   RangeBearingNoise initial_noise;  // the starting point of the estimation (stage 2)
   int max_iterations = 50;
   int num_threads = 1;
@@ -66,15 +76,15 @@ struct RangeBearingDatasetSummary {
   size_t outliers = 0;
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   Eigen::Vector2d sensor_bias = Eigen::Vector2d::Zero();  // range offset (m), bearing offset (rad)
-  RangeBearingNoise noise;                                // this dataset's, as estimated
-  std::string gauge;                                      // "start prior", "held", "placed at t=..."
+  RangeBearingNoise noise;  // this dataset's, as estimated (odometry_delay_s: its own)
+  std::string gauge;        // "start prior", "held", "placed at t=..."
 };
 
 struct RangeBearingBuildResult {
   MarkerMap map;                                   // point landmarks, component 0
   std::map<std::string, Trajectory> trajectories;  // smoothed T_world_robot per dataset name
   std::vector<RangeBearingDatasetSummary> datasets;
-  RangeBearingNoise noise;  // as estimated over all datasets (odometry: the datasets' median)
+  RangeBearingNoise noise;  // as estimated over all datasets (odometry and delay: the datasets' median)
   std::vector<std::pair<MarkerKey, std::string>> unmapped;
   size_t observations = 0;
   size_t outliers = 0;

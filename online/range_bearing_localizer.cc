@@ -58,7 +58,8 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   P_.setZero();
   P_.topLeftCorner<3, 3>() = start_covariance;
   P_.block<3, 3>(3, 3) = options.calibration_sigma.cwiseAbs2().asDiagonal();
-  P_.bottomRightCorner<2, 2>() = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
+  P_.block<2, 2>(6, 6) = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
+  P_(8, 8) = options.noise.range_scale_sigma * options.noise.range_scale_sigma;
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("range-bearing localizer: " + why);
   if (!IsSpd(start_covariance))
@@ -72,16 +73,19 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   }
 }
 
-RangeBearingLocalizer::Vector6 RangeBearingLocalizer::PredictState(const Vector6& x, const SE2d& T_a_b) {
+RangeBearingLocalizer::Vector6 RangeBearingLocalizer::PredictState(const Vector6& x, const SE2d& T_a_b,
+                                                                   double phi) {
   const Eigen::Vector2d t_C = (1.0 + x[5]) * T_a_b.translation();
   const double theta_C = (1.0 + x[4]) * T_a_b.theta() + x[3] * T_a_b.translation().norm();
   Vector6 next = x;
   next.head<2>() += Eigen::Rotation2Dd(x[2]) * t_C;
   next[2] = WrapAngle(x[2] + theta_C);
+  next[8] = phi * x[8];
   return next;
 }
 
-RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vector6& x, const SE2d& T_a_b) {
+RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vector6& x, const SE2d& T_a_b,
+                                                                      double phi) {
   const Eigen::Matrix2d R = Eigen::Rotation2Dd(x[2]).toRotationMatrix();
   const Eigen::Vector2d rotated = R * ((1.0 + x[5]) * T_a_b.translation());
   Matrix6 F = Matrix6::Identity();
@@ -90,7 +94,24 @@ RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vect
   F.block<2, 1>(0, 5) = R * T_a_b.translation();
   F(2, 3) = T_a_b.translation().norm();
   F(2, 4) = T_a_b.theta();
+  F(8, 8) = phi;
   return F;
+}
+
+Eigen::Vector2d RangeBearingLocalizer::MeasureState(const Vector6& x, const Eigen::Vector2d& l_world) {
+  const Eigen::Vector2d h = Measure(x.head<3>(), l_world);
+  return Eigen::Vector2d((1.0 + x[8]) * h[0] + x[6], WrapAngle(h[1] + x[7]));
+}
+
+Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalizer::MeasureStateJacobian(
+    const Vector6& x, const Eigen::Vector2d& l_world) {
+  Eigen::Matrix<double, 2, kStateSize> H = Eigen::Matrix<double, 2, kStateSize>::Zero();
+  H.leftCols<3>() = MeasureJacobian(x.head<3>(), l_world);
+  H.block<1, 3>(0, 0) *= 1.0 + x[8];
+  H(0, 6) = 1.0;
+  H(1, 7) = 1.0;
+  H(0, 8) = (l_world - x.head<2>()).norm();
+  return H;
 }
 
 Eigen::Vector2d RangeBearingLocalizer::Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world) {
@@ -107,19 +128,21 @@ Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::
   return H;
 }
 
-void RangeBearingLocalizer::Predict(const SE2d& T_a_b) {
-  const Matrix6 F = PredictJacobian(x_, T_a_b);
+void RangeBearingLocalizer::Predict(const SE2d& T_a_b, double dt_s) {
+  const RangeBearingNoise& n = options_.noise;
+  const double phi = n.range_scale_sigma > 0.0 ? std::exp(-std::max(0.0, dt_s) / n.range_scale_time_s) : 1.0;
+  const Matrix6 F = PredictJacobian(x_, T_a_b, phi);
   const double c = std::cos(x_[2]), s = std::sin(x_[2]);
   Eigen::Matrix<double, kStateSize, 3> G = Eigen::Matrix<double, kStateSize, 3>::Zero();
   G.topLeftCorner<2, 2>() << c, -s, s, c;
   G(2, 2) = 1.0;
-  const RangeBearingNoise& n = options_.noise;
   const double d = T_a_b.translation().norm();
   const double var_t = n.odometry_q_t * (d + kLinkFloorM);
   const double var_r = n.odometry_q_r * (std::abs(T_a_b.theta()) + n.odometry_c_d * d + kLinkFloorRad);
   const Eigen::Matrix3d Q = Eigen::Vector3d(var_t, var_t, var_r).asDiagonal();
-  x_ = PredictState(x_, T_a_b);
+  x_ = PredictState(x_, T_a_b, phi);
   P_ = F * P_ * F.transpose() + G * Q * G.transpose();
+  P_(8, 8) += n.range_scale_sigma * n.range_scale_sigma * (1.0 - phi * phi);
   P_ = 0.5 * (P_ + P_.transpose());
   CheckLost();
 }
@@ -139,19 +162,22 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
                              ? observation.range_m * std::cos(*observation.elevation_rad)
                              : observation.range_m;
   const RangeBearingNoise& n = options_.noise;
-  const double sigma_range = observation.sigma_range_m.value_or(n.range_a_m + n.range_b * range_m);
+  double var_range = 0.0;
+  if (observation.sigma_range_m) {
+    var_range = *observation.sigma_range_m * *observation.sigma_range_m;
+  } else {
+    // The range variance less its part common to the frame (the state's s_range).
+    const double total = n.range_a_m + n.range_b * range_m, common = n.range_scale_sigma * range_m;
+    var_range = std::max(total * total - common * common, n.range_a_m * n.range_a_m);
+  }
   const double sigma_bearing = observation.sigma_bearing_rad.value_or(n.bearing_rad);
-  Eigen::Matrix2d R = Eigen::Vector2d(sigma_range * sigma_range, sigma_bearing * sigma_bearing).asDiagonal();
-  const Eigen::Vector3d pose = x_.head<3>();
-  Eigen::Matrix<double, 2, kStateSize> H = Eigen::Matrix<double, 2, kStateSize>::Zero();
-  H.leftCols<3>() = MeasureJacobian(pose, l);
-  H(0, 6) = 1.0;
-  H(1, 7) = 1.0;
+  Eigen::Matrix2d R = Eigen::Vector2d(var_range, sigma_bearing * sigma_bearing).asDiagonal();
+  const Eigen::Matrix<double, 2, kStateSize> H = MeasureStateJacobian(x_, l);
   if (it->second.second) {
     const Eigen::Matrix2d H_l = -H.leftCols<2>();
     R += H_l * *it->second.second * H_l.transpose();
   }
-  const Eigen::Vector2d predicted = Measure(pose, l) + x_.tail<2>();
+  const Eigen::Vector2d predicted = MeasureState(x_, l);
   const Eigen::Vector2d y(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
   const Eigen::Matrix2d S = H * P_ * H.transpose() + R;
   const Eigen::LLT<Eigen::Matrix2d> llt(S);

@@ -1,25 +1,29 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing]: T_world_robot, the odometry's
-// constant errors (heading drift k in rad/m, turn scale, distance scale; as
-// factors/calibrated_odometry_factor.h, to first order) and the sensor's constant range and
-// bearing offsets (as BiasedRangeBearingFactor), covariance P (8 x 8, the same order); the
-// calibration and the offsets start at 0 with calibration_sigma and sensor_bias_sigma and have no
-// process noise.
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range]: T_world_robot, the
+// odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
+// factors/calibrated_odometry_factor.h, to first order), the sensor's constant range and
+// bearing offsets (as BiasedRangeBearingFactor) and the range scale error common to a frame's
+// landmarks (noise.range_scale_sigma, a first-order Gauss-Markov process of correlation time
+// tau = noise.range_scale_time_s), covariance P (9 x 9, the same order); the calibration and the
+// offsets start at 0 with calibration_sigma and sensor_bias_sigma and have no process noise;
+// s_range starts at 0 with variance range_scale_sigma^2.
 // Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
 //   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
-//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing]
-//   F  = d x'/d x = I8 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
-//        F[2, 3] = s, F[2, 4] = theta_M
+//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range]
+//   F  = d x'/d x = I9 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
+//        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration)
 //   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
-//   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad).
+//   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad), and
+//   q_s = range_scale_sigma^2 (1 - phi^2) on s_range.
 // Update with a landmark l (map position, 2-D; its map covariance Sigma_l when present):
-//   d = l - t, q = |d|^2, h(x) = [sqrt(q) + b_range, wrap(atan2(d_y, d_x) - theta + b_bearing)]
-//   H = [[-d_x/sqrt(q), -d_y/sqrt(q), 0, 0 0 0, 1, 0], [d_y/q, -d_x/q, -1, 0 0 0, 0, 1]],  H_l = -H[:, 0:2]
-//   y = [range - h_0, wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l H_l^T,
-//   R = diag(sigma_range(range)^2, sigma_bearing^2)
+//   d = l - t, q = |d|^2, r = sqrt(q), h(x) = [(1 + s_range) r + b_range, wrap(atan2(d_y, d_x) - theta +
+//   b_bearing)] H = [[-(1 + s_range) d_x/r, -(1 + s_range) d_y/r, 0, 0 0 0, 1, 0, r], [d_y/q, -d_x/q, -1, 0 0
+//   0, 0, 1, 0]], H_l = -H[:, 0:2],  y = [range - h_0, wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l
+//   H_l^T, R = diag(sigma_w^2, sigma_bearing^2), sigma_w^2 = max(sigma_range(range)^2 - (range_scale_sigma
+//   range)^2, range_a_m^2) (the range variance less its common part; an observation's own sigma as given)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
 //   K = P H^T S^-1 (LLT), x += K y, P = (I - K H) P (I - K H)^T + K R' K^T (Joseph), symmetrized.
 // A landmark absent from the map (an unknown or misread code) is rejected and counted.
@@ -66,23 +70,29 @@ class RangeBearingLocalizer {
   RangeBearingLocalizer(const MarkerMap& map, const RangeBearingLocalizerOptions& options,
                         const SE2d& T_world_start, const Eigen::Matrix3d& start_covariance);
 
-  void Predict(const SE2d& T_a_b);
+  // dt_s: the increment's duration (for the range scale's correlation; 0 = none elapsed).
+  void Predict(const SE2d& T_a_b, double dt_s = 0.0);
   RangeBearingUpdate Update(const RangeBearingObservation& observation);
 
   SE2d pose() const { return SE2d(x_[0], x_[1], x_[2]); }
   Eigen::Matrix3d covariance() const { return P_.topLeftCorner<3, 3>(); }  // of the pose
   Eigen::Vector3d calibration() const { return x_.segment<3>(3); }
-  Eigen::Vector2d sensor_bias() const { return x_.tail<2>(); }
+  Eigen::Vector2d sensor_bias() const { return x_.segment<2>(6); }
+  double range_scale() const { return x_[8]; }
   bool lost() const { return lost_; }
   // Counts: accepted, unknown, gated, degenerate, became lost, regained.
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static constexpr int kStateSize = 8;
+  static constexpr int kStateSize = 9;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
-  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b);
-  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b);
+  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
+  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
+  // h(x) of the whole state (range with its scale and offset, bearing with its offset) and d h / d x.
+  static Eigen::Vector2d MeasureState(const Vector6& x, const Eigen::Vector2d& l_world);
+  static Eigen::Matrix<double, 2, kStateSize> MeasureStateJacobian(const Vector6& x,
+                                                                   const Eigen::Vector2d& l_world);
   static Eigen::Vector2d Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world);
   static Eigen::Matrix<double, 2, 3> MeasureJacobian(const Eigen::Vector3d& x,
                                                      const Eigen::Vector2d& l_world);

@@ -26,16 +26,20 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
                              ": the range-bearing localizer needs dataset.yaml start_prior (the start pose; "
                              "e.g. `waymark import mrclam --known-start`)");
   }
-  const Trajectory& odometry = dataset.odometry;
+  // The odometry pose stamped t describes the robot at t + odometry_delay_s.
+  Trajectory odometry = dataset.odometry;
+  for (StampedSE3& point : odometry) point.stamp_s += options.noise.odometry_delay_s;
   const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);
   RangeBearingLocalizer filter(map, options, SE2d::FromSE3(prior->T_world_robot),
                                Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal()));
   RangeBearingRun run;
   SE2d T_odom_last = SE2d::FromSE3(odometry.front().T);
+  double t_last = odometry.front().stamp_s;
   const auto advance = [&](double stamp_s) {
     const SE2d T_odom_now = OdometryAt(odometry, stamp_s);
-    filter.Predict(T_odom_last.inverse() * T_odom_now);
+    filter.Predict(T_odom_last.inverse() * T_odom_now, stamp_s - t_last);
     T_odom_last = T_odom_now;
+    t_last = stamp_s;
   };
   const auto output = [&](double stamp_s) {
     if (filter.lost()) {

@@ -3,7 +3,9 @@
 // against a ground truth.
 //
 // The filter starts at dataset.yaml's start_prior (its sigmas as the start covariance) at the
-// first odometry stamp. Each odometry sample predicts; each range-bearing frame is applied at its
+// first odometry stamp. The odometry's stamps are moved by the noise model's odometry_delay_s (the
+// pose stamped t describes the robot at t + delay; mapping/range_bearing_map.h estimates it).
+// Each odometry sample predicts; each range-bearing frame is applied at its
 // own stamp, the odometry interpolated there (frames outside the odometry's span are counted and
 // skipped). A pose (with its covariance) is output at every odometry stamp and every frame while
 // the filter is not lost; none while it is lost.

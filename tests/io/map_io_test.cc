@@ -368,5 +368,41 @@ TEST(MapIoTest, SizeOnlyEntriesOnlyWhereAllowed) {
   }
 }
 
+TEST(MapIoTest, RangeBearingNoiseRoundTripWithOptionalOdometryDelay) {
+  const std::string noise =
+      R"("range_bearing_noise": {"range_a_m": 0.02, "range_b": 0.03, "bearing_rad": 0.005, )"
+      R"("odometry_q_t": 0.001, "odometry_q_r": 0.004, "odometry_c_d": 0.1)";
+  const MarkerMap without = ParseMap(GoodMapWith("\"markers\"", noise + "},\n \"markers\""), "map.json");
+  ASSERT_TRUE(without.range_bearing_noise);
+  EXPECT_EQ(without.range_bearing_noise->odometry_delay_s, 0.0);  // absent: 0
+  EXPECT_EQ(FormatMap(without).find("odometry_delay_s"), std::string::npos);
+  const MarkerMap with = ParseMap(
+      GoodMapWith("\"markers\"", noise + ", \"odometry_delay_s\": 0.25},\n \"markers\""), "map.json");
+  ASSERT_TRUE(with.range_bearing_noise);
+  EXPECT_EQ(with.range_bearing_noise->odometry_delay_s, 0.25);
+  const MarkerMap again = ParseMap(FormatMap(with), "again.json");
+  EXPECT_EQ(again.range_bearing_noise->odometry_delay_s, 0.25);
+  EXPECT_EQ(again.range_bearing_noise->odometry_q_r, 0.004);
+  EXPECT_EQ(again.range_bearing_noise->range_scale_sigma, 0.0);  // absent: 0, not written
+  EXPECT_EQ(FormatMap(again).find("range_scale"), std::string::npos);
+  const MarkerMap scaled = ParseMap(
+      GoodMapWith("\"markers\"",
+                  noise + R"(, "range_scale_sigma": 0.03, "range_scale_time_s": 1.5},)" + "\n \"markers\""),
+      "map.json");
+  const MarkerMap scaled_again = ParseMap(FormatMap(scaled), "again.json");
+  EXPECT_EQ(scaled_again.range_bearing_noise->range_scale_sigma, 0.03);
+  EXPECT_EQ(scaled_again.range_bearing_noise->range_scale_time_s, 1.5);
+  EXPECT_THAT(
+      ParseError(GoodMapWith("\"markers\"", noise + R"(, "range_scale_sigma": 1.5},)" + "\n \"markers\"")),
+      HasSubstr("range_bearing_noise.range_scale_sigma: expected a number in [0, 1), got 1.5"));
+  EXPECT_THAT(
+      ParseError(GoodMapWith("\"markers\"", noise + R"(, "range_scale_time_s": 0},)" + "\n \"markers\"")),
+      HasSubstr("range_bearing_noise.range_scale_time_s: expected a positive number, got 0"));
+  EXPECT_THAT(
+      ParseError(GoodMapWith("\"markers\"", noise + ", \"odometry_delay_s\": 11},\n \"markers\"")),
+      HasSubstr(
+          "range_bearing_noise.odometry_delay_s: expected a number of at most 10 s either way, got 11"));
+}
+
 }  // namespace
 }  // namespace waymark

@@ -55,6 +55,47 @@ TEST(RangeBearingMap, TwoRobotsWithStartPriors) {
   EXPECT_NEAR(result.datasets[0].odometry_calibration[2], -0.029, 0.01);
 }
 
+TEST(RangeBearingMap, TheOdometryDelayIsEstimatedPerDataset) {
+  // The commands take effect 0.2 s late; the turn rate swings so that the lag matters.
+  testing::RangeBearingWorldOptions world;
+  world.odometry_delay_s = 0.2;
+  world.turn_swing_rad_s = 0.8;
+  const Dataset a = testing::RangeBearingRobot(0, 5, world), b = testing::RangeBearingRobot(1, 6, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  ASSERT_EQ(result.datasets.size(), 2u);
+  EXPECT_NEAR(result.datasets[0].noise.odometry_delay_s, 0.2, 0.05);
+  EXPECT_NEAR(result.datasets[1].noise.odometry_delay_s, 0.2, 0.05);
+  ASSERT_TRUE(result.map.range_bearing_noise);
+  EXPECT_NEAR(result.map.range_bearing_noise->odometry_delay_s, 0.2, 0.05);
+  // Without the estimate (the delay held at 0) the trajectories are worse.
+  RangeBearingBuildOptions no_delay;
+  no_delay.max_odometry_delay_s = 0.0;
+  const RangeBearingBuildResult held = BuildRangeBearingMap({&a, &b}, no_delay);
+  EXPECT_EQ(held.map.range_bearing_noise->odometry_delay_s, 0.0);
+  EXPECT_LT(TrajectoryRms(result.trajectories.at("robot0"), *a.groundtruth_trajectory),
+            TrajectoryRms(held.trajectories.at("robot0"), *a.groundtruth_trajectory));
+  // No delay simulated: none found.
+  world.odometry_delay_s = 0.0;
+  const Dataset c = testing::RangeBearingRobot(0, 7, world);
+  EXPECT_NEAR(BuildRangeBearingMap({&c}).datasets[0].noise.odometry_delay_s, 0.0, 0.05);
+}
+
+TEST(RangeBearingMap, TheRangeErrorCommonToAFrameIsEstimated) {
+  testing::RangeBearingWorldOptions world;
+  world.range_scale_sigma = 0.04;
+  world.range_scale_time_s = 1.0;
+  world.duration_s = 240.0;
+  const Dataset a = testing::RangeBearingRobot(0, 8, world), b = testing::RangeBearingRobot(1, 9, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  ASSERT_TRUE(result.map.range_bearing_noise);
+  // The poses absorb a part of it: the estimate is at most the truth and not far below.
+  EXPECT_NEAR(result.map.range_bearing_noise->range_scale_sigma, 0.035, 0.01);
+  EXPECT_NEAR(result.map.range_bearing_noise->range_scale_time_s, 1.0, 0.6);
+  // None simulated: (nearly) none found.
+  const Dataset c = testing::RangeBearingRobot(0, 10, {}), d = testing::RangeBearingRobot(1, 11, {});
+  EXPECT_LT(BuildRangeBearingMap({&c, &d}).map.range_bearing_noise->range_scale_sigma, 0.01);
+}
+
 TEST(RangeBearingMap, WithoutPriorsTheSecondRobotIsPlacedByTheLandmarks) {
   testing::RangeBearingWorldOptions world;
   world.start_prior = false;
@@ -83,6 +124,12 @@ TEST(RangeBearingMap, RefusesBadInput) {
   RangeBearingBuildOptions options;
   options.keyframe_interval_s = 0.0;
   EXPECT_THROW(BuildRangeBearingMap({&a}, options), std::invalid_argument);
+  RangeBearingBuildOptions negative_delay;
+  negative_delay.max_odometry_delay_s = -0.1;
+  EXPECT_THROW(BuildRangeBearingMap({&a}, negative_delay), std::invalid_argument);
+  RangeBearingBuildOptions zero_step;
+  zero_step.odometry_delay_step_s = 0.0;
+  EXPECT_THROW(BuildRangeBearingMap({&a}, zero_step), std::invalid_argument);
   // A second robot that sees nothing and has no prior cannot be placed.
   testing::RangeBearingWorldOptions world;
   world.start_prior = false;

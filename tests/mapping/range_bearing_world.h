@@ -19,6 +19,14 @@ struct RangeBearingWorldOptions {
   double outlier_share = 0.0;  // share of sightings replaced by a random range and bearing
   double duration_s = 120.0;
   bool start_prior = true;
+  // The commands take effect this much later (the odometry lags the motion it commands), and
+  // the turn rate swings by this much (rad/s) with a period of 8 s so that the lag shows.
+  double odometry_delay_s = 0.0;
+  double turn_swing_rad_s = 0.0;
+  // A range scale error common to each frame's landmarks: a Gauss-Markov process of this
+  // stationary sigma and correlation time.
+  double range_scale_sigma = 0.0;
+  double range_scale_time_s = 1.0;
 };
 
 inline MarkerMap RangeBearingLandmarks() {
@@ -51,16 +59,28 @@ inline Dataset RangeBearingRobot(int index, unsigned seed, const RangeBearingWor
   std::vector<VelocitySample> commanded;
   Trajectory truth;
   const int steps = static_cast<int>(options.duration_s * rate_hz);
+  double range_scale = 0.0, last_frame_s = 1000.0;
   for (int i = 0; i <= steps; ++i) {
     const double t = 1000.0 + i / rate_hz;
     truth.push_back({t, T_world_true.ToSE3()});
-    // The wheels do 3 % more than commanded, with noise; the command is what the file holds.
-    commanded.push_back({t, v, w});
-    const double v_true = 1.03 * v * (1.0 + 0.02 * normal(rng)), w_true = w + 0.01 * normal(rng);
+    // The wheels do 3 % more than commanded, with noise, the command of odometry_delay_s ago;
+    // the command is what the file holds.
+    const auto turn = [&](double at_s) {
+      return w + options.turn_swing_rad_s * std::sin(2.0 * M_PI * (at_s - 1000.0) / 8.0);
+    };
+    commanded.push_back({t, v, turn(t)});
+    const double w_applied = turn(std::max(1000.0, t - options.odometry_delay_s));
+    const double v_true = 1.03 * v * (1.0 + 0.02 * normal(rng)), w_true = w_applied + 0.01 * normal(rng);
     T_world_true = IntegrateArc(T_world_true, v_true, w_true, 1.0 / rate_hz);
     if (i % 4 == 0 && i > 0) {
       RangeBearingFrame frame;
       frame.stamp_s = t;
+      if (options.range_scale_sigma > 0.0) {
+        const double phi = std::exp(-(t - last_frame_s) / options.range_scale_time_s);
+        range_scale =
+            phi * range_scale + std::sqrt(1.0 - phi * phi) * options.range_scale_sigma * normal(rng);
+        last_frame_s = t;
+      }
       const SE2d T = SE2d::FromSE3(truth.back().T);
       for (const MapMarker& m : landmarks.markers) {
         const Eigen::Vector2d p = T.inverse() * Eigen::Vector2d(m.T_world_marker.translation().head<2>());
@@ -72,7 +92,8 @@ inline Dataset RangeBearingRobot(int index, unsigned seed, const RangeBearingWor
           obs.range_m = 0.5 + 4.0 * uniform(rng);
           obs.bearing_rad = -0.5 + uniform(rng);
         } else {
-          obs.range_m = range + (options.sigma_range_a_m + options.sigma_range_b * range) * normal(rng);
+          obs.range_m = (1.0 + range_scale) * range +
+                        (options.sigma_range_a_m + options.sigma_range_b * range) * normal(rng);
           obs.bearing_rad = WrapAngle(bearing + options.sigma_bearing_rad * normal(rng));
         }
         frame.landmarks.push_back(obs);

@@ -41,19 +41,22 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   std::uniform_real_distribution<double> u(-3.0, 3.0);
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
-    x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng);
+    x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng),
+        0.01 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
+    const double phi = 0.5 + 0.1 * u(rng);  // the range scale's decay over the increment
     const auto predict = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
-      Eigen::VectorXd next = RangeBearingLocalizer::PredictState(s, M);
+      Eigen::VectorXd next = RangeBearingLocalizer::PredictState(s, M, phi);
       next[2] = s[2] + WrapAngle(next[2] - s[2]);  // unwrapped, for the differences
       return next;
     };
     const Eigen::MatrixXd F_numeric = testing::NumericJacobian(predict, x6);
-    EXPECT_LT((F_numeric - RangeBearingLocalizer::PredictJacobian(x6, M)).cwiseAbs().maxCoeff(), 1e-6);
+    EXPECT_LT((F_numeric - RangeBearingLocalizer::PredictJacobian(x6, M, phi)).cwiseAbs().maxCoeff(), 1e-6);
     // With no calibration error the prediction is the composition T * M.
     RangeBearingLocalizer::Vector6 plain = x6;
     plain.segment<3>(3).setZero();
+    plain[8] = 0.0;
     const SE2d composed = SE2d(x[0], x[1], x[2]) * M;
     const RangeBearingLocalizer::Vector6 predicted = RangeBearingLocalizer::PredictState(plain, M);
     EXPECT_NEAR(predicted[0], composed.x(), 1e-12);
@@ -69,6 +72,16 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     };
     const Eigen::MatrixXd H_numeric = testing::NumericJacobian(measure, x, 1e-6, wrap);
     EXPECT_LT((H_numeric - RangeBearingLocalizer::MeasureJacobian(x, l)).cwiseAbs().maxCoeff(), 1e-6);
+    // The whole state's h (range scale and offsets included).
+    const auto measure_state = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
+      return RangeBearingLocalizer::MeasureState(s, l);
+    };
+    const Eigen::MatrixXd H_state_numeric = testing::NumericJacobian(measure_state, x6, 1e-6, wrap);
+    EXPECT_LT((H_state_numeric - RangeBearingLocalizer::MeasureStateJacobian(x6, l)).cwiseAbs().maxCoeff(),
+              1e-6);
+    const Eigen::Vector2d h = RangeBearingLocalizer::MeasureState(x6, l),
+                          h_pose = RangeBearingLocalizer::Measure(x, l);
+    EXPECT_NEAR(h[0], (1.0 + x6[8]) * h_pose[0] + x6[6], 1e-12);
   }
 }
 
@@ -148,6 +161,60 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBounds) {
           const Eigen::Vector2d l = map.Find({kFamilyBarcode, id})->T_world_marker.translation().head<2>();
           Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
           z[0] += (0.05 + 0.01 * z[0]) * n(rng);
+          z[1] = WrapAngle(z[1] + 0.02 * n(rng));
+          filter.Update(Sighting(id, z));
+        }
+      }
+    }
+    const Eigen::Vector3d e(truth.x() - filter.pose().x(), truth.y() - filter.pose().y(),
+                            WrapAngle(truth.theta() - filter.pose().theta()));
+    sum += e.dot(filter.covariance().llt().solve(e));
+  }
+  const double mean = sum / runs;
+  EXPECT_GT(mean, ChiSquareQuantile(0.025, 3 * runs) / runs);
+  EXPECT_LT(mean, ChiSquareQuantile(0.975, 3 * runs) / runs);
+}
+
+TEST(RangeBearingLocalizer, MonteCarloNeesInsideBoundsWithARangeScaleCommonToTheFrame) {
+  // The ranges of a frame share a scale error (Gauss-Markov, sigma 5 %, 1 s); the filter carries
+  // it in its state; its NEES stays inside the bounds.
+  RangeBearingLocalizerOptions options;
+  options.noise.range_a_m = 0.05;
+  options.noise.range_b = 0.06;
+  options.noise.bearing_rad = 0.02;
+  options.noise.odometry_q_t = 1e-4;
+  options.noise.odometry_q_r = 1e-4;
+  options.noise.odometry_c_d = 0.1;
+  options.noise.range_scale_sigma = 0.05;
+  options.noise.range_scale_time_s = 1.0;
+  std::mt19937 rng(12);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const MarkerMap map = TwoLandmarks();
+  const int runs = 200;
+  const double dt = 0.1;
+  double sum = 0.0;
+  for (int run = 0; run < runs; ++run) {
+    const Eigen::Vector3d sigma0(0.05, 0.05, 0.02);
+    SE2d truth;
+    const SE2d start(sigma0[0] * n(rng), sigma0[1] * n(rng), sigma0[2] * n(rng));
+    RangeBearingLocalizer filter(map, options, start, Eigen::Matrix3d(sigma0.cwiseAbs2().asDiagonal()));
+    double scale = options.noise.range_scale_sigma * n(rng);
+    const double phi = std::exp(-dt / options.noise.range_scale_time_s);
+    for (int step = 0; step < 50; ++step) {
+      const SE2d M(0.05, 0.0, 0.01);
+      const double d = 0.05;
+      const double st = std::sqrt(options.noise.odometry_q_t * (d + 1e-3));
+      const double sr = std::sqrt(options.noise.odometry_q_r * (0.01 + 0.1 * d + 1e-3));
+      truth = truth * SE2d(0.05 + st * n(rng), st * n(rng), 0.01 + sr * n(rng));
+      scale = phi * scale + std::sqrt(1.0 - phi * phi) * options.noise.range_scale_sigma * n(rng);
+      filter.Predict(M, dt);
+      if (step % 2 == 1) {
+        const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+        for (const char* id : {"1", "2"}) {
+          const Eigen::Vector2d l = map.Find({kFamilyBarcode, id})->T_world_marker.translation().head<2>();
+          Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
+          const double total = 0.05 + 0.06 * z[0], common = 0.05 * z[0];
+          z[0] = (1.0 + scale) * z[0] + std::sqrt(total * total - common * common) * n(rng);
           z[1] = WrapAngle(z[1] + 0.02 * n(rng));
           filter.Update(Sighting(id, z));
         }
