@@ -57,6 +57,7 @@ constexpr double kFocalPx = 1000.0;
 const double kBinEdges[] = {0.0, 20.0, 25.0, 40.0, 80.0, 150.0, 1e9};
 const char* const kBinNames[] = {"<20", "20-25", "25-40", "40-80", "80-150", ">=150"};
 constexpr double kPoorCornerPx = 0.5;
+constexpr double kSlowFrameMs = 150.0;  // --verbose lists frames that took longer
 constexpr int kBins = 6;
 
 struct TrueCode {
@@ -261,6 +262,7 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
     const std::vector<MarkerObservation> found = detector->Detect(frame.image);
     const double ms = FrameClock::ThreadCpuMs() - start_ms;
     (frame.codes.empty() ? empty_ms : code_ms).push_back(ms);
+    if (verbose && ms > kSlowFrameMs) std::cout << "  frame " << f << ": " << ms << " ms of CPU\n";
     if (frame.codes.empty()) empty_detections += static_cast<long>(found.size());
     for (const MarkerObservation& obs : found) {
       const bool known = std::any_of(frame.codes.begin(), frame.codes.end(),

@@ -105,7 +105,9 @@ void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, in
 // other things is inside none of the few kept): best-shaped first, each not read yet is
 // searched again for finders in its own box (padded by a quarter side: the quads' finders
 // are a coarse binarization's) and read from there, or else from the quads' own corners;
-// at most `max_reads` per frame.
+// at most `max_reads` per frame (one larger than kFinderWorkSidePx is read from the quads'
+// corners only).
+constexpr double kMaxSearchedSidePx = kFinderWorkSidePx;
 void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, FrameWork* work,
                         std::vector<MarkerObservation>* found) {
   int reads = 0;
@@ -122,7 +124,12 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
           cv::Rect(0, 0, gray.cols, gray.rows);
     std::vector<MarkerObservation> read;
     const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
-    for (const QrCandidate& precise : GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size())) {
+    // A candidate larger than the finder search's working size is read from the quads' own
+    // corners only: a triple of distant finder-like quads would cost a search of most of the
+    // frame (40 ms on a recall bench frame).
+    const bool search = QuadMeanSide(candidate.corners_px) <= kMaxSearchedSidePx;
+    for (const QrCandidate& precise :
+         search ? GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size()) : std::vector<QrCandidate>{}) {
       if ((QuadCenter(precise.corners_px) - centre).norm() > 0.25 * QuadMeanSide(candidate.corners_px))
         continue;
       read = ReadRectifiedQr(gray, precise);

@@ -31,9 +31,11 @@ constexpr double kMinHoleArea = 30.0;
 constexpr double kMaxStrayFraction = 0.25;
 constexpr double kMinCentreConvexity = 0.75;
 constexpr double kOuterToHoleSide = 7.0 / 5.0;
-// A dark quad is a finder candidate with this many sides this dark (QrCandidatesFromQuads).
+// A dark quad is a finder candidate with kQuadFinderSolidSides sides this dark and none under
+// kQuadFinderWeakestSide (QrCandidatesFromQuads).
 constexpr double kQuadFinderSolid = 0.85;
-constexpr double kQuadFinderWeakestSide = 0.5;
+constexpr double kQuadFinderWeakestSide = 0.2;
+constexpr int kQuadFinderSolidSides = 2;
 // ... and its inside varied (the light ring around the dark centre; a filled box is even).
 constexpr double kQuadFinderMinSpread = 0.2;
 // The light ring's contrast against the dark ring and centre, fraction of the quad's.
@@ -436,7 +438,9 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
       solid += dark >= kQuadFinderSolid;
       weakest = std::min(weakest, dark);
     }
-    if (solid < 3 || weakest < kQuadFinderWeakestSide || q.interior_spread < kQuadFinderMinSpread) continue;
+    if (solid < kQuadFinderSolidSides || weakest < kQuadFinderWeakestSide ||
+        q.interior_spread < kQuadFinderMinSpread)
+      continue;
     if (!HasFinderProfile(gray, q.corners_px)) continue;
     QrFinderPattern f;
     f.centre_px = QuadCenter(q.corners_px);

@@ -67,13 +67,13 @@ std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& find
 
 // QR candidates from the shared candidate stage (FindDarkQuads, detect/quads.h), for codes in
 // no candidate region: a finder's dark 7x7 ring is a dark component whose quad has at least
-// three solid sides (>= 85 % dark just inside them; the fourth >= 50 %, where blur joins a
-// data module to it) and a varied inside (the light ring around the dark centre: spread >= 0.2,
-// as SolidBorderQuads; a filled box is even) and a finder's profile in `gray` (from each
-// side's middle to the centre: the light ring lighter than the dark ring and the centre by a
-// tenth of the contrast to the light outside); those quads, as finders (centre, width = square root of the
-// quad's area, outline = the quad), are grouped like FindQrFinderPatterns' (GroupQrFinders). The same finder
-// found at two levels counts once (the finer level's).
+// two solid sides (>= 85 % dark just inside them; the others >= 20 %: blur or a thin
+// separator joins data modules to it) and a varied inside (the light ring around the dark centre: spread >=
+// 0.2, as SolidBorderQuads; a filled box is even) and a finder's profile in `gray` (from each side's middle
+// to the centre: the light ring lighter than the dark ring and the centre by a tenth of the contrast to the
+// light outside); those quads, as finders (centre, width = square root of the quad's area, outline = the
+// quad), are grouped like FindQrFinderPatterns' (GroupQrFinders). The same finder found at two levels counts
+// once (the finer level's).
 std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::vector<DarkQuad>& quads);
 
 // The bottom-right corner from the symbol's own edges: the intersection of the outer edge
