@@ -10,6 +10,7 @@
 #include "detect/common.h"
 #include "detect/qr_finder.h"
 #include "detect/qr_grid.h"
+#include "detect/quads.h"
 #include "detect/refine.h"
 #include "detect/zxing.h"
 
@@ -99,6 +100,46 @@ void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, in
   }
 }
 
+// Pass 2a': QR candidates from the shared dark-quad stage (QrCandidatesFromQuads), for
+// codes that no candidate region holds (a region is a blob's box, and a small code near
+// other things is inside none of the few kept): best-shaped first, each not read yet is
+// searched again for finders in its own box (padded by a quarter side: the quads' finders
+// are a coarse binarization's) and read from there, or else from the quads' own corners;
+// at most `max_reads` per frame (one larger than kFinderWorkSidePx is read from the quads'
+// corners only).
+constexpr double kMaxSearchedSidePx = kFinderWorkSidePx;
+void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, FrameWork* work,
+                        std::vector<MarkerObservation>* found) {
+  int reads = 0;
+  for (const QrCandidate& candidate : QrCandidatesFromQuads(gray, FindDarkQuads(gray, min_side_px))) {
+    if (reads >= max_reads) return;
+    if (CandidateIsRead(candidate, *found)) continue;
+    if (!work->Allow()) continue;
+    ++reads;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : candidate.corners_px) corners.emplace_back(c.x(), c.y());
+    cv::Rect box = cv::boundingRect(corners);
+    const int pad = static_cast<int>(std::ceil(0.25 * std::max(box.width, box.height)));
+    box = cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
+          cv::Rect(0, 0, gray.cols, gray.rows);
+    std::vector<MarkerObservation> read;
+    const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
+    // A candidate larger than the finder search's working size is read from the quads' own
+    // corners only: a triple of distant finder-like quads would cost a search of most of the
+    // frame (40 ms on a recall bench frame).
+    const bool search = QuadMeanSide(candidate.corners_px) <= kMaxSearchedSidePx;
+    for (const QrCandidate& precise :
+         search ? GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size()) : std::vector<QrCandidate>{}) {
+      if ((QuadCenter(precise.corners_px) - centre).norm() > 0.25 * QuadMeanSide(candidate.corners_px))
+        continue;
+      read = ReadRectifiedQr(gray, precise);
+      break;
+    }
+    if (read.empty()) read = ReadRectifiedQr(gray, candidate);
+    AppendUnique(read, found);
+  }
+}
+
 class QrDetector : public MarkerDetector {
  public:
   explicit QrDetector(const DetectorOptions& options) : options_(options) {}
@@ -123,6 +164,7 @@ class QrDetector : public MarkerDetector {
       };
       const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
       ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &work, &found);
+      ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, &work, &found);
       RunSecondPass(gray, regions, attempts, &work, &found);
     }
     skipped_ = work.skipped();

@@ -24,6 +24,24 @@ constexpr double kMinOuterToCentre = 2.5, kMaxOuterToCentre = 14.0;
 constexpr double kMinHoleToCentre = 1.3, kMaxHoleToCentre = 7.0;
 constexpr double kMinConvexity = 0.85;     // outer area / convex hull area
 constexpr double kMaxCentreOffset = 0.15;  // centroid distance / sqrt(outer area)
+// Finders found by their hole (IsFinderHole): the 5x5 light ring's area (upscaled pixels),
+// the area of the hole's other children (noise) at most this fraction of the centre's, the
+// centre's convexity; the outer outline is the hole's scaled by 7/5 about the centre.
+constexpr double kMinHoleArea = 30.0;
+constexpr double kMaxStrayFraction = 0.25;
+constexpr double kMinCentreConvexity = 0.75;
+constexpr double kOuterToHoleSide = 7.0 / 5.0;
+// A dark quad is a finder candidate with kQuadFinderSolidSides sides this dark and none under
+// kQuadFinderWeakestSide (QrCandidatesFromQuads).
+constexpr double kQuadFinderSolid = 0.85;
+constexpr double kQuadFinderWeakestSide = 0.2;
+constexpr int kQuadFinderSolidSides = 2;
+// ... and its inside varied (the light ring around the dark centre; a filled box is even).
+constexpr double kQuadFinderMinSpread = 0.2;
+// The light ring's contrast against the dark ring and centre, fraction of the quad's.
+constexpr double kMinRingContrast = 0.1;
+// Two finders whose centres are closer than this fraction of the smaller's width are one.
+constexpr double kSameFinderFraction = 0.3;
 // Triples: finder widths within this ratio, distances A-B and A-C within kMaxArmRatio
 // (an oblique view foreshortens one axis), the angle at A within [kMinAngleDeg,
 // 180 - kMinAngleDeg], and A-B at least kMinArmToWidth finder widths (2 in version 1,
@@ -88,6 +106,27 @@ bool IsFinder(const std::vector<cv::Point>& o, const std::vector<cv::Point>& h,
   std::vector<cv::Point> hull;
   cv::convexHull(o, hull);
   return area_o >= kMinConvexity * cv::contourArea(hull);
+}
+
+// True if hole h and centre k (child of h) look like a finder's light ring and dark centre,
+// whatever the ring's outer contour: blur and low contrast join the dark ring to the data
+// modules or the quiet zone's surroundings (its outline is then no square), while the light
+// 5x5 ring inside it stays closed around the 3x3 centre. The centre must be the hole's only
+// sizeable child, concentric with it, and the hole convex.
+bool IsFinderHole(const std::vector<cv::Point>& h, const std::vector<cv::Point>& k,
+                  double other_children_area) {
+  const double area_h = cv::contourArea(h), area_k = cv::contourArea(k);
+  if (area_h < kMinHoleArea || area_k <= 0.0 || other_children_area > kMaxStrayFraction * area_k)
+    return false;
+  const double hole_ratio = area_h / area_k;
+  if (hole_ratio < kMinHoleToCentre || hole_ratio > kMaxHoleToCentre) return false;
+  const cv::Point2d offset = Centroid(h) - Centroid(k);
+  if (std::hypot(offset.x, offset.y) > kMaxCentreOffset * std::sqrt(area_h)) return false;
+  std::vector<cv::Point> hull;
+  cv::convexHull(h, hull);
+  if (area_h < kMinConvexity * cv::contourArea(hull)) return false;
+  cv::convexHull(k, hull);
+  return area_k >= kMinCentreConvexity * cv::contourArea(hull);
 }
 
 // The region binarized (dark = 255) at `scale` times its resolution.
@@ -244,19 +283,58 @@ std::vector<QrFinderPattern> FindQrFinderPatterns(const cv::Mat& gray, const cv:
     for (int h = hierarchy[o][2]; h >= 0; h = hierarchy[h][0]) {
       int k = hierarchy[h][2];  // the hole's children: the first that completes a finder
       while (k >= 0 && !IsFinder(contours[o], contours[h], contours[k])) k = hierarchy[k][0];
-      if (k < 0) continue;
       QrFinderPattern f;
-      f.centre_px = to_full(Centroid(contours[k]));
-      f.width_px = std::sqrt(cv::contourArea(contours[o])) / scale;
-      const std::array<cv::Point2f, 4> corners = FourCorners(contours[o]);
-      for (int i = 0; i < 4; ++i) f.outer_px[i] = to_full(cv::Point2d(corners[i]));
+      if (k >= 0) {
+        f.centre_px = to_full(Centroid(contours[k]));
+        f.width_px = std::sqrt(cv::contourArea(contours[o])) / scale;
+        const std::array<cv::Point2f, 4> corners = FourCorners(contours[o]);
+        for (int i = 0; i < 4; ++i) f.outer_px[i] = to_full(cv::Point2d(corners[i]));
+      } else {
+        // The ring's outline is not a finder's (joined to other dark pixels): the hole and
+        // its largest child may still be one.
+        int largest = -1;
+        double largest_area = 0.0, total_area = 0.0;
+        for (int c = hierarchy[h][2]; c >= 0; c = hierarchy[c][0]) {
+          const double area = cv::contourArea(contours[c]);
+          total_area += area;
+          if (area > largest_area) largest_area = area, largest = c;
+        }
+        if (largest < 0 || !IsFinderHole(contours[h], contours[largest], total_area - largest_area)) continue;
+        const cv::Point2d centre = Centroid(contours[largest]);
+        f.centre_px = to_full(centre);
+        f.width_px = kOuterToHoleSide * std::sqrt(cv::contourArea(contours[h])) / scale;
+        const std::array<cv::Point2f, 4> corners = FourCorners(contours[h]);
+        for (int i = 0; i < 4; ++i) {
+          // The hole's outline runs through the centres of the ring's inner pixels, half a
+          // pixel beyond the hole's edge (0.7 at a corner); the ring's outer edge is a
+          // module (1/5 of the hole's side) beyond that edge.
+          const cv::Point2d d = cv::Point2d(corners[i]) - centre;
+          const double length = std::hypot(d.x, d.y);
+          const cv::Point2d edge = length > 0.7 ? d * ((length - 0.7) / length) : d;
+          f.outer_px[i] = to_full(centre + edge * kOuterToHoleSide);
+        }
+      }
       if (SignedArea(f.outer_px) < 0.0) std::reverse(f.outer_px.begin(), f.outer_px.end());
       found.push_back(f);
       break;
     }
   }
+  // One finder seen twice (an outline joined to neighbouring dark pixels passes the loose
+  // area test, and its hole is found again on its own): the smaller is kept, since a
+  // joined outline only grows.
   std::sort(found.begin(), found.end(),
-            [](const QrFinderPattern& x, const QrFinderPattern& y) { return x.width_px > y.width_px; });
+            [](const QrFinderPattern& x, const QrFinderPattern& y) { return x.width_px < y.width_px; });
+  std::vector<QrFinderPattern> distinct;
+  for (const QrFinderPattern& f : found) {
+    const bool seen = std::any_of(distinct.begin(), distinct.end(), [&f](const QrFinderPattern& d) {
+      return (d.centre_px - f.centre_px).norm() < kSameFinderFraction * d.width_px;
+    });
+    if (!seen) distinct.push_back(f);
+  }
+  found = std::move(distinct);
+  std::stable_sort(found.begin(), found.end(), [](const QrFinderPattern& x, const QrFinderPattern& y) {
+    return x.width_px > y.width_px;
+  });
   if (static_cast<int>(found.size()) > max_patterns) found.resize(max_patterns);
   return found;
 }
@@ -269,10 +347,26 @@ std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& find
   };
   std::vector<Triple> triples;
   const int n = static_cast<int>(finders.size());
+  // Each finder's possible partners first (similar width, within the arm lengths a code
+  // allows): triples are formed only among them, so that a frame's hundred finder-like
+  // quads cost no million triples.
+  std::vector<std::vector<int>> partners(finders.size());
   for (int a = 0; a < n; ++a) {
     for (int b = 0; b < n; ++b) {
-      for (int c = b + 1; c < n; ++c) {
-        if (a == b || a == c) continue;
+      const double wa = finders[a].width_px, wb = finders[b].width_px;
+      if (a == b || std::max(wa, wb) > kMaxWidthRatio * std::min(wa, wb)) continue;
+      const double d = (finders[b].centre_px - finders[a].centre_px).norm();
+      if (d < kMinArmToWidth * std::min(wa, wb) / kMaxWidthRatio ||
+          d > kMaxArmToWidth * std::max(wa, wb) * kMaxWidthRatio) {
+        continue;
+      }
+      partners[a].push_back(b);
+    }
+  }
+  for (int a = 0; a < n; ++a) {
+    for (size_t i = 0; i < partners[a].size(); ++i) {
+      for (size_t j = i + 1; j < partners[a].size(); ++j) {
+        const int b = std::min(partners[a][i], partners[a][j]), c = std::max(partners[a][i], partners[a][j]);
         const double score = TripleScore(finders[a], finders[b], finders[c]);
         if (!std::isfinite(score)) continue;
         const Eigen::Vector2d ab = finders[b].centre_px - finders[a].centre_px;
@@ -299,6 +393,68 @@ std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& find
   return out;
 }
 
+namespace {
+
+double Bilinear(const cv::Mat& gray, const Eigen::Vector2d& p) {
+  const double x = std::clamp(p.x(), 0.0, gray.cols - 1.001), y = std::clamp(p.y(), 0.0, gray.rows - 1.001);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const double fx = x - x0, fy = y - y0;
+  const double a = gray.at<uint8_t>(y0, x0), b = gray.at<uint8_t>(y0, x0 + 1);
+  const double c = gray.at<uint8_t>(y0 + 1, x0), d = gray.at<uint8_t>(y0 + 1, x0 + 1);
+  return (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * c + fx * d);
+}
+
+// True if the quad's profile from each side's middle to its centre reads as a finder's
+// dark ring, light ring and dark centre (modules 0-1, 1-2 and 2-3.5 of the 3.5 from edge to
+// centre): the light ring lighter than both by kMinRingContrast of the quad's contrast
+// (the separator just outside minus the dark ring). AprilTags, DataMatrix symbols, framed
+// or filled boxes are rarely so.
+bool HasFinderProfile(const cv::Mat& gray, const Quad2d& q) {
+  const Eigen::Vector2d centre = QuadCenter(q);
+  double outside = 0.0, ring = 0.0, hole = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector2d mid = 0.5 * (q[k] + q[(k + 1) % 4]);
+    const Eigen::Vector2d inward = centre - mid;  // 3.5 modules
+    outside += Bilinear(gray, mid - inward * (0.5 / 3.5));
+    ring += Bilinear(gray, mid + inward * (0.5 / 3.5));
+    hole += Bilinear(gray, mid + inward * (1.5 / 3.5));
+  }
+  outside /= 4.0, ring /= 4.0, hole /= 4.0;
+  const double middle = Bilinear(gray, centre);
+  const double contrast = outside - ring;
+  return contrast > 0.0 && hole - ring >= kMinRingContrast * contrast &&
+         hole - middle >= kMinRingContrast * contrast;
+}
+
+}  // namespace
+
+std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::vector<DarkQuad>& quads) {
+  const cv::Size image_size = gray.size();
+  std::vector<QrFinderPattern> finders;
+  for (const DarkQuad& q : quads) {
+    int solid = 0;
+    double weakest = 1.0;
+    for (const double dark : q.side_dark) {
+      solid += dark >= kQuadFinderSolid;
+      weakest = std::min(weakest, dark);
+    }
+    if (solid < kQuadFinderSolidSides || weakest < kQuadFinderWeakestSide ||
+        q.interior_spread < kQuadFinderMinSpread)
+      continue;
+    if (!HasFinderProfile(gray, q.corners_px)) continue;
+    QrFinderPattern f;
+    f.centre_px = QuadCenter(q.corners_px);
+    f.width_px = std::sqrt(std::abs(SignedArea(q.corners_px)));
+    f.outer_px = q.corners_px;
+    // Quads come level by level, finest first: a finder already seen is not added again.
+    const bool seen = std::any_of(finders.begin(), finders.end(), [&f](const QrFinderPattern& g) {
+      return (g.centre_px - f.centre_px).norm() < kSameFinderFraction * std::min(g.width_px, f.width_px);
+    });
+    if (!seen && f.width_px > 0.0) finders.push_back(f);
+  }
+  return GroupQrFinders(finders, image_size);
+}
+
 std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate) {
   if (gray.empty() || gray.type() != CV_8UC1 || !(candidate.module_px > 0.0)) return {};
   const double modules = std::clamp(QuadMeanSide(candidate.corners_px) / candidate.module_px, 21.0, 97.0);
@@ -311,6 +467,16 @@ std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCand
       dst = {{float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
   Quad2d quad = candidate.corners_px;
   QrCornerFromFinderEdges(gray, &quad);
+  // The finders' outlines are a binarization's, a pixel or so off on a blurred small code
+  // (a third of a module at 2 px per module: enough to sample the module grid wrongly);
+  // the symbol's own edges place it better, with a first window under a module (the outer
+  // row's light modules leave edges a module inside).
+  RefineOptions refine;
+  refine.search_px = 1.25;
+  refine.search_fraction = 0.035;
+  if (const std::optional<RefinedQuad> refined = RefineQuadCorners(gray, quad, refine)) {
+    quad = refined->corners_px;
+  }
   for (const Eigen::Vector2d& c : quad) src.emplace_back(c.x(), c.y());
   const cv::Mat H_rect_image = cv::getPerspectiveTransform(src, dst);
   cv::Mat rectified;

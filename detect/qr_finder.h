@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "detect/common.h"
+#include "detect/quads.h"
 #include "geometry/types.h"
 
 namespace waymark {
@@ -63,6 +64,17 @@ struct QrCandidate {
 // Candidates whose quad is not valid (QuadIsValid, sides >= 10 px) are dropped.
 std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& finders,
                                         const cv::Size& image_size);
+
+// QR candidates from the shared candidate stage (FindDarkQuads, detect/quads.h), for codes in
+// no candidate region: a finder's dark 7x7 ring is a dark component whose quad has at least
+// two solid sides (>= 85 % dark just inside them; the others >= 20 %: blur or a thin
+// separator joins data modules to it) and a varied inside (the light ring around the dark centre: spread >=
+// 0.2, as SolidBorderQuads; a filled box is even) and a finder's profile in `gray` (from each side's middle
+// to the centre: the light ring lighter than the dark ring and the centre by a tenth of the contrast to the
+// light outside); those quads, as finders (centre, width = square root of the quad's area, outline = the
+// quad), are grouped like FindQrFinderPatterns' (GroupQrFinders). The same finder found at two levels counts
+// once (the finer level's).
+std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::vector<DarkQuad>& quads);
 
 // The bottom-right corner from the symbol's own edges: the intersection of the outer edge
 // of the top-right finder (right side, next to the top-right corner) and of the

@@ -22,6 +22,9 @@ constexpr double kLevelMaxSidePx = 130.0;
 // 92 % of the side.
 constexpr double kInsetFraction = 0.03;
 constexpr double kSolidMin = 0.85;
+// The DataMatrix L's legs: a little less than solid (a blurred leg sampled at the coarse levels,
+// where a module is a pixel or two, reads 80-85 % dark).
+constexpr double kLSolidMin = 0.8;
 constexpr double kDashedMin = 0.15;
 constexpr int kDashedMinRuns = 2;
 constexpr int kRunsForFullScore = 5;
@@ -284,7 +287,7 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
       // Corner k is the L's corner: sides k-1 (ends at k) and k (starts at k) solid, the
       // two others dashed (the timing pattern).
       const int s1 = (k + 3) % 4, s2 = k, t1 = (k + 1) % 4, t2 = (k + 2) % 4;
-      if (q.side_dark[s1] < kSolidMin || q.side_dark[s2] < kSolidMin) continue;
+      if (q.side_dark[s1] < kLSolidMin || q.side_dark[s2] < kLSolidMin) continue;
       if (!Dashed(q.side_dark[t1], q.side_runs[t1]) || !Dashed(q.side_dark[t2], q.side_runs[t2])) continue;
       // The L's solidity, and among orientations of one quad the one whose other two sides
       // alternate most (the timing pattern).

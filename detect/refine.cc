@@ -16,7 +16,11 @@ constexpr int kRansacIterations = 64;
 constexpr double kCentroidLevel = 0.5;   // centroid of the derivative above this fraction of its peak
 constexpr double kHalfBaselinePx = 0.5;  // the derivative is a central difference over 1 px
 constexpr double kBarLobe = 0.15;        // an inner edge at least this fraction of the outer one makes a bar
-constexpr double kMaxBarPx = 3.5;        // wider bars leave the outer edge's centroid unbiased
+constexpr double kMaxBarPx = 3.5;
+// The edge-strength minimum of a dim code: this fraction of its border contrast, not under
+// kMinAdaptiveStep gray levels per px (RefineQuadCorners).
+constexpr double kAdaptiveStepFraction = 0.25;
+constexpr double kMinAdaptiveStep = 4.0;  // wider bars leave the outer edge's centroid unbiased
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
@@ -334,9 +338,44 @@ std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d&
   return std::nullopt;
 }
 
+namespace {
+
+// The code's contrast at its border: the median gray level just outside its sides (2 px
+// out: the quiet zone) minus the lower quartile just inside them (1.5 px in: the dark
+// border, or a dashed side's dark modules). NaN when too few samples fall in the image.
+double BorderContrast(const cv::Mat& gray, const Quad2d& q) {
+  std::vector<double> inside, outside;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d a = q[i], b = q[(i + 1) % 4];
+    const Eigen::Vector2d along = (b - a).normalized();
+    const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
+    for (int k = 1; k < 10; ++k) {
+      const Eigen::Vector2d p = a + 0.1 * k * (b - a);
+      const double in = Bilinear(gray, p.x() - 1.5 * outward.x(), p.y() - 1.5 * outward.y());
+      const double out = Bilinear(gray, p.x() + 2.0 * outward.x(), p.y() + 2.0 * outward.y());
+      if (!std::isnan(in)) inside.push_back(in);
+      if (!std::isnan(out)) outside.push_back(out);
+    }
+  }
+  if (inside.size() < 12 || outside.size() < 12) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(inside.begin(), inside.begin() + inside.size() / 4, inside.end());
+  std::nth_element(outside.begin(), outside.begin() + outside.size() / 2, outside.end());
+  return outside[outside.size() / 2] - inside[inside.size() / 4];
+}
+
+}  // namespace
+
 std::optional<RefinedQuad> RefineQuadCorners(const cv::Mat& gray, const Quad2d& corners_px,
-                                             const RefineOptions& options) {
+                                             const RefineOptions& options_in) {
   if (gray.empty() || gray.type() != CV_8UC1) return std::nullopt;
+  // A dim code (low light: a contrast of 30-60 gray levels) has edges whose step over 1 px
+  // is under the usual minimum: the minimum scales down with the border's contrast.
+  RefineOptions options = options_in;
+  const double contrast = BorderContrast(gray, corners_px);
+  if (std::isfinite(contrast)) {
+    options.min_step =
+        std::min(options.min_step, std::max(kMinAdaptiveStep, kAdaptiveStepFraction * contrast));
+  }
   // The first window scales with the symbol (decoders can be off by most of a module on
   // rotated symbols) and stays well inside it: a sixth of the shortest side at most.
   double shortest = std::numeric_limits<double>::infinity();

@@ -7,11 +7,13 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
 #include "detect/detector.h"
+#include "detect/quads.h"
 #include "detect/synthetic.h"
 #include "detect/zxing.h"
 
@@ -120,6 +122,80 @@ TEST(DetectQrFinder, ObliqueVersionOneCodeIsRead) {
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "0/5/2.5");
   EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.5);
+}
+
+// A finder whose dark ring touches other dark pixels (a bar, or under blur the data modules):
+// the ring's outline is no square, but the light ring inside it still closes around the
+// centre, and the finder is found by its hole.
+TEST(DetectQrFinder, FinderFoundByItsHoleWhenItsRingTouchesADarkBar) {
+  const SymbolImage symbol = QrSymbol("0/2/10");
+  const int n = symbol.symbol.width;  // 21 modules
+  cv::Mat image = Canvas();
+  const Quad2d truth = MakeQuad({320.0, 240.0}, 147.0, 0.0);  // 7 px per module, axis-aligned
+  DrawSymbol(symbol, truth, &image);
+  // A bar from the left reaching 2 px into the top-left finder's ring.
+  const Eigen::Vector2d ring = SymbolPoint(truth, n, 0.0, 3.5);
+  cv::rectangle(image, cv::Point(int(ring.x()) - 60, int(ring.y()) - 8),
+                cv::Point(int(ring.x()) + 2, int(ring.y()) + 8), cv::Scalar(30), cv::FILLED);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(image, kWhole);
+  ASSERT_EQ(finders.size(), 3u);
+  double nearest = 1e9;
+  const Eigen::Vector2d top_left = SymbolPoint(truth, n, 3.5, 3.5);
+  for (const QrFinderPattern& f : finders) {
+    if ((f.centre_px - top_left).norm() < nearest) {
+      nearest = (f.centre_px - top_left).norm();
+      EXPECT_NEAR(f.width_px, 7.0 * 7.0, 0.2 * 7.0 * 7.0);
+    }
+  }
+  EXPECT_LT(nearest, 0.5);
+  ASSERT_EQ(GroupQrFinders(finders, image.size()).size(), 1u);
+}
+
+// The image of a square of side `side_px` (head-on) tilted by `tilt_deg` about an in-plane
+// axis at `axis_rad`, seen by a pinhole camera of focal length 1000 px at 1000 units.
+Quad2d TiltedSquare(const Eigen::Vector2d& centre, double side_px, double roll_rad, double tilt_deg,
+                    double axis_rad) {
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(tilt_deg * M_PI / 180.0, Eigen::Vector3d(std::cos(axis_rad), std::sin(axis_rad), 0.0))
+          .toRotationMatrix() *
+      Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const double h = 0.5 * side_px;
+  const Eigen::Vector3d local[4] = {{-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}};
+  Quad2d quad;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d p = R * local[i] + Eigen::Vector3d(0, 0, 1000.0);
+    quad[i] = centre + 1000.0 * Eigen::Vector2d(p.x() / p.z(), p.y() / p.z());
+  }
+  return quad;
+}
+
+// A small tilted version-1 code (2.1 px per module across its short side) among boxes and
+// frames, as the recall bench's clutter: the dark-quad stage gives it as a candidate (the
+// few candidate regions need not hold it), the boxes give none, and the detector reads it
+// with sub-pixel corners.
+TEST(DetectQrFinder, SmallTiltedCodeAmongBoxesIsACandidateFromDarkQuads) {
+  cv::Mat image = Canvas(1280, 960);
+  cv::RNG rng(7);
+  for (int i = 0; i < 40; ++i) {
+    const cv::Rect box(rng.uniform(0, 1200), rng.uniform(0, 900), rng.uniform(15, 120), rng.uniform(15, 120));
+    if ((box & cv::Rect(560, 380, 160, 160)).area() > 0) continue;
+    cv::rectangle(image, box, cv::Scalar(rng.uniform(20, 80)), rng.uniform(0, 2) ? cv::FILLED : 3);
+  }
+  const SymbolImage symbol = QrSymbol("r/235/12.5");
+  ASSERT_EQ(symbol.symbol.width, 21);
+  const Quad2d truth = TiltedSquare({640.0, 460.0}, 58.0, 0.4, 40.0, 1.1);
+  DrawSymbol({cv::Mat(1, 1, CV_8U, cv::Scalar(255)), cv::Rect(0, 0, 1, 1)},
+             TiltedSquare({640.0, 460.0}, 87.0, 0.4, 40.0, 1.1), &image, 20, 225);
+  DrawSymbol(symbol, truth, &image, 30, 225);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  const std::vector<QrCandidate> candidates = QrCandidatesFromQuads(image, FindDarkQuads(image, 6.0));
+  ASSERT_EQ(candidates.size(), 1u);
+  EXPECT_LT((QuadCenter(candidates[0].corners_px) - QuadCenter(truth)).norm(), 0.2 * QuadMeanSide(truth));
+  const std::vector<MarkerObservation> found = CreateDetector("qr", Generous())->Detect(image);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].key.id, "r/235/12.5");
+  EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.3);
 }
 
 TEST(DetectQrFinder, NoCandidateWithoutThreeFinders) {

@@ -65,6 +65,24 @@ TEST(DetectQuads, SmallAndLargeSymbolsAreCandidates) {
   }
 }
 
+// The L's legs count from 80 % dark: a blurred symbol found at a coarse level, where a
+// module is a pixel or two, reads a leg 80-85 % dark (the recall bench's 62 px symbol at
+// 1/4 resolution: 0.82 and 1.00). A leg under 80 % is no L.
+TEST(DetectQuads, BlurredLegAtACoarseLevelStillMakesAnL) {
+  DarkQuad q;
+  q.corners_px = {Eigen::Vector2d(100, 100), Eigen::Vector2d(160, 100), Eigen::Vector2d(160, 160),
+                  Eigen::Vector2d(100, 160)};
+  q.side_dark = {0.5, 0.55, 1.0, 0.82};  // top, right dashed; bottom, left the L
+  q.side_runs = {5, 4, 1, 1};
+  q.scale = 0.25;
+  const std::vector<DataMatrixCandidate> candidates = DataMatrixCandidates({q}, 4);
+  ASSERT_EQ(candidates.size(), 1u);
+  // The L's corner (bottom-left of the quad) is the upright symbol's bottom-left.
+  EXPECT_LT((candidates[0].corners_px[3] - Eigen::Vector2d(100, 160)).norm(), 1e-9);
+  q.side_dark[3] = 0.78;
+  EXPECT_TRUE(DataMatrixCandidates({q}, 4).empty());
+}
+
 TEST(DetectQuads, AprilTagBorderIsASolidQuadAndFilledBoxesAreNot) {
   cv::Mat image = Canvas();
   const Quad2d tag = MakeQuad({200.0, 240.0}, 60.0, 0.4, 0.8);
