@@ -190,6 +190,32 @@ uint64_t PixelHash(const cv::Mat& gray) {
 
 std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px);
 
+// `dark` without its isolated pixels (no dark pixel among the 8 around them): sensor noise
+// leaves thousands of them in a binarized frame, and tracing each one was most of
+// cv::findContours' time. A lone pixel is a component of its own (8-connected, as
+// findContours joins dark pixels) far under any minimum side, and removing it joins or
+// splits no other component, so the contours kept are exactly those of `dark`.
+cv::Mat WithoutIsolatedPixels(const cv::Mat& dark) {
+  cv::Mat out = dark.clone();
+  const int rows = dark.rows, cols = dark.cols;
+  for (int y = 0; y < rows; ++y) {
+    const uint8_t* above = dark.ptr<uint8_t>(std::max(y - 1, 0));
+    const uint8_t* row = dark.ptr<uint8_t>(y);
+    const uint8_t* below = dark.ptr<uint8_t>(std::min(y + 1, rows - 1));
+    uint8_t* o = out.ptr<uint8_t>(y);
+    for (int x = 0; x < cols; ++x) {
+      if (row[x] == 0) continue;
+      const int x0 = std::max(x - 1, 0), x1 = std::min(x + 1, cols - 1);
+      bool neighbour = false;
+      for (int k = x0; k <= x1 && !neighbour; ++k) {
+        neighbour = (y > 0 && above[k] != 0) || (y + 1 < rows && below[k] != 0) || (k != x && row[k] != 0);
+      }
+      if (!neighbour) o[x] = 0;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px) {
@@ -232,7 +258,8 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
                           kDarkerBy);
     std::vector<std::vector<cv::Point>> contours;
     std::vector<cv::Vec4i> hierarchy;
-    cv::findContours(dark, contours, hierarchy, cv::RETR_CCOMP, cv::CHAIN_APPROX_SIMPLE);
+    cv::findContours(WithoutIsolatedPixels(dark), contours, hierarchy, cv::RETR_CCOMP,
+                     cv::CHAIN_APPROX_SIMPLE);
     const double min_side = std::max(8.0, min_side_px * scale);
     const bool last_level = scale == kLevelScales[std::size(kLevelScales) - 1];
     for (size_t i = 0; i < contours.size(); ++i) {
