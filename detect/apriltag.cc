@@ -71,7 +71,7 @@ class AprilTagDetector : public MarkerDetector {
     apriltag_detector_add_family_bits(detector_, tag_family_, options.apriltag_max_bits_corrected);
     detector_->quad_decimate = static_cast<float>(options.apriltag_decimate);
     detector_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
-    detector_->nthreads = options.threads;
+    detector_->nthreads = 1;  // threads: the multi-family detector's (detect/detector.h)
     detector_->refine_edges = true;
     detector_->qtp.min_white_black_diff = kWholeFrameMinContrast;
     full_resolution_ = apriltag_detector_create();

@@ -171,23 +171,6 @@ std::vector<T> Deduplicate(const std::vector<T>& sorted, int max_count, QuadOf q
   return kept;
 }
 
-// A 64-bit hash of the image's pixels (multiply-xor over 8-byte words, then the tail).
-uint64_t PixelHash(const cv::Mat& gray) {
-  uint64_t h = 1469598103934665603ull ^ (static_cast<uint64_t>(gray.cols) << 32) ^ gray.rows;
-  for (int y = 0; y < gray.rows; ++y) {
-    const uint8_t* row = gray.ptr<uint8_t>(y);
-    int x = 0;
-    for (; x + 8 <= gray.cols; x += 8) {
-      uint64_t word;
-      std::memcpy(&word, row + x, 8);
-      h = (h ^ word) * 0x9E3779B97F4A7C15ull;
-      h ^= h >> 29;
-    }
-    for (; x < gray.cols; ++x) h = (h ^ row[x]) * 1099511628211ull;
-  }
-  return h;
-}
-
 std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px);
 
 // `dark` without its isolated pixels (no dark pixel among the 8 around them): sensor noise
@@ -220,23 +203,10 @@ cv::Mat WithoutIsolatedPixels(const cv::Mat& dark) {
 
 std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px) {
   CV_Assert(gray.type() == CV_8UC1);
-  // The families of one frame (DataMatrix, AprilTag) share one run: the last result of this
-  // thread is kept with the image's size, min_side_px and a hash of every pixel, and given
-  // again for the same pixels (so it is the result a new run would give).
-  struct Cache {
-    cv::Size size;
-    double min_side_px = -1.0;
-    uint64_t hash = 0;
-    std::vector<DarkQuad> quads;
-  };
-  thread_local Cache cache;
-  const uint64_t hash = PixelHash(gray);
-  if (cache.size == gray.size() && cache.min_side_px == min_side_px && cache.hash == hash) return cache.quads;
-  cache.quads = ComputeDarkQuads(gray, min_side_px);
-  cache.size = gray.size();
-  cache.min_side_px = min_side_px;
-  cache.hash = hash;
-  return cache.quads;
+  // The families of one frame (DataMatrix, AprilTag) share one run, also on different
+  // threads (PerImageCache: keyed by the pixels, so it is the result a new run would give).
+  static PerImageCache<std::vector<DarkQuad>> cache;
+  return cache.Get(gray, min_side_px, [&gray, min_side_px] { return ComputeDarkQuads(gray, min_side_px); });
 }
 
 namespace {
