@@ -50,6 +50,11 @@ class LiveInput {
   RealtimePacer pacer_;
   long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;
   long images_ = 0, shed_images_ = 0, skipped_attempts_ = 0;  // image lines; those that shed work
+  // Where the map says (runner/predicted_regions.h): images detected in the predicted regions
+  // only and on the whole frame; their CPU time (ms, every thread of the process).
+  PredictedRegionPolicy region_policy_;
+  long region_images_ = 0, whole_images_ = 0;
+  double region_cpu_ms_ = 0.0, whole_cpu_ms_ = 0.0;
 };
 
 }  // namespace waymark
