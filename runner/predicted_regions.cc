@@ -10,7 +10,8 @@ namespace waymark {
 
 bool PredictedRegionOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(full_frame_every >= 1, "full_frame_every must be >= 1");
-  WAYMARK_CHECK_OPTION(margin_fraction >= 0.0 && std::isfinite(margin_fraction), "margin_fraction must be >= 0");
+  WAYMARK_CHECK_OPTION(margin_fraction >= 0.0 && std::isfinite(margin_fraction),
+                       "margin_fraction must be >= 0");
   WAYMARK_CHECK_OPTION(min_margin_px >= 0.0 && std::isfinite(min_margin_px), "min_margin_px must be >= 0");
   return true;
 }
@@ -31,7 +32,8 @@ std::vector<cv::Rect> PredictedRegions(const std::vector<Vector8d>& quads_px, co
       y1 = std::max(y1, y);
     }
     if (!finite) continue;
-    const double margin = std::max(options.min_margin_px, options.margin_fraction * std::max(x1 - x0, y1 - y0));
+    const double margin =
+        std::max(options.min_margin_px, options.margin_fraction * std::max(x1 - x0, y1 - y0));
     // Clamped before the conversion to int (a prediction far off the image).
     const auto clamp = [](double v, int hi) { return static_cast<int>(std::clamp(v, -1.0, hi + 1.0)); };
     const cv::Rect box(cv::Point(clamp(std::floor(x0 - margin), image_size.width),
@@ -71,8 +73,7 @@ std::vector<MarkerObservation> DetectInRegions(MarkerDetector& detector, const c
 
 bool PredictedRegionPolicy::WholeFrame(const std::string& camera, bool tracking) {
   const auto it = since_whole_.find(camera);
-  const bool whole = it == since_whole_.end() || !tracking ||
-                     it->second + 1 >= options_.full_frame_every;
+  const bool whole = it == since_whole_.end() || !tracking || it->second + 1 >= options_.full_frame_every;
   since_whole_[camera] = whole ? 0 : it->second + 1;
   return whole;
 }

@@ -15,9 +15,9 @@
 #include <tuple>
 #include <vector>
 
-#include "tests/cli/cli_test_util.h"
 #include "io/dataset_io.h"
 #include "io/tum_io.h"
+#include "tests/cli/cli_test_util.h"
 
 namespace waymark {
 namespace {
@@ -38,7 +38,8 @@ class LiveRegionsCliTest : public CliTest {
       std::ostringstream line;
       line.precision(17);
       line << "{\"t\": " << pose.stamp_s << ", \"T_odom_robot\": {\"t\": [" << t.x() << ", " << t.y() << ", "
-           << t.z() << "], \"q_xyzw\": [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w() << "]}}";
+           << t.z() << "], \"q_xyzw\": [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w()
+           << "]}}";
       lines.emplace_back(pose.stamp_s, 0, line.str());
     }
     const Dataset dataset = LoadDataset(run);
@@ -95,8 +96,8 @@ class LiveRegionsCliTest : public CliTest {
 TEST_F(LiveRegionsCliTest, PredictedRegionsKeepTheAccuracyOfWholeFrames) {
   const std::string input = WriteLiveInput();
   const fs::path run = fs::path(WAYMARK_SOURCE_DIR) / "data" / "demo" / "run";
-  const std::string base = "localize " + run.string() + " --map " + (run / "groundtruth" / "markers.json").string() +
-                           " --live --detect-budget-ms 0";
+  const std::string base = "localize " + run.string() + " --map " +
+                           (run / "groundtruth" / "markers.json").string() + " --live --detect-budget-ms 0";
   const RunResult whole = RunWaymark(base + " --full-frame-every 1", dir_, input);
   ASSERT_EQ(whole.exit_code, 0) << whole.err;
   EXPECT_NE(whole.err.find("detection: 0 images in the map's predicted regions only"), std::string::npos)
@@ -112,7 +113,8 @@ TEST_F(LiveRegionsCliTest, PredictedRegionsKeepTheAccuracyOfWholeFrames) {
   ASSERT_GE(a.poses, 70);
   EXPECT_EQ(b.poses, a.poses);
   EXPECT_GE(b.corrected, a.corrected);
-  EXPECT_LE(b.rms_m, a.rms_m * 1.05 + 1e-4) << "whole frames " << a.rms_m << " m, regions " << b.rms_m << " m";
+  EXPECT_LE(b.rms_m, a.rms_m * 1.05 + 1e-4)
+      << "whole frames " << a.rms_m << " m, regions " << b.rms_m << " m";
 }
 
 TEST_F(LiveRegionsCliTest, BadFullFrameEveryIsAOneLineError) {
@@ -120,12 +122,12 @@ TEST_F(LiveRegionsCliTest, BadFullFrameEveryIsAOneLineError) {
   const std::string map = (run / "groundtruth" / "markers.json").string();
   const fs::path empty = dir_ / "empty.jsonl";
   std::ofstream(empty).close();
-  const RunResult zero =
-      RunWaymark("localize " + run.string() + " --map " + map + " --live --full-frame-every 0", dir_, empty.string());
+  const RunResult zero = RunWaymark(
+      "localize " + run.string() + " --map " + map + " --live --full-frame-every 0", dir_, empty.string());
   EXPECT_EQ(zero.exit_code, 1);
   EXPECT_NE(zero.err.find("--full-frame-every: expected 1..1000000, got 0"), std::string::npos) << zero.err;
-  const RunResult offline = Run("localize " + run.string() + " --map " + map + " --out " + (dir_ / "x.tum").string() +
-                                " --full-frame-every 5");
+  const RunResult offline = Run("localize " + run.string() + " --map " + map + " --out " +
+                                (dir_ / "x.tum").string() + " --full-frame-every 5");
   EXPECT_EQ(offline.exit_code, 1);
   EXPECT_NE(offline.err.find("--full-frame-every applies to --live only"), std::string::npos) << offline.err;
 }

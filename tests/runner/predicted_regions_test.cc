@@ -23,7 +23,8 @@ TEST(PredictedRegions, GrowClipAndMerge) {
   PredictedRegionOptions options;  // half the side, at least 24 px
   const cv::Size image(640, 480);
   // A 100 px code: 50 px around it; a 20 px code: 24 px.
-  std::vector<cv::Rect> regions = PredictedRegions({Square(200, 200, 100), Square(500, 50, 20)}, image, options);
+  std::vector<cv::Rect> regions =
+      PredictedRegions({Square(200, 200, 100), Square(500, 50, 20)}, image, options);
   ASSERT_EQ(regions.size(), 2u);
   EXPECT_EQ(regions[0], cv::Rect(cv::Point(150, 150), cv::Point(351, 351)));
   EXPECT_EQ(regions[1], cv::Rect(cv::Point(476, 26), cv::Point(545, 95)));
@@ -34,7 +35,8 @@ TEST(PredictedRegions, GrowClipAndMerge) {
   ASSERT_EQ(regions.size(), 1u);
   EXPECT_EQ(regions[0], cv::Rect(cv::Point(0, 370), cv::Point(640, 480)) & cv::Rect(0, 0, 71, 480));
   // Overlapping boxes become their union, also through a third one.
-  regions = PredictedRegions({Square(100, 100, 60), Square(300, 100, 60), Square(190, 100, 60)}, image, options);
+  regions =
+      PredictedRegions({Square(100, 100, 60), Square(300, 100, 60), Square(190, 100, 60)}, image, options);
   ASSERT_EQ(regions.size(), 1u);
   EXPECT_EQ(regions[0], cv::Rect(cv::Point(70, 70), cv::Point(391, 191)));
   std::string why;
