@@ -226,15 +226,15 @@ std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const Candi
   return kept;
 }
 
-std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates) {
+std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates, bool close_up) {
   // QR and DataMatrix ask for the same frame's regions: one computation (PerImageCache).
   static PerImageCache<std::vector<cv::Rect>> cache;
-  return cache.Get(gray, max_candidates, [&gray, max_candidates] {
+  return cache.Get(gray, max_candidates + (close_up ? 0.5 : 0.0), [&gray, max_candidates, close_up] {
     CandidateOptions options;
     options.max_regions = max_candidates;
     std::vector<cv::Rect> regions;
     // A close-up first: its code may fill the image and its candidates be parts of it.
-    if (gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
+    if (close_up && gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
     for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
     return regions;
   });

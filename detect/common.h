@@ -71,9 +71,10 @@ bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect);
 // convention kept (scaling is about pixel edges: (p + 0.5) / scale - 0.5).
 void MapFromCrop(const cv::Point& offset, double scale, std::vector<MarkerObservation>* observations);
 
-// The regions a second pass tries: the whole image when it has at most 640x480 pixels (a
-// close-up: the code may fill it, leaving no blob boundary), then FindCodeCandidates.
-std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates);
+// The regions a second pass tries: the whole image when it has at most 640x480 pixels and
+// `close_up` (DetectorOptions::close_up: the code may fill it, leaving no blob boundary), then
+// FindCodeCandidates.
+std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates, bool close_up = true);
 
 // One way of decoding a crop: returns observations with corners in crop pixels.
 using CropAttempt = std::function<std::vector<MarkerObservation>(const cv::Mat& crop)>;

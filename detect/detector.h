@@ -47,6 +47,11 @@ struct DetectorOptions {
   // DataMatrix: Waymark's own candidates (L finder + timing pattern, detect/quads.h)
   // rectified and decoded per frame, best first.
   int max_datamatrix_candidates = 16;
+  // Close-ups: an image of at most 640x480 is itself the first second-pass region (the code may
+  // fill it, leaving no blob boundary) and QR's WeChat decoder reads it. Off for crops of a
+  // larger frame (the live loop's predicted regions, runner/predicted_regions.h), which are not
+  // close-ups: there these attempts cost milliseconds per region holding no readable code.
+  bool close_up = true;
   // Live loops only (`waymark localize --live`): when > 0, second-pass attempts stop once
   // the frame has taken this much wall-clock time, and each attempt not run is counted
   // (MarkerDetector::SkippedAttempts). 0 (the default, and every offline command): no

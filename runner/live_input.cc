@@ -116,8 +116,14 @@ void LiveInput::HandleLine(const std::string& line) {
 void LiveInput::HandleImage(const std::string& camera, const std::string& path, double stamp_s) {
   if (!dataset_.cameras.count(camera))
     throw std::invalid_argument("camera: '" + camera + "' is not in the dataset");
-  if (!detector_)
+  if (!detector_) {
     detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), options_.detector);
+    DetectorOptions regions = options_.detector;
+    regions.close_up = false;  // a region is a crop of the frame, not a close-up photo
+    region_detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), regions);
+    regions.second_pass = false;
+    region_first_pass_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), regions);
+  }
   const auto start = std::chrono::steady_clock::now();
   const double cpu_start = FrameClock::ProcessCpuMs();
   std::string why;
@@ -137,9 +143,9 @@ void LiveInput::HandleImage(const std::string& camera, const std::string& path, 
     frame.markers = detector_->Detect(image);
     skipped = detector_->SkippedAttempts();
   } else {
-    const std::vector<cv::Rect> regions =
+    const std::vector<PredictedRegion> regions =
         PredictedRegions(stream_.PredictedQuads(camera, stamp_s), image.size(), region_policy_.options());
-    frame.markers = DetectInRegions(*detector_, image, regions, &skipped);
+    frame.markers = DetectInRegions(*region_first_pass_, *region_detector_, image, regions, &skipped);
   }
   const double cpu_ms = FrameClock::ProcessCpuMs() - cpu_start;
   (whole ? whole_cpu_ms_ : region_cpu_ms_) += cpu_ms;

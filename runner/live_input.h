@@ -45,7 +45,9 @@ class LiveInput {
   std::ostream& out_;
   std::ostream& err_;
   LocalizeStream stream_;
-  std::unique_ptr<MarkerDetector> detector_;  // created at the first image line
+  std::unique_ptr<MarkerDetector> detector_;           // created at the first image line
+  std::unique_ptr<MarkerDetector> region_detector_;    // the same without close-ups (regions)
+  std::unique_ptr<MarkerDetector> region_first_pass_;  // and without second passes
   ReadWarnings read_warnings_;
   RealtimePacer pacer_;
   long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;

@@ -16,10 +16,11 @@ bool PredictedRegionOptions::Check(std::string* why) const {
   return true;
 }
 
-std::vector<cv::Rect> PredictedRegions(const std::vector<Vector8d>& quads_px, const cv::Size& image_size,
-                                       const PredictedRegionOptions& options) {
+std::vector<PredictedRegion> PredictedRegions(const std::vector<Vector8d>& quads_px,
+                                              const cv::Size& image_size,
+                                              const PredictedRegionOptions& options) {
   const cv::Rect image(0, 0, image_size.width, image_size.height);
-  std::vector<cv::Rect> boxes;
+  std::vector<PredictedRegion> boxes;
   for (const Vector8d& px : quads_px) {
     double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
     bool finite = true;
@@ -41,15 +42,16 @@ std::vector<cv::Rect> PredictedRegions(const std::vector<Vector8d>& quads_px, co
                        cv::Point(clamp(std::ceil(x1 + margin) + 1, image_size.width),
                                  clamp(std::ceil(y1 + margin) + 1, image_size.height)));
     const cv::Rect clipped = box & image;
-    if (clipped.area() > 0) boxes.push_back(clipped);
+    if (clipped.area() > 0) boxes.push_back({clipped, 1});
   }
   // Overlapping boxes merged (repeatedly: a union can reach a third box).
   for (bool merged = true; merged;) {
     merged = false;
     for (size_t i = 0; i < boxes.size() && !merged; ++i) {
       for (size_t j = i + 1; j < boxes.size() && !merged; ++j) {
-        if ((boxes[i] & boxes[j]).area() > 0) {
-          boxes[i] |= boxes[j];
+        if ((boxes[i].rect & boxes[j].rect).area() > 0) {
+          boxes[i].rect |= boxes[j].rect;
+          boxes[i].codes += boxes[j].codes;
           boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(j));
           merged = true;
         }
@@ -59,13 +61,18 @@ std::vector<cv::Rect> PredictedRegions(const std::vector<Vector8d>& quads_px, co
   return boxes;
 }
 
-std::vector<MarkerObservation> DetectInRegions(MarkerDetector& detector, const cv::Mat& image,
-                                               const std::vector<cv::Rect>& regions, int* skipped) {
+std::vector<MarkerObservation> DetectInRegions(MarkerDetector& first_pass, MarkerDetector& full,
+                                               const cv::Mat& image,
+                                               const std::vector<PredictedRegion>& regions, int* skipped) {
   std::vector<MarkerObservation> all;
-  for (const cv::Rect& region : regions) {
-    std::vector<MarkerObservation> found = detector.Detect(image(region));
-    if (skipped != nullptr) *skipped += detector.SkippedAttempts();
-    MapFromCrop(region.tl(), 1.0, &found);
+  for (const PredictedRegion& region : regions) {
+    const cv::Mat crop = image(region.rect);
+    std::vector<MarkerObservation> found = first_pass.Detect(crop);
+    if (static_cast<int>(found.size()) < region.codes) {
+      found = full.Detect(crop);
+      if (skipped != nullptr) *skipped += full.SkippedAttempts();
+    }
+    MapFromCrop(region.rect.tl(), 1.0, &found);
     AppendUnique(found, &all);
   }
   return all;

@@ -29,18 +29,30 @@ struct PredictedRegionOptions {
   bool Check(std::string* why) const;
 };
 
+// A region to detect in and the number of predicted codes it holds.
+struct PredictedRegion {
+  cv::Rect rect;
+  int codes = 0;
+  bool operator==(const PredictedRegion& o) const { return rect == o.rect && codes == o.codes; }
+};
+
 // The regions to detect in: each predicted quad's bounding box (corners x0 y0 ... x3 y3, as
 // ExpectedCode::px) grown by the margin, clipped to the image; boxes that overlap are merged
 // into their union (one detection per region, a code never cut in two), in the order given.
 // Boxes entirely outside the image, and quads with a non-finite corner, are dropped.
-std::vector<cv::Rect> PredictedRegions(const std::vector<Vector8d>& quads_px, const cv::Size& image_size,
-                                       const PredictedRegionOptions& options);
+std::vector<PredictedRegion> PredictedRegions(const std::vector<Vector8d>& quads_px,
+                                              const cv::Size& image_size,
+                                              const PredictedRegionOptions& options);
 
-// Runs `detector` on each region of `image` and returns the codes in full-image pixels
-// (duplicates dropped; a code found by two regions is reported once). `skipped` (optional)
-// adds the attempts the detector skipped under its live budget.
-std::vector<MarkerObservation> DetectInRegions(MarkerDetector& detector, const cv::Mat& image,
-                                               const std::vector<cv::Rect>& regions, int* skipped = nullptr);
+// Runs `first_pass` (a detector with DetectorOptions::second_pass off) on each region of
+// `image`, and `full` (second passes on) on a region where it found fewer codes than were
+// predicted there; returns the codes in full-image pixels (duplicates dropped; a code found by
+// two regions is reported once). A region whose codes the first passes read costs no second
+// pass. `skipped` (optional) adds the attempts `full` skipped under its live budget.
+std::vector<MarkerObservation> DetectInRegions(MarkerDetector& first_pass, MarkerDetector& full,
+                                               const cv::Mat& image,
+                                               const std::vector<PredictedRegion>& regions,
+                                               int* skipped = nullptr);
 
 // Per camera: whether the next frame is detected on the whole image or in the predicted
 // regions, and the counts the live summary reports.
