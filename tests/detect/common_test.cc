@@ -178,6 +178,17 @@ TEST(DetectCommon, PerImageCacheComputesOncePerImage) {
   EXPECT_THROW(cache.Get(other, 1.0, []() -> int { throw std::runtime_error("boom"); }), std::runtime_error);
 }
 
+// A close-up (at most 640x480) is itself the first second-pass region unless close_up is off
+// (a crop of a larger frame: the live loop's predicted regions).
+TEST(DetectCommon, CloseUpRegionOnlyForCloseUps) {
+  cv::Mat image(240, 320, CV_8U, cv::Scalar(200));
+  DrawSymbol(QrSymbol("close"), MakeQuad({160.0, 120.0}, 150.0, 0.2), &image);
+  const std::vector<cv::Rect> with = SecondPassRegions(image, 8, true);
+  ASSERT_FALSE(with.empty());
+  EXPECT_EQ(with[0], cv::Rect(0, 0, 320, 240));
+  for (const cv::Rect& r : SecondPassRegions(image, 8, false)) EXPECT_NE(r, cv::Rect(0, 0, 320, 240));
+}
+
 TEST(DetectCommon, IdsAreAlwaysValidUtf8) {
   EXPECT_EQ(TextToId("plain"), "plain");
   EXPECT_EQ(TextToId("caf\xc3\xa9"), "caf\xc3\xa9");
