@@ -9,12 +9,15 @@
 //     (one full-image pass); detections on falsepositives-1 with qr+datamatrix+apriltag;
 //   - per family and 0, 1, 4 codes per frame: median and max wall time and mean thread
 //     CPU time of Detect() over synthetic frames (cluttered background, fixed seed), and
-//     the codes decoded.
+//     the codes decoded;
+//   - all three families at once (CreateMultiDetector) on 1 and 2 threads, the codes of the
+//     three families mixed: mean CPU time of the process per frame, median wall time.
 // Then Google Benchmark runs the same frames (BM_Detect/<family>/<codes>) unless
 // --report-only is given.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -145,7 +148,8 @@ SymbolImage Symbol(const std::string& family, int i) {
   return AprilTagSymbol(family, i);
 }
 
-// `codes` codes of `family` at fixed places, sizes 150-210 px, rotations 0.1-2.6 rad.
+// `codes` codes of `family` ("mixed": qr, datamatrix, apriltag-36h11 in turn) at fixed places, sizes 150-210
+// px, rotations 0.1-2.6 rad.
 cv::Mat Frame(const std::string& family, int codes) {
   cv::Mat frame = Background(17);
   const Eigen::Vector2d centers[4] = {{300, 260}, {960, 250}, {330, 700}, {950, 690}};
@@ -154,7 +158,8 @@ cv::Mat Frame(const std::string& family, int codes) {
     // A white card behind each code (quiet zone), as printed codes have.
     DrawSymbol({cv::Mat(1, 1, CV_8U, cv::Scalar(255)), cv::Rect(0, 0, 1, 1)},
                MakeQuad(centers[i], 1.4 * (150.0 + 20 * i), 0.1 + 0.8 * i, 0.9), &frame);
-    DrawSymbol(Symbol(family, i), quad, &frame);
+    DrawSymbol(Symbol(family == "mixed" ? kTimedFamilies[i % kTimedFamilies.size()] : family, i), quad,
+               &frame);
   }
   cv::GaussianBlur(frame, frame, cv::Size(0, 0), 0.6);
   cv::Mat noise(frame.size(), CV_16S), wide;
@@ -196,6 +201,34 @@ nlohmann::json TimeFamily(const std::string& family, int codes, int repeats) {
           {"repeats", repeats}};
 }
 
+// All three families at once (CreateMultiDetector) on `threads` threads: mean CPU time per frame
+// of the whole process (every thread; with one thread that is the thread's), median wall time.
+nlohmann::json TimeAllFamilies(int codes, int threads, int repeats) {
+  cv::Mat frame = Frame("mixed", codes);
+  DetectorOptions options;
+  options.threads = threads;
+  auto detector = CreateMultiDetector(kTimedFamilies, options);
+  std::vector<double> wall_ms;
+  double cpu_ms = 0.0;
+  size_t found = 0;
+  for (int r = 0; r < repeats; ++r) {
+    frame.at<uint8_t>(0, 0) = static_cast<uint8_t>(r);  // a new frame (as in TimeFamily)
+    const auto start = std::chrono::steady_clock::now();
+    const double cpu_start = FrameClock::ProcessCpuMs();
+    found = detector->Detect(frame).size();
+    cpu_ms += FrameClock::ProcessCpuMs() - cpu_start;
+    wall_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  }
+  std::sort(wall_ms.begin(), wall_ms.end());
+  const double median = wall_ms[wall_ms.size() / 2];
+  std::cout << "  all families, " << codes << " codes, " << threads << " thread(s): median wall " << median
+            << " ms, mean CPU " << cpu_ms / repeats << " ms, decoded " << found << "/" << codes << "\n";
+  return {{"codes", codes},           {"threads", threads},
+          {"median_wall_ms", median}, {"mean_cpu_ms", cpu_ms / repeats},
+          {"decoded", found},         {"repeats", repeats}};
+}
+
 void Report() {
   nlohmann::json out;
   double load[3] = {0, 0, 0};
@@ -213,6 +246,10 @@ void Report() {
   std::cout << "Synthetic 1280x960 frames, one thread (load average " << load[0] << "):\n";
   for (const std::string& family : kTimedFamilies) {
     for (int codes : {0, 1, 4}) out["timing"].push_back(TimeFamily(family, codes, 15));
+  }
+  std::cout << "All families at once (qr, datamatrix, apriltag-36h11; the codes mixed):\n";
+  for (int threads : {1, 2}) {
+    for (int codes : {0, 1, 4}) out["all_families"].push_back(TimeAllFamilies(codes, threads, 15));
   }
   const fs::path json = fs::path(WAYMARK_SOURCE_DIR) / "bench" / "results" / "detection.json";
   AtomicWriteFile(json, out.dump(2) + "\n");

@@ -25,6 +25,7 @@
 
 #include "cli/args.h"
 #include "cli/command.h"
+#include "cli/dataset_detect.h"
 #include "detect/detector.h"
 #include "eval/association.h"
 #include "eval/detection_check.h"
@@ -48,7 +49,7 @@ namespace {
 namespace fs = std::filesystem;
 using eval::Json;
 
-constexpr const char* kUsage = R"(Usage: waymark demo [--data DIR] [--out DIR] [--families LIST]
+constexpr const char* kUsage = R"(Usage: waymark demo [--data DIR] [--out DIR] [--families LIST] [--threads N]
 
 The whole pipeline on the small dataset shipped with Waymark (data/demo: a rendered survey of a
 corridor loop and a separate run through the same place, both with ground truth):
@@ -70,6 +71,8 @@ Options:
                    survey_detections.jsonl, run_detections.jsonl, run_loose.tum, run_ours.tum,
                    run_*_predicted.tum, map.svg, run_odometry.svg, run_loose.svg, run_ours.svg
   --families LIST  code families to detect (default: the families of the survey's markers.json)
+  --threads N      detection threads per image: the families at the same time (default: the
+                   machine's cores; the results do not depend on N)
 )";
 
 // ---------------------------------------------------------------- finding the data
@@ -142,8 +145,10 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 // Detects the codes of every image of `dataset` and makes them its detections.
-long DetectImages(Dataset* dataset, const std::vector<std::string>& families) {
-  const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(families);
+long DetectImages(Dataset* dataset, const std::vector<std::string>& families, int threads) {
+  DetectorOptions options;
+  options.threads = threads;
+  const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(families, options);
   const auto progress = TerminalProgress();
   std::vector<DetectionFrame> frames;
   long codes = 0;
@@ -250,6 +255,7 @@ Method EvaluateOdometry(const Trajectory& gt, const Trajectory& odometry, const 
 struct DemoResult {
   fs::path data_dir;
   std::vector<std::string> families;
+  int detect_threads = 1;  // --threads
   Dataset survey, run;
   long survey_codes = 0, run_codes = 0;
   std::optional<eval::DetectionCheck> survey_check, run_check;
@@ -469,7 +475,7 @@ std::vector<std::pair<std::string, std::string>> RenderOutputs(const DemoResult&
 void DetectAndMap(DemoResult* r) {
   auto start = std::chrono::steady_clock::now();
   Log("detecting the codes in " + std::to_string(r->survey.images.size()) + " survey images");
-  r->survey_codes = DetectImages(&r->survey, r->families);
+  r->survey_codes = DetectImages(&r->survey, r->families, r->detect_threads);
   r->survey_check = CheckDetections(r->survey);
   Log(std::to_string(r->survey_codes) + " codes detected in " + FormatFixed(SecondsSince(start), 1) + " s");
   start = std::chrono::steady_clock::now();
@@ -486,7 +492,7 @@ void DetectAndMap(DemoResult* r) {
 void DetectAndLocalize(DemoResult* r) {
   auto start = std::chrono::steady_clock::now();
   Log("detecting the codes in " + std::to_string(r->run.images.size()) + " run images");
-  r->run_codes = DetectImages(&r->run, r->families);
+  r->run_codes = DetectImages(&r->run, r->families, r->detect_threads);
   r->run_check = CheckDetections(r->run);
   Log(std::to_string(r->run_codes) + " codes detected in " + FormatFixed(SecondsSince(start), 1) + " s");
   start = std::chrono::steady_clock::now();
@@ -501,7 +507,7 @@ void DetectAndLocalize(DemoResult* r) {
 }
 
 int RunDemo(const std::vector<std::string>& argv) {
-  const Args args(argv, {"data", "out", "families"}, {});
+  const Args args(argv, {"data", "out", "families", "threads"}, {});
   if (args.Help()) {
     std::cout << kUsage;
     return 0;
@@ -517,6 +523,7 @@ int RunDemo(const std::vector<std::string>& argv) {
   const MarkerMap known = r.survey.known_markers.value_or(MarkerMap());
   r.families = DetectionFamilies(
       known, args.Has("families") ? ParseFamilyList(*args.Get("families")) : std::vector<std::string>());
+  r.detect_threads = DetectionThreads(args);
   DetectAndMap(&r);
   DetectAndLocalize(&r);
   r.seconds = SecondsSince(start);

@@ -96,6 +96,12 @@ Options:
                       passes (QR, DataMatrix, AprilTag) stop (default 25; 0: no limit); the
                       attempts skipped are counted in the summary. Offline (dataset mode) detection
                       never reads a clock: its results depend on the images alone.
+  --full-frame-every N       live, image lines: while tracking, detect only where the map
+                      predicts its codes (each predicted code's box grown by half its side, at
+                      least 24 px; no code predicted in view: nothing to detect), and on the
+                      whole frame every N-th frame per camera and whenever the track is not
+                      tracking (default 10; 1: always the whole frame). The summary gives the
+                      CPU time per image of both kinds.
 )";
 
 const std::set<std::string> kValues = {"map",
@@ -108,6 +114,7 @@ const std::set<std::string> kValues = {"map",
                                        "odometry-time-offset",
                                        "late-frame-window",
                                        "detect-budget-ms",
+                                       "full-frame-every",
                                        "start-pose"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
@@ -274,6 +281,7 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
 int RunDataset(const Args& args) {
   args.Require("out");
   if (args.Has("detect-budget-ms")) throw std::invalid_argument("--detect-budget-ms applies to --live only");
+  if (args.Has("full-frame-every")) throw std::invalid_argument("--full-frame-every applies to --live only");
   args.ExpectDistinctOutputs({"out", "predicted", "poses"});
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
@@ -303,6 +311,11 @@ int RunLive(const Args& args) {
   if (const auto budget = args.GetDouble("detect-budget-ms")) {
     if (!(*budget >= 0.0)) throw std::invalid_argument("--detect-budget-ms: expected a value >= 0");
     options.detector.live_budget_ms = *budget;
+  }
+  if (const auto n = args.GetInt("full-frame-every")) {
+    if (*n < 1 || *n > 1000000)
+      throw std::invalid_argument("--full-frame-every: expected 1..1000000, got " + std::to_string(*n));
+    options.predicted_regions.full_frame_every = static_cast<int>(*n);
   }
   LiveInput live(dataset, map, options, std::cout, std::cerr);
   live.Run(std::cin);

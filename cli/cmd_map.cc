@@ -80,7 +80,8 @@ Options (build, merge):
   --report FILE       the summary as JSON: components, reprojection per camera (RMS, median),
                       every rejected observation (code, stamp, camera, reason) and their counts
                       by reason and by code, unmapped codes, time and peak memory per phase
-  --threads N         solver threads (default 2)
+  --threads N         solver threads (default 2); with --detect-images also the detection
+                      threads per image (default: the machine's cores; same detections for any N)
   --no-covariance     skip the marker covariances
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
   --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
@@ -153,7 +154,8 @@ void PrepareSurvey(const Args& args, Dataset* dataset) {
   }
   const std::vector<std::string> families =
       args.Has("families") ? ParseFamilyList(*args.Get("families")) : std::vector<std::string>{};
-  PrepareDetectionsForMapping(args.Flag("detect-images"), families, dataset);
+  PrepareDetectionsForMapping(args.Flag("detect-images"), families, dataset,
+                              args.Flag("detect-images") ? DetectionThreads(args) : 1);
 }
 
 // DATASET with the detections the build uses.

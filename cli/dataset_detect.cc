@@ -4,6 +4,7 @@
 #include <iostream>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
+#include <thread>
 
 #include "cli/command.h"
 #include "runner/image.h"
@@ -51,13 +52,23 @@ std::vector<DetectionFrame> DetectDatasetImages(const Dataset& dataset, MarkerDe
   return frames;
 }
 
+int DetectionThreads(const Args& args) {
+  const auto n = args.GetInt("threads");
+  if (!n) return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 256u));
+  if (*n < 1 || *n > 256)
+    throw std::invalid_argument("--threads: expected 1..256, got " + std::to_string(*n));
+  return static_cast<int>(*n);
+}
+
 void PrepareDetectionsForMapping(bool detect_images, const std::vector<std::string>& families,
-                                 Dataset* dataset) {
+                                 Dataset* dataset, int threads) {
   const std::string where = "dataset " + dataset->dir.string();
   if (detect_images) {
     const std::vector<std::string> used =
         families.empty() ? ParseFamilyList(kDefaultDetectFamilies) : families;
-    const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(used, DetectorOptions{});
+    DetectorOptions options;
+    options.threads = threads;
+    const std::unique_ptr<MarkerDetector> detector = CreateMultiDetector(used, options);
     std::function<void(size_t, size_t)> progress;
     if (StderrIsTerminal()) {
       progress = [](size_t done, size_t total) {

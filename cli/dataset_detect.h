@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/args.h"
 #include "detect/detector.h"
 #include "io/dataset_io.h"
 
@@ -14,6 +15,12 @@ namespace waymark::cli {
 
 // The families `waymark detect` and `--detect-images` detect unless told otherwise.
 inline constexpr const char* kDefaultDetectFamilies = "qr,datamatrix,apriltag-36h11";
+
+// `--threads N` of the commands that detect (`detect`, `map build --detect-images`, `demo`):
+// the multi-family detector's threads per frame (DetectorOptions::threads), by default the
+// machine's cores. The detections do not depend on it. Throws std::invalid_argument for N
+// outside 1..256.
+int DetectionThreads(const Args& args);
 
 // Throws std::runtime_error naming `what` when the image's size differs from the camera's.
 void CheckImageMatchesCamera(const cv::Mat& image, const CameraInfo& camera, const std::string& what);
@@ -34,8 +41,8 @@ std::vector<DetectionFrame> DetectDatasetImages(
 // The dataset's detections, checked for use by a map build: with `detect_images`, detected on
 // its images (families as given, or every supported family); without, its detections.jsonl.
 // Throws std::runtime_error naming the dataset when there is nothing to map: only images and
-// no `--detect-images`, or not one code detected.
+// no `--detect-images`, or not one code detected. `threads`: DetectorOptions::threads.
 void PrepareDetectionsForMapping(bool detect_images, const std::vector<std::string>& families,
-                                 Dataset* dataset);
+                                 Dataset* dataset, int threads = 1);
 
 }  // namespace waymark::cli

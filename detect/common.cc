@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
@@ -16,6 +17,39 @@ namespace waymark {
 double FrameClock::ThreadCpuMs() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+uint64_t PixelHash(const cv::Mat& gray) {
+  CV_Assert(gray.depth() == CV_8U);
+  const uint64_t kMul = 0x9E3779B97F4A7C15ull;
+  uint64_t lane[4] = {1469598103934665603ull ^ (static_cast<uint64_t>(gray.cols) << 32) ^ uint64_t(gray.rows),
+                      0x243F6A8885A308D3ull, 0x13198A2E03707344ull, 0xA4093822299F31D0ull};
+  const int bytes = gray.cols * static_cast<int>(gray.elemSize());
+  for (int y = 0; y < gray.rows; ++y) {
+    const uint8_t* row = gray.ptr<uint8_t>(y);
+    int x = 0;
+    for (; x + 32 <= bytes; x += 32) {
+      for (int k = 0; k < 4; ++k) {
+        uint64_t word;
+        std::memcpy(&word, row + x + 8 * k, 8);
+        lane[k] = (lane[k] ^ word) * kMul;
+        lane[k] ^= lane[k] >> 29;
+      }
+    }
+    for (; x < bytes; ++x) lane[0] = (lane[0] ^ row[x]) * 1099511628211ull;
+  }
+  uint64_t h = lane[0];
+  for (int k = 1; k < 4; ++k) {
+    h = (h ^ lane[k]) * kMul;
+    h ^= h >> 31;
+  }
+  return h;
+}
+
+double FrameClock::ProcessCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
@@ -192,14 +226,18 @@ std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const Candi
   return kept;
 }
 
-std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates) {
-  CandidateOptions options;
-  options.max_regions = max_candidates;
-  std::vector<cv::Rect> regions;
-  // A close-up first: its code may fill the image and its candidates be parts of it.
-  if (gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
-  for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
-  return regions;
+std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates, bool close_up) {
+  // QR and DataMatrix ask for the same frame's regions: one computation (PerImageCache).
+  static PerImageCache<std::vector<cv::Rect>> cache;
+  return cache.Get(gray, max_candidates + (close_up ? 0.5 : 0.0), [&gray, max_candidates, close_up] {
+    CandidateOptions options;
+    options.max_regions = max_candidates;
+    std::vector<cv::Rect> regions;
+    // A close-up first: its code may fill the image and its candidates be parts of it.
+    if (close_up && gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
+    for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
+    return regions;
+  });
 }
 
 namespace {

@@ -62,7 +62,8 @@ class DataMatrixDetector : public MarkerDetector {
       // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
       // a symbol touching other dark things): zxing on the candidate regions holding no
       // symbol yet, then on small ones upscaled.
-      const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
+      const std::vector<cv::Rect> regions =
+          SecondPassRegions(gray, options_.max_candidates, options_.close_up);
       RunSecondPass(
           gray, regions,
           {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },

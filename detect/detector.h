@@ -47,6 +47,11 @@ struct DetectorOptions {
   // DataMatrix: Waymark's own candidates (L finder + timing pattern, detect/quads.h)
   // rectified and decoded per frame, best first.
   int max_datamatrix_candidates = 16;
+  // Close-ups: an image of at most 640x480 is itself the first second-pass region (the code may
+  // fill it, leaving no blob boundary) and QR's WeChat decoder reads it. Off for crops of a
+  // larger frame (the live loop's predicted regions, runner/predicted_regions.h), which are not
+  // close-ups: there these attempts cost milliseconds per region holding no readable code.
+  bool close_up = true;
   // Live loops only (`waymark localize --live`): when > 0, second-pass attempts stop once
   // the frame has taken this much wall-clock time, and each attempt not run is counted
   // (MarkerDetector::SkippedAttempts). 0 (the default, and every offline command): no
@@ -60,7 +65,12 @@ struct DetectorOptions {
   double apriltag_decimate = 4.0;
   double apriltag_blur_sigma = 0.0;  // quad_sigma
   int apriltag_max_bits_corrected = 1;
-  int threads = 1;  // libapriltag worker threads
+  // Worker threads of one Detect() call of a multi-family detector (CreateMultiDetector): its
+  // families run at the same time, sharing the frame's whole-frame work (the candidate stage
+  // and regions are computed once, whichever family asks first). The result is the same for
+  // any count: each family's work depends on the image alone and the families' results are
+  // merged in the order of the list. libapriltag itself always runs on one thread.
+  int threads = 1;
 
   // True if usable; otherwise false with the reason in *why (when why != nullptr).
   bool Check(std::string* why) const;
@@ -88,8 +98,9 @@ std::vector<std::string> SupportedFamilies();
 std::unique_ptr<MarkerDetector> CreateDetector(const std::string& family,
                                                const DetectorOptions& options = {});
 
-// One detector running several families on each image; duplicates (same key, same place)
-// are dropped. Throws like CreateDetector, and for an empty or repeated family list.
+// One detector running several families on each image (on up to options.threads threads at
+// once, the same result for any count); duplicates (same key, same place) are dropped. Throws like
+// CreateDetector, and for an empty or repeated family list.
 std::unique_ptr<MarkerDetector> CreateMultiDetector(const std::vector<std::string>& families,
                                                     const DetectorOptions& options = {});
 

@@ -1,9 +1,12 @@
 // DetectorOptions::Check, the family list and the factories of detect/detector.h.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include "detect/apriltag.h"
 #include "detect/common.h"
@@ -43,8 +46,8 @@ void CheckOptions(const DetectorOptions& options) {
 
 class MultiDetector : public MarkerDetector {
  public:
-  explicit MultiDetector(std::vector<std::unique_ptr<MarkerDetector>> detectors)
-      : detectors_(std::move(detectors)) {}
+  MultiDetector(std::vector<std::unique_ptr<MarkerDetector>> detectors, int threads)
+      : detectors_(std::move(detectors)), threads_(threads) {}
 
   std::vector<std::string> Families() const override {
     std::vector<std::string> families;
@@ -56,11 +59,34 @@ class MultiDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);  // convert once for every family
+    // Each family on whichever worker takes it next (one detector is never used by two
+    // threads at once); the results are merged in the families' order, so the output does
+    // not depend on the thread count or on which thread finished first.
+    const size_t n = detectors_.size();
+    std::vector<std::vector<MarkerObservation>> found(n);
+    std::vector<int> skipped(n, 0);
+    std::vector<std::exception_ptr> errors(n);
+    std::atomic<size_t> next{0};
+    const auto work = [&] {
+      for (size_t i = next++; i < n; i = next++) {
+        try {
+          found[i] = detectors_[i]->Detect(gray);
+          skipped[i] = detectors_[i]->SkippedAttempts();
+        } catch (...) {
+          errors[i] = std::current_exception();
+        }
+      }
+    };
+    std::vector<std::thread> helpers;
+    for (size_t t = 1; t < std::min<size_t>(threads_, n); ++t) helpers.emplace_back(work);
+    work();
+    for (std::thread& t : helpers) t.join();
     std::vector<MarkerObservation> all;
     skipped_ = 0;
-    for (const auto& d : detectors_) {
-      AppendUnique(d->Detect(gray), &all);
-      skipped_ += d->SkippedAttempts();
+    for (size_t i = 0; i < n; ++i) {
+      if (errors[i]) std::rethrow_exception(errors[i]);
+      AppendUnique(found[i], &all);
+      skipped_ += skipped[i];
     }
     return all;
   }
@@ -69,6 +95,7 @@ class MultiDetector : public MarkerDetector {
 
  private:
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;
+  int threads_ = 1;
   int skipped_ = 0;
 };
 
@@ -99,7 +126,7 @@ std::unique_ptr<MarkerDetector> CreateMultiDetector(const std::vector<std::strin
       throw std::invalid_argument("marker family '" + family + "' given twice");
     detectors.push_back(CreateDetector(family, options));
   }
-  return std::make_unique<MultiDetector>(std::move(detectors));
+  return std::make_unique<MultiDetector>(std::move(detectors), options.threads);
 }
 
 std::vector<std::string> ParseFamilyList(const std::string& comma_separated) {

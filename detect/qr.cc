@@ -159,10 +159,12 @@ class QrDetector : public MarkerDetector {
           // WeChat costs milliseconds per crop: only for close-ups, where the crop is the
           // whole image (pass 1 and the cheap attempts read codes in larger frames).
           [this, full = gray.size()](const cv::Mat& crop) {
-            return crop.size() == full ? ReadWeChat(crop) : std::vector<MarkerObservation>{};
+            return options_.close_up && crop.size() == full ? ReadWeChat(crop)
+                                                            : std::vector<MarkerObservation>{};
           },
       };
-      const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates);
+      const std::vector<cv::Rect> regions =
+          SecondPassRegions(gray, options_.max_candidates, options_.close_up);
       ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &work, &found);
       ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, &work, &found);
       RunSecondPass(gray, regions, attempts, &work, &found);

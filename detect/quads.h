@@ -48,11 +48,11 @@ struct DataMatrixCandidate {
   double score = 0.0;
 };
 
-// The quads with two adjacent solid sides (>= 85 % dark) and two dashed ones (15-85 % dark,
-// at least 2 dark runs), best first, at most `max_candidates`, duplicates (a centre within
-// half a side of a better one, e.g. the same symbol at two levels) dropped. The top-right
-// corner is the L's parallelogram completion unless the hull's corner is within 8 % of a
-// side of it (light modules near that corner can leave the dark component well short).
+// The quads with a varied interior (spread >= 0.3: the data modules), two adjacent solid sides
+// (>= 85 % dark) and two dashed ones (15-85 % dark, at least 2 dark runs), best first, at most
+// `max_candidates`, duplicates (a centre within half a side of a better one, e.g. the same symbol at two
+// levels) dropped. The top-right corner is the L's parallelogram completion unless the hull's corner is
+// within 8 % of a side of it (light modules near that corner can leave the dark component well short).
 std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates);
 
 // Rectifies a candidate onto a small upright patch (side 48-140 px and a 30 % quiet zone,

@@ -240,6 +240,14 @@ bool Localizer::PlanarResolvesAmbiguity(const Camera& camera, const MapMarker& m
   return trans_m < 1e-3 && rot_rad < 1e-3;
 }
 
+std::vector<ExpectedCode> Localizer::PredictCodesInView(
+    const std::string& camera, const std::optional<VisibilityOptions>& visibility) const {
+  const auto it = cameras_.find(camera);
+  if (it == cameras_.end() || !HasTrack()) return {};
+  return PredictExpectedCodes(state_, it->second, map_, code_index_, visibility.value_or(options_.visibility),
+                              component_);
+}
+
 FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   FrameResult result;
   const std::optional<double> previous_s = last_stamp_s_;

@@ -255,6 +255,12 @@ class Localizer {
   FrameResult AddDetections(const DetectionFrame& detections);
 
   PoseOutput Output() const;
+  // The map's codes the current state puts in `camera`'s view (online/visibility.h, step 1),
+  // for a detector that looks where the map says first (the live loop, runner/
+  // predicted_regions.h), under `visibility` (by default the localizer's own options: the
+  // negative-evidence test's). Empty without a track, or for a camera not in the dataset.
+  std::vector<ExpectedCode> PredictCodesInView(const std::string& camera,
+                                               const std::optional<VisibilityOptions>& visibility = {}) const;
   TrackingStatus tracking() const { return tracking_; }
   const EkfState& state() const { return state_; }
   const LocalizerCounters& counters() const { return counters_; }

@@ -6,8 +6,11 @@
 #include <stdexcept>
 #include <vector>
 
+#include "detect/common.h"
 #include "io/detections_io.h"
 #include "io/json_util.h"
+#include "runner/image.h"
+#include "util/format.h"
 
 namespace waymark {
 
@@ -18,6 +21,7 @@ LiveInput::LiveInput(const Dataset& dataset, const MarkerMap& map, const Localiz
       options_(options),
       out_(out),
       err_(err),
+      region_policy_(options.predicted_regions),
       stream_(dataset, map, options, [this](const LocalizeStream::FrameOutput& output) { Write(output); }) {}
 
 void LiveInput::Run(std::istream& in) {
@@ -51,6 +55,11 @@ void LiveInput::PrintSummary(std::ostream& out) const {
     out << "detection: " << images_ << " images, " << shed_images_ << " shed work under the "
         << options_.detector.live_budget_ms << " ms budget (" << skipped_attempts_
         << " second-pass attempts skipped)\n";
+    const auto mean = [](double sum, long n) { return FormatFixed(n > 0 ? sum / n : 0.0, 2); };
+    out << "detection: " << region_images_ << " images in the map's predicted regions only (CPU "
+        << mean(region_cpu_ms_, region_images_) << " ms mean), " << whole_images_
+        << " on the whole frame (CPU " << mean(whole_cpu_ms_, whole_images_) << " ms mean); all images: CPU "
+        << mean(region_cpu_ms_ + whole_cpu_ms_, images_) << " ms mean\n";
   }
   for (const std::string& warning : stream_.warnings().Lines()) out << "warning: " << warning << "\n";
   if (!pacer_.Summary().empty()) out << "warning: " << pacer_.Summary() << "\n";
@@ -107,18 +116,45 @@ void LiveInput::HandleLine(const std::string& line) {
 void LiveInput::HandleImage(const std::string& camera, const std::string& path, double stamp_s) {
   if (!dataset_.cameras.count(camera))
     throw std::invalid_argument("camera: '" + camera + "' is not in the dataset");
-  if (!detector_)
+  if (!detector_) {
     detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), options_.detector);
+    DetectorOptions regions = options_.detector;
+    regions.close_up = false;  // a region is a crop of the frame, not a close-up photo
+    region_detector_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), regions);
+    regions.second_pass = false;
+    region_first_pass_ = CreateMultiDetector(DetectionFamilies(map_, options_.families), regions);
+  }
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start = FrameClock::ProcessCpuMs();
   std::string why;
-  const std::optional<DetectionFrame> frame = DetectImageFile(*detector_, path, stamp_s, camera, &why);
-  if (!frame) throw std::invalid_argument(why);
+  const cv::Mat image = ReadImageFile(path, &why);
+  if (image.empty()) throw std::invalid_argument(why);
+  DetectionFrame frame;
+  frame.stamp_s = stamp_s;
+  frame.camera = camera;
+  frame.image = path;
+  // Where the map says first (runner/predicted_regions.h): the codes the localizer puts in
+  // this camera's view, each in its predicted region; the whole frame every N frames, when the
+  // track is not sure, or when the regions gave nothing.
+  const bool whole =
+      region_policy_.WholeFrame(camera, stream_.localizer().tracking() == TrackingStatus::kTracking);
+  int skipped = 0;
+  if (whole) {
+    frame.markers = detector_->Detect(image);
+    skipped = detector_->SkippedAttempts();
+  } else {
+    const std::vector<PredictedRegion> regions =
+        PredictedRegions(stream_.PredictedQuads(camera, stamp_s), image.size(), region_policy_.options());
+    frame.markers = DetectInRegions(*region_first_pass_, *region_detector_, image, regions, &skipped);
+  }
+  const double cpu_ms = FrameClock::ProcessCpuMs() - cpu_start;
+  (whole ? whole_cpu_ms_ : region_cpu_ms_) += cpu_ms;
+  ++(whole ? whole_images_ : region_images_);
   ++images_;
-  const int skipped = detector_->SkippedAttempts();
   shed_images_ += skipped > 0;
   skipped_attempts_ += skipped;
   stream_.AddFrame(
-      *frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+      frame, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
 }
 
 }  // namespace waymark

@@ -45,11 +45,18 @@ class LiveInput {
   std::ostream& out_;
   std::ostream& err_;
   LocalizeStream stream_;
-  std::unique_ptr<MarkerDetector> detector_;  // created at the first image line
+  std::unique_ptr<MarkerDetector> detector_;           // created at the first image line
+  std::unique_ptr<MarkerDetector> region_detector_;    // the same without close-ups (regions)
+  std::unique_ptr<MarkerDetector> region_first_pass_;  // and without second passes
   ReadWarnings read_warnings_;
   RealtimePacer pacer_;
   long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;
   long images_ = 0, shed_images_ = 0, skipped_attempts_ = 0;  // image lines; those that shed work
+  // Where the map says (runner/predicted_regions.h): images detected in the predicted regions
+  // only and on the whole frame; their CPU time (ms, every thread of the process).
+  PredictedRegionPolicy region_policy_;
+  long region_images_ = 0, whole_images_ = 0;
+  double region_cpu_ms_ = 0.0, whole_cpu_ms_ = 0.0;
 };
 
 }  // namespace waymark

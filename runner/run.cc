@@ -101,6 +101,7 @@ bool LocalizeRunOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(std::isfinite(odometry_time_offset_s),
                        "localize options: odometry_time_offset_s must be finite");
   WAYMARK_CHECK_OPTION(!detect_images || detector.Check(why), nullptr);
+  WAYMARK_CHECK_OPTION(predicted_regions.Check(why), nullptr);
   return true;
 }
 
@@ -253,6 +254,32 @@ void LocalizeStream::FeedOdometryBefore(double stamp_s, bool inclusive) {
     last_odometry_ = sample;
     odometry_.pop_front();
   }
+}
+
+std::vector<Vector8d> LocalizeStream::PredictedQuads(const std::string& camera, double stamp_s) const {
+  if (!localizer_.state().mean().allFinite() || localizer_.tracking() == TrackingStatus::kUninitialized)
+    return {};
+  Localizer ahead = localizer_;
+  std::optional<StampedSE3> last = last_odometry_;
+  for (const StampedSE3& sample : odometry_) {
+    if (sample.stamp_s > stamp_s) {
+      if (last && last->stamp_s < stamp_s) {
+        const double a = (stamp_s - last->stamp_s) / (sample.stamp_s - last->stamp_s);
+        ahead.AddOdometry(stamp_s, InterpolateScrew(last->T, sample.T, a));
+      }
+      break;
+    }
+    ahead.AddOdometry(sample.stamp_s, sample.T);
+    last = sample;
+  }
+  // Codes near the image's border count too (the negative-evidence test leaves them out: a
+  // miss there says little), and any chance of being in view is enough to look.
+  VisibilityOptions visibility = options_.localizer.visibility;
+  visibility.border_px = 0.0;
+  visibility.min_in_view = 1e-3;
+  std::vector<Vector8d> quads;
+  for (const ExpectedCode& code : ahead.PredictCodesInView(camera, visibility)) quads.push_back(code.px);
+  return quads;
 }
 
 // Brings the odometry to the frame's instant (interpolated between the recorded samples around

@@ -37,6 +37,7 @@
 #include "geometry/pose.h"
 #include "geometry/types.h"
 #include "online/localizer.h"
+#include "runner/predicted_regions.h"
 
 namespace waymark {
 
@@ -45,7 +46,10 @@ struct LocalizeRunOptions {
   bool detect_images = false;         // detect on images.csv instead of reading detections.jsonl
   std::vector<std::string> families;  // for images; empty: the map's families
   DetectorOptions detector;           // for images
-  bool realtime = false;              // pace the input by its timestamps (sleeps)
+  // Live image lines: detect in the regions where the localizer predicts mapped codes, on the
+  // whole frame every N frames or when the track is not sure (runner/predicted_regions.h).
+  PredictedRegionOptions predicted_regions;
+  bool realtime = false;                             // pace the input by its timestamps (sleeps)
   std::function<void(const std::string&)> progress;  // "frame 120/1335, tracking 97.5 %"
   // A map of another place: once `map_check_frames` frames with codes showing at least
   // `map_check_codes` distinct codes were seen and none of them is in the map, the run stops
@@ -166,6 +170,10 @@ class LocalizeStream {
   void Flush();
 
   const Localizer& localizer() const { return localizer_; }
+  // Where the map's codes should appear in `camera`'s image at `stamp_s` (their predicted
+  // corners, online/visibility.h): the localizer's state carried forward by the odometry received
+  // up to that instant (on a copy: the stream itself is not moved). Empty without a track.
+  std::vector<Vector8d> PredictedQuads(const std::string& camera, double stamp_s) const;
   const RunWarnings& warnings() const { return warnings_; }
   long frames_with_codes() const { return frames_with_codes_; }
   long frames_with_map_codes() const { return frames_with_map_codes_; }

@@ -4,9 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "detect/detector.h"
 #include "detect/refine.h"
@@ -124,6 +127,66 @@ TEST(DetectCommon, MultiDetectorReadsEveryFamilyInOneImage) {
   std::set<std::string> keys;
   for (const auto& obs : found) keys.insert(obs.key.ToString());
   EXPECT_EQ(keys, (std::set<std::string>{"qr:q-1", "datamatrix:d-2", "apriltag-36h11:3"}));
+}
+
+// Issue 14: the families on two threads give the same observations, in the same order, as
+// on one.
+TEST(DetectCommon, MultiDetectorOnTwoThreadsGivesTheSameResult) {
+  cv::Mat image(480, 1280, CV_8U, cv::Scalar(190));
+  DrawSymbol(QrSymbol("q-7"), MakeQuad({220.0, 240.0}, 120.0, 0.5, 0.8), &image);
+  DrawSymbol(DataMatrixSymbol("d-8"), MakeQuad({640.0, 240.0}, 100.0, 0.8, 0.9), &image);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", 9), MakeQuad({1060.0, 240.0}, 40.0, 0.2), &image);
+  DetectorOptions options;
+  const auto one = CreateMultiDetector({"qr", "datamatrix", "apriltag-36h11"}, options);
+  options.threads = 2;
+  const auto two = CreateMultiDetector({"qr", "datamatrix", "apriltag-36h11"}, options);
+  const auto a = one->Detect(image);
+  ASSERT_EQ(a.size(), 3u);
+  for (int run = 0; run < 3; ++run) {
+    const auto b = two->Detect(image);
+    ASSERT_EQ(b.size(), a.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(b[i].key, a[i].key);
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(b[i].corners_px[k], a[i].corners_px[k]);
+    }
+  }
+}
+
+// The shared whole-frame work: computed once per image content, also when asked from several
+// threads at once; other pixels or another key compute anew.
+TEST(DetectCommon, PerImageCacheComputesOncePerImage) {
+  PerImageCache<int> cache;
+  std::atomic<int> computed{0};
+  cv::Mat image(64, 80, CV_8U, cv::Scalar(7));
+  const auto compute = [&computed] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    return ++computed;
+  };
+  std::vector<std::thread> threads;
+  std::vector<int> got(4, 0);
+  for (int i = 0; i < 4; ++i) threads.emplace_back([&, i] { got[i] = cache.Get(image, 1.0, compute); });
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(computed.load(), 1);
+  for (int g : got) EXPECT_EQ(g, 1);
+  EXPECT_EQ(cache.Get(image, 2.0, compute), 2);  // another key
+  image.at<uint8_t>(63, 79) = 8;                 // the same buffer drawn on
+  EXPECT_EQ(cache.Get(image, 1.0, compute), 3);
+  EXPECT_EQ(cache.Get(image, 1.0, compute), 3);
+  EXPECT_NE(PixelHash(image), PixelHash(cv::Mat(64, 80, CV_8U, cv::Scalar(7))));
+  // A computation that throws passes its exception to the caller.
+  cv::Mat other(10, 10, CV_8U, cv::Scalar(1));
+  EXPECT_THROW(cache.Get(other, 1.0, []() -> int { throw std::runtime_error("boom"); }), std::runtime_error);
+}
+
+// A close-up (at most 640x480) is itself the first second-pass region unless close_up is off
+// (a crop of a larger frame: the live loop's predicted regions).
+TEST(DetectCommon, CloseUpRegionOnlyForCloseUps) {
+  cv::Mat image(240, 320, CV_8U, cv::Scalar(200));
+  DrawSymbol(QrSymbol("close"), MakeQuad({160.0, 120.0}, 150.0, 0.2), &image);
+  const std::vector<cv::Rect> with = SecondPassRegions(image, 8, true);
+  ASSERT_FALSE(with.empty());
+  EXPECT_EQ(with[0], cv::Rect(0, 0, 320, 240));
+  for (const cv::Rect& r : SecondPassRegions(image, 8, false)) EXPECT_NE(r, cv::Rect(0, 0, 320, 240));
 }
 
 TEST(DetectCommon, IdsAreAlwaysValidUtf8) {
