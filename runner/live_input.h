@@ -44,6 +44,7 @@ class LiveInput {
   LocalizeRunOptions options_;
   std::ostream& out_;
   std::ostream& err_;
+  PredictedRegionPolicy region_policy_;  // before stream_, whose frames it serves
   LocalizeStream stream_;
   std::unique_ptr<MarkerDetector> detector_;           // created at the first image line
   std::unique_ptr<MarkerDetector> region_detector_;    // the same without close-ups (regions)
@@ -54,7 +55,6 @@ class LiveInput {
   long images_ = 0, shed_images_ = 0, skipped_attempts_ = 0;  // image lines; those that shed work
   // Where the map says (runner/predicted_regions.h): images detected in the predicted regions
   // only and on the whole frame; their CPU time (ms, every thread of the process).
-  PredictedRegionPolicy region_policy_;
   long region_images_ = 0, whole_images_ = 0;
   double region_cpu_ms_ = 0.0, whole_cpu_ms_ = 0.0;
 };
