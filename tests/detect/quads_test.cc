@@ -75,6 +75,7 @@ TEST(DetectQuads, BlurredLegAtACoarseLevelStillMakesAnL) {
   q.side_dark = {0.5, 0.55, 1.0, 0.82};  // top, right dashed; bottom, left the L
   q.side_runs = {5, 4, 1, 1};
   q.scale = 0.25;
+  q.interior_spread = 0.5;  // a symbol's varied inside (DataMatrix candidates need >= 0.3)
   const std::vector<DataMatrixCandidate> candidates = DataMatrixCandidates({q}, 4);
   ASSERT_EQ(candidates.size(), 1u);
   // The L's corner (bottom-left of the quad) is the upright symbol's bottom-left.
