@@ -34,55 +34,44 @@
 
 namespace waymark {
 
-class ExtrinsicMarkerReprojectionFactor {
+// The robot's pose from its block: SE(3), or [x y theta] lifted to z = 0 when Planar.
+template <bool Planar, typename T>
+SE3T<T> SE3TFromRobotBlock(const T* block) {
+  if constexpr (Planar) {
+    return SE3TFromSE2Block(block);
+  } else {
+    return SE3TFromBlock(block);
+  }
+}
+
+template <bool Planar>
+class MountMarkerReprojectionFactor {
  public:
   // Throws std::invalid_argument on bad input (see CornerObservation).
-  ExtrinsicMarkerReprojectionFactor(const CameraInfo& camera, double size_m,
-                                    const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
+  MountMarkerReprojectionFactor(const CameraInfo& camera, double size_m,
+                                const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
       : observation_(camera, size_m, corners_px, sigma_px) {}
 
   template <typename T>
   bool operator()(const T* const T_world_robot, const T* const T_robot_camera, const T* const T_world_marker,
                   T* residuals) const {
-    const SE3T<T> T_world_camera = SE3TFromBlock(T_world_robot) * SE3TFromBlock(T_robot_camera);
+    const SE3T<T> T_world_camera = SE3TFromRobotBlock<Planar>(T_world_robot) * SE3TFromBlock(T_robot_camera);
     return observation_.Residuals(T_world_camera.inverse() * SE3TFromBlock(T_world_marker), residuals);
   }
 
   static ceres::CostFunction* Create(const CameraInfo& camera, double size_m,
                                      const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px) {
-    return new ceres::AutoDiffCostFunction<ExtrinsicMarkerReprojectionFactor, 8, kSE3BlockSize, kSE3BlockSize,
-                                           kSE3BlockSize>(
-        new ExtrinsicMarkerReprojectionFactor(camera, size_m, corners_px, sigma_px));
+    return new ceres::AutoDiffCostFunction < MountMarkerReprojectionFactor, 8,
+           Planar ? kSE2BlockSize : kSE3BlockSize, kSE3BlockSize,
+           kSE3BlockSize > (new MountMarkerReprojectionFactor(camera, size_m, corners_px, sigma_px));
   }
 
  private:
   const CornerObservation observation_;
 };
 
-class PlanarExtrinsicMarkerReprojectionFactor {
- public:
-  // Throws std::invalid_argument on bad input (see CornerObservation).
-  PlanarExtrinsicMarkerReprojectionFactor(const CameraInfo& camera, double size_m,
-                                          const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px)
-      : observation_(camera, size_m, corners_px, sigma_px) {}
-
-  template <typename T>
-  bool operator()(const T* const T_world_robot, const T* const T_robot_camera, const T* const T_world_marker,
-                  T* residuals) const {
-    const SE3T<T> T_world_camera = SE3TFromSE2Block(T_world_robot) * SE3TFromBlock(T_robot_camera);
-    return observation_.Residuals(T_world_camera.inverse() * SE3TFromBlock(T_world_marker), residuals);
-  }
-
-  static ceres::CostFunction* Create(const CameraInfo& camera, double size_m,
-                                     const std::array<Eigen::Vector2d, 4>& corners_px, double sigma_px) {
-    return new ceres::AutoDiffCostFunction<PlanarExtrinsicMarkerReprojectionFactor, 8, kSE2BlockSize,
-                                           kSE3BlockSize, kSE3BlockSize>(
-        new PlanarExtrinsicMarkerReprojectionFactor(camera, size_m, corners_px, sigma_px));
-  }
-
- private:
-  const CornerObservation observation_;
-};
+using ExtrinsicMarkerReprojectionFactor = MountMarkerReprojectionFactor<false>;
+using PlanarExtrinsicMarkerReprojectionFactor = MountMarkerReprojectionFactor<true>;
 
 // The same with a per-frame deviation W of the camera off its mount (camera YAML
 // `frame_wiggle_sigma`: cameras not synchronized with the rig's frame stamp, or a rig that
@@ -102,13 +91,8 @@ class WiggleMarkerReprojectionFactor {
   template <typename T>
   bool operator()(const T* const T_world_robot, const T* const T_robot_camera, const T* const wiggle,
                   const T* const T_world_marker, T* residuals) const {
-    SE3T<T> robot;
-    if constexpr (Planar) {
-      robot = SE3TFromSE2Block(T_world_robot);
-    } else {
-      robot = SE3TFromBlock(T_world_robot);
-    }
-    const SE3T<T> T_world_camera = robot * SE3TFromBlock(T_robot_camera) * SE3TFromBlock(wiggle);
+    const SE3T<T> T_world_camera =
+        SE3TFromRobotBlock<Planar>(T_world_robot) * SE3TFromBlock(T_robot_camera) * SE3TFromBlock(wiggle);
     return observation_.Residuals(T_world_camera.inverse() * SE3TFromBlock(T_world_marker), residuals);
   }
 
