@@ -8,6 +8,7 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <functional>
 #include <random>
 
 #include "online/chi_square.h"
@@ -129,24 +130,25 @@ TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
   EXPECT_EQ(filter.counts().at("regained"), 1);
 }
 
-TEST(RangeBearingLocalizer, MonteCarloNeesInsideBounds) {
-  RangeBearingLocalizerOptions options;
-  options.noise.range_a_m = 0.05;
-  options.noise.range_b = 0.01;
-  options.noise.bearing_rad = 0.02;
-  options.noise.odometry_q_t = 1e-4;
-  options.noise.odometry_q_r = 1e-4;
-  options.noise.odometry_c_d = 0.1;
-  std::mt19937 rng(11);
+// Mean NEES of the pose over `runs` Monte Carlo runs of 50 steps: the truth moves by the
+// odometry increment plus the model's odometry noise; the ranges of a frame share a
+// Gauss-Markov scale error when options.noise.range_scale_sigma > 0 (time step dt_s); both
+// landmarks are measured every `update_every` steps with independent range noise of sigma
+// `range_sigma(range)` and the model's bearing noise.
+double MonteCarloMeanNees(const RangeBearingLocalizerOptions& options, unsigned seed, int update_every,
+                          double dt_s, const std::function<double(double)>& range_sigma, int runs) {
+  std::mt19937 rng(seed);
   std::normal_distribution<double> n(0.0, 1.0);
   const MarkerMap map = TwoLandmarks();
-  const int runs = 200;
+  const double scale_sigma = options.noise.range_scale_sigma;
   double sum = 0.0;
   for (int run = 0; run < runs; ++run) {
     const Eigen::Vector3d sigma0(0.05, 0.05, 0.02);
     SE2d truth;
     const SE2d start(sigma0[0] * n(rng), sigma0[1] * n(rng), sigma0[2] * n(rng));
     RangeBearingLocalizer filter(map, options, start, Eigen::Matrix3d(sigma0.cwiseAbs2().asDiagonal()));
+    double scale = scale_sigma > 0.0 ? scale_sigma * n(rng) : 0.0;
+    const double phi = scale_sigma > 0.0 ? std::exp(-dt_s / options.noise.range_scale_time_s) : 0.0;
     for (int step = 0; step < 50; ++step) {
       const SE2d M(0.05, 0.0, 0.01);
       // The true increment differs from M by the model's noise.
@@ -154,14 +156,15 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBounds) {
       const double st = std::sqrt(options.noise.odometry_q_t * (d + 1e-3));
       const double sr = std::sqrt(options.noise.odometry_q_r * (0.01 + 0.1 * d + 1e-3));
       truth = truth * SE2d(0.05 + st * n(rng), st * n(rng), 0.01 + sr * n(rng));
-      filter.Predict(M);
-      if (step % 5 == 4) {
+      if (scale_sigma > 0.0) scale = phi * scale + std::sqrt(1.0 - phi * phi) * scale_sigma * n(rng);
+      filter.Predict(M, dt_s);
+      if (step % update_every == update_every - 1) {
         const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
         for (const char* id : {"1", "2"}) {
           const Eigen::Vector2d l = map.Find({kFamilyBarcode, id})->T_world_marker.translation().head<2>();
           Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
-          z[0] += (0.05 + 0.01 * z[0]) * n(rng);
-          z[1] = WrapAngle(z[1] + 0.02 * n(rng));
+          z[0] = (1.0 + scale) * z[0] + range_sigma(z[0]) * n(rng);
+          z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
           filter.Update(Sighting(id, z));
         }
       }
@@ -170,7 +173,20 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBounds) {
                             WrapAngle(truth.theta() - filter.pose().theta()));
     sum += e.dot(filter.covariance().llt().solve(e));
   }
-  const double mean = sum / runs;
+  return sum / runs;
+}
+
+TEST(RangeBearingLocalizer, MonteCarloNeesInsideBounds) {
+  RangeBearingLocalizerOptions options;
+  options.noise.range_a_m = 0.05;
+  options.noise.range_b = 0.01;
+  options.noise.bearing_rad = 0.02;
+  options.noise.odometry_q_t = 1e-4;
+  options.noise.odometry_q_r = 1e-4;
+  options.noise.odometry_c_d = 0.1;
+  const int runs = 200;
+  const double mean = MonteCarloMeanNees(
+      options, 11, 5, 0.0, [](double r) { return 0.05 + 0.01 * r; }, runs);
   EXPECT_GT(mean, ChiSquareQuantile(0.025, 3 * runs) / runs);
   EXPECT_LT(mean, ChiSquareQuantile(0.975, 3 * runs) / runs);
 }
@@ -187,44 +203,13 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBoundsWithARangeScaleCommonToThe
   options.noise.odometry_c_d = 0.1;
   options.noise.range_scale_sigma = 0.05;
   options.noise.range_scale_time_s = 1.0;
-  std::mt19937 rng(12);
-  std::normal_distribution<double> n(0.0, 1.0);
-  const MarkerMap map = TwoLandmarks();
   const int runs = 200;
-  const double dt = 0.1;
-  double sum = 0.0;
-  for (int run = 0; run < runs; ++run) {
-    const Eigen::Vector3d sigma0(0.05, 0.05, 0.02);
-    SE2d truth;
-    const SE2d start(sigma0[0] * n(rng), sigma0[1] * n(rng), sigma0[2] * n(rng));
-    RangeBearingLocalizer filter(map, options, start, Eigen::Matrix3d(sigma0.cwiseAbs2().asDiagonal()));
-    double scale = options.noise.range_scale_sigma * n(rng);
-    const double phi = std::exp(-dt / options.noise.range_scale_time_s);
-    for (int step = 0; step < 50; ++step) {
-      const SE2d M(0.05, 0.0, 0.01);
-      const double d = 0.05;
-      const double st = std::sqrt(options.noise.odometry_q_t * (d + 1e-3));
-      const double sr = std::sqrt(options.noise.odometry_q_r * (0.01 + 0.1 * d + 1e-3));
-      truth = truth * SE2d(0.05 + st * n(rng), st * n(rng), 0.01 + sr * n(rng));
-      scale = phi * scale + std::sqrt(1.0 - phi * phi) * options.noise.range_scale_sigma * n(rng);
-      filter.Predict(M, dt);
-      if (step % 2 == 1) {
-        const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
-        for (const char* id : {"1", "2"}) {
-          const Eigen::Vector2d l = map.Find({kFamilyBarcode, id})->T_world_marker.translation().head<2>();
-          Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
-          const double total = 0.05 + 0.06 * z[0], common = 0.05 * z[0];
-          z[0] = (1.0 + scale) * z[0] + std::sqrt(total * total - common * common) * n(rng);
-          z[1] = WrapAngle(z[1] + 0.02 * n(rng));
-          filter.Update(Sighting(id, z));
-        }
-      }
-    }
-    const Eigen::Vector3d e(truth.x() - filter.pose().x(), truth.y() - filter.pose().y(),
-                            WrapAngle(truth.theta() - filter.pose().theta()));
-    sum += e.dot(filter.covariance().llt().solve(e));
-  }
-  const double mean = sum / runs;
+  // The independent part: the model's total range sigma without the common 5 %.
+  const auto independent = [](double r) {
+    const double total = 0.05 + 0.06 * r, common = 0.05 * r;
+    return std::sqrt(total * total - common * common);
+  };
+  const double mean = MonteCarloMeanNees(options, 12, 2, 0.1, independent, runs);
   EXPECT_GT(mean, ChiSquareQuantile(0.025, 3 * runs) / runs);
   EXPECT_LT(mean, ChiSquareQuantile(0.975, 3 * runs) / runs);
 }
