@@ -149,6 +149,13 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     for (double* block : blocks) ordering->AddElementToGroup(block, first.count(block) > 0 ? 0 : 1);
     solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
     solver_options.linear_solver_ordering = ordering;
+    // One thread: Ceres' Schur eliminator adds each eliminated block's contribution to the
+    // reduced system under a lock, in whatever order the threads reach it, so with two threads
+    // the sums (and the map) differed in their last bits from run to run (TagSLAM test6: every
+    // one of the 1 478 poses and 35 codes). The map must be the same at any load
+    // (docs/mapping.md, "Determinism"); the cost is in wall time only (test6: 37-39 s of CPU
+    // time either way), as the second thread sped up the Jacobians.
+    solver_options.num_threads = 1;
   };
   if (HasWiggle()) {
     // Each frame's camera deviations touch only that frame and camera's residuals: they are

@@ -6,9 +6,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "io/util.h"
 
@@ -58,6 +62,28 @@ class CliTest : public ::testing::Test {
 
   std::string prefix_;
   std::filesystem::path dir_;
+};
+
+// Busy threads on every core while they live (a machine under full load).
+class CpuHog {
+ public:
+  CpuHog() {
+    const unsigned n = std::max(2u, std::thread::hardware_concurrency());
+    for (unsigned i = 0; i < n; ++i) {
+      threads_.emplace_back([this] {
+        volatile double x = 1.0;
+        while (!stop_.load()) x = x * 1.0000001 + 1e-9;
+      });
+    }
+  }
+  ~CpuHog() {
+    stop_ = true;
+    for (std::thread& t : threads_) t.join();
+  }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::vector<std::thread> threads_;
 };
 
 }  // namespace waymark

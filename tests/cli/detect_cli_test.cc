@@ -19,6 +19,7 @@
 
 #include "detect/synthetic.h"
 #include "io/detections_io.h"
+#include "tests/cli/cli_test_util.h"
 
 namespace waymark {
 namespace {
@@ -234,28 +235,6 @@ TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
   EXPECT_EQ(Run((dir_ / "mixed" / "a.png").string()), 1);  // --out missing
   EXPECT_NE(Stderr().find("--out"), std::string::npos);
 }
-
-// Busy threads on every core while they live (a machine under full load).
-class CpuHog {
- public:
-  CpuHog() {
-    const unsigned n = std::max(2u, std::thread::hardware_concurrency());
-    for (unsigned i = 0; i < n; ++i) {
-      threads_.emplace_back([this] {
-        volatile double x = 1.0;
-        while (!stop_.load()) x = x * 1.0000001 + 1e-9;
-      });
-    }
-  }
-  ~CpuHog() {
-    stop_ = true;
-    for (std::thread& t : threads_) t.join();
-  }
-
- private:
-  std::atomic<bool> stop_{false};
-  std::vector<std::thread> threads_;
-};
 
 // Frames that make every second pass work: a cluttered 1280x960 background, a small oblique
 // QR code (finder pass), DataMatrix symbols at 45 degrees (zxing 1.4 misses them), a small
