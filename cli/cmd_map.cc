@@ -449,6 +449,7 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
            {"outliers", d.outliers},
            {"gauge", d.gauge},
            {"sensor_bias", {d.sensor_bias[0], d.sensor_bias[1]}},
+           {"bearing_scale", d.bearing_scale},
            {"sigma_range", {d.noise.range_a_m, d.noise.range_b}},
            {"sigma_bearing_rad", d.noise.bearing_rad},
            {"odometry_q", {d.noise.odometry_q_t, d.noise.odometry_q_r}},
@@ -480,10 +481,10 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
               << FormatSignificant(d.odometry_calibration[1], 3) << ","
               << FormatSignificant(d.odometry_calibration[2], 3) << ", sensor offsets "
               << FormatFixed(d.sensor_bias[0], 3) << " m, " << FormatFixed(d.sensor_bias[1], 4)
-              << " rad, sigma_range " << FormatSignificant(d.noise.range_a_m, 3) << " m + "
-              << FormatSignificant(d.noise.range_b, 3) << " x range, sigma_bearing "
-              << FormatSignificant(d.noise.bearing_rad, 3) << " rad, odometry delay "
-              << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
+              << " rad, bearing scale " << FormatFixed(d.bearing_scale, 4) << ", sigma_range "
+              << FormatSignificant(d.noise.range_a_m, 3) << " m + " << FormatSignificant(d.noise.range_b, 3)
+              << " x range, sigma_bearing " << FormatSignificant(d.noise.bearing_rad, 3)
+              << " rad, odometry delay " << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
   }
   for (const auto& [key, reason] : result.unmapped)
     std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";

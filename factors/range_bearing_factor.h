@@ -80,14 +80,19 @@ class RangeBearingFactor {
 
 // The same with the sensor's constant errors estimated (one block per robot):
 //   r = [(range + b_range - range_measured) / sigma_range,
-//        wrap(bearing + b_bearing - bearing_measured) / sigma_bearing]
+//        wrap((1 + k_bearing) bearing + b_bearing - bearing_measured) / sigma_bearing]
 // b_range: a range offset (e.g. ranges to a cylinder's face, truth at its axis); b_bearing: the
-// sensor's yaw on the robot. Blocks: T_world_robot [x y theta], l_world [x y],
-// sensor [b_range b_bearing] (Euclidean; give it a weak prior, SensorBiasPrior).
+// sensor's yaw on the robot; k_bearing: a bearing scale error (a camera whose focal length is
+// off by a factor 1 / (1 + k) reads every bearing k times too large). Blocks: T_world_robot
+// [x y theta], l_world [x y], sensor [b_range b_bearing k_bearing] (Euclidean; give it a weak
+// prior, SensorBiasPrior).
+inline constexpr int kRangeBearingSensorSize = 3;
+
 class BiasedRangeBearingFactor {
  public:
   BiasedRangeBearingFactor(double range_m, double bearing_rad, double sigma_range_m, double sigma_bearing_rad)
       : plain_(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad),
+        bearing_rad_(bearing_rad),
         inv_sigma_range_(1.0 / sigma_range_m),
         inv_sigma_bearing_(1.0 / sigma_bearing_rad) {}
 
@@ -96,39 +101,45 @@ class BiasedRangeBearingFactor {
                   T* residuals) const {
     if (!plain_(T_world_robot, l_world, residuals)) return false;
     residuals[0] += sensor[0] * T(inv_sigma_range_);
-    residuals[1] = WrapAngleT(residuals[1] / T(inv_sigma_bearing_) + sensor[1]) * T(inv_sigma_bearing_);
+    // residuals[1] = wrap(bearing - bearing_measured) / sigma: the bearing is
+    // bearing_measured + that (wrapped to (-pi, pi] by the caller's atan2 and the wrap).
+    const T bearing = WrapAngleT(residuals[1] / T(inv_sigma_bearing_) + T(bearing_rad_));
+    residuals[1] =
+        WrapAngleT((T(1.0) + sensor[2]) * bearing + sensor[1] - T(bearing_rad_)) * T(inv_sigma_bearing_);
     return true;
   }
 
   static ceres::CostFunction* Create(double range_m, double bearing_rad, double sigma_range_m,
                                      double sigma_bearing_rad) {
     return new ceres::AutoDiffCostFunction<BiasedRangeBearingFactor, 2, kSE2BlockSize, kPointLandmark2Size,
-                                           2>(
+                                           kRangeBearingSensorSize>(
         new BiasedRangeBearingFactor(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad));
   }
 
  private:
   const RangeBearingFactor plain_;
+  const double bearing_rad_;
   const double inv_sigma_range_;
   const double inv_sigma_bearing_;
 };
 
-// r = [b_range / sigma_range_m, b_bearing / sigma_bearing_rad]: the weak prior that keeps an
-// unexcited sensor bias at 0.
+// r = [b_range / sigma_range_m, b_bearing / sigma_bearing_rad, k_bearing / sigma_scale]: the weak prior
+// that keeps an unexcited sensor offset at 0.
 struct SensorBiasPrior {
-  SensorBiasPrior(double sigma_range_m, double sigma_bearing_rad)
-      : inv_range_(1.0 / sigma_range_m), inv_bearing_(1.0 / sigma_bearing_rad) {}
+  SensorBiasPrior(double sigma_range_m, double sigma_bearing_rad, double sigma_scale)
+      : inv_range_(1.0 / sigma_range_m), inv_bearing_(1.0 / sigma_bearing_rad), inv_x_(1.0 / sigma_scale) {}
   template <typename T>
   bool operator()(const T* const sensor, T* residuals) const {
     residuals[0] = sensor[0] * T(inv_range_);
     residuals[1] = sensor[1] * T(inv_bearing_);
+    residuals[2] = sensor[2] * T(inv_x_);
     return true;
   }
-  static ceres::CostFunction* Create(double sigma_range_m, double sigma_bearing_rad) {
-    return new ceres::AutoDiffCostFunction<SensorBiasPrior, 2, 2>(
-        new SensorBiasPrior(sigma_range_m, sigma_bearing_rad));
+  static ceres::CostFunction* Create(double sigma_range_m, double sigma_bearing_rad, double sigma_scale) {
+    return new ceres::AutoDiffCostFunction<SensorBiasPrior, 3, kRangeBearingSensorSize>(
+        new SensorBiasPrior(sigma_range_m, sigma_bearing_rad, sigma_scale));
   }
-  const double inv_range_, inv_bearing_;
+  const double inv_range_, inv_bearing_, inv_x_;
 };
 
 }  // namespace waymark

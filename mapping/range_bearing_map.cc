@@ -87,11 +87,12 @@ struct DatasetState {
   const Dataset* dataset = nullptr;
   std::vector<Node> nodes;
   double calibration[3] = {0.0, 0.0, 0.0};
-  double sensor[2] = {0.0, 0.0};  // range offset, bearing offset (factors/range_bearing_factor.h)
-  RangeBearingNoise noise;        // this dataset's own, estimated in stage (2)
-  double delay_s = 0.0;           // the odometry's lag (stage 2b); nodes' T_odom_robot use it
-  bool placed = false;            // nodes have world poses
-  size_t active = 0;              // nodes [0, active) are in the problem
+  // Range offset, bearing offset, bearing scale (factors/range_bearing_factor.h).
+  double sensor[3] = {0.0, 0.0, 0.0};
+  RangeBearingNoise noise;  // this dataset's own, estimated in stage (2)
+  double delay_s = 0.0;     // the odometry's lag (stage 2b); nodes' T_odom_robot use it
+  bool placed = false;      // nodes have world poses
+  size_t active = 0;        // nodes [0, active) are in the problem
   RangeBearingDatasetSummary summary;
 };
 
@@ -140,8 +141,9 @@ Eigen::Vector2d Error(const Observation& obs, const std::vector<DatasetState>& s
   const DatasetState& state = states[obs.dataset];
   const Eigen::Vector2d predicted =
       Predict(state.nodes[obs.node].Pose(), Eigen::Vector2d(l.block[0], l.block[1]));
-  return Eigen::Vector2d(predicted[0] + state.sensor[0] - obs.range_m,
-                         WrapAngle(predicted[1] + state.sensor[1] - obs.bearing_rad));
+  return Eigen::Vector2d(
+      predicted[0] + state.sensor[0] - obs.range_m,
+      WrapAngle((1.0 + state.sensor[2]) * predicted[1] + state.sensor[1] - obs.bearing_rad));
 }
 
 // The range sigma line and the bearing sigma from residuals (the header's stage 2); false (and
@@ -379,8 +381,9 @@ double Builder::Solve(bool robust) {
   for (DatasetState& state : states_) {
     if (problem.HasParameterBlock(state.sensor)) {
       problem.AddResidualBlock(
-          SensorBiasPrior::Create(options_.sensor_bias_sigma_m, options_.sensor_bias_sigma_rad), nullptr,
-          state.sensor);
+          SensorBiasPrior::Create(options_.sensor_bias_sigma_m, options_.sensor_bias_sigma_rad,
+                                  options_.sensor_bearing_scale_sigma),
+          nullptr, state.sensor);
     }
   }
   ceres::Solver::Options solver_options;
@@ -740,6 +743,7 @@ RangeBearingBuildResult Builder::Collect() {
     state.summary.odometry_calibration =
         Eigen::Vector3d(state.calibration[0], state.calibration[1], state.calibration[2]);
     state.summary.sensor_bias = Eigen::Vector2d(state.sensor[0], state.sensor[1]);
+    state.summary.bearing_scale = state.sensor[2];
     state.summary.noise = state.noise;
     state.summary.noise.odometry_delay_s = state.delay_s;
     result.trajectories[state.summary.name] = std::move(trajectory);

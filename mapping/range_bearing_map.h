@@ -6,7 +6,8 @@
 // r_rb:    range and bearing of a landmark from a robot node (factors/range_bearing_factor.h),
 //          sigma_range = a + b * range and sigma_bearing, estimated from the data (below) unless
 //          the observation carries its own sigmas, with the sensor's constant range and bearing
-//          offsets estimated per dataset (BiasedRangeBearingFactor, weak prior);
+//          offsets and its bearing scale error estimated per dataset (BiasedRangeBearingFactor,
+//          weak prior);
 // r_odo:   the odometry between consecutive nodes of one dataset with its systematic errors
 //          (factors/calibrated_odometry_factor.h; one calibration block per dataset, r_cal its
 //          weak prior), covariance of a random walk in distance, turn and time:
@@ -59,6 +60,9 @@ struct RangeBearingBuildOptions {
   // prior of these sigmas (factors/range_bearing_factor.h, BiasedRangeBearingFactor).
   double sensor_bias_sigma_m = 0.2;
   double sensor_bias_sigma_rad = 0.05;
+  // The sensor's bearing scale error (BiasedRangeBearingFactor), one per dataset, held near 0 by a
+  // prior of this sigma.
+  double sensor_bearing_scale_sigma = 0.1;
   // Stage (2b): the odometry delay's search range and grid step; 0 = no delay estimated.
   double max_odometry_delay_s = 0.5;
   double odometry_delay_step_s = 0.1;
@@ -76,8 +80,9 @@ struct RangeBearingDatasetSummary {
   size_t outliers = 0;
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   Eigen::Vector2d sensor_bias = Eigen::Vector2d::Zero();  // range offset (m), bearing offset (rad)
-  RangeBearingNoise noise;  // this dataset's, as estimated (odometry_delay_s: its own)
-  std::string gauge;        // "start prior", "held", "placed at t=..."
+  double bearing_scale = 0.0;  // the sensor's bearing scale error (bearings read 1 + this times too large)
+  RangeBearingNoise noise;     // this dataset's, as estimated (odometry_delay_s: its own)
+  std::string gauge;           // "start prior", "held", "placed at t=..."
 };
 
 struct RangeBearingBuildResult {

@@ -45,6 +45,7 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
                        "calibration_sigma must be finite and > 0");
   WAYMARK_CHECK_OPTION(sensor_bias_sigma.allFinite() && (sensor_bias_sigma.array() > 0.0).all(),
                        "sensor_bias_sigma must be finite and > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(bearing_scale_sigma), "bearing_scale_sigma must be > 0");
   return true;
 }
 
@@ -60,6 +61,7 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   P_.block<3, 3>(3, 3) = options.calibration_sigma.cwiseAbs2().asDiagonal();
   P_.block<2, 2>(6, 6) = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
   P_(8, 8) = options.noise.range_scale_sigma * options.noise.range_scale_sigma;
+  P_(9, 9) = options.bearing_scale_sigma * options.bearing_scale_sigma;
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("range-bearing localizer: " + why);
   if (!IsSpd(start_covariance))
@@ -100,7 +102,7 @@ RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vect
 
 Eigen::Vector2d RangeBearingLocalizer::MeasureState(const Vector6& x, const Eigen::Vector2d& l_world) {
   const Eigen::Vector2d h = Measure(x.head<3>(), l_world);
-  return Eigen::Vector2d((1.0 + x[8]) * h[0] + x[6], WrapAngle(h[1] + x[7]));
+  return Eigen::Vector2d((1.0 + x[8]) * h[0] + x[6], WrapAngle((1.0 + x[9]) * h[1] + x[7]));
 }
 
 Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalizer::MeasureStateJacobian(
@@ -108,9 +110,11 @@ Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalize
   Eigen::Matrix<double, 2, kStateSize> H = Eigen::Matrix<double, 2, kStateSize>::Zero();
   H.leftCols<3>() = MeasureJacobian(x.head<3>(), l_world);
   H.block<1, 3>(0, 0) *= 1.0 + x[8];
+  H.block<1, 3>(1, 0) *= 1.0 + x[9];
   H(0, 6) = 1.0;
   H(1, 7) = 1.0;
   H(0, 8) = (l_world - x.head<2>()).norm();
+  H(1, 9) = Measure(x.head<3>(), l_world)[1];
   return H;
 }
 

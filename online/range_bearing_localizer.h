@@ -1,27 +1,30 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range]: T_world_robot, the
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing]: T_world_robot, the
 // odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
 // factors/calibrated_odometry_factor.h, to first order), the sensor's constant range and
 // bearing offsets (as BiasedRangeBearingFactor) and the range scale error common to a frame's
 // landmarks (noise.range_scale_sigma, a first-order Gauss-Markov process of correlation time
-// tau = noise.range_scale_time_s), covariance P (9 x 9, the same order); the calibration and the
-// offsets start at 0 with calibration_sigma and sensor_bias_sigma and have no process noise;
-// s_range starts at 0 with variance range_scale_sigma^2.
+// tau = noise.range_scale_time_s) and the sensor's bearing scale error k_bearing (as
+// BiasedRangeBearingFactor), covariance P (10 x 10, the same order); the calibration, the offsets
+// and k_bearing start at 0 with calibration_sigma, sensor_bias_sigma and bearing_scale_sigma and
+// have no process noise; s_range starts at 0 with variance range_scale_sigma^2.
 // Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
 //   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
-//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range]
-//   F  = d x'/d x = I9 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
+//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range, k_bearing]
+//   F  = d x'/d x = I10 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
 //        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration)
 //   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
 //   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad), and
 //   q_s = range_scale_sigma^2 (1 - phi^2) on s_range.
 // Update with a landmark l (map position, 2-D; its map covariance Sigma_l when present):
-//   d = l - t, q = |d|^2, r = sqrt(q), h(x) = [(1 + s_range) r + b_range, wrap(atan2(d_y, d_x) - theta +
-//   b_bearing)] H = [[-(1 + s_range) d_x/r, -(1 + s_range) d_y/r, 0, 0 0 0, 1, 0, r], [d_y/q, -d_x/q, -1, 0 0
-//   0, 0, 1, 0]], H_l = -H[:, 0:2],  y = [range - h_0, wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l
+//   d = l - t, q = |d|^2, r = sqrt(q), beta = wrap(atan2(d_y, d_x) - theta),
+//   h(x) = [(1 + s_range) r + b_range, wrap((1 + k_bearing) beta + b_bearing)]
+//   H = [[-(1 + s_range) d_x/r, -(1 + s_range) d_y/r, 0, 0 0 0, 1, 0, r, 0],
+//        [(1 + k_bearing) [d_y/q, -d_x/q, -1], 0 0 0, 0, 1, 0, beta]], H_l = -H[:, 0:2],  y = [range - h_0,
+//        wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l
 //   H_l^T, R = diag(sigma_w^2, sigma_bearing^2), sigma_w^2 = max(sigma_range(range)^2 - (range_scale_sigma
 //   range)^2, range_a_m^2) (the range variance less its common part; an observation's own sigma as given)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
@@ -59,6 +62,8 @@ struct RangeBearingLocalizerOptions {
   Eigen::Vector3d calibration_sigma = Eigen::Vector3d(0.05, 0.2, 0.2);
   // Sigmas of the sensor's range offset (m) and bearing offset (rad) at the start (0).
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
+  // Sigma of the sensor's bearing scale error at the start (0).
+  double bearing_scale_sigma = 0.1;
   bool Check(std::string* why) const;
 };
 
@@ -79,12 +84,13 @@ class RangeBearingLocalizer {
   Eigen::Vector3d calibration() const { return x_.segment<3>(3); }
   Eigen::Vector2d sensor_bias() const { return x_.segment<2>(6); }
   double range_scale() const { return x_[8]; }
+  double bearing_scale() const { return x_[9]; }
   bool lost() const { return lost_; }
   // Counts: accepted, unknown, gated, degenerate, became lost, regained.
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static constexpr int kStateSize = 9;
+  static constexpr int kStateSize = 10;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
   static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);

@@ -56,24 +56,51 @@ TEST(RangeBearingFactor, GradientCheckTenRandomStates) {
 TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
   double robot[3] = {1.0, 2.0, M_PI / 2};
   double landmark[2] = {1.0, 5.0};
-  double sensor[2] = {0.1, 0.02};  // ranges read 10 cm long, bearings 0.02 rad to the left
+  double sensor[3] = {0.1, 0.02, 0.0};  // ranges read 10 cm long, bearings 0.02 rad to the left
   const double* parameters[3] = {robot, landmark, sensor};
   double residuals[2] = {testing::kNaN, testing::kNaN};
   const std::unique_ptr<ceres::CostFunction> exact(BiasedRangeBearingFactor::Create(3.1, 0.02, 0.1, 0.01));
   ASSERT_TRUE(exact->Evaluate(parameters, residuals, nullptr));
   EXPECT_NEAR(residuals[0], 0.0, 1e-12);
   EXPECT_NEAR(residuals[1], 0.0, 1e-12);
+  // A bearing scale error of 5 %: the landmark at (0, 5) from the robot at (1, 2) facing +y is
+  // atan2(1, 3) = 0.32175 rad to the left, read as 1.05 * 0.32175 + 0.02 rad.
+  double scaled_sensor[3] = {0.1, 0.02, 0.05};
+  double left[2] = {0.0, 5.0};
+  const double* scaled_parameters[3] = {robot, left, scaled_sensor};
+  const double bearing = std::atan2(1.0, 3.0), range = std::sqrt(10.0);
+  const std::unique_ptr<ceres::CostFunction> scaled(
+      BiasedRangeBearingFactor::Create(range + 0.1, 1.05 * bearing + 0.02, 0.1, 0.01));
+  ASSERT_TRUE(scaled->Evaluate(scaled_parameters, residuals, nullptr));
+  EXPECT_NEAR(residuals[0], 0.0, 1e-12);
+  EXPECT_NEAR(residuals[1], 0.0, 1e-12);
+  // Read without the scale: 0.05 * bearing / 0.01 sigmas short.
+  scaled_sensor[2] = 0.0;
+  ASSERT_TRUE(scaled->Evaluate(scaled_parameters, residuals, nullptr));
+  EXPECT_NEAR(residuals[1], -0.05 * bearing / 0.01, 1e-9);
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> u(-3.0, 3.0);
   for (int trial = 0; trial < 10; ++trial) {
-    double r[3] = {u(rng), u(rng), u(rng)};
+    double r[3] = {u(rng), u(rng), 0.0};
     double l[2] = {r[0] + 2.0 + std::abs(u(rng)), r[1] + u(rng)};
-    double b[2] = {0.05 * u(rng), 0.01 * u(rng)};
+    // Facing the landmark within 0.5 rad: a camera's bearings stay far from +-pi, where the
+    // scaled bearing jumps.
+    r[2] = std::atan2(l[1] - r[1], l[0] - r[0]) + u(rng) / 6.0;
+    double b[3] = {0.05 * u(rng), 0.01 * u(rng), 0.02 * u(rng)};
     const std::unique_ptr<ceres::CostFunction> cost(
         BiasedRangeBearingFactor::Create(2.5, 0.1 * u(rng), 0.05, 0.02));
     testing::ExpectGradientsMatch(*cost, {nullptr, nullptr, nullptr}, {r, l, b}, 1e-6,
                                   "biased range-bearing");
   }
+  // The prior: [b_range / 0.2, b_bearing / 0.05, k_bearing / 0.1].
+  const std::unique_ptr<ceres::CostFunction> prior(SensorBiasPrior::Create(0.2, 0.05, 0.1));
+  double offsets[3] = {0.1, 0.01, 0.05};
+  const double* prior_parameters[1] = {offsets};
+  double prior_residuals[3];
+  ASSERT_TRUE(prior->Evaluate(prior_parameters, prior_residuals, nullptr));
+  EXPECT_NEAR(prior_residuals[0], 0.5, 1e-12);
+  EXPECT_NEAR(prior_residuals[1], 0.2, 1e-12);
+  EXPECT_NEAR(prior_residuals[2], 0.5, 1e-12);
 }
 
 TEST(RangeBearingFactor, LandmarkAtTheRobotIsRejected) {

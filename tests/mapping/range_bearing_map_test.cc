@@ -68,11 +68,15 @@ TEST(RangeBearingMap, TheOdometryDelayIsEstimatedPerDataset) {
   ASSERT_TRUE(result.map.range_bearing_noise);
   EXPECT_NEAR(result.map.range_bearing_noise->odometry_delay_s, 0.2, 0.05);
   // Without the estimate (the delay held at 0) the trajectories are worse.
-  RangeBearingBuildOptions no_delay;
+  // (The bearing scale held at 0 in both: with the delay held it absorbs a part of the lag, the
+  // turn swing's bearing errors, and the comparison would be between two wrong models.)
+  RangeBearingBuildOptions with_delay, no_delay;
+  with_delay.sensor_bearing_scale_sigma = no_delay.sensor_bearing_scale_sigma = 1e-6;
   no_delay.max_odometry_delay_s = 0.0;
+  const RangeBearingBuildResult estimated = BuildRangeBearingMap({&a, &b}, with_delay);
   const RangeBearingBuildResult held = BuildRangeBearingMap({&a, &b}, no_delay);
   EXPECT_EQ(held.map.range_bearing_noise->odometry_delay_s, 0.0);
-  EXPECT_LT(TrajectoryRms(result.trajectories.at("robot0"), *a.groundtruth_trajectory),
+  EXPECT_LT(TrajectoryRms(estimated.trajectories.at("robot0"), *a.groundtruth_trajectory),
             TrajectoryRms(held.trajectories.at("robot0"), *a.groundtruth_trajectory));
   // No delay simulated: none found.
   world.odometry_delay_s = 0.0;
@@ -94,6 +98,28 @@ TEST(RangeBearingMap, TheRangeErrorCommonToAFrameIsEstimated) {
   // None simulated: (nearly) none found.
   const Dataset c = testing::RangeBearingRobot(0, 10, {}), d = testing::RangeBearingRobot(1, 11, {});
   EXPECT_LT(BuildRangeBearingMap({&c, &d}).map.range_bearing_noise->range_scale_sigma, 0.01);
+}
+
+TEST(RangeBearingMap, TheSensorsBearingScaleIsEstimatedPerDataset) {
+  // robot0's sensor reads bearings 5 % too large, robot1's 3 % too small.
+  testing::RangeBearingWorldOptions world;
+  world.bearing_scale = 0.05;
+  const Dataset a = testing::RangeBearingRobot(0, 12, world);
+  world.bearing_scale = -0.03;
+  const Dataset b = testing::RangeBearingRobot(1, 13, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  ASSERT_EQ(result.datasets.size(), 2u);
+  EXPECT_NEAR(result.datasets[0].bearing_scale, 0.05, 0.015);
+  EXPECT_NEAR(result.datasets[1].bearing_scale, -0.03, 0.015);
+  // The landmarks are better than with the scale held at 0.
+  RangeBearingBuildOptions held;
+  held.sensor_bearing_scale_sigma = 1e-6;
+  const double rms = LandmarkRms(result.map, *a.groundtruth_markers);
+  const double held_rms = LandmarkRms(BuildRangeBearingMap({&a, &b}, held).map, *a.groundtruth_markers);
+  EXPECT_LT(rms, held_rms);
+  // None simulated: (nearly) none found.
+  const Dataset c = testing::RangeBearingRobot(0, 14, {});
+  EXPECT_NEAR(BuildRangeBearingMap({&c}).datasets[0].bearing_scale, 0.0, 0.015);
 }
 
 TEST(RangeBearingMap, WithoutPriorsTheSecondRobotIsPlacedByTheLandmarks) {

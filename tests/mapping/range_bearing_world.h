@@ -27,6 +27,8 @@ struct RangeBearingWorldOptions {
   // stationary sigma and correlation time.
   double range_scale_sigma = 0.0;
   double range_scale_time_s = 1.0;
+  // The sensor reads every bearing (1 + bearing_scale) times too large.
+  double bearing_scale = 0.0;
 };
 
 inline MarkerMap RangeBearingLandmarks() {
@@ -94,7 +96,8 @@ inline Dataset RangeBearingRobot(int index, unsigned seed, const RangeBearingWor
         } else {
           obs.range_m = (1.0 + range_scale) * range +
                         (options.sigma_range_a_m + options.sigma_range_b * range) * normal(rng);
-          obs.bearing_rad = WrapAngle(bearing + options.sigma_bearing_rad * normal(rng));
+          obs.bearing_rad =
+              WrapAngle((1.0 + options.bearing_scale) * bearing + options.sigma_bearing_rad * normal(rng));
         }
         frame.landmarks.push_back(obs);
       }

@@ -43,7 +43,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
     x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng),
-        0.01 * u(rng);
+        0.01 * u(rng), 0.02 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const double phi = 0.5 + 0.1 * u(rng);  // the range scale's decay over the increment
@@ -83,6 +83,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     const Eigen::Vector2d h = RangeBearingLocalizer::MeasureState(x6, l),
                           h_pose = RangeBearingLocalizer::Measure(x, l);
     EXPECT_NEAR(h[0], (1.0 + x6[8]) * h_pose[0] + x6[6], 1e-12);
+    EXPECT_NEAR(WrapAngle(h[1] - ((1.0 + x6[9]) * h_pose[1] + x6[7])), 0.0, 1e-12);
   }
 }
 
@@ -113,6 +114,8 @@ TEST(RangeBearingLocalizer, UnknownCodesAndGrossOutliersAreRejectedAndCounted) {
 TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
   RangeBearingLocalizerOptions options;
   options.lost_rejections = 3;
+  // Two landmarks cannot tell a bearing scale error from the pose: none here.
+  options.bearing_scale_sigma = 1e-6;
   // The filter believes it is at the origin; the robot is at (1, 0.5) heading 0.
   RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(),
                                Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal());
@@ -134,7 +137,8 @@ TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
 // odometry increment plus the model's odometry noise; the ranges of a frame share a
 // Gauss-Markov scale error when options.noise.range_scale_sigma > 0 (time step dt_s); both
 // landmarks are measured every `update_every` steps with independent range noise of sigma
-// `range_sigma(range)` and the model's bearing noise.
+// `range_sigma(range)` and the model's bearing noise; each run's bearing scale error is drawn
+// from the filter's prior (options.bearing_scale_sigma).
 double MonteCarloMeanNees(const RangeBearingLocalizerOptions& options, unsigned seed, int update_every,
                           double dt_s, const std::function<double(double)>& range_sigma, int runs) {
   std::mt19937 rng(seed);
@@ -148,6 +152,7 @@ double MonteCarloMeanNees(const RangeBearingLocalizerOptions& options, unsigned 
     const SE2d start(sigma0[0] * n(rng), sigma0[1] * n(rng), sigma0[2] * n(rng));
     RangeBearingLocalizer filter(map, options, start, Eigen::Matrix3d(sigma0.cwiseAbs2().asDiagonal()));
     double scale = scale_sigma > 0.0 ? scale_sigma * n(rng) : 0.0;
+    const double bearing_scale = options.bearing_scale_sigma * n(rng);
     const double phi = scale_sigma > 0.0 ? std::exp(-dt_s / options.noise.range_scale_time_s) : 0.0;
     for (int step = 0; step < 50; ++step) {
       const SE2d M(0.05, 0.0, 0.01);
@@ -164,7 +169,7 @@ double MonteCarloMeanNees(const RangeBearingLocalizerOptions& options, unsigned 
           const Eigen::Vector2d l = map.Find({kFamilyBarcode, id})->T_world_marker.translation().head<2>();
           Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
           z[0] = (1.0 + scale) * z[0] + range_sigma(z[0]) * n(rng);
-          z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
+          z[1] = WrapAngle((1.0 + bearing_scale) * z[1] + options.noise.bearing_rad * n(rng));
           filter.Update(Sighting(id, z));
         }
       }
@@ -212,6 +217,45 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBoundsWithARangeScaleCommonToThe
   const double mean = MonteCarloMeanNees(options, 12, 2, 0.1, independent, runs);
   EXPECT_GT(mean, ChiSquareQuantile(0.025, 3 * runs) / runs);
   EXPECT_LT(mean, ChiSquareQuantile(0.975, 3 * runs) / runs);
+}
+
+TEST(RangeBearingLocalizer, TheBearingScaleIsEstimated) {
+  // The sensor reads every bearing 6 % too large; the robot drives a circle among six
+  // landmarks seeing each at bearings up to 0.6 rad; the filter's k_bearing converges to it.
+  MarkerMap map;
+  for (int i = 0; i < 6; ++i) {
+    MapMarker m;
+    m.is_point = true;
+    m.key = {kFamilyBarcode, std::to_string(i)};
+    m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(),
+                            Eigen::Vector3d(4.0 * std::cos(i * M_PI / 3), 4.0 * std::sin(i * M_PI / 3), 0.0));
+    map.markers.push_back(m);
+  }
+  std::mt19937 rng(21);
+  std::normal_distribution<double> n(0.0, 1.0);
+  RangeBearingLocalizerOptions options;
+  options.noise.bearing_rad = 0.005;
+  options.noise.odometry_q_t = 1e-4;
+  options.noise.odometry_q_r = 1e-4;
+  SE2d truth(2.0, 0.0, M_PI / 2);
+  RangeBearingLocalizer filter(map, options, truth,
+                               Eigen::Vector3d(0.01, 0.01, 0.01).cwiseAbs2().asDiagonal());
+  for (int step = 0; step < 600; ++step) {
+    const SE2d M(0.05, 0.0, 0.025);
+    truth = truth * M;
+    filter.Predict(M, 0.1);
+    const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+    for (const MapMarker& m : map.markers) {
+      Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
+      if (std::abs(z[1]) > 0.6) continue;
+      z[0] += 0.02 * n(rng);
+      z[1] = WrapAngle(1.06 * z[1] + options.noise.bearing_rad * n(rng));
+      filter.Update(Sighting(m.key.id, z));
+    }
+  }
+  EXPECT_NEAR(filter.bearing_scale(), 0.06, 0.01);
+  EXPECT_NEAR(filter.pose().x(), truth.x(), 0.05);
+  EXPECT_NEAR(filter.pose().y(), truth.y(), 0.05);
 }
 
 TEST(RangeBearingLocalizer, RefusesBadInput) {
