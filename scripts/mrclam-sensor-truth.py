@@ -7,7 +7,9 @@ here feeds the estimator). For each robot:
     e = a + kappa * bearing + c * sin(bearing) / range (least squares over |e| < 0.05 rad):
     a constant offset, a bearing scale error (a focal length error) and a sensor ahead of the
     tracked centre by c metres;
-  - the robust spread (1.4826 MAD) of e, and the range error fitted as (k range + b).
+  - the robust spread (1.4826 MAD) of e, and the range error fitted as (k range + b);
+then the median relative range error (measured - true) / true per landmark over all robots and
+per robot-landmark pair (pairs with at least 10 sightings).
 Usage: scripts/mrclam-sensor-truth.py [RUN_DIR]   (default ../shared/data/mrclam/MRCLAM_Dataset6)
 Pure Python 3, no packages."""
 import bisect
@@ -60,6 +62,7 @@ def main():
     subject_of = {int(r[1]): int(r[0]) for r in rows(os.path.join(run, 'Barcodes.dat'))}
     landmarks = {int(r[0]): (r[1], r[2]) for r in rows(os.path.join(run, 'Landmark_Groundtruth.dat'))}
     print('robot  vicon_yaw_rad  bearing: a_rad  kappa  c_m  spread_rad  n | range: k  b_m')
+    relative = {}  # (landmark, robot) -> relative range errors
     robot = 1
     while os.path.exists(os.path.join(run, 'Robot%d_Groundtruth.dat' % robot)):
         gt = rows(os.path.join(run, 'Robot%d_Groundtruth.dat' % robot))
@@ -104,6 +107,7 @@ def main():
                 errors.append(e)
                 er = rng - true_range
                 if abs(er) < 1.0:
+                    relative.setdefault((subject, robot), []).append(er / true_range)
                     g = [true_range, 1.0]
                     for p in range(2):
                         rr[p] += g[p] * er
@@ -114,6 +118,14 @@ def main():
         print('robot%d  %+.4f  %+.4f  %+.4f  %+.3f  %.4f  %d | %+.3f  %+.3f' %
               (robot, median(yaw), offset, kappa, ahead, mad(errors), len(errors), k, b))
         robot += 1
+    per_landmark = {}
+    for (subject, _), v in relative.items():
+        per_landmark.setdefault(subject, []).extend(v)
+    pairs = [median(v) for v in relative.values() if len(v) >= 10]
+    landmark_medians = [median(v) for v in per_landmark.values()]
+    print('median relative range error per landmark (all robots): %+.3f .. %+.3f; per robot-landmark '
+          'pair: %+.3f .. %+.3f (%d pairs)' % (min(landmark_medians), max(landmark_medians), min(pairs),
+                                               max(pairs), len(pairs)))
 
 
 if __name__ == '__main__':
