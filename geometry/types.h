@@ -140,9 +140,29 @@ struct MapMarker {
   std::optional<Eigen::Matrix3d> position_covariance = std::nullopt;
 };
 
+// A rigid board (map.json `boards`): codes whose poses relative to each other are known (a printed
+// calibration board, several codes on one shelf face). Each member is also an ordinary marker of
+// the map (its size, and in a built map its pose T_world_board * T_board_marker). The board's own
+// pose is known (`fixed`), a prior (`covariance`), or unknown (has_pose false, known markers
+// only); the map build estimates one pose per board (geometry/board.h, docs/mapping.md).
+struct BoardMember {
+  MarkerKey key;
+  SE3d T_board_marker;
+};
+struct MapBoard {
+  std::string name;
+  std::vector<BoardMember> members;
+  bool has_pose = false;
+  SE3d T_world_board;                  // meaningful only when has_pose
+  std::optional<Matrix6d> covariance;  // right perturbation, [rx ry rz tx ty tz], board frame
+  bool fixed = false;
+  std::optional<int> component;
+};
+
 struct MarkerMap {
   std::vector<MapMarker> markers;
   std::optional<RangeBearingNoise> range_bearing_noise;  // map.json `range_bearing_noise`, optional
+  std::vector<MapBoard> boards;                          // map.json `boards`, optional
 
   // nullptr when absent.
   const MapMarker* Find(const MarkerKey& key) const;

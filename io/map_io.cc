@@ -6,6 +6,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "geometry/board.h"
 #include "geometry/square_marker.h"
 #include "io/json_util.h"
 #include "io/util.h"
@@ -263,6 +264,51 @@ RangeBearingNoise ParseRangeBearingNoise(const JsonSource& source, const nlohman
   return noise;
 }
 
+// One member of a board: {"family", "id", "T_board_marker"}.
+BoardMember ParseBoardMember(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                             ReadWarnings* warnings) {
+  if (!value.is_object()) ThrowJsonError(source, field, "expected an object {family, id, T_board_marker}");
+  BoardMember member;
+  member.key.family =
+      JsonString(source, *JsonMember(source, value, field, "family", true), JsonField(field, "family"));
+  member.key.id = JsonString(source, *JsonMember(source, value, field, "id", true), JsonField(field, "id"));
+  if (member.key.id.empty()) ThrowJsonError(source, JsonField(field, "id"), "expected a non-empty string");
+  member.T_board_marker = JsonPose(source, *JsonMember(source, value, field, "T_board_marker", true),
+                                   JsonField(field, "T_board_marker"));
+  JsonWarnUnknownKeys(source, value, field, {"family", "id", "T_board_marker"}, warnings);
+  return member;
+}
+
+// A rigid board: {"name", "T_world_board", "covariance", "fixed", "component", "markers": [...]};
+// the pose is optional with MapPoses::kOptional (a known-markers file: board pose unknown).
+MapBoard ParseBoard(const JsonSource& source, const nlohmann::json& value, const std::string& field,
+                    ReadWarnings* warnings, MapPoses poses) {
+  if (!value.is_object()) ThrowJsonError(source, field, "expected an object");
+  MapBoard board;
+  board.name = JsonString(source, *JsonMember(source, value, field, "name", true), JsonField(field, "name"));
+  if (const nlohmann::json* pose =
+          JsonMember(source, value, field, "T_world_board", poses == MapPoses::kRequired)) {
+    board.T_world_board = JsonPose(source, *pose, JsonField(field, "T_world_board"));
+    board.has_pose = true;
+  }
+  if (const nlohmann::json* covariance = JsonMember(source, value, field, "covariance", false)) {
+    board.covariance = ParseCovariance(source, *covariance, JsonField(field, "covariance"));
+  }
+  MapMarker flags;
+  ParseFixedAndComponent(source, value, field, &flags);
+  board.fixed = flags.fixed;
+  board.component = flags.component;
+  const std::string members_field = JsonField(field, "markers");
+  const nlohmann::json& members = *JsonMember(source, value, field, "markers", true);
+  if (!members.is_array()) ThrowJsonError(source, members_field, "expected an array of codes");
+  for (size_t i = 0; i < members.size(); ++i) {
+    board.members.push_back(ParseBoardMember(source, members[i], JsonField(members_field, i), warnings));
+  }
+  JsonWarnUnknownKeys(source, value, field,
+                      {"name", "T_world_board", "covariance", "fixed", "component", "markers"}, warnings);
+  return board;
+}
+
 void CheckHeader(const JsonSource& source, const nlohmann::json& root) {
   const std::string format = JsonString(source, *JsonMember(source, root, "", "format", true), "format");
   if (format != kMapFormat) {
@@ -284,7 +330,8 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
   CheckHeader(source, root);
   const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
   if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array of markers");
-  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers", "range_bearing_noise"}, warnings);
+  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers", "range_bearing_noise", "boards"},
+                      warnings);
 
   MarkerMap map;
   if (const nlohmann::json* noise = JsonMember(source, root, "", "range_bearing_noise", false)) {
@@ -308,6 +355,18 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
       factor_columns = k;
     }
     map.markers.push_back(std::move(marker));
+  }
+  if (const nlohmann::json* boards = JsonMember(source, root, "", "boards", false)) {
+    if (!boards->is_array()) ThrowJsonError(source, "boards", "expected an array of boards");
+    for (size_t b = 0; b < boards->size(); ++b) {
+      map.boards.push_back(ParseBoard(source, (*boards)[b], JsonField("boards", b), warnings, poses));
+    }
+  }
+  if (const std::optional<BoardProblem> problem = FindBoardProblem(map)) {
+    std::string field = JsonField("boards", problem->board);
+    if (problem->member >= 0) field = JsonField(JsonField(field, "markers"), problem->member);
+    if (!problem->field.empty()) field = JsonField(field, problem->field);
+    ThrowJsonError(source, field, problem->message);
   }
   return map;
 }
@@ -371,6 +430,45 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
   return json;
 }
 
+// One board, its codes one per line.
+std::string BoardJson(const MapBoard& board) {
+  const auto pose = [](const SE3d& T) {
+    const Eigen::Vector3d& t = T.translation();
+    const Eigen::Quaterniond& q = T.rotation();
+    return nlohmann::ordered_json{{"t", {t.x(), t.y(), t.z()}}, {"q_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+  };
+  const std::string name = "map writer: board \"" + board.name + "\": ";
+  nlohmann::ordered_json json;
+  json["name"] = board.name;
+  if (board.has_pose) json["T_world_board"] = pose(board.T_world_board);
+  if (board.covariance) {
+    if (!board.covariance->allFinite()) throw std::invalid_argument(name + "covariance not finite");
+    nlohmann::ordered_json covariance = nlohmann::ordered_json::array();
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) covariance.push_back((*board.covariance)(r, c));
+    }
+    json["covariance"] = covariance;
+  }
+  json["fixed"] = board.fixed;
+  if (board.component) {
+    if (*board.component < 0) throw std::invalid_argument(name + "negative component");
+    json["component"] = *board.component;
+  }
+  if (board.has_pose && board.T_world_board.translation().cwiseAbs().maxCoeff() > kMaxCoordinateM)
+    throw std::invalid_argument(name + "T_world_board beyond the coordinate range");
+  std::string text = json.dump();
+  text.pop_back();  // the closing brace: the codes follow, one per line
+  text += ", \"markers\": [";
+  for (size_t i = 0; i < board.members.size(); ++i) {
+    const BoardMember& member = board.members[i];
+    const nlohmann::ordered_json m = {{"family", member.key.family},
+                                      {"id", member.key.id},
+                                      {"T_board_marker", pose(member.T_board_marker)}};
+    text += (i == 0 ? "\n   " : ",\n   ") + m.dump();
+  }
+  return text + "]}";
+}
+
 void CheckWritablePoint(const MapMarker& marker, std::set<MarkerKey>* seen) {
   const std::string name = "map writer: point landmark " + marker.key.ToString() + ": ";
   if (!IsPointFamily(marker.key.family)) throw std::invalid_argument(name + "unknown family");
@@ -426,6 +524,17 @@ std::string FormatMap(const MarkerMap& map) {
     text += (i == 0 ? "\n  " : ",\n  ") + MarkerJson(map.markers[i]).dump();
   }
   text += map.markers.empty() ? "]" : "\n ]";
+  if (!map.boards.empty()) {
+    if (const std::optional<BoardProblem> problem = FindBoardProblem(map)) {
+      throw std::invalid_argument("map writer: board " + std::to_string(problem->board) +
+                                  (problem->member >= 0 ? " code " + std::to_string(problem->member) : "") +
+                                  ": " + problem->message);
+    }
+    text += ",\n \"boards\": [";
+    for (size_t b = 0; b < map.boards.size(); ++b)
+      text += (b == 0 ? "\n  " : ",\n  ") + BoardJson(map.boards[b]);
+    text += "\n ]";
+  }
   if (const auto& noise = map.range_bearing_noise) {
     const double values[] = {noise->range_a_m,    noise->range_b,      noise->bearing_rad,
                              noise->odometry_q_t, noise->odometry_q_r, noise->odometry_c_d};

@@ -7,11 +7,14 @@
 #include <cmath>
 #include <limits>
 
+#include "factors/board_member_factor.h"
 #include "factors/odometry_se2_factor.h"
 #include "factors/odometry_se3_factor.h"
 #include "factors/pose_prior_se3_factor.h"
 #include "factors/position_prior_factor.h"
 #include "factors/yaw_prior_factor.h"
+#include "geometry/board.h"
+#include "mapping/boards.h"
 #include "mapping/marginal_covariance.h"
 #include "mapping/residuals.h"
 #include "util/format.h"
@@ -64,13 +67,17 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     if (problem_->HasParameterBlock(robot_[obs.frame].data()) == false) {
       AddRobotBlock(problem_.get(), survey_.motion, &robot_[obs.frame]);
     }
-    if (markers_used.insert(obs.marker).second) AddMarkerBlock(problem_.get(), &marker_[obs.marker]);
+    if (markers_used.insert(obs.marker).second && !problem_->HasParameterBlock(CodeBlock(obs.marker)->data()))
+      AddMarkerBlock(problem_.get(), CodeBlock(obs.marker));
     const CameraInfo& camera = survey_.cameras.at(obs.camera);
     const double size_m = survey_.markers[obs.marker].size_m;
     const auto mount = mount_.find(obs.camera);
+    const double sigma_px = CornerSigmaPx(camera);
+    const bool planar = survey_.motion == MotionModel::kPlanar;
     if (mount == mount_.end()) {
-      AddCornerResidual(problem_.get(), survey_.motion, camera, size_m, obs.corners_px, &robot_[obs.frame],
-                        &marker_[obs.marker], loss);
+      AddOnCode(planar ? PlanarMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
+                       : MarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px),
+                loss, {robot_[obs.frame].data(), marker_[obs.marker].data()}, obs.marker);
       continue;
     }
     if (!problem_->HasParameterBlock(mount->second.data())) {
@@ -87,8 +94,10 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
       }
     }
     if (!camera.frame_wiggle_sigma) {
-      AddCornerResidualWithMount(problem_.get(), survey_.motion, camera, size_m, obs.corners_px,
-                                 &robot_[obs.frame], &mount->second, &marker_[obs.marker], loss);
+      AddOnCode(
+          planar ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
+                 : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px),
+          loss, {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()}, obs.marker);
       continue;
     }
     PoseBlock& wiggle = wiggle_.try_emplace({obs.frame, obs.camera}, IdentityBlock()).first->second;
@@ -98,21 +107,22 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
           PosePriorSE3Factor::Create(SE3d(), SigmasToCovariance(*camera.frame_wiggle_sigma)), nullptr,
           wiggle.data());
     }
-    const double sigma_px = CornerSigmaPx(camera);
     ceres::CostFunction* cost =
-        survey_.motion == MotionModel::kPlanar
-            ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
-            : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px);
-    problem_->AddResidualBlock(cost, loss, robot_[obs.frame].data(), mount->second.data(), wiggle.data(),
-                               marker_[obs.marker].data());
+        planar ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
+               : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px);
+    AddOnCode(cost, loss,
+              {robot_[obs.frame].data(), mount->second.data(), wiggle.data(), marker_[obs.marker].data()},
+              obs.marker);
   }
   if (loss != nullptr && active.empty()) delete loss;
   AddOdometry();
   AddPriorsAndGauge(markers_used, gauges);
   covariance_markers_.clear();
+  std::set<const double*> listed;
   for (int m : markers_used) {
-    if (!problem_->IsParameterBlockConstant(marker_[m].data()))
-      covariance_markers_.push_back(marker_[m].data());
+    const double* block = CodeBlock(m)->data();
+    if (!problem_->IsParameterBlockConstant(block) && listed.insert(block).second)
+      covariance_markers_.push_back(block);
   }
   // Measured on corridor loops (docs/mapping.md, speed): Cholesky of the normal equations with
   // SuiteSparse (CHOLMOD, AMD) is on par with EIGEN_SPARSE and beats SPARSE_SCHUR with the codes
@@ -177,7 +187,36 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
   }
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, problem_.get(), &summary);
+  SyncBoardCodes();
   return summary;
+}
+
+void GlobalProblem::InitBoards() {
+  board_.assign(survey_.boards.size(), IdentityBlock());
+  board_placed_.assign(survey_.boards.size(), false);
+  for (size_t b = 0; b < survey_.boards.size(); ++b) {
+    const std::optional<SE3d> T = InitialBoardPose(survey_, init_, static_cast<int>(b));
+    if (!T) continue;
+    SE3ToBlock(survey_.boards[b].fixed_pose.value_or(*T), board_[b].data());
+    board_placed_[b] = true;
+  }
+  SyncBoardCodes();
+}
+
+void GlobalProblem::SyncBoardCodes() {
+  for (size_t m = 0; m < survey_.markers.size(); ++m) {
+    if (OnBoard(static_cast<int>(m)))
+      SE3ToBlock(Board(survey_.markers[m].board) * survey_.markers[m].T_board_marker, marker_[m].data());
+  }
+}
+
+void GlobalProblem::AddOnCode(ceres::CostFunction* cost, ceres::LossFunction* loss,
+                              std::vector<double*> blocks, int m) {
+  if (OnBoard(m)) {
+    cost = new BoardMemberCost(cost, survey_.markers[m].T_board_marker);
+    blocks.back() = board_[survey_.markers[m].board].data();
+  }
+  problem_->AddResidualBlock(cost, loss, blocks);
 }
 
 size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
@@ -193,7 +232,7 @@ size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
   size_t moved = 0;
   for (int m : outlying) {
     const SurveyMarker& marker = survey_.markers[m];
-    if (marker.known && marker.known->fixed) continue;
+    if ((marker.known && marker.known->fixed) || OnBoard(m)) continue;  // a board moves as a whole
     const std::optional<SE3d> T =
         MarkerByConsensus(survey_, cameras, init_.views, T_world_robot, m, options_.initializer.cauchy_scale);
     if (!T) continue;
@@ -210,7 +249,7 @@ size_t GlobalProblem::ReplaceOutlyingMarkers(const std::vector<int>& active,
     const SurveyMarker& marker = survey_.markers[m];
     const bool fixed = marker.known && marker.known->fixed;
     const int code = static_cast<int>(m);
-    if (!init_.T_world_marker[m] || outlying.count(code) > 0 || fixed) continue;
+    if (!init_.T_world_marker[m] || outlying.count(code) > 0 || fixed || OnBoard(code)) continue;
     const std::optional<SE3d> T =
         OtherFlipBranch(survey_, cameras, init_.views, T_world_robot, code, Marker(code), fusion);
     if (T) {
@@ -293,9 +332,27 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
   gauges->assign(init_.components, "");
   std::vector<int> anchors(init_.components, 0), payloads(init_.components, 0),
       payloads_z(init_.components, 0);
+  std::set<int> boards_used;
   for (int m : markers_used) {
     const SurveyMarker& marker = survey_.markers[m];
     const int c = init_.marker_component[m];
+    if (OnBoard(m)) {
+      // The board's world information goes on the board's block, once (mapping/boards.h).
+      if (!boards_used.insert(marker.board).second) continue;
+      const SurveyBoard& board = survey_.boards[marker.board];
+      double* block = board_[marker.board].data();
+      if (board.fixed_pose) {
+        SE3ToBlock(*board.fixed_pose, block);
+        problem_->SetParameterBlockConstant(block);
+        ++anchors[c];
+      }
+      for (const BoardPrior& prior : board.priors) {
+        problem_->AddResidualBlock(PosePriorSE3Factor::Create(prior.T_world_board, prior.covariance), nullptr,
+                                   block);
+      }
+      if (!board.priors.empty() && !board.fixed_pose) ++anchors[c];
+      continue;
+    }
     if (marker.known && marker.known->fixed) {
       SE3ToBlock(marker.known->T_world_marker, marker_[m].data());
       problem_->SetParameterBlockConstant(marker_[m].data());
@@ -314,18 +371,17 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
     if (!marker.payload || anchors[c] > 0) continue;
     const PayloadData& p = *marker.payload;
     if (p.z_m && !planar) {
-      problem_->AddResidualBlock(
+      AddOnCode(
           PositionPriorFactor<3>::Create(Eigen::Vector3d(*p.x_m, *p.y_m, *p.z_m), options_.payload_sigma_m),
-          nullptr, marker_[m].data());
+          nullptr, {marker_[m].data()}, m);
       ++payloads_z[c];
     } else {
-      problem_->AddResidualBlock(
-          PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m), nullptr,
-          marker_[m].data());
+      AddOnCode(PositionPriorFactor<2>::Create(Eigen::Vector2d(*p.x_m, *p.y_m), options_.payload_sigma_m),
+                nullptr, {marker_[m].data()}, m);
     }
     if (p.yaw_rad) {
-      problem_->AddResidualBlock(YawPriorFactor::Create(*p.yaw_rad, options_.payload_yaw_sigma_rad), nullptr,
-                                 marker_[m].data());
+      AddOnCode(YawPriorFactor::Create(*p.yaw_rad, options_.payload_yaw_sigma_rad), nullptr,
+                {marker_[m].data()}, m);
     }
     ++payloads[c];
   }
@@ -433,8 +489,10 @@ double GlobalProblem::SquaredError(int o) const {
 bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
                                 std::vector<std::optional<CovarianceFactor>>* factors,
                                 std::optional<Eigen::Matrix3d>* calibration_covariance,
-                                std::map<std::string, Matrix6d>* mount_covariance) const {
+                                std::map<std::string, Matrix6d>* mount_covariance,
+                                std::vector<std::optional<Matrix6d>>* board_covariance) const {
   covariance->assign(survey_.markers.size(), std::nullopt);
+  if (board_covariance != nullptr) board_covariance->assign(survey_.boards.size(), std::nullopt);
   factors->assign(survey_.markers.size(), std::nullopt);
   calibration_covariance->reset();
   mount_covariance->clear();
@@ -462,26 +520,39 @@ bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matri
   std::map<const double*, size_t> index_of;
   for (size_t i = 0; i < covariance_markers_.size(); ++i) index_of[covariance_markers_[i]] = i;
   const size_t count = covariance_markers_.size();
-  std::vector<size_t> markers(count);  // in covariance_markers_ order
-  std::vector<SE3d> poses(count);
+  std::vector<SE3d> poses(count);  // of the blocks, in covariance_markers_ order
   std::vector<Matrix6d> marginals(count);
+  std::vector<std::vector<size_t>> markers(count);  // the codes of each block (several on a board)
   for (size_t m = 0; m < survey_.markers.size(); ++m) {
-    const auto it = index_of.find(marker_[m].data());
+    const int code = static_cast<int>(m);
+    const auto it = index_of.find(CodeBlock(code)->data());
     if (it == index_of.end()) continue;
-    const SE3d T_world_marker = Marker(static_cast<int>(m));
-    const Matrix6d J = ManifoldToBodyTangentJacobian(T_world_marker);
-    const Matrix6d body = J * Matrix6d(manifold[it->second]) * J.transpose();
-    (*covariance)[m] = 0.5 * (body + body.transpose());
-    markers[it->second] = m;
-    poses[it->second] = T_world_marker;
-    marginals[it->second] = *(*covariance)[m];
+    const size_t i = it->second;
+    if (markers[i].empty()) {
+      poses[i] = OnBoard(code) ? Board(survey_.markers[m].board) : Marker(code);
+      const Matrix6d J = ManifoldToBodyTangentJacobian(poses[i]);
+      const Matrix6d body = J * Matrix6d(manifold[i]) * J.transpose();
+      marginals[i] = 0.5 * (body + body.transpose());
+      if (OnBoard(code) && board_covariance != nullptr)
+        (*board_covariance)[survey_.markers[m].board] = marginals[i];
+    }
+    markers[i].push_back(m);
+    (*covariance)[m] =
+        OnBoard(code) ? MemberCovariance(marginals[i], survey_.markers[m].T_board_marker) : marginals[i];
   }
   if (factor_rank <= 0) return true;
   CovarianceFactorOptions factor_options;
   factor_options.rank = factor_rank;
   const auto rows =
       MarkerCovarianceFactors(information, covariance_markers_, poses, marginals, factor_options);
-  for (size_t i = 0; rows && i < markers.size(); ++i) (*factors)[markers[i]] = (*rows)[i];
+  for (size_t i = 0; rows && i < markers.size(); ++i) {
+    for (size_t m : markers[i]) {
+      (*factors)[m] =
+          OnBoard(static_cast<int>(m))
+              ? CovarianceFactor(BoardToMemberJacobian(survey_.markers[m].T_board_marker) * (*rows)[i])
+              : (*rows)[i];
+    }
+  }
   return true;
 }
 

@@ -38,6 +38,7 @@ class GlobalProblem {
     for (size_t m = 0; m < marker_.size(); ++m) {
       if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
     }
+    InitBoards();
     for (const auto& [name, camera] : survey.cameras) {
       if (camera.T_robot_camera_sigma || camera.frame_wiggle_sigma)
         SE3ToBlock(camera.T_robot_camera, mount_[name].data());
@@ -58,7 +59,8 @@ class GlobalProblem {
   bool Covariances(int factor_rank, std::vector<std::optional<Matrix6d>>* covariance,
                    std::vector<std::optional<CovarianceFactor>>* factors,
                    std::optional<Eigen::Matrix3d>* calibration_covariance,
-                   std::map<std::string, Matrix6d>* mount_covariance) const;
+                   std::map<std::string, Matrix6d>* mount_covariance,
+                   std::vector<std::optional<Matrix6d>>* board_covariance = nullptr) const;
   // The odometry calibration of the problem, nullopt when it has no calibrated odometry link.
   std::optional<Eigen::Vector3d> Calibration() const {
     if (!problem_->HasParameterBlock(calibration_.data())) return std::nullopt;
@@ -92,6 +94,9 @@ class GlobalProblem {
   bool FramePlaced(int f) const { return init_.T_world_robot[f].has_value(); }
   SE3d Robot(int f) const { return RobotFromBlock(survey_.motion, robot_[f]); }
   SE3d Marker(int m) const { return SE3FromBlock(marker_[m].data()); }
+  // A rigid board's pose (mapping/boards.h); its codes' Marker() is Board(b) * T_board_marker.
+  bool BoardPlaced(int b) const { return board_placed_[b]; }
+  SE3d Board(int b) const { return SE3FromBlock(board_[b].data()); }
 
  private:
   void AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges);
@@ -102,11 +107,27 @@ class GlobalProblem {
   // Whether a frame's camera deviation (frame_wiggle_sigma) is in the problem.
   bool HasWiggle() const;
   void AddCalibratedOdometry(const OdometryLink& link);
+  // Rigid boards (mapping/boards.h): initial board poses; the pose block of a code (its board's
+  // for a code on a board); a residual whose last block is code m's pose, on its board's block
+  // through factors/board_member_factor.h when it is on a board; the codes' poses from their
+  // boards' after a solve.
+  void InitBoards();
+  bool OnBoard(int m) const {
+    return survey_.markers[m].board >= 0 && board_placed_[survey_.markers[m].board];
+  }
+  PoseBlock* CodeBlock(int m) { return OnBoard(m) ? &board_[survey_.markers[m].board] : &marker_[m]; }
+  const PoseBlock* CodeBlock(int m) const {
+    return OnBoard(m) ? &board_[survey_.markers[m].board] : &marker_[m];
+  }
+  void AddOnCode(ceres::CostFunction* cost, ceres::LossFunction* loss, std::vector<double*> blocks, int m);
+  void SyncBoardCodes();
 
   const Survey& survey_;
   const Initialization& init_;
   const MapBuildOptions& options_;
   std::vector<PoseBlock> robot_, marker_;
+  std::vector<PoseBlock> board_;  // per Survey::boards
+  std::vector<bool> board_placed_;
   // Cameras whose mount is a block: estimated (T_robot_camera_sigma), or held constant with a
   // per-frame wiggle around it (frame_wiggle_sigma only).
   std::map<std::string, PoseBlock> mount_;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "mapping/boards.h"
 #include "mapping/global_problem.h"
 #include "mapping/outlier_rejection.h"
 #include "mapping/residuals.h"
@@ -57,6 +58,21 @@ void FillOutputs(const Survey& survey, const Initialization& init, const GlobalP
     marker.square_tape = survey.markers[m].square_tape;
     marker.component = init.marker_component[m];
     result->map.markers.push_back(marker);
+  }
+  // Each board with a mapped code, with those codes (the others are not in the map).
+  for (size_t b = 0; b < survey.boards.size(); ++b) {
+    MapBoard board;
+    board.name = survey.boards[b].name;
+    for (int m : survey.boards[b].markers) {
+      if (mapped.count(m) == 0 || !problem.BoardPlaced(static_cast<int>(b))) continue;
+      board.members.push_back({survey.markers[m].key, survey.markers[m].T_board_marker});
+      board.component = init.marker_component[m];
+    }
+    if (board.members.empty()) continue;
+    board.has_pose = true;
+    board.T_world_board = problem.Board(static_cast<int>(b));
+    board.fixed = survey.boards[b].fixed_pose.has_value();
+    result->map.boards.push_back(board);
   }
   for (int c = 0; c < init.components; ++c) {
     ComponentSummary summary;
@@ -150,9 +166,15 @@ MapBuildResult BuildMapFromSurvey(const Survey& survey, const MapBuildOptions& o
     initializer.graph.given_calibration = options.odometry_calibration;
     initializer.graph.given_calibration_sigma = options.odometry_calibration_sigma;
   }
-  const Initialization init = Initialize(checked, initializer);
+  Initialization init = Initialize(checked, initializer);
   result.phases.insert(result.phases.end(), init.phases.begin(), init.phases.end());
   result.notes.insert(result.notes.end(), init.notes.begin(), init.notes.end());  // local maps, links
+  if (const int joined = JoinBoardComponents(checked, &init); joined > 0) {
+    result.notes.push_back(std::to_string(joined + 1) +
+                           " groups of codes that share no observation are one map: codes of one board");
+  }
+  const std::vector<std::string> boards = DescribeBoards(checked);
+  result.notes.insert(result.notes.end(), boards.begin(), boards.end());
   result.init_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return OptimizeSurvey(checked, init, options, std::move(result));
 }
@@ -261,9 +283,10 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
     std::vector<std::optional<Matrix6d>> covariance;
     std::vector<std::optional<CovarianceFactor>> factors;
     std::map<std::string, Matrix6d> mount_covariance;
+    std::vector<std::optional<Matrix6d>> board_covariance;
     result.covariance_computed =
         problem.Covariances(options.covariance_factor_rank, &covariance, &factors,
-                            &result.odometry_calibration_covariance, &mount_covariance);
+                            &result.odometry_calibration_covariance, &mount_covariance, &board_covariance);
     if (result.covariance_computed) {
       for (CameraMountEstimate& mount : result.mounts) {
         if (const auto it = mount_covariance.find(mount.camera); it != mount_covariance.end())
@@ -273,6 +296,10 @@ MapBuildResult OptimizeSurvey(const Survey& survey, const Initialization& init,
         const int m = survey.FindMarker(marker.key);
         marker.covariance = covariance[m];
         marker.covariance_factor = factors[m];
+      }
+      for (MapBoard& board : result.map.boards) {
+        const int b = survey.markers[survey.FindMarker(board.members.front().key)].board;
+        board.covariance = board_covariance[b];
       }
     } else {
       result.notes.push_back("marker covariances could not be computed (rank-deficient problem)");

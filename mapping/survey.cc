@@ -10,6 +10,7 @@
 #include "factors/odometry_covariance.h"
 #include "geometry/camera.h"
 #include "geometry/marker_pose.h"
+#include "mapping/boards.h"
 #include "mapping/square_association.h"
 #include "util/check.h"
 #include "util/format.h"
@@ -485,6 +486,7 @@ Survey IngestDataset(const Dataset& input, const IngestOptions& options) {
     }
   }
   AttachOdometry(dataset, options, &survey);
+  if (dataset.known_markers) AttachBoards(*dataset.known_markers, &survey);
   return survey;
 }
 

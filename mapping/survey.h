@@ -114,6 +114,27 @@ struct SurveyMarker {
   std::optional<PayloadData> payload;     // coordinates printed in the payload, if any
   std::optional<SquareTape> square_tape;  // family square: its tape (markers.json entry)
   std::vector<int> observations;
+  // On a rigid board (markers.json `boards`, mapping/boards.h): the board's index in
+  // Survey::boards and the code's pose on it; -1 otherwise. A board code's `known` is the pose
+  // its board's world information gives it (for the initializer), not a prior of its own.
+  int board = -1;
+  SE3d T_board_marker;
+};
+
+// A pose prior of a board: mean and covariance (right perturbation, board frame).
+struct BoardPrior {
+  SE3d T_world_board;
+  Matrix6d covariance;
+};
+
+// A rigid board of markers.json as the survey sees it (mapping/boards.h).
+struct SurveyBoard {
+  std::string name;
+  std::vector<int> markers;        // its codes seen in the survey (indices into Survey::markers)
+  size_t codes = 0;                // its codes in markers.json
+  std::optional<SE3d> fixed_pose;  // held constant at this pose (the board or one of its codes fixed)
+  std::vector<BoardPrior> priors;  // pose priors (the board's, or its codes' moved onto it)
+  std::string world;               // how its world pose is known, for the summary
 };
 
 // Odometry between consecutive frames a < b of one segment.
@@ -132,6 +153,7 @@ struct Survey {
   std::vector<SurveyMarker> markers;
   std::vector<SurveyObservation> observations;
   std::vector<OdometryLink> odometry_links;
+  std::vector<SurveyBoard> boards;
   int odometry_segments = 0;
   double odometry_time_offset_s = 0.0;  // delta applied (header comment)
   double odometry_stamp_sigma_s = 0.0;  // sigma_stamp used (header comment)
