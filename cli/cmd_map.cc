@@ -47,7 +47,9 @@ build   learns the poses of the codes seen in the dataset directory DATASET (its
         every code and every frame pose (robust loss, outliers rejected and reported) gives the
         map, with a covariance per code, and the smoothed trajectory. Disconnected groups of
         codes become separate components, each in its own frame, except that groups holding
-        anchors or priors (markers.json) are one component in the world frame.
+        anchors or priors (markers.json) are one component in the world frame. Codes of a
+        rigid board (markers.json `boards`: their poses on the board known) get one pose per
+        board, and the map carries the board (docs/mapping.md, "Boards").
         Several datasets (robots, or survey days in one building) make one map, tied through
         the codes they share; --trajectory-dir DIR then receives each dataset's smoothed
         trajectory as DIR/<dataset name>.tum. Datasets with range-bearing observations of
@@ -58,7 +60,7 @@ build   learns the poses of the codes seen in the dataset directory DATASET (its
         from the data; the map holds point landmarks (p_world_marker).
 merge   the same with the codes of MAP.json as priors (their covariance, or held fixed when
         they have none); codes of MAP.json the survey does not see are kept as they were.
-info    markers, components, families, anchors and position uncertainty of a map, and the
+info    markers, components, families, anchors, boards and position uncertainty of a map, and the
         marker error `waymark eval` would measure, predicted per component from the covariances.
 
 Progress goes to stderr on a terminal; the summary (markers and components, reprojection
@@ -571,6 +573,10 @@ int RunInfo(const std::vector<std::string>& argv) {
               << FormatFixed(sigma_mm.back(), 2) << " mm";
   }
   std::cout << "\n";
+  for (const MapBoard& board : map.boards) {
+    std::cout << "board " << board.name << ": " << board.members.size() << " codes"
+              << (board.fixed ? ", fixed" : "") << "\n";
+  }
   PrintPredictedError(map);
   return 0;
 }

@@ -51,6 +51,7 @@ TEST_F(BoardCliTest, BuildKeepsTheBoardAndListsItsCodes) {
   }
   const RunResult info = Run("map info " + map_path.string());
   EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("board shelf: 6 codes\n"), std::string::npos) << info.out;
 
   // The built map as the known markers of a new build: the board is a prior now.
   fs::copy_file(map_path, survey / "markers.json", fs::copy_options::overwrite_existing);
