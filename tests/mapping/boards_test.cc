@@ -7,13 +7,16 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 
+#include "eval/map_metrics.h"
 #include "geometry/board.h"
 #include "io/map_io.h"
 #include "mapping/map_builder.h"
+#include "sim/simulator.h"
 #include "tests/mapping/board_survey.h"
 
 namespace waymark {
@@ -179,6 +182,81 @@ TEST(BoardsTest, BoardJoinsGroupsThatShareNoCode) {
   ExpectRigid(with.map);
   EXPECT_EQ(with.map.boards[0].members.size(), 4u);  // B1 and B4 are never seen
   EXPECT_LT(BoardCodeErrorM(with.map), 0.01);
+}
+
+// A code's prior (no pose on the board) becomes the board's prior: one map in the world frame.
+TEST(BoardsTest, CodePriorBecomesTheBoardsPrior) {
+  Dataset dataset = BoardSurvey(true);
+  MapMarker* anchor = dataset.known_markers->Find(MarkerKey{"apriltag-36h11", "B4"});
+  anchor->has_pose = true;
+  anchor->T_world_marker = TrueBoardPose() * BoardLayout()[4].T_board_marker;
+  anchor->covariance = Matrix6d::Identity() * 1e-4;
+  const MapBuildResult result = BuildMap(dataset, Quiet());
+  ExpectRigid(result.map);
+  EXPECT_FALSE(result.map.boards[0].fixed);
+  EXPECT_LT((result.map.boards[0].T_world_board.translation() - TrueBoardPose().translation()).norm(), 0.02);
+  ASSERT_EQ(result.components.size(), 1u);
+  EXPECT_EQ(result.components[0].gauge, "1 anchor(s) from markers.json");
+  bool described = false;
+  for (const std::string& note : result.notes)
+    described =
+        described || note ==
+                         "board shelf: 6 of 6 codes seen, rigid (one pose): prior from 1 of its codes "
+                         "in markers.json";
+  EXPECT_TRUE(described);
+}
+
+// A planar survey (sim corridor: SE(2) robot, odometry): four codes of one wall given as a board
+// (their layout from the simulation's truth) stay rigid and map as well as free codes.
+TEST(BoardsTest, PlanarCorridorWithABoard) {
+  sim::ParamSet params = sim::ScenarioParams("corridor");
+  for (const char* s : {"place.loop_length_m=4", "place.loop_width_m=3", "place.spacing_m=0.5"})
+    params.SetAssignment(s);
+  const sim::SimResult sim = sim::Simulate("corridor", params, 5);
+  const MarkerMap& truth = *sim.dataset.groundtruth_markers;
+  // The first code and its three nearest neighbours facing the same way.
+  const MapMarker& first = truth.markers.front();
+  std::vector<std::pair<double, const MapMarker*>> near;
+  for (const MapMarker& m : truth.markers) {
+    const double facing = (first.T_world_marker.rotation() * Eigen::Vector3d::UnitZ())
+                              .dot(m.T_world_marker.rotation() * Eigen::Vector3d::UnitZ());
+    if (facing > 0.99)
+      near.push_back({(m.T_world_marker.translation() - first.T_world_marker.translation()).norm(), &m});
+  }
+  std::sort(near.begin(), near.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  ASSERT_GE(near.size(), 4u);
+  MapBoard board;
+  board.name = "wall";
+  std::string pattern;
+  for (int i = 0; i < 4; ++i) {
+    const MapMarker& m = *near[i].second;
+    board.members.push_back({m.key, first.T_world_marker.inverse() * m.T_world_marker});
+    pattern += (i == 0 ? "^(" : "|") + m.key.id;
+  }
+  pattern += ")$";
+  Dataset with_board = sim.dataset;
+  if (!with_board.known_markers) with_board.known_markers.emplace();
+  for (const BoardMember& member : board.members) {
+    if (with_board.known_markers->Find(member.key) != nullptr) continue;
+    MapMarker entry = *truth.Find(member.key);
+    entry.has_pose = false;
+    entry.covariance.reset();
+    entry.fixed = false;
+    with_board.known_markers->markers.push_back(entry);
+  }
+  with_board.known_markers->boards.push_back(board);
+  const MapBuildResult without = BuildMap(sim.dataset, Quiet());
+  const MapBuildResult with = BuildMap(with_board, Quiet());
+  ExpectRigid(with.map);
+  EXPECT_EQ(with.components.size(), without.components.size());
+  const eval::GroupResult error_with = eval::EvaluateGroup(eval::EvaluateMap(with.map, truth), pattern);
+  const eval::GroupResult error_without = eval::EvaluateGroup(eval::EvaluateMap(without.map, truth), pattern);
+  ASSERT_EQ(error_with.markers, 4u);
+  std::printf("planar board codes: %.3f mm / %.3f deg without the board, %.3f mm / %.3f deg with it\n",
+              1e3 * error_without.position_rmse_m, error_without.orientation_rmse_deg,
+              1e3 * error_with.position_rmse_m, error_with.orientation_rmse_deg);
+  EXPECT_LT(error_with.position_rmse_m, 1.2 * error_without.position_rmse_m);
+  EXPECT_LT(error_with.orientation_rmse_deg, error_without.orientation_rmse_deg);
 }
 
 TEST(BoardsTest, JacobianMovesTheCodeAsTheBoard) {
