@@ -5,6 +5,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "geometry/board.h"
 #include "util/format.h"
 
 namespace waymark {
@@ -108,6 +109,31 @@ CombinedSurvey CombineSurveys(const std::vector<const Dataset*>& datasets, doubl
                                    " differs from the same code's entry in an earlier dataset");
         }
       }
+      // Rigid boards (mapping/boards.h): one of each name; the same name must be the same board.
+      for (const MapBoard& board : d.known_markers->boards) {
+        const auto same = std::find_if(out.known_markers->boards.begin(), out.known_markers->boards.end(),
+                                       [&](const MapBoard& b) { return b.name == board.name; });
+        if (same == out.known_markers->boards.end()) {
+          out.known_markers->boards.push_back(board);
+          continue;
+        }
+        bool equal = same->members.size() == board.members.size() && same->has_pose == board.has_pose &&
+                     same->fixed == board.fixed;
+        for (size_t i = 0; equal && i < board.members.size(); ++i) {
+          equal = same->members[i].key == board.members[i].key &&
+                  same->members[i].T_board_marker.translation() ==
+                      board.members[i].T_board_marker.translation() &&
+                  same->members[i].T_board_marker.rotation().coeffs() ==
+                      board.members[i].T_board_marker.rotation().coeffs();
+        }
+        if (!equal)
+          throw std::runtime_error(name + ": markers.json board " + board.name +
+                                   " differs from the same board in an earlier dataset");
+      }
+      if (const std::optional<BoardProblem> problem = FindBoardProblem(*out.known_markers))
+        throw std::runtime_error(name + ": markers.json board " +
+                                 out.known_markers->boards[problem->board].name +
+                                 " with the earlier datasets' boards: " + problem->message);
     }
     for (const auto& [reason, count] : d.warnings.counts) out.warnings.counts[reason] += count;
     combined.parts.push_back(part);

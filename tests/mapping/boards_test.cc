@@ -16,6 +16,7 @@
 #include "geometry/board.h"
 #include "io/map_io.h"
 #include "mapping/map_builder.h"
+#include "mapping/multi_survey.h"
 #include "sim/simulator.h"
 #include "tests/mapping/board_survey.h"
 
@@ -257,6 +258,36 @@ TEST(BoardsTest, PlanarCorridorWithABoard) {
               1e3 * error_with.position_rmse_m, error_with.orientation_rmse_deg);
   EXPECT_LT(error_with.position_rmse_m, 1.2 * error_without.position_rmse_m);
   EXPECT_LT(error_with.orientation_rmse_deg, error_without.orientation_rmse_deg);
+}
+
+// Several datasets: their boards are carried into the combined known markers, one per name; the
+// same name with another layout, or a code on two boards, is an error naming the dataset.
+TEST(BoardsTest, CombinedSurveysCarryTheirBoards) {
+  Dataset a = BoardSurvey(true), b = BoardSurvey(true, false, false, 12);
+  a.config.name = "a";
+  b.config.name = "b";
+  const CombinedSurvey combined = CombineSurveys({&a, &b}, 10.0);
+  ASSERT_EQ(combined.dataset.known_markers->boards.size(), 1u);
+  const MapBuildResult result = BuildMap(combined.dataset, Quiet());
+  ExpectRigid(result.map);
+  b.known_markers->boards[0].members[1].T_board_marker =
+      SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.3, 0.3, 0.0));
+  try {
+    CombineSurveys({&a, &b}, 10.0);
+    ADD_FAILURE() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "b: markers.json board shelf differs from the same board in an earlier dataset");
+  }
+  b.known_markers->boards[0].name = "other";
+  try {
+    CombineSurveys({&a, &b}, 10.0);
+    ADD_FAILURE() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(
+        e.what(),
+        "b: markers.json board other with the earlier datasets' boards: code apriltag-36h11:B0 is already on "
+        "board \"shelf\" (a code is on one board, once)");
+  }
 }
 
 TEST(BoardsTest, JacobianMovesTheCodeAsTheBoard) {
