@@ -22,6 +22,12 @@
 // has_pose = false and may not be fixed or carry a covariance). Everywhere else a pose is
 // required.
 //
+// boards (optional, top level): rigid boards, {"name", "T_world_board", "covariance", "fixed",
+// "component", "markers": [{"family", "id", "T_board_marker"}]} (geometry/types.h MapBoard);
+// T_world_board is required with MapPoses::kRequired, and every board obeys geometry/board.h's
+// rules (each code also in "markers", on one board, no overlap, no conflicting poses), which both
+// the reader and the writer check.
+//
 // Strict: every field is checked (type, count, finiteness, family known, size_m > 0, unit
 // quaternion, no duplicate (family, id)); an error is a FormatError "path:line: field: what
 // was expected". Unknown keys are counted warnings.
