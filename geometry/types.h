@@ -202,9 +202,20 @@ struct CameraInfo {
 
 enum class MotionModel { kPlanar, kFree };
 
+// dataset.yaml's odometry_sigma (docs/mapping.md, "Odometry noise models"; the covariance of a
+// relative motion: factors/odometry_covariance.h). White terms, per increment of the odometry
+// stream, proportional to what the increment moved; random-walk terms, whose variance grows
+// linearly with the time and with the distance between two instants whatever the sample rate.
 struct OdometrySigma {
-  double trans_per_m = 0.0;  // translation noise per metre travelled
-  double rot_per_rad = 0.0;  // rotation noise per radian turned
+  double trans_per_m = 0.0;       // translation noise per metre travelled (white, per increment)
+  double rot_per_rad = 0.0;       // rotation noise per radian turned (white, per increment)
+  double trans_per_sqrt_s = 0.0;  // m / sqrt(s): position random walk in time (a VIO drifting at rest)
+  double rot_per_sqrt_s = 0.0;    // rad / sqrt(s): attitude random walk in time (gyro drift)
+  double trans_per_sqrt_m = 0.0;  // m / sqrt(m): position random walk per metre travelled
+  double rot_per_sqrt_m = 0.0;  // rad / sqrt(m): heading random walk per metre (wheel radius, VIO yaw drift)
+  bool HasRandomWalk() const {
+    return trans_per_sqrt_s > 0.0 || rot_per_sqrt_s > 0.0 || trans_per_sqrt_m > 0.0 || rot_per_sqrt_m > 0.0;
+  }
 };
 
 // One point landmark seen by a range-bearing sensor (range_bearing.jsonl), in the robot frame

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <sstream>
 #include <stdexcept>
 #include <string_view>
+#include <utility>
 
 #include "geometry/payload.h"
 #include "io/camera_io.h"
@@ -56,18 +58,29 @@ std::vector<std::string> ReadCameraNames(const fs::path& path, const YAML::Node&
 }
 
 OdometrySigma ReadOdometrySigma(const fs::path& path, const YAML::Node& node) {
-  if (!node.IsMap()) ThrowYamlError(path, node, "odometry_sigma: expected a map {trans_per_m, rot_per_rad}");
+  if (!node.IsMap())
+    ThrowYamlError(path, node, "odometry_sigma: expected a map {trans_per_m, rot_per_rad, ...}");
   OdometrySigma sigma;
-  sigma.trans_per_m = YamlNumber(path, YamlRequire(path, node, "trans_per_m"), "odometry_sigma.trans_per_m");
-  sigma.rot_per_rad = YamlNumber(path, YamlRequire(path, node, "rot_per_rad"), "odometry_sigma.rot_per_rad");
-  if (sigma.trans_per_m < 0.0 || sigma.rot_per_rad < 0.0) {
-    ThrowYamlError(path, node, "odometry_sigma: expected non-negative noise figures");
+  // trans_per_m and rot_per_rad are required (version 1); the random-walk terms are optional (0).
+  const std::pair<const char*, double*> keys[] = {
+      {"trans_per_m", &sigma.trans_per_m},           {"rot_per_rad", &sigma.rot_per_rad},
+      {"trans_per_sqrt_s", &sigma.trans_per_sqrt_s}, {"rot_per_sqrt_s", &sigma.rot_per_sqrt_s},
+      {"trans_per_sqrt_m", &sigma.trans_per_sqrt_m}, {"rot_per_sqrt_m", &sigma.rot_per_sqrt_m}};
+  for (size_t i = 0; i < std::size(keys); ++i) {
+    const std::string key = keys[i].first;
+    const YAML::Node value = i < 2 ? YamlRequire(path, node, key) : node[key];
+    if (!value.IsDefined() || value.IsNull()) continue;
+    *keys[i].second = YamlNumber(path, value, "odometry_sigma." + key);
+    if (*keys[i].second < 0.0)
+      ThrowYamlError(path, value, "odometry_sigma." + key + ": expected a non-negative noise figure");
   }
   for (const auto& key_value : node) {
     const std::string key = key_value.first.Scalar();
-    if (key != "trans_per_m" && key != "rot_per_rad") {
+    if (std::none_of(std::begin(keys), std::end(keys), [&](const auto& k) { return key == k.first; })) {
       ThrowYamlError(path, key_value.first,
-                     "odometry_sigma: unknown key '" + key + "' (expected trans_per_m, rot_per_rad)");
+                     "odometry_sigma: unknown key '" + key +
+                         "' (expected trans_per_m, rot_per_rad, trans_per_sqrt_s, rot_per_sqrt_s, "
+                         "trans_per_sqrt_m, rot_per_sqrt_m)");
     }
   }
   return sigma;
@@ -222,12 +235,20 @@ std::string FormatDatasetYaml(const DatasetConfig& config) {
     out << "default_marker_size_m: " << FormatDouble(*config.default_marker_size_m) << "\n";
   }
   if (const auto& sigma = config.odometry_sigma) {
-    if (!(sigma->trans_per_m >= 0.0 && sigma->rot_per_rad >= 0.0) || !std::isfinite(sigma->trans_per_m) ||
-        !std::isfinite(sigma->rot_per_rad)) {
-      throw std::invalid_argument("dataset writer: odometry_sigma must be finite and non-negative");
+    const std::pair<const char*, double> terms[] = {
+        {"trans_per_m", sigma->trans_per_m},           {"rot_per_rad", sigma->rot_per_rad},
+        {"trans_per_sqrt_s", sigma->trans_per_sqrt_s}, {"rot_per_sqrt_s", sigma->rot_per_sqrt_s},
+        {"trans_per_sqrt_m", sigma->trans_per_sqrt_m}, {"rot_per_sqrt_m", sigma->rot_per_sqrt_m}};
+    for (const auto& [key, value] : terms) {
+      if (!(value >= 0.0) || !std::isfinite(value))
+        throw std::invalid_argument("dataset writer: odometry_sigma must be finite and non-negative");
     }
     out << "odometry_sigma: {trans_per_m: " << FormatDouble(sigma->trans_per_m)
-        << ", rot_per_rad: " << FormatDouble(sigma->rot_per_rad) << "}\n";
+        << ", rot_per_rad: " << FormatDouble(sigma->rot_per_rad);
+    for (size_t i = 2; i < std::size(terms); ++i) {  // the random-walk terms, only when set
+      if (terms[i].second > 0.0) out << ", " << terms[i].first << ": " << FormatDouble(terms[i].second);
+    }
+    out << "}\n";
   }
   if (config.payload) {
     if (const std::string why = CheckPayloadSpec(*config.payload); !why.empty()) {

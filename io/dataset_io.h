@@ -16,7 +16,9 @@
 //   motion: planar                   # required: planar | free
 //   cameras: [cam0, cam1]            # required, distinct names; [] for range-bearing-only datasets
 //   default_marker_size_m: 0.10      # optional, > 0
-//   odometry_sigma: {trans_per_m: 0.02, rot_per_rad: 0.02}   # optional, both keys, >= 0
+//   odometry_sigma: {trans_per_m: 0.02, rot_per_rad: 0.02}   # optional; these two keys required, >= 0;
+//     optional random-walk terms (>= 0, default 0): trans_per_sqrt_s, rot_per_sqrt_s,
+//     trans_per_sqrt_m, rot_per_sqrt_m (docs/formats.md; OdometrySigma in geometry/types.h)
 //   payload: {pattern: "^(\\d+)/(-?[0-9.]+)/(-?[0-9.]+)$", fields: [kind, x, y]}   # optional
 //   odometry: odometry.tum           # optional file names (defaults shown); a file named
 //   detections: detections.jsonl     #   here must exist, a default-named one may be absent

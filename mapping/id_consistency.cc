@@ -71,12 +71,39 @@ bool Consistent(const OdomView& a, const OdomView& b, const IdCheckOptions& opti
   return (a.p_odom - b.p_odom).norm() <= gate_m;
 }
 
+// Size of each view's visit (header comment): views linked along the path, each to one of the
+// previous options.visit_link_window views in path order that it is consistent with.
+std::vector<int> VisitSizes(const std::vector<OdomView>& views, const IdCheckOptions& options) {
+  std::vector<size_t> order(views.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return views[a].path_m < views[b].path_m; });
+  std::vector<size_t> parent(views.size());
+  for (size_t i = 0; i < parent.size(); ++i) parent[i] = i;
+  const auto root = [&](size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (size_t k = 1; k < order.size(); ++k) {
+    for (size_t back = 1; back <= options.visit_link_window && back <= k; ++back) {
+      if (Consistent(views[order[k]], views[order[k - back]], options))
+        parent[root(order[k])] = root(order[k - back]);
+    }
+  }
+  std::map<size_t, int> count;
+  for (size_t i = 0; i < views.size(); ++i) ++count[root(i)];
+  std::vector<int> size(views.size());
+  for (size_t i = 0; i < views.size(); ++i) size[i] = count[root(i)];
+  return size;
+}
+
 // Judges the views of one code in one segment (header comment); returns the seed's support.
 // The views not found inconsistent are added to *kept.
 int JudgeViews(const std::vector<OdomView>& views, const IdCheckOptions& options,
                std::vector<int>* inconsistent, std::vector<int>* kept) {
   if (views.size() == 1) kept->push_back(views[0].observation);
   if (views.size() < 2) return static_cast<int>(views.size());
+  const std::vector<int> visit = VisitSizes(views, options);
   const size_t stride = (views.size() + options.max_reference_views - 1) / options.max_reference_views;
   std::vector<int> support(views.size(), 0);
   for (size_t i = 0; i < views.size(); ++i) {
@@ -88,7 +115,8 @@ int JudgeViews(const std::vector<OdomView>& views, const IdCheckOptions& options
   for (size_t i = 0; i < views.size(); ++i) {
     if (support[seed] == 1) {
       inconsistent->push_back(views[i].observation);  // no two views agree
-    } else if (!Consistent(views[i], views[seed], options) && 2 * support[i] <= support[seed]) {
+    } else if (!Consistent(views[i], views[seed], options) && 2 * support[i] <= support[seed] &&
+               visit[i] < options.min_visit_views) {
       inconsistent->push_back(views[i].observation);
     } else {
       kept->push_back(views[i].observation);
@@ -104,6 +132,8 @@ bool IdCheckOptions::Check(std::string* why) const {
                            IsFiniteAtLeast(range_fraction, 0.0),
                        "id check: base_gate_m, drift_per_m and range_fraction must be finite and >= 0");
   WAYMARK_CHECK_OPTION(max_reference_views >= 1, "id check: max_reference_views must be >= 1");
+  WAYMARK_CHECK_OPTION(min_visit_views >= 2 && visit_link_window >= 1,
+                       "id check: min_visit_views must be >= 2 and visit_link_window >= 1");
   return true;
 }
 

@@ -13,7 +13,13 @@
 // view of largest support. A view is inconsistent when it is not consistent with the seed and
 // 2 * support(i) <= support(seed): a swapped id seen once against a code seen from several
 // frames. When no two views agree (support(seed) = 1), all are inconsistent: a code never
-// seen itself, only through swapped ids. Across segments (a carry: odometry cannot compare
+// seen itself, only through swapped ids. A view is never set aside within its segment when it
+// belongs to a visit of at least min_visit_views views: views linked along the path, each
+// consistent with one of the visit_link_window views before it in path order. Between two
+// visits of one code the odometry may have drifted by more than any fixed allowance (a VIO with
+// 2 deg/m of yaw drift: metres after a loop), while within a visit it has not; a misdecoded id
+// is a view or two at the wrong place, not a run of views that agree with each other.
+// Across segments (a carry: odometry cannot compare
 // positions) the views kept in one segment are inconsistent when they are a lone view and
 // another segment's seed has support >= 3, or when another segment's seed has 8 times their
 // seed's support. (A code revisited after a carry in a few frames only loses those views: a
@@ -35,6 +41,8 @@ struct IdCheckOptions {
   double drift_per_m = 0.05;         // odometry drift allowance per metre of path between views
   double range_fraction = 0.05;      // single-view centre error allowance, fraction of the range
   size_t max_reference_views = 200;  // support is counted against at most this many views
+  int min_visit_views = 3;           // a visit of this many linked views is kept (header comment)
+  size_t visit_link_window = 5;      // a view links to one of this many previous views (path order)
   bool Check(std::string* why) const;
 };
 

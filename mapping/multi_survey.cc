@@ -28,7 +28,9 @@ std::pair<double, double> Span(const Dataset& dataset) {
 
 bool SameSigma(const std::optional<OdometrySigma>& a, const std::optional<OdometrySigma>& b) {
   if (!a || !b) return !a && !b;
-  return a->trans_per_m == b->trans_per_m && a->rot_per_rad == b->rot_per_rad;
+  return a->trans_per_m == b->trans_per_m && a->rot_per_rad == b->rot_per_rad &&
+         a->trans_per_sqrt_s == b->trans_per_sqrt_s && a->rot_per_sqrt_s == b->rot_per_sqrt_s &&
+         a->trans_per_sqrt_m == b->trans_per_sqrt_m && a->rot_per_sqrt_m == b->rot_per_sqrt_m;
 }
 
 }  // namespace

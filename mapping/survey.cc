@@ -114,8 +114,10 @@ void SumOdometryCovariance(const Trajectory& odometry, double t_a, double t_b, c
   poses.push_back(T_b);
   link->covariance_se3.setZero();
   link->covariance_se2.setZero();
+  double path_m = 0.0;
   for (size_t i = 1; i < poses.size(); ++i) {
     const SE3d T_i_j = poses[i - 1].inverse() * poses[i];
+    path_m += T_i_j.translation().norm();
     // The floor is added once per link below, not once per sample.
     const OdometryNoiseFloor tiny{1e-12, 1e-12};
     link->covariance_se3 += OdometryCovarianceSE3(sigma, T_i_j, tiny);
@@ -124,6 +126,12 @@ void SumOdometryCovariance(const Trajectory& odometry, double t_a, double t_b, c
     link->covariance_se3.diagonal().head<3>().array() += model_r2;
     link->covariance_se2(2, 2) += model_r2;
   }
+  // The random-walk terms over the link's duration and path (factors/odometry_covariance.h).
+  const OdometryWalkVariance walk = OdometryRandomWalk(sigma, std::max(0.0, t_b - t_a), path_m);
+  link->covariance_se3.diagonal() +=
+      (Vector6d() << Eigen::Vector3d::Constant(walk.rotation), Eigen::Vector3d::Constant(walk.translation))
+          .finished();
+  link->covariance_se2.diagonal() += Eigen::Vector3d(walk.translation, walk.translation, walk.rotation);
   const OdometryNoiseFloor floor;
   const double m2 = floor.sigma_m * floor.sigma_m, r2 = floor.sigma_rad * floor.sigma_rad;
   link->covariance_se3.diagonal() += (Vector6d() << r2, r2, r2, m2, m2, m2).finished();

@@ -2,9 +2,11 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <string>
 
+#include "factors/odometry_covariance.h"
 #include "online/ekf_state.h"
 #include "util/check.h"
 
@@ -12,7 +14,18 @@ namespace waymark {
 namespace {
 
 double HeadingWalkVariance(const OdometryNoise& noise, double distance_m) {
-  return noise.heading_per_sqrt_m * noise.heading_per_sqrt_m * distance_m;
+  // A heading walk stated in dataset.yaml (rot_per_sqrt_m) replaces the default allowance.
+  const double q = noise.sigma.rot_per_sqrt_m > 0.0 ? noise.sigma.rot_per_sqrt_m : noise.heading_per_sqrt_m;
+  return q * q * distance_m;
+}
+
+// The random-walk terms of odometry_sigma over dt_s and distance_m, without the per-metre
+// heading walk (HeadingWalkVariance, planar models; the free model takes it from here).
+OdometryWalkVariance WalkVariance(const OdometryNoise& noise, double dt_s, double distance_m,
+                                  bool with_rot_per_m) {
+  OdometrySigma sigma = noise.sigma;
+  if (!with_rot_per_m) sigma.rot_per_sqrt_m = 0.0;
+  return OdometryRandomWalk(sigma, std::max(0.0, dt_s), distance_m);
 }
 
 }  // namespace
@@ -22,6 +35,10 @@ bool OdometryNoise::Check(std::string* why) const {
                        "odometry noise: trans_per_m must be a finite number >= 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sigma.rot_per_rad, 0.0),
                        "odometry noise: rot_per_rad must be a finite number >= 0");
+  WAYMARK_CHECK_OPTION(
+      IsFiniteAtLeast(sigma.trans_per_sqrt_s, 0.0) && IsFiniteAtLeast(sigma.rot_per_sqrt_s, 0.0) &&
+          IsFiniteAtLeast(sigma.trans_per_sqrt_m, 0.0) && IsFiniteAtLeast(sigma.rot_per_sqrt_m, 0.0),
+      "odometry noise: the random-walk terms must be finite numbers >= 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(heading_per_sqrt_m, 0.0),
                        "odometry noise: heading_per_sqrt_m must be a finite number >= 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(floor_trans_m) && IsFinitePositive(floor_rot_rad),
@@ -30,7 +47,7 @@ bool OdometryNoise::Check(std::string* why) const {
 }
 
 MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment,
-                                        const OdometryNoise& noise) {
+                                        const OdometryNoise& noise, double dt_s) {
   const double c = std::cos(x(2)), s = std::sin(x(2));
   const double dx = increment.x(), dy = increment.y(), dtheta = increment.theta();
   MotionPrediction p;
@@ -41,8 +58,11 @@ MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& in
   p.G = (Eigen::Matrix3d() << c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0).finished();
   const double sigma_trans = noise.sigma.trans_per_m * std::hypot(dx, dy) + noise.floor_trans_m;
   const double sigma_rot = noise.sigma.rot_per_rad * std::abs(dtheta) + noise.floor_rot_rad;
-  const double variance_rot = sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::hypot(dx, dy));
-  p.Qu = Eigen::Vector3d(sigma_trans * sigma_trans, sigma_trans * sigma_trans, variance_rot).asDiagonal();
+  const OdometryWalkVariance walk = WalkVariance(noise, dt_s, std::hypot(dx, dy), false);
+  const double variance_rot =
+      sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::hypot(dx, dy)) + walk.rotation;
+  const double variance_trans = sigma_trans * sigma_trans + walk.translation;
+  p.Qu = Eigen::Vector3d(variance_trans, variance_trans, variance_rot).asDiagonal();
   p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return p;
 }
@@ -60,15 +80,18 @@ MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double 
   p.G = (Eigen::Matrix<double, 3, 2>() << c, -0.5 * d * s, s, 0.5 * d * c, 0.0, 1.0).finished();
   const double sigma_trans = noise.sigma.trans_per_m * std::abs(d) + noise.floor_trans_m;
   const double sigma_rot = noise.sigma.rot_per_rad * std::abs(a) + noise.floor_rot_rad;
-  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans,
-                         sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::abs(d)))
+  const OdometryWalkVariance walk = WalkVariance(noise, dt_s, std::abs(d), false);
+  // The unicycle's u = [d, a] has one translation axis: the lateral share of the walk is folded
+  // into it (an upper bound of the along-track one, isotropic in the plane otherwise).
+  p.Qu = Eigen::Vector2d(sigma_trans * sigma_trans + walk.translation,
+                         sigma_rot * sigma_rot + HeadingWalkVariance(noise, std::abs(d)) + walk.rotation)
              .asDiagonal();
   p.R_world_robot = Eigen::AngleAxisd(p.mean(2), Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return p;
 }
 
 MotionPrediction PredictFreeIncrement(const Eigen::Vector4d& x, const Eigen::Matrix3d& R_level,
-                                      const SE3d& increment, const OdometryNoise& noise) {
+                                      const SE3d& increment, const OdometryNoise& noise, double dt_s) {
   const Eigen::Matrix3d R = Eigen::AngleAxisd(x(3), Eigen::Vector3d::UnitZ()).toRotationMatrix() * R_level;
   const Eigen::Vector3d& dt = increment.translation();
   const Eigen::Matrix3d R_new = R * increment.rotation_matrix();
@@ -84,9 +107,10 @@ MotionPrediction PredictFreeIncrement(const Eigen::Vector4d& x, const Eigen::Mat
   const double sigma_trans = noise.sigma.trans_per_m * dt.norm() + noise.floor_trans_m;
   const double sigma_rot =
       noise.sigma.rot_per_rad * RotationAngleBetween(SE3d(), increment) + noise.floor_rot_rad;
+  const OdometryWalkVariance walk = WalkVariance(noise, dt_s, dt.norm(), true);
   Eigen::Matrix<double, 6, 1> variances;
-  variances << Eigen::Vector3d::Constant(sigma_trans * sigma_trans),
-      Eigen::Vector3d::Constant(sigma_rot * sigma_rot);
+  variances << Eigen::Vector3d::Constant(sigma_trans * sigma_trans + walk.translation),
+      Eigen::Vector3d::Constant(sigma_rot * sigma_rot + walk.rotation);
   p.Qu = variances.asDiagonal();
   p.R_world_robot = R_new;
   return p;
@@ -121,10 +145,11 @@ void OdometryTilt::Reset() {
   updates_ = 0;
 }
 
-void OdometryTilt::Propagate(const SE3d& increment, const OdometryNoise& noise) {
+void OdometryTilt::Propagate(const SE3d& increment, const OdometryNoise& noise, double dt_s) {
   const double sigma_rot =
       noise.sigma.rot_per_rad * RotationAngleBetween(SE3d(), increment) + noise.floor_rot_rad;
-  covariance_ += Eigen::Matrix2d::Identity() * (sigma_rot * sigma_rot);
+  const double walk = WalkVariance(noise, dt_s, increment.translation().norm(), true).rotation;
+  covariance_ += Eigen::Matrix2d::Identity() * (sigma_rot * sigma_rot + walk);
 }
 
 bool OdometryTilt::Update(const Eigen::Matrix3d& R_odom_robot, const Eigen::Matrix3d& R_world_robot_code,

@@ -21,6 +21,14 @@
 //   planar: Qu = diag(sigma_trans^2, sigma_trans^2, sigma_rot^2); unicycle: diag(sigma_trans^2, sigma_rot^2);
 //   free: diag(sigma_trans^2 I3, sigma_rot^2 I3).
 // The floors keep a robot at a standstill from becoming infinitely certain (wheel slip, vibration).
+// Random-walk terms of odometry_sigma (factors/odometry_covariance.h, OdometryRandomWalk) over the
+// increment's duration dt and distance d, added to the variances of every axis of u:
+//   translation  trans_per_sqrt_s^2 dt + trans_per_sqrt_m^2 d,   rotation  rot_per_sqrt_s^2 dt (+
+//   rot_per_sqrt_m^2 d)
+// (the unicycle's single translation axis takes the whole translation walk). Summed over the
+// samples between two camera frames they equal the covariance the map build gives the odometry
+// link between those frames (mapping/survey.h): the map and the filter state the same drift.
+// rot_per_sqrt_m, when dataset.yaml states it, replaces heading_per_sqrt_m below (planar).
 // Heading random walk per distance (planar increments and the unicycle): the variance
 //   heading_per_sqrt_m^2 * distance
 // is added to sigma_rot^2, so that the heading uncertainty grows like sqrt(distance) whatever
@@ -58,8 +66,9 @@ struct MotionPrediction {
 };
 
 // Planar increment (x, y, theta of T_odom_robot(k-1)^-1 T_odom_robot(k)).
+// dt_s: the increment's duration (the random-walk terms; 0 leaves them out).
 MotionPrediction PredictPlanarIncrement(const Eigen::Vector3d& x, const SE2d& increment,
-                                        const OdometryNoise& noise);
+                                        const OdometryNoise& noise, double dt_s = 0.0);
 
 // [Bach]'s unicycle with velocities v (m/s) and omega (rad/s) over dt_s seconds.
 MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double omega_radps, double dt_s,
@@ -67,7 +76,7 @@ MotionPrediction PredictUnicycle(const Eigen::Vector3d& x, double v_mps, double 
 
 // 6-DoF increment for the free model; R_level is the state's current roll-and-pitch rotation.
 MotionPrediction PredictFreeIncrement(const Eigen::Vector4d& x, const Eigen::Matrix3d& R_level,
-                                      const SE3d& increment, const OdometryNoise& noise);
+                                      const SE3d& increment, const OdometryNoise& noise, double dt_s = 0.0);
 
 // The tilt of the odometry frame in the map's world frame (free model, AttitudeSource::kOdometry).
 // A visual odometry without gravity starts at the identity: its frame is tilted by the robot's
@@ -94,7 +103,7 @@ class OdometryTilt {
   OdometryTilt(double prior_sigma_rad = 0.1, double gate = 11.62);
 
   void Reset();
-  void Propagate(const SE3d& increment, const OdometryNoise& noise);
+  void Propagate(const SE3d& increment, const OdometryNoise& noise, double dt_s = 0.0);
   // True when the measurement was used (finite and inside the gate).
   bool Update(const Eigen::Matrix3d& R_odom_robot, const Eigen::Matrix3d& R_world_robot_code,
               const Eigen::Matrix3d& covariance_phi_world);

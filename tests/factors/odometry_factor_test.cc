@@ -153,6 +153,27 @@ TEST(OdometryCovariance, ScalesWithDistanceAndAngleWithAFloor) {
   EXPECT_NEAR(custom(5, 5), 1e-4, 1e-18);
 }
 
+TEST(OdometryCovariance, RandomWalkIsLinearInTimeAndPath) {
+  OdometrySigma sigma{0.02, 0.02};
+  EXPECT_FALSE(sigma.HasRandomWalk());
+  sigma.trans_per_sqrt_s = 0.1;
+  sigma.rot_per_sqrt_m = 0.2;
+  EXPECT_TRUE(sigma.HasRandomWalk());
+  const OdometryWalkVariance a = OdometryRandomWalk(sigma, 1.0, 2.0), b = OdometryRandomWalk(sigma, 3.0, 5.0);
+  const OdometryWalkVariance sum = OdometryRandomWalk(sigma, 4.0, 7.0);
+  EXPECT_NEAR(a.translation + b.translation, sum.translation, 1e-15);
+  EXPECT_NEAR(a.rotation + b.rotation, sum.rotation, 1e-15);
+  EXPECT_NEAR(sum.translation, 0.01 * 4.0, 1e-15);
+  EXPECT_NEAR(sum.rotation, 0.04 * 7.0, 1e-15);
+  EXPECT_EQ(OdometryRandomWalk(OdometrySigma{0.1, 0.1}, 10.0, 10.0).translation, 0.0);
+  sigma.rot_per_sqrt_s = -1.0;
+  EXPECT_THROW(OdometryRandomWalk(sigma, 1.0, 1.0), std::invalid_argument);
+  EXPECT_THROW(OdometryCovarianceSE3(sigma, SE3d()), std::invalid_argument);
+  sigma.rot_per_sqrt_s = 0.0;
+  EXPECT_THROW(OdometryRandomWalk(sigma, -1.0, 1.0), std::invalid_argument);
+  EXPECT_THROW(OdometryRandomWalk(sigma, 1.0, kNaN), std::invalid_argument);
+}
+
 TEST(OdometryCovariance, RejectsBadSigmas) {
   EXPECT_THROW(OdometryCovarianceSE2(OdometrySigma{-0.1, 0.1}, SE2d()), std::invalid_argument);
   EXPECT_THROW(OdometryCovarianceSE3(OdometrySigma{0.1, kNaN}, SE3d()), std::invalid_argument);

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -138,6 +139,35 @@ TEST(DatasetIoTest, ParsesDatasetYaml) {
   EXPECT_THAT(warnings.first_messages.at(0), HasSubstr("dataset.yaml:10: unknown key 'colour' ignored"));
 }
 
+// odometry_sigma's random-walk terms are optional (0 when absent) and written back only when set.
+TEST(DatasetIoTest, OdometrySigmaRandomWalkTermsParseAndRoundTrip) {
+  const DatasetConfig plain = ParseDatasetYaml(kGoodYaml, "dataset.yaml");
+  ASSERT_TRUE(plain.odometry_sigma.has_value());
+  EXPECT_FALSE(plain.odometry_sigma->HasRandomWalk());
+  const DatasetConfig vio =
+      ParseDatasetYaml(GoodYamlWith("rot_per_rad: 0.03}",
+                                    "rot_per_rad: 0.03, trans_per_sqrt_s: 0.05, rot_per_sqrt_s: 0.004,\n"
+                                    "  trans_per_sqrt_m: 0.01, rot_per_sqrt_m: 0.02}"),
+                       "dataset.yaml");
+  ASSERT_TRUE(vio.odometry_sigma.has_value());
+  EXPECT_EQ(vio.odometry_sigma->trans_per_m, 0.02);
+  EXPECT_EQ(vio.odometry_sigma->trans_per_sqrt_s, 0.05);
+  EXPECT_EQ(vio.odometry_sigma->rot_per_sqrt_s, 0.004);
+  EXPECT_EQ(vio.odometry_sigma->trans_per_sqrt_m, 0.01);
+  EXPECT_EQ(vio.odometry_sigma->rot_per_sqrt_m, 0.02);
+  const std::string written = FormatDatasetYaml(vio);
+  EXPECT_NE(written.find("trans_per_sqrt_s: 0.05"), std::string::npos) << written;
+  const DatasetConfig again = ParseDatasetYaml(written, "dataset.yaml");
+  EXPECT_EQ(again.odometry_sigma->rot_per_sqrt_m, 0.02);
+  EXPECT_EQ(again.odometry_sigma->rot_per_sqrt_s, 0.004);
+  EXPECT_EQ(FormatDatasetYaml(plain).find("sqrt"), std::string::npos);
+  DatasetConfig bad = vio;
+  bad.odometry_sigma->rot_per_sqrt_s = -1.0;
+  EXPECT_THROW(FormatDatasetYaml(bad), std::invalid_argument);
+  bad.odometry_sigma->rot_per_sqrt_s = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(FormatDatasetYaml(bad), std::invalid_argument);
+}
+
 TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
   EXPECT_THAT(ParseError(GoodYamlWith("motion: planar", "motion: flying")),
               HasSubstr("dataset.yaml:4: motion: expected planar or free, got 'flying'"));
@@ -157,6 +187,20 @@ TEST(DatasetIoTest, DatasetYamlErrorsNameFileAndLine) {
               HasSubstr("dataset.yaml:7: odometry_sigma.rot_per_rad: expected a finite number, got 'x'"));
   EXPECT_THAT(ParseError(GoodYamlWith(", rot_per_rad: 0.03", "")),
               HasSubstr("dataset.yaml:7: missing key 'rot_per_rad'"));
+  EXPECT_THAT(
+      ParseError(GoodYamlWith("rot_per_rad: 0.03", "rot_per_rad: 0.03, rot_per_sqrt_s: fast")),
+      HasSubstr("dataset.yaml:7: odometry_sigma.rot_per_sqrt_s: expected a finite number, got 'fast'"));
+  EXPECT_THAT(
+      ParseError(GoodYamlWith("rot_per_rad: 0.03", "rot_per_rad: 0.03, trans_per_sqrt_m: -0.1")),
+      HasSubstr("dataset.yaml:7: odometry_sigma.trans_per_sqrt_m: expected a non-negative noise figure"));
+  EXPECT_THAT(ParseError(GoodYamlWith("rot_per_rad: 0.03", "rot_per_rad: -0.03")),
+              HasSubstr("dataset.yaml:7: odometry_sigma.rot_per_rad: expected a non-negative noise figure"));
+  EXPECT_THAT(
+      ParseError(GoodYamlWith("rot_per_rad: 0.03", "rot_per_rad: 0.03, drift: 1")),
+      HasSubstr("dataset.yaml:7: odometry_sigma: unknown key 'drift' (expected trans_per_m, rot_per_rad, "
+                "trans_per_sqrt_s"));
+  EXPECT_THAT(ParseError(GoodYamlWith("{trans_per_m: 0.02, rot_per_rad: 0.03}", "[0.02, 0.03]")),
+              HasSubstr("dataset.yaml:7: odometry_sigma: expected a map"));
   EXPECT_THAT(ParseError(GoodYamlWith("fields: [kind, x, y]", "fields: [kind, x]")),
               HasSubstr("dataset.yaml:8: payload: fields: expected 3 names (one per capture group"));
   EXPECT_THAT(ParseError(GoodYamlWith("(\\\\d+)/", "(\\\\d+/")),

@@ -63,6 +63,24 @@ TEST(IdConsistencyTest, CleanSurveyLosesNothing) {
   EXPECT_TRUE(FindInconsistentIds(survey, MakeCameras(survey)).empty());
 }
 
+// A drone whose visual odometry drifts ten times the default (2 deg/m of yaw drift, 5 % scale
+// error): the code under its start is seen again after a loop, metres off along the odometry.
+// Each visit is a run of views that agree with each other: none is a misdecoded id (before the
+// visit rule, 42 correct views of two codes were set aside).
+TEST(IdConsistencyTest, RevisitAfterLargeDriftIsNoMisdecode) {
+  sim::ParamSet params = sim::ScenarioParams("warehouse-drone");
+  for (const char* assignment : {"odometry.trans_per_m=0.1", "odometry.rot_per_rad=0.1",
+                                 "odometry.yaw_drift_deg_per_m=2", "odometry.scale_error=0.05"})
+    params.SetAssignment(assignment);
+  const sim::SimResult sim = sim::Simulate("warehouse-drone", params, 3);
+  const Survey survey = IngestDataset(sim.dataset);
+  EXPECT_TRUE(FindInconsistentIds(survey, MakeCameras(survey)).empty());
+  // Without the visit rule (a visit must be larger than the survey) the old verdict returns.
+  IdCheckOptions options;
+  options.min_visit_views = 1000000;
+  EXPECT_GT(FindInconsistentIds(survey, MakeCameras(survey), options).size(), 10u);
+}
+
 TEST(IdConsistencyTest, WithoutObservationsRenumbers) {
   const sim::SimResult sim = Corridor(2, 0.0);
   const Survey survey = IngestDataset(sim.dataset);
@@ -93,6 +111,10 @@ TEST(IdConsistencyTest, RejectsBadOptions) {
   std::string why;
   EXPECT_FALSE(options.Check(&why));
   EXPECT_NE(why.find("drift_per_m"), std::string::npos);
+  IdCheckOptions visits;
+  visits.min_visit_views = 1;
+  EXPECT_FALSE(visits.Check(&why));
+  EXPECT_NE(why.find("min_visit_views"), std::string::npos);
   const sim::SimResult sim = Corridor(2, 0.0);
   const Survey survey = IngestDataset(sim.dataset);
   EXPECT_THROW(FindInconsistentIds(survey, MakeCameras(survey), options), std::runtime_error);

@@ -119,6 +119,34 @@ TEST(SurveyTest, InterpolationAndLinkCovarianceAreTheSumOfIncrements) {
   EXPECT_LT(link.T_a_b.BoxMinus(TrueRobotPose(2.0).inverse() * TrueRobotPose(2.2)).norm(), 1e-12);
 }
 
+// The random-walk terms add their variance over the link's duration and path (the samples'
+// translations summed) on every axis.
+TEST(SurveyTest, LinkCovarianceAddsTheRandomWalkOverTheLinksDurationAndPath) {
+  Dataset dataset = SyntheticSurvey(0.0);
+  IngestOptions options;
+  options.estimate_time_offset = false;
+  const Survey plain = IngestDataset(dataset, options);
+  OdometrySigma sigma{0.02, 0.02};
+  sigma.trans_per_sqrt_s = 0.03;
+  sigma.rot_per_sqrt_s = 0.002;
+  sigma.trans_per_sqrt_m = 0.01;
+  sigma.rot_per_sqrt_m = 0.005;
+  dataset.config.odometry_sigma = sigma;
+  const Survey walk = IngestDataset(dataset, options);
+  ASSERT_EQ(walk.odometry_links.size(), plain.odometry_links.size());
+  const OdometryLink& a = plain.odometry_links[10];  // frames 2.0 s -> 2.2 s, samples 2.0, 2.1, 2.2
+  const OdometryLink& b = walk.odometry_links[10];
+  const double path_m = (TrueRobotPose(2.0).inverse() * TrueRobotPose(2.1)).translation().norm() +
+                        (TrueRobotPose(2.1).inverse() * TrueRobotPose(2.2)).translation().norm();
+  const OdometryWalkVariance expected = OdometryRandomWalk(sigma, 0.2, path_m);
+  const Vector6d added = b.covariance_se3.diagonal() - a.covariance_se3.diagonal();
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(added(i), expected.rotation, 1e-12);
+  for (int i = 3; i < 6; ++i) EXPECT_NEAR(added(i), expected.translation, 1e-12);
+  const Eigen::Vector3d added_se2 = b.covariance_se2.diagonal() - a.covariance_se2.diagonal();
+  EXPECT_NEAR(added_se2(0), expected.translation, 1e-12);
+  EXPECT_NEAR(added_se2(2), expected.rotation, 1e-12);
+}
+
 // At constant velocity v along robot x, a clock error eps moves each end of an increment by v eps:
 // j_a = -v e_x, j_b = +v e_x, so the term adds 2 sigma^2 v^2 to the x variance and nothing else.
 TEST(SurveyTest, StampTermAddsTwoSigmaSquaredVelocitySquaredAlongTheMotion) {

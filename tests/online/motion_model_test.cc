@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "factors/odometry_covariance.h"
 #include "geometry/camera.h"
 #include "online/ekf_state.h"
 #include "online/localizer.h"
@@ -134,6 +135,70 @@ TEST(MotionModelTest, HeadingWalkGrowsWithDistanceNotRate) {
   noise.heading_per_sqrt_m = -1.0;
   EXPECT_FALSE(noise.Check(&why));
   EXPECT_NE(why.find("heading_per_sqrt_m"), std::string::npos);
+}
+
+// odometry_sigma's random-walk terms: the process noise they add over a stretch of T seconds
+// and L metres is the same whatever the odometry rate, and equals what the map build gives an
+// odometry link over that stretch (OdometryRandomWalk, factors/odometry_covariance.h).
+TEST(MotionModelTest, RandomWalkProcessNoiseIsRateIndependentAndMatchesTheMapLinks) {
+  OdometryNoise noise;
+  noise.sigma = {0.0, 0.0};
+  noise.sigma.trans_per_sqrt_s = 0.02;
+  noise.sigma.rot_per_sqrt_s = 0.003;
+  noise.sigma.trans_per_sqrt_m = 0.01;
+  noise.sigma.rot_per_sqrt_m = 0.004;
+  noise.floor_trans_m = noise.floor_rot_rad = 1e-12;
+  const double duration_s = 8.0, path_m = 4.0;
+  const OdometryWalkVariance link = OdometryRandomWalk(noise.sigma, duration_s, path_m);
+  EXPECT_NEAR(link.translation, 0.02 * 0.02 * 8.0 + 0.01 * 0.01 * 4.0, 1e-15);
+  EXPECT_NEAR(link.rotation, 0.003 * 0.003 * 8.0 + 0.004 * 0.004 * 4.0, 1e-15);
+  for (int steps : {10, 200}) {
+    const double dt = duration_s / steps;
+    Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+    Eigen::Matrix4d P_free = Eigen::Matrix4d::Zero();
+    OdometryTilt tilt(1e-9);
+    for (int k = 0; k < steps; ++k) {
+      const SE2d step(path_m / steps, 0.0, 0.0);
+      const MotionPrediction p = PredictPlanarIncrement(Eigen::Vector3d::Zero(), step, noise, dt);
+      P = p.F * P * p.F.transpose() + p.G * p.Qu * p.G.transpose();
+      // The free model, straight up (no lever of the heading on the position): every axis.
+      const SE3d up(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, path_m / steps));
+      const MotionPrediction f =
+          PredictFreeIncrement(Eigen::Vector4d::Zero(), Eigen::Matrix3d::Identity(), up, noise, dt);
+      P_free = f.F * P_free * f.F.transpose() + f.G * f.Qu * f.G.transpose();
+      tilt.Propagate(up, noise, dt);
+    }
+    EXPECT_NEAR(P(0, 0), link.translation, 1e-12) << steps;  // along the track: no heading lever
+    EXPECT_NEAR(P(2, 2), link.rotation, 1e-12) << steps;
+    for (int axis = 0; axis < 3; ++axis) EXPECT_NEAR(P_free(axis, axis), link.translation, 1e-12) << steps;
+    EXPECT_NEAR(P_free(3, 3), link.rotation, 1e-12) << steps;
+    EXPECT_NEAR(tilt.covariance()(0, 0), link.rotation, 1e-12) << steps;
+  }
+  // The unicycle: the same walk over its own dt.
+  const MotionPrediction unicycle = PredictUnicycle(Eigen::Vector3d::Zero(), 0.5, 0.0, 2.0, noise);
+  const OdometryWalkVariance one = OdometryRandomWalk(noise.sigma, 2.0, 1.0);
+  EXPECT_NEAR(unicycle.Qu(0, 0), one.translation, 1e-12);
+  EXPECT_NEAR(unicycle.Qu(1, 1), one.rotation, 1e-12);
+  // Without dt (the default 0) only the per-metre walk is left.
+  const MotionPrediction no_dt = PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(1.0, 0.0, 0.0), noise);
+  EXPECT_NEAR(no_dt.Qu(1, 1), 0.01 * 0.01 * 1.0, 1e-12);
+  std::string why;
+  noise.sigma.rot_per_sqrt_s = -1.0;
+  EXPECT_FALSE(noise.Check(&why));
+  EXPECT_NE(why.find("random-walk"), std::string::npos);
+}
+
+// The heading walk stated in dataset.yaml (rot_per_sqrt_m) replaces the default allowance.
+TEST(MotionModelTest, StatedHeadingWalkReplacesTheDefault) {
+  OdometryNoise noise;
+  noise.sigma = {0.0, 0.0};
+  noise.floor_rot_rad = 1e-12;
+  const double by_default =
+      PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(1.0, 0.0, 0.0), noise).Qu(2, 2);
+  EXPECT_NEAR(by_default, noise.heading_per_sqrt_m * noise.heading_per_sqrt_m, 1e-15);
+  noise.sigma.rot_per_sqrt_m = 0.02;
+  const double stated = PredictPlanarIncrement(Eigen::Vector3d::Zero(), SE2d(1.0, 0.0, 0.0), noise).Qu(2, 2);
+  EXPECT_NEAR(stated, 0.02 * 0.02, 1e-15);
 }
 
 Eigen::Matrix3d RollPitch(double roll_rad, double pitch_rad) {
