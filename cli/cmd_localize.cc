@@ -208,6 +208,10 @@ void PrintSummary(const LocalizeRun& run, std::ostream& out) {
       << " by codes expected in view but "
       << "not seen, " << c.suspect_cleared << " cleared), lost by missed codes " << c.lost_by_missed_codes
       << "; codes expected in view " << c.expected_codes << ", not detected " << c.expected_missed << "\n"
+      << "lost: " << c.times_lost << " times (" << c.lost_by_gated_frames
+      << " by frames whose codes were all gated, " << c.lost_by_uncertainty << " by no code for too long, "
+      << c.lost_by_missed_codes << " by codes expected in view but not seen, " << c.lost_by_numerical_failure
+      << " by numerical failure)\n"
       << LatencyLine(run.latency_ms) << "\n";
   for (const std::string& warning : run.warnings) out << "warning: " << warning << "\n";
 }

@@ -1,5 +1,6 @@
 #include "online/localizer.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -45,6 +46,8 @@ bool LocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(
       IsFiniteAtLeast(without_odometry.speed_mps, 0.0) && IsFiniteAtLeast(without_odometry.turn_radps, 0.0),
       "localizer options: without_odometry speed and turn rate must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(without_odometry.fit_dominance, 0.0),
+                       "localizer options: without_odometry fit_dominance must be finite and >= 0");
   WAYMARK_CHECK_OPTION(max_considered_markers >= 1, "localizer options: max_considered_markers must be >= 1");
   std::string nested_why;
   WAYMARK_CHECK_OPTION(marker_pose.Check(&nested_why), "localizer options: " + nested_why);
@@ -84,8 +87,24 @@ StepStatus Localizer::Accept(double stamp_s) {
   return status;
 }
 
-void Localizer::SetLost() {
-  if (HasTrack()) ++counters_.times_lost;
+void Localizer::SetLost(LostReason reason) {
+  if (HasTrack()) {
+    ++counters_.times_lost;
+    switch (reason) {
+      case LostReason::kGatedFrames:
+        ++counters_.lost_by_gated_frames;
+        break;
+      case LostReason::kUncertainty:
+        ++counters_.lost_by_uncertainty;
+        break;
+      case LostReason::kMissedCodes:
+        ++counters_.lost_by_missed_codes;
+        break;
+      case LostReason::kNumerical:
+        ++counters_.lost_by_numerical_failure;
+        break;
+    }
+  }
   tracking_ = TrackingStatus::kLost;
   rejected_frames_in_a_row_ = 0;
 }
@@ -96,7 +115,7 @@ void Localizer::CheckUncertainty() {
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(state_.covariance().topLeftCorner(n, n),
                                                              Eigen::EigenvaluesOnly);
   if (!(eigen.eigenvalues().maxCoeff() <= options_.max_position_sigma_m * options_.max_position_sigma_m))
-    SetLost();
+    SetLost(LostReason::kUncertainty);
 }
 
 StepStatus Localizer::ApplyPrediction(const MotionPrediction& prediction, const SE3d& increment) {
@@ -104,7 +123,7 @@ StepStatus Localizer::ApplyPrediction(const MotionPrediction& prediction, const 
   if (tracking_ == TrackingStatus::kUninitialized) return StepStatus::kOk;
   const StepStatus status = state_.Propagate(prediction.mean, prediction.F, prediction.G, prediction.Qu);
   if (status != StepStatus::kOk) {
-    SetLost();
+    SetLost(LostReason::kNumerical);
     return status;
   }
   state_.SetLevel(prediction.R_world_robot);  // free only; kOdometry put the odometry's attitude there
@@ -121,18 +140,21 @@ StepStatus Localizer::AddOdometry(double stamp_s, const SE3d& T_odom_robot) {
   if (time_status != StepStatus::kOk) return time_status;
   had_motion_input_ = true;
   const std::optional<SE3d> previous = last_T_odom_robot_;
+  const std::optional<double> previous_s = last_odometry_stamp_s_;
   last_T_odom_robot_ = T_odom_robot;
+  last_odometry_stamp_s_ = stamp_s;
   if (!first_T_odom_robot_) first_T_odom_robot_ = T_odom_robot;
   if (!previous) return StepStatus::kOk;
   const SE3d increment = previous->inverse() * T_odom_robot;
+  const double dt_s = stamp_s - *previous_s;  // >= 0: Accept refused older stamps
   if (options_.motion == MotionModel::kPlanar) {
     const SE2d increment_2d = SE2d::FromSE3(increment);
-    return ApplyPrediction(PredictPlanarIncrement(state_.mean(), increment_2d, options_.odometry),
+    return ApplyPrediction(PredictPlanarIncrement(state_.mean(), increment_2d, options_.odometry, dt_s),
                            increment_2d.ToSE3());
   }
   MotionPrediction prediction =
-      PredictFreeIncrement(state_.mean(), state_.R_level(), increment, options_.odometry);
-  odometry_tilt_.Propagate(increment, options_.odometry);
+      PredictFreeIncrement(state_.mean(), state_.R_level(), increment, options_.odometry, dt_s);
+  odometry_tilt_.Propagate(increment, options_.odometry, dt_s);
   if (options_.attitude_source == AttitudeSource::kOdometry)
     prediction.R_world_robot = odometry_tilt_.Level(T_odom_robot.rotation_matrix());
   return ApplyPrediction(prediction, increment);
@@ -328,6 +350,18 @@ FrameResult Localizer::AddFrame(const CameraFrame& frame) {
   return result;
 }
 
+bool FitDominates(const Eigen::MatrixXd& prior, const Eigen::MatrixXd& fit_covariance, double max_ratio) {
+  if (!(max_ratio > 0.0)) return false;
+  const Eigen::LLT<Eigen::MatrixXd> llt(prior);
+  if (llt.info() != Eigen::Success) return false;
+  // Generalized eigenvalues of (R, P): those of L^-1 R L^-T with P = L L^T.
+  const Eigen::MatrixXd L_inv = llt.matrixL().solve(Eigen::MatrixXd::Identity(prior.rows(), prior.cols()));
+  const Eigen::MatrixXd relative = L_inv * fit_covariance * L_inv.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(0.5 * (relative + relative.transpose()),
+                                                             Eigen::EigenvaluesOnly);
+  return eigen.info() == Eigen::Success && eigen.eigenvalues().maxCoeff() <= max_ratio;
+}
+
 void Localizer::PredictWithoutOdometry(double dt_s) {
   if (!(dt_s > 0.0)) return;
   const int dim = state_.dim();
@@ -336,7 +370,7 @@ void Localizer::PredictWithoutOdometry(double dt_s) {
   const Eigen::MatrixXd unit = Eigen::MatrixXd::Identity(dim, dim);
   if (state_.Propagate(state_.mean(), unit, unit, sigma.array().square().matrix().asDiagonal()) !=
       StepStatus::kOk) {
-    SetLost();
+    SetLost(LostReason::kNumerical);
     return;
   }
   CheckUncertainty();
@@ -499,7 +533,15 @@ void Localizer::CorrectWithFrameFit(const Camera& camera, const CameraFrame& fra
       R.diagonal().head(dim - 1).array() += sigma_m * sigma_m + sigma_rad * sigma_rad * lever_m * lever_m;
       R(dim - 1, dim - 1) += sigma_rad * sigma_rad;
     }
+    const Eigen::MatrixXd prior = state_.covariance();
     update = state_.Update(innovation, Eigen::MatrixXd::Identity(dim, dim), R, gate_loose_);
+    // A fit that pins the pose far better than the random walk's prior in every direction is
+    // taken as it is (header comment, "the fit dominates"): the prior's weight there is below
+    // the error of the random walk's own mean (it predicts no motion while the camera moves).
+    if (update.accepted && FitDominates(prior, R, options_.without_odometry.fit_dominance) &&
+        state_.Reset(PoseToStateVector(fit->T_world_robot, options_.motion), R) == StepStatus::kOk) {
+      ++counters_.frame_fits_taken;
+    }
     if (update.accepted) state_.SetLevel(fit->T_world_robot.rotation_matrix());
   }
   ReportFrameCodes(
@@ -582,13 +624,12 @@ void Localizer::FinishFrame(int accepted, double llr) {
       if (OfferHypothesis(*g.camera, *g.marker, g.sighting)) return;  // restarted
     }
     if (++rejected_frames_in_a_row_ >= options_.lost_after_rejected_frames) {
-      SetLost();
+      SetLost(LostReason::kGatedFrames);
       return;
     }
   }
   if (llr >= visibility.lost_llr) {
-    ++counters_.lost_by_missed_codes;
-    SetLost();
+    SetLost(LostReason::kMissedCodes);
   } else if (llr >= visibility.suspect_llr && tracking_ == TrackingStatus::kTracking) {
     tracking_ = TrackingStatus::kSuspect;
     ++counters_.times_suspect;
@@ -735,7 +776,7 @@ void Localizer::FinishCorrection(const UpdateResult& update, CorrectionResult* r
     ++counters_.gated;
   } else {
     result->outcome = CorrectionOutcome::kNotUsable;
-    if (update.status == StepStatus::kNonFiniteCovariance) SetLost();
+    if (update.status == StepStatus::kNonFiniteCovariance) SetLost(LostReason::kNumerical);
   }
 }
 

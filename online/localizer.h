@@ -87,7 +87,15 @@
 // predicted pose, as with odometry, fails here: after a second without codes the prior is off by decimetres
 // and radians (the corners are gated), there is no odometry attitude, and a hand-held camera tilts by degrees
 // between frames. The fit holds the map as exact (no Schmidt term). The first start takes the fit too, when
-// it keeps two codes or an unambiguous one. Codes absent from the map are counted and ignored. Inputs older
+// it keeps two codes or an unambiguous one. The fit dominates when its covariance R is at most
+// without_odometry.fit_dominance times the prior P in every direction (generalized eigenvalues
+// of (R, P)): the state is then reset to the fit (x = z, P = R) after the gated update instead of
+// keeping the fused mean. The random walk's mean says the robot stayed where it was; a camera
+// that moves steadily is then a few millimetres off it at every frame, a lag the fused mean
+// carries (tagslam-test16 and 17: 0.11 and 0.15 mm from TagSLAM's per-frame fit where the frame's
+// own fit is at 0.03 and 0.01 mm). The prior still gates the fit and picks between an ambiguous
+// code's two solutions; a fit of one far code (tagslam-test10) does not dominate and is fused.
+// Codes absent from the map are counted and ignored. Inputs older
 // than the last one processed are rejected (StepStatus::kTimeWentBackwards) and change nothing.
 #pragma once
 
@@ -126,7 +134,15 @@ enum class MapUncertainty { kConsider, kInNoise, kIgnore };
 struct MotionWithoutOdometry {
   double speed_mps = 1.0;   // sigma of the translation per second, per axis
   double turn_radps = 2.0;  // sigma of the heading per second
+  // The fit dominates (header comment) when every generalized eigenvalue of its covariance R
+  // against the prior P (R v = lambda P v) is at most this: the prior would then move the fused
+  // pose by at most lambda / (1 + lambda) of the innovation in any direction. 0 turns it off.
+  double fit_dominance = 0.1;
 };
+
+// True when every generalized eigenvalue of (fit_covariance, prior) is <= max_ratio (false when
+// the prior is not positive definite or max_ratio <= 0).
+bool FitDominates(const Eigen::MatrixXd& prior, const Eigen::MatrixXd& fit_covariance, double max_ratio);
 
 struct LocalizerOptions {
   MotionModel motion = MotionModel::kPlanar;
@@ -227,9 +243,16 @@ struct LocalizerCounters {
   long suspect_cleared = 0;          // kSuspect -> kTracking without a restart (false alarms)
   long suspect_by_missed_codes = 0;  // of times_suspect: by the negative-evidence test
   long lost_by_missed_codes = 0;     // of times_lost: likewise
-  long expected_codes = 0;           // codes predicted in view (online/visibility.h)
-  long expected_missed = 0;          // of those, not detected
-  long rejected_inputs = 0;          // time going backwards, invalid input, unknown camera
+  // Of times_lost, the other reasons (life cycle above): lost_after_rejected_frames frames in a
+  // row whose codes were all gated; the position sigma above max_position_sigma_m (no code for
+  // too long); a numerical failure (non-finite covariance).
+  long lost_by_gated_frames = 0;
+  long lost_by_uncertainty = 0;
+  long lost_by_numerical_failure = 0;
+  long frame_fits_taken = 0;  // without odometry: frame fits that dominated the prior (header comment)
+  long expected_codes = 0;    // codes predicted in view (online/visibility.h)
+  long expected_missed = 0;   // of those, not detected
+  long rejected_inputs = 0;   // time going backwards, invalid input, unknown camera
 };
 
 class Localizer {
@@ -320,7 +343,8 @@ class Localizer {
   // Restarts from solution i of a sighting (an ambiguous code's second solution borrows the
   // first one's covariance: the two are near each other, which is what makes them ambiguous).
   bool Initialize(const Camera& camera, const MapMarker& marker, const CodeSighting& sighting, size_t i = 0);
-  void SetLost();
+  enum class LostReason { kGatedFrames, kUncertainty, kMissedCodes, kNumerical };
+  void SetLost(LostReason reason);
   void CheckUncertainty();
   // Without odometry: the random-walk prediction over dt seconds (header comment).
   void PredictWithoutOdometry(double dt_s);
@@ -362,8 +386,9 @@ class Localizer {
   Trajectory predicted_before_correction_;
   std::optional<double> last_stamp_s_;
   std::optional<SE3d> last_T_odom_robot_;
-  bool had_motion_input_ = false;           // an odometry or velocity input came: no random walk
-  std::optional<SE3d> first_T_odom_robot_;  // for options_.start_pose
+  std::optional<double> last_odometry_stamp_s_;  // stamp of last_T_odom_robot_ (random-walk terms)
+  bool had_motion_input_ = false;                // an odometry or velocity input came: no random walk
+  std::optional<SE3d> first_T_odom_robot_;       // for options_.start_pose
   int rejected_frames_in_a_row_ = 0;
   // Relocalization: the latest sighting's robot poses (both solutions of an ambiguous code),
   // moved with the odometry, each with the length of the chain of agreeing sightings it ends.

@@ -341,6 +341,12 @@ TEST_F(LocalizeCliTest, WithoutOdometryTracksLikeTheSingleFrameFit) {
                               " --mode " + mode);
     ASSERT_EQ(run.exit_code, 0) << run.err;
     EXPECT_EQ(run.err.find("odometry's time span"), std::string::npos) << run.err;
+    // Every loss says why (here none).
+    EXPECT_NE(
+        run.out.find("lost: 0 times (0 by frames whose codes were all gated, 0 by no code for too long, "
+                     "0 by codes expected in view but not seen, 0 by numerical failure)"),
+        std::string::npos)
+        << run.out;
     const RunResult eval =
         Run("eval --est " + out + " --gt " + Path("run") + "/groundtruth/trajectory.tum --align none");
     ASSERT_EQ(eval.exit_code, 0) << eval.err;

@@ -606,6 +606,8 @@ TEST(LocalizerTest, WithoutOdometryTracksAsWellAsASingleFrameFit) {
       }
       EXPECT_EQ(localizer.counters().initializations, 1);
       EXPECT_EQ(localizer.counters().times_lost, 0);
+      std::printf("frame fits taken as they are (they dominated the prior): %ld\n",
+                  localizer.counters().frame_fits_taken);
       if (mode == CorrectionMode::kSingleFrame) {
         EXPECT_GE(poses, 0.98 * frames_with_codes);  // a fit outside the gate gives no pose
       } else {
@@ -619,6 +621,32 @@ TEST(LocalizerTest, WithoutOdometryTracksAsWellAsASingleFrameFit) {
     EXPECT_LT(rmse_m[1], 0.05);
     EXPECT_LT(rmse_m[0], 1.2 * rmse_m[1]);
   }
+}
+
+// The fit dominates the prior when R <= ratio * P in every direction (generalized eigenvalues
+// of (R, P)), whatever the correlations; an indefinite prior or a ratio of 0 never lets it.
+TEST(LocalizerTest, FitDominatesComparesEveryDirection) {
+  const Eigen::Matrix2d P = Eigen::Vector2d(0.01, 0.04).asDiagonal();
+  EXPECT_TRUE(FitDominates(P, 0.05 * P, 0.1));
+  EXPECT_FALSE(FitDominates(P, 0.2 * P, 0.1));
+  // Small on the diagonal, but long along a direction the prior holds tightly.
+  Eigen::Matrix2d R;
+  R << 1e-4, 0.0, 0.0, 1e-4;
+  EXPECT_TRUE(FitDominates(P, R, 0.1));
+  const Eigen::Matrix2d thin = Eigen::Vector2d(1e-4, 1e-2).asDiagonal();
+  EXPECT_TRUE(FitDominates(thin, 1e-6 * Eigen::Matrix2d::Identity(), 0.1));
+  EXPECT_FALSE(FitDominates(thin, 1e-4 * Eigen::Matrix2d::Identity(), 0.1));  // 1e-4 / 1e-4 = 1 along x
+  // Correlated: the same R rotated 45 deg against a thin prior.
+  Eigen::Matrix2d rotated;
+  rotated << 0.5, 0.5, 0.5, 0.5;
+  EXPECT_FALSE(FitDominates(thin, 1e-3 * rotated + 1e-8 * Eigen::Matrix2d::Identity(), 0.1));
+  EXPECT_FALSE(FitDominates(P, 0.05 * P, 0.0));
+  EXPECT_FALSE(FitDominates(-P, 0.05 * P, 0.1));
+  LocalizerOptions options;
+  options.without_odometry.fit_dominance = -1.0;
+  std::string why;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("fit_dominance"), std::string::npos);
 }
 
 // [Bach]'s PE/TE: the prediction right before each correcting frame is kept, and it is
