@@ -397,7 +397,9 @@ TEST_F(LocalizeCliTest, DriftingVioWithARandomWalkModelKeepsTheTrack) {
     ASSERT_EQ(eval.exit_code, 0) << eval.err;
     std::cout << model << ": lost " << lost.back() << " times, ATE " << Figure(eval.out, "ATE trans (m)")
               << " m\n";
-    if (lost.size() == 2) EXPECT_LT(Figure(eval.out, "ATE trans (m)"), 0.03);
+    if (lost.size() == 2) {
+      EXPECT_LT(Figure(eval.out, "ATE trans (m)"), 0.03);
+    }
   }
   EXPECT_GT(lost[0], 10.0);
   EXPECT_EQ(lost[1], 0.0);
