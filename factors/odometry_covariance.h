@@ -17,9 +17,9 @@
 // depend on the odometry rate (N steps over D metres give trans_per_m * D / sqrt(N)); the datasets
 // state odometry_sigma per increment of their own odometry stream.
 //
-// Random-walk terms (OdometryRandomWalk below): the relative motion between two instants a, b
-// that are T = t_b - t_a seconds and L metres of path apart (L summed over the samples, not the
-// chord) gets, on every axis,
+// Random-walk terms (OdometryRandomWalk, geometry/odometry_noise.h): the relative motion between two instants
+// a, b that are T = t_b - t_a seconds and L metres of path apart (L summed over the samples, not the chord)
+// gets, on every axis,
 //   translation variance  trans_per_sqrt_s^2 T + trans_per_sqrt_m^2 L
 //   rotation variance     rot_per_sqrt_s^2 T + rot_per_sqrt_m^2 L
 // These add over any split of [a, b] (variance linear in T and L), so the map's frame-to-frame
@@ -33,6 +33,7 @@
 #include <string>
 
 #include "factors/sqrt_information.h"
+#include "geometry/odometry_noise.h"
 #include "geometry/pose.h"
 #include "geometry/types.h"
 
@@ -52,35 +53,13 @@ inline void Check(const OdometrySigma& sigma, const OdometryNoiseFloor& floor) {
     throw std::invalid_argument("odometry_sigma: trans_per_m and rot_per_rad must be finite and >= 0, got " +
                                 FormatDouble(sigma.trans_per_m) + " and " + FormatDouble(sigma.rot_per_rad));
   }
-  if (!non_negative(sigma.trans_per_sqrt_s) || !non_negative(sigma.rot_per_sqrt_s) ||
-      !non_negative(sigma.trans_per_sqrt_m) || !non_negative(sigma.rot_per_sqrt_m)) {
-    throw std::invalid_argument("odometry_sigma: the random-walk terms must be finite and >= 0");
-  }
+  CheckRandomWalkTerms(sigma);
   if (!positive(floor.sigma_m) || !positive(floor.sigma_rad)) {
     throw std::invalid_argument("odometry noise floor: sigma_m and sigma_rad must be finite and > 0");
   }
 }
 
 }  // namespace odometry_covariance_internal
-
-// Variances (translation, rotation; per axis) of the random-walk terms over duration_s seconds
-// and path_m metres (header comment). Throws std::invalid_argument like the functions below, and on
-// a negative or non-finite duration or path.
-struct OdometryWalkVariance {
-  double translation = 0.0;  // m^2 per axis
-  double rotation = 0.0;     // rad^2 per axis
-};
-inline OdometryWalkVariance OdometryRandomWalk(const OdometrySigma& sigma, double duration_s, double path_m) {
-  odometry_covariance_internal::Check(sigma, OdometryNoiseFloor{});
-  if (!(std::isfinite(duration_s) && duration_s >= 0.0 && std::isfinite(path_m) && path_m >= 0.0)) {
-    throw std::invalid_argument("odometry random walk: duration and path must be finite and >= 0, got " +
-                                FormatDouble(duration_s) + " s and " + FormatDouble(path_m) + " m");
-  }
-  return {sigma.trans_per_sqrt_s * sigma.trans_per_sqrt_s * duration_s +
-              sigma.trans_per_sqrt_m * sigma.trans_per_sqrt_m * path_m,
-          sigma.rot_per_sqrt_s * sigma.rot_per_sqrt_s * duration_s +
-              sigma.rot_per_sqrt_m * sigma.rot_per_sqrt_m * path_m};
-}
 
 // Covariance of an SE(3) increment, right perturbation, order [rx ry rz tx ty tz].
 // Throws std::invalid_argument on a negative or non-finite sigma or a non-positive floor.

@@ -126,7 +126,7 @@ void SumOdometryCovariance(const Trajectory& odometry, double t_a, double t_b, c
     link->covariance_se3.diagonal().head<3>().array() += model_r2;
     link->covariance_se2(2, 2) += model_r2;
   }
-  // The random-walk terms over the link's duration and path (factors/odometry_covariance.h).
+  // The random-walk terms over the link's duration and path (geometry/odometry_noise.h).
   const OdometryWalkVariance walk = OdometryRandomWalk(sigma, std::max(0.0, t_b - t_a), path_m);
   link->covariance_se3.diagonal() +=
       (Vector6d() << Eigen::Vector3d::Constant(walk.rotation), Eigen::Vector3d::Constant(walk.translation))

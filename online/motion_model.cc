@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "factors/odometry_covariance.h"
+#include "geometry/odometry_noise.h"
 #include "online/ekf_state.h"
 #include "util/check.h"
 

@@ -21,7 +21,7 @@
 //   planar: Qu = diag(sigma_trans^2, sigma_trans^2, sigma_rot^2); unicycle: diag(sigma_trans^2, sigma_rot^2);
 //   free: diag(sigma_trans^2 I3, sigma_rot^2 I3).
 // The floors keep a robot at a standstill from becoming infinitely certain (wheel slip, vibration).
-// Random-walk terms of odometry_sigma (factors/odometry_covariance.h, OdometryRandomWalk) over the
+// Random-walk terms of odometry_sigma (geometry/odometry_noise.h, OdometryRandomWalk) over the
 // increment's duration dt and distance d, added to the variances of every axis of u:
 //   translation  trans_per_sqrt_s^2 dt + trans_per_sqrt_m^2 d,   rotation  rot_per_sqrt_s^2 dt (+
 //   rot_per_sqrt_m^2 d)

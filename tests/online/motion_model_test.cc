@@ -4,8 +4,8 @@
 
 #include <random>
 
-#include "factors/odometry_covariance.h"
 #include "geometry/camera.h"
+#include "geometry/odometry_noise.h"
 #include "online/ekf_state.h"
 #include "online/localizer.h"
 #include "online/marker_measurement.h"
@@ -139,7 +139,7 @@ TEST(MotionModelTest, HeadingWalkGrowsWithDistanceNotRate) {
 
 // odometry_sigma's random-walk terms: the process noise they add over a stretch of T seconds
 // and L metres is the same whatever the odometry rate, and equals what the map build gives an
-// odometry link over that stretch (OdometryRandomWalk, factors/odometry_covariance.h).
+// odometry link over that stretch (OdometryRandomWalk, geometry/odometry_noise.h).
 TEST(MotionModelTest, RandomWalkProcessNoiseIsRateIndependentAndMatchesTheMapLinks) {
   OdometryNoise noise;
   noise.sigma = {0.0, 0.0};
