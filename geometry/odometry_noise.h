@@ -23,7 +23,8 @@ struct OdometryWalkVariance {
 
 // Throws std::invalid_argument when a random-walk term is negative or not finite.
 inline void CheckRandomWalkTerms(const OdometrySigma& sigma) {
-  for (const double v : {sigma.trans_per_sqrt_s, sigma.rot_per_sqrt_s, sigma.trans_per_sqrt_m, sigma.rot_per_sqrt_m}) {
+  for (const double v :
+       {sigma.trans_per_sqrt_s, sigma.rot_per_sqrt_s, sigma.trans_per_sqrt_m, sigma.rot_per_sqrt_m}) {
     if (!(std::isfinite(v) && v >= 0.0))
       throw std::invalid_argument("odometry_sigma: the random-walk terms must be finite and >= 0");
   }
