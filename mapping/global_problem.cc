@@ -72,12 +72,9 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     const CameraInfo& camera = survey_.cameras.at(obs.camera);
     const double size_m = survey_.markers[obs.marker].size_m;
     const auto mount = mount_.find(obs.camera);
-    const double sigma_px = CornerSigmaPx(camera);
-    const bool planar = survey_.motion == MotionModel::kPlanar;
     if (mount == mount_.end()) {
-      AddOnCode(planar ? PlanarMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
-                       : MarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px),
-                loss, {robot_[obs.frame].data(), marker_[obs.marker].data()}, obs.marker);
+      AddOnCode(CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMarker), loss,
+                {robot_[obs.frame].data(), marker_[obs.marker].data()}, obs.marker);
       continue;
     }
     if (!problem_->HasParameterBlock(mount->second.data())) {
@@ -94,10 +91,9 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
       }
     }
     if (!camera.frame_wiggle_sigma) {
-      AddOnCode(
-          planar ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
-                 : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px),
-          loss, {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()}, obs.marker);
+      AddOnCode(CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountMarker),
+                loss, {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()},
+                obs.marker);
       continue;
     }
     PoseBlock& wiggle = wiggle_.try_emplace({obs.frame, obs.camera}, IdentityBlock()).first->second;
@@ -107,12 +103,10 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
           PosePriorSE3Factor::Create(SE3d(), SigmasToCovariance(*camera.frame_wiggle_sigma)), nullptr,
           wiggle.data());
     }
-    ceres::CostFunction* cost =
-        planar ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
-               : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px);
-    AddOnCode(cost, loss,
-              {robot_[obs.frame].data(), mount->second.data(), wiggle.data(), marker_[obs.marker].data()},
-              obs.marker);
+    AddOnCode(
+        CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountWiggleMarker),
+        loss, {robot_[obs.frame].data(), mount->second.data(), wiggle.data(), marker_[obs.marker].data()},
+        obs.marker);
   }
   if (loss != nullptr && active.empty()) delete loss;
   AddOdometry();
@@ -441,47 +435,36 @@ std::map<std::string, std::vector<SE3d>> GlobalProblem::Wiggles() const {
 double GlobalProblem::SquaredError(int o) const {
   const SurveyObservation& obs = survey_.observations[o];
   const CameraInfo& camera = survey_.cameras.at(obs.camera);
+  const double size_m = survey_.markers[obs.marker].size_m;
+  const auto mount = mount_.find(obs.camera);
   double residuals[8];
-  if (const auto mount = mount_.find(obs.camera); mount != mount_.end()) {
-    const double size_m = survey_.markers[obs.marker].size_m;
-    const double sigma_px = CornerSigmaPx(camera);
-    double s = 0.0;
-    if (camera.frame_wiggle_sigma) {
-      // The frame's deviation counts in the gate (whitened by its prior): a view that only fits
-      // by moving its camera far off the mount is not hidden by the wiggle.
-      const auto wiggle = wiggle_.find({obs.frame, obs.camera});
-      const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : wiggle->second;
-      std::unique_ptr<ceres::CostFunction> cost(
-          survey_.motion == MotionModel::kPlanar
-              ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, obs.corners_px, sigma_px)
-              : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, obs.corners_px, sigma_px));
-      const double* blocks[4] = {robot_[obs.frame].data(), mount->second.data(), W.data(),
-                                 marker_[obs.marker].data()};
-      if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
-      const Vector6d delta = SE3d().BoxMinus(SE3FromBlock(W.data()));
-      const std::array<double, 2>& sigma = *camera.frame_wiggle_sigma;
-      s += delta.head<3>().squaredNorm() / (sigma[0] * sigma[0]) +
-           delta.tail<3>().squaredNorm() / (sigma[1] * sigma[1]);
-    } else {
-      std::unique_ptr<ceres::CostFunction> cost(
-          survey_.motion == MotionModel::kPlanar
-              ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px)
-              : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, obs.corners_px, sigma_px));
-      const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
-      if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
-    }
-    for (double r : residuals) s += r * r;
-    return s;
-  }
-  std::unique_ptr<ceres::CostFunction> cost(
-      survey_.motion == MotionModel::kPlanar
-          ? PlanarMarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
-                                                   CornerSigmaPx(camera))
-          : MarkerReprojectionFactor::Create(camera, survey_.markers[obs.marker].size_m, obs.corners_px,
-                                             CornerSigmaPx(camera)));
-  const double* blocks[2] = {robot_[obs.frame].data(), marker_[obs.marker].data()};
-  if (!cost->Evaluate(blocks, residuals, nullptr)) return std::numeric_limits<double>::infinity();
   double s = 0.0;
+  std::unique_ptr<ceres::CostFunction> cost;
+  bool evaluated = false;
+  if (mount == mount_.end()) {
+    cost.reset(CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMarker));
+    const double* blocks[2] = {robot_[obs.frame].data(), marker_[obs.marker].data()};
+    evaluated = cost->Evaluate(blocks, residuals, nullptr);
+  } else if (camera.frame_wiggle_sigma) {
+    // The frame's deviation counts in the gate (whitened by its prior): a view that only fits
+    // by moving its camera far off the mount is not hidden by the wiggle.
+    const auto wiggle = wiggle_.find({obs.frame, obs.camera});
+    const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : wiggle->second;
+    cost.reset(
+        CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountWiggleMarker));
+    const double* blocks[4] = {robot_[obs.frame].data(), mount->second.data(), W.data(),
+                               marker_[obs.marker].data()};
+    evaluated = cost->Evaluate(blocks, residuals, nullptr);
+    const Vector6d delta = SE3d().BoxMinus(SE3FromBlock(W.data()));
+    const std::array<double, 2>& sigma = *camera.frame_wiggle_sigma;
+    s += delta.head<3>().squaredNorm() / (sigma[0] * sigma[0]) +
+         delta.tail<3>().squaredNorm() / (sigma[1] * sigma[1]);
+  } else {
+    cost.reset(CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountMarker));
+    const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
+    evaluated = cost->Evaluate(blocks, residuals, nullptr);
+  }
+  if (!evaluated) return std::numeric_limits<double>::infinity();
   for (double r : residuals) s += r * r;
   return s;
 }

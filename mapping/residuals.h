@@ -49,34 +49,31 @@ inline void AddMarkerBlock(ceres::Problem* problem, PoseBlock* block) {
   problem->AddParameterBlock(block->data(), kSE3BlockSize, new SE3Manifold);
 }
 
-// The 8 reprojection residuals of one code in one image (blocks must be declared first).
-inline ceres::ResidualBlockId AddCornerResidual(ceres::Problem* problem, MotionModel motion,
-                                                const CameraInfo& camera, double size_m,
-                                                const std::array<Eigen::Vector2d, 4>& corners_px,
-                                                PoseBlock* robot_block, PoseBlock* marker_block,
-                                                ceres::LossFunction* loss) {
-  const double sigma_px = CornerSigmaPx(camera);
-  ceres::CostFunction* cost =
-      motion == MotionModel::kPlanar
-          ? PlanarMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
-          : MarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
-  return problem->AddResidualBlock(cost, loss, robot_block->data(), marker_block->data());
-}
+// Which parameter blocks a code's corner residuals act on, in this order.
+enum class CornerBlocks {
+  kRobotMarker,             // [robot, marker]
+  kRobotMountMarker,        // [robot, mount, marker]: the camera mount estimated (T_robot_camera_sigma)
+  kRobotMountWiggleMarker,  // [robot, mount, wiggle, marker]: and the frame's deviation off it
+};
 
-// The same with the camera mount as a parameter block (T_robot_camera, SE(3), declared first):
-// the map build's extrinsic self-calibration (camera YAML T_robot_camera_sigma).
-inline ceres::ResidualBlockId AddCornerResidualWithMount(ceres::Problem* problem, MotionModel motion,
-                                                         const CameraInfo& camera, double size_m,
-                                                         const std::array<Eigen::Vector2d, 4>& corners_px,
-                                                         PoseBlock* robot_block, PoseBlock* mount_block,
-                                                         PoseBlock* marker_block, ceres::LossFunction* loss) {
+// The 8 reprojection residuals of one code in one image, at the camera's corner sigma.
+inline ceres::CostFunction* CornerCost(MotionModel motion, const CameraInfo& camera, double size_m,
+                                       const std::array<Eigen::Vector2d, 4>& corners_px,
+                                       CornerBlocks blocks) {
   const double sigma_px = CornerSigmaPx(camera);
-  ceres::CostFunction* cost =
-      motion == MotionModel::kPlanar
-          ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
-          : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
-  return problem->AddResidualBlock(cost, loss, robot_block->data(), mount_block->data(),
-                                   marker_block->data());
+  const bool planar = motion == MotionModel::kPlanar;
+  switch (blocks) {
+    case CornerBlocks::kRobotMarker:
+      return planar ? PlanarMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
+                    : MarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
+    case CornerBlocks::kRobotMountMarker:
+      return planar ? PlanarExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px)
+                    : ExtrinsicMarkerReprojectionFactor::Create(camera, size_m, corners_px, sigma_px);
+    case CornerBlocks::kRobotMountWiggleMarker:
+      return planar ? WiggleMarkerReprojectionFactor<true>::Create(camera, size_m, corners_px, sigma_px)
+                    : WiggleMarkerReprojectionFactor<false>::Create(camera, size_m, corners_px, sigma_px);
+  }
+  return nullptr;
 }
 
 }  // namespace waymark
