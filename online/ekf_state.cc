@@ -2,6 +2,8 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 namespace waymark {
 
@@ -47,6 +49,13 @@ SE3d EkfState::T_world_robot() const {
 
 Eigen::VectorXd EkfState::BoxMinus(const Eigen::VectorXd& mean_a, const Eigen::VectorXd& mean_b,
                                    int yaw_index) {
+  // Eigen checks sizes only in debug builds: a state and a pose vector of other sizes read past
+  // one of them (found by AddressSanitizer in a test's NEES).
+  if (mean_a.size() != mean_b.size() || yaw_index < 0 || yaw_index >= mean_a.size()) {
+    throw std::invalid_argument("EkfState::BoxMinus: states of sizes " + std::to_string(mean_a.size()) +
+                                " and " + std::to_string(mean_b.size()) + ", yaw index " +
+                                std::to_string(yaw_index));
+  }
   Eigen::VectorXd delta = mean_b - mean_a;
   delta(yaw_index) = WrapAngle(delta(yaw_index));
   return delta;

@@ -219,6 +219,10 @@ TEST_F(DetectCli, BadInputsFailWithOneLineAndNoOutput) {
   for (const auto& [input, message] : cases) {
     EXPECT_EQ(Run(input + " --out " + out.string()), 1) << input;
     EXPECT_NE(Stderr().find(message), std::string::npos) << input << ": " << Stderr();
+    // One line: no decoder or backend noise beside it (a broken video printed FFmpeg's and
+    // GStreamer's messages before the error).
+    const std::string error = Stderr();
+    EXPECT_EQ(std::count(error.begin(), error.end(), '\n'), 1) << input << ": " << error;
     EXPECT_FALSE(fs::exists(out)) << input;
     // With --annotate: the same error, and no directory left behind (not even empty).
     EXPECT_EQ(Run(input + " --out " + out.string() + " --annotate " + annotate.string()), 1) << input;

@@ -2,7 +2,9 @@
 #   cmake --install BUILD_DIR --prefix WORK_DIR/prefix
 #   examples/map_codes, copied to WORK_DIR/consumer: find_package(Waymark REQUIRED), built, run on a map
 #   the same main.cc compiled and linked with `pkg-config --cflags --libs waymark`, run
-# Run by ctest as install/package_test with -DBUILD_DIR, -DSOURCE_DIR, -DWORK_DIR, -DCXX.
+# Run by ctest as install/package_test with -DBUILD_DIR, -DSOURCE_DIR, -DWORK_DIR, -DCXX, and in a
+# sanitizer build -DCONSUMER_FLAGS="-fsanitize=..." (its static libraries need the sanitizers'
+# runtime in whatever links them, as they would in a user's sanitized project).
 cmake_minimum_required(VERSION 3.25)
 foreach(_var BUILD_DIR SOURCE_DIR WORK_DIR CXX)
   if(NOT DEFINED ${_var})
@@ -38,7 +40,8 @@ endforeach()
 set(_map ${SOURCE_DIR}/data/demo/survey/groundtruth/markers.json)
 file(COPY ${SOURCE_DIR}/examples/map_codes/ DESTINATION ${WORK_DIR}/consumer)
 run(${CMAKE_COMMAND} -S ${WORK_DIR}/consumer -B ${WORK_DIR}/consumer/build -G Ninja -DCMAKE_BUILD_TYPE=Release
-    -DCMAKE_PREFIX_PATH=${_prefix} -DCMAKE_CXX_COMPILER=${CXX})
+    -DCMAKE_PREFIX_PATH=${_prefix} -DCMAKE_CXX_COMPILER=${CXX} "-DCMAKE_CXX_FLAGS=${CONSUMER_FLAGS}"
+    "-DCMAKE_EXE_LINKER_FLAGS=${CONSUMER_FLAGS}")
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/consumer/build)
 run(${WORK_DIR}/consumer/build/map_codes ${_map})
 set(_cmake_output "${RUN_OUTPUT}")
@@ -53,7 +56,7 @@ execute_process(COMMAND pkg-config --cflags --libs waymark RESULT_VARIABLE _rc O
 if(NOT _rc EQUAL 0)
   message(FATAL_ERROR "package_test: pkg-config --cflags --libs waymark failed: ${_err}")
 endif()
-separate_arguments(_flags UNIX_COMMAND "${_flags}")
+separate_arguments(_flags UNIX_COMMAND "${_flags} ${CONSUMER_FLAGS}")
 run(${CXX} -std=c++17 -O1 ${WORK_DIR}/consumer/main.cc -o ${WORK_DIR}/map_codes_pc ${_flags})
 run(${WORK_DIR}/map_codes_pc ${_map})
 if(NOT RUN_OUTPUT STREQUAL _cmake_output)

@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 #include <random>
+#include <stdexcept>
 
 #include "online/motion_model.h"
 
@@ -54,6 +55,15 @@ TEST(EkfStateTest, YawIsWrappedByBoxPlusAndBoxMinus) {
   const Eigen::VectorXd delta = EkfState::BoxMinus(a, b, 2);
   EXPECT_NEAR(delta(2), 2.0 * M_PI - 6.2, 1e-12);
   EXPECT_NEAR(EkfState::BoxPlus(a, delta, 2)(2), -3.1, 1e-12);
+}
+
+TEST(EkfStateTest, BoxMinusOfStatesOfDifferentSizesIsAnError) {
+  const Eigen::VectorXd pose = Eigen::Vector3d(1.0, 2.0, 0.1);
+  Eigen::VectorXd with_calibration(5);
+  with_calibration << 1.0, 2.0, 0.1, 0.0, 0.0;
+  EXPECT_THROW(EkfState::BoxMinus(with_calibration, pose, 2), std::invalid_argument);
+  EXPECT_THROW(EkfState::BoxMinus(pose, pose, 3), std::invalid_argument);
+  EXPECT_NEAR(EkfState::BoxMinus(with_calibration.head(3), pose, 2).norm(), 0.0, 1e-15);
 }
 
 TEST(EkfStateTest, NonFiniteCovarianceIsAnErrorAndKeepsTheOldOne) {

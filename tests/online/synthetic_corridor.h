@@ -174,11 +174,13 @@ class CorridorSimulator {
   std::mt19937 rng_;
 };
 
-// Planar error state x_true [-] x_hat and NEES = e^T P^-1 e (LLT solve).
+// Planar pose error x_true [-] x_hat and NEES = e^T P^-1 e (LLT solve) over the pose block
+// (x, y, yaw) of the state, whatever states follow it (odometry calibration, ...).
 inline double PlanarNees(const SE3d& T_world_robot_true, const Localizer& localizer) {
   const Eigen::VectorXd truth = PoseToStateVector(T_world_robot_true, MotionModel::kPlanar);
-  const Eigen::VectorXd error = EkfState::BoxMinus(localizer.state().mean(), truth, 2);
-  return error.dot(localizer.state().covariance().llt().solve(error));
+  const int n = static_cast<int>(truth.size());
+  const Eigen::VectorXd error = EkfState::BoxMinus(localizer.state().mean().head(n), truth, 2);
+  return error.dot(localizer.state().covariance().topLeftCorner(n, n).llt().solve(error));
 }
 
 }  // namespace waymark::testing

@@ -74,9 +74,9 @@ TEST(VisibilityTest, UncertainPoseLowersTheInViewProbabilityAtTheEdge) {
   EXPECT_GT(sure->in_view, 0.95);
   EXPECT_LT(unsure->in_view, 0.7);
   // Centred, the wide covariance still leaves it likely in view.
-  const ExpectedCode* centred = FindExpected(
-      PredictExpectedCodes(PlanarState(1.5, 0.0, 0.0, 0.05, 0.1), left, map, CodeIndex(map), options),
-      "code-2");
+  const std::vector<ExpectedCode> wide_centred =
+      PredictExpectedCodes(PlanarState(1.5, 0.0, 0.0, 0.05, 0.1), left, map, CodeIndex(map), options);
+  const ExpectedCode* centred = FindExpected(wide_centred, "code-2");
   ASSERT_NE(centred, nullptr);
   EXPECT_GT(centred->in_view, unsure->in_view + 0.2);
 }
