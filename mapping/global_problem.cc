@@ -17,6 +17,7 @@
 #include "mapping/boards.h"
 #include "mapping/marginal_covariance.h"
 #include "mapping/residuals.h"
+#include "mapping/serial_blas.h"
 #include "util/format.h"
 
 namespace waymark {
@@ -180,7 +181,10 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     solver_options.callbacks.push_back(callback.get());
   }
   ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, problem_.get(), &summary);
+  {
+    const ScopedSerialLinearAlgebra serial;  // the same result at any load
+    ceres::Solve(solver_options, problem_.get(), &summary);
+  }
   SyncBoardCodes();
   return summary;
 }

@@ -15,6 +15,7 @@
 #include "factors/calibrated_odometry_factor.h"
 #include "factors/odometry_se3_factor.h"
 #include "factors/pose_block.h"
+#include "mapping/serial_blas.h"
 #include "util/check.h"
 #include "util/format.h"
 
@@ -158,7 +159,10 @@ class Graph {
     options.max_num_iterations = max_iterations;
     options.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
-    ceres::Solve(options, problem_.get(), &summary);
+    {
+      const ScopedSerialLinearAlgebra serial;  // the same result at any load
+      ceres::Solve(options, problem_.get(), &summary);
+    }
     if (summary.IsSolutionUsable()) return;
     maps_ = maps;
     codes_ = codes;

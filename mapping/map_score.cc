@@ -17,6 +17,7 @@
 #include "geometry/camera.h"
 #include "mapping/initializer.h"
 #include "mapping/residuals.h"
+#include "mapping/serial_blas.h"
 #include "mapping/survey.h"
 #include "util/check.h"
 #include "util/format.h"
@@ -133,7 +134,10 @@ SE3d RefinePose(const Survey& survey, const Poses& poses, const std::vector<int>
   options.max_num_iterations = max_iterations;
   options.num_threads = 1;
   ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
+  {
+    const ScopedSerialLinearAlgebra serial;  // the same result at any load
+    ceres::Solve(options, &problem, &summary);
+  }
   if (!summary.IsSolutionUsable()) return initial;
   return SE3FromBlock(robot_varies ? robot_blocks.at(index).data() : marker_blocks.at(index).data());
 }

@@ -15,6 +15,7 @@
 #include "factors/pose_prior_se2_factor.h"
 #include "factors/range_bearing_factor.h"
 #include "geometry/pose.h"
+#include "mapping/serial_blas.h"
 #include "util/check.h"
 #include "util/format.h"
 #include "util/stats.h"
@@ -393,7 +394,10 @@ double Builder::Solve(bool robust) {
   solver_options.function_tolerance = 1e-8;
   ceres::Solver::Summary summary;
   const auto start = std::chrono::steady_clock::now();
-  ceres::Solve(solver_options, &problem, &summary);
+  {
+    const ScopedSerialLinearAlgebra serial;  // the same result at any load
+    ceres::Solve(solver_options, &problem, &summary);
+  }
   solver_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   dataset_cost_.assign(states_.size(), 0.0);
   for (size_t k = 0; k < states_.size(); ++k) {
