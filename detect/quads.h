@@ -5,14 +5,13 @@
 // The frame is binarized against its local mean (dark = at least 7 gray levels below the
 // mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
 // few modules of codes from about 10 to 400 px (levels above the last keep components up
-// to 130 work pixels; larger ones are the next level's). Every dark component's outer
-// contour gives a convex hull reduced to four corners (approxPolyDP; a fifth corner, where
-// the hull cuts off a light corner module as at a DataMatrix symbol's top-right, is
-// replaced by the intersection of its neighbouring sides). Each side is sampled just
-// inside itself (3 % of its length in, from 8 % to 92 % along): its dark fraction and its
-// number of dark runs; and the middle half of the quad: the standard deviation of its gray
-// levels over the border's contrast (just outside minus just inside the sides). The work
-// is a fixed function of the image (no clock).
+// to 130 work pixels; larger ones are the next level's). Every dark component (8-connected,
+// from the binary image's runs: detect/components.h) gives a convex hull reduced to four corners
+// (approxPolyDP; a fifth corner, where the hull cuts off a light corner module as at a DataMatrix symbol's
+// top-right, is replaced by the intersection of its neighbouring sides). Each side is sampled just inside
+// itself (3 % of its length in, from 8 % to 92 % along): its dark fraction and its number of dark runs; and
+// the middle half of the quad: the standard deviation of its gray levels over the border's contrast (just
+// outside minus just inside the sides). The work is a fixed function of the image (no clock).
 #pragma once
 
 #include <array>
