@@ -1,6 +1,7 @@
 #include "detect/components.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -53,6 +54,73 @@ void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
 }
 
 }  // namespace
+
+cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
+  // Box sums in 16 bits: at most 255 * 15 * 15.
+  CV_Assert(gray.type() == CV_8UC1 && box >= 3 && box % 2 == 1 && box <= 15);
+  const int rows = gray.rows, cols = gray.cols, r = box / 2;
+  cv::Mat dark(rows, cols, CV_8U);
+  if (rows == 0 || cols == 0) return dark;
+  // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
+  // columns on each side with the border columns' sums; updated row by row. Unsigned 16-bit
+  // arithmetic wraps, but every sum fits, so the wrapped differences are exact.
+  const int padded_cols = cols + 2 * r;
+  std::vector<uint16_t> column(padded_cols, 0);
+  uint16_t* const c = column.data() + r;
+  for (int dy = -r; dy <= r; ++dy) {
+    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
+  }
+  // Sums of 2, 4 and 8 neighbouring columns: a box sum is the sum of a few of them (its
+  // width in binary), each pass a plain loop the compiler vectorizes.
+  std::vector<uint16_t> pow2[3];
+  for (auto& p : pow2) p.resize(padded_cols);
+  const std::vector<uint16_t> zeros(padded_cols, 0);
+  const uint16_t* parts[4];
+  for (int k = 3, start = 0, n = 0; k >= 0; --k, ++n) {
+    const uint16_t* base = k == 0 ? column.data() : pow2[k - 1].data();
+    parts[n] = ((box >> k) & 1) != 0 ? base + start : zeros.data();
+    if (((box >> k) & 1) != 0) start += 1 << k;
+  }
+  // Dark when round(sum / area) - pixel >= darker_by, i.e. sum / area >= pixel + darker_by -
+  // 0.5 (sum / area is never a half-integer: area is odd), i.e. sum >= area pixel + t with
+  // t = ceil(area (2 darker_by - 1) / 2); in 16 bits when that fits.
+  const int area = box * box;
+  const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
+  const bool narrow = t_exact >= 0 && area * 255 + t_exact <= 65535;
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < r; ++x) {
+      column[x] = c[0];
+      c[cols + x] = c[cols - 1];
+    }
+    for (int k = 1, step = 1; k < 4 && (1 << k) <= box; ++k, step *= 2) {
+      const uint16_t* lower = k == 1 ? column.data() : pow2[k - 2].data();
+      uint16_t* out = pow2[k - 1].data();
+      for (int x = 0; x + step < padded_cols; ++x) out[x] = static_cast<uint16_t>(lower[x] + lower[x + step]);
+    }
+    const uint8_t* in = gray.ptr<uint8_t>(y);
+    uint8_t* out = dark.ptr<uint8_t>(y);
+    const uint16_t *p0 = parts[0], *p1 = parts[1], *p2 = parts[2], *p3 = parts[3];
+    if (narrow) {
+      const uint16_t a16 = static_cast<uint16_t>(area), t16 = static_cast<uint16_t>(t_exact);
+      for (int x = 0; x < cols; ++x) {
+        const uint16_t sum = static_cast<uint16_t>(p0[x] + p1[x] + p2[x] + p3[x]);
+        out[x] = sum >= static_cast<uint16_t>(a16 * in[x] + t16) ? 255 : 0;
+      }
+    } else {
+      for (int x = 0; x < cols; ++x) {
+        const int sum = p0[x] + p1[x] + p2[x] + p3[x];
+        out[x] = sum >= area * in[x] + t_exact ? 255 : 0;
+      }
+    }
+    if (y + 1 == rows) break;
+    // Slide down: add row y + 1 + r, drop row y - r (both clamped to the image).
+    const uint8_t* add = gray.ptr<uint8_t>(std::min(y + 1 + r, rows - 1));
+    const uint8_t* drop = gray.ptr<uint8_t>(std::max(y - r, 0));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + add[x] - drop[x]);
+  }
+  return dark;
+}
 
 std::vector<RunComponent> RunComponents(const cv::Mat& binary,
                                         const std::function<bool(const cv::Rect&)>& keep) {

@@ -18,6 +18,13 @@ struct RunComponent {
   std::vector<cv::Point> row_ends;  // leftmost and rightmost pixel of each row, top row first
 };
 
+// 255 where a pixel of `gray` (CV_8UC1) is at least `darker_by` gray levels below the mean of
+// the `box` x `box` square around it (`box` odd, 3 to 15; the mean rounded to an integer, the image's
+// border replicated), else 0: exactly cv::adaptiveThreshold(gray, dark, 255,
+// ADAPTIVE_THRESH_MEAN_C, THRESH_BINARY_INV, box, darker_by), in 16-bit integers (column sums
+// slid down the rows, box sums from sums of 2, 4 and 8 columns; no division).
+cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by);
+
 // The 8-connected components of the non-zero pixels of `binary` (CV_8UC1) whose bounding box
 // passes `keep` (all when empty), in the raster order of their first pixel (top row first,
 // then left to right).

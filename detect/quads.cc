@@ -16,7 +16,7 @@ namespace {
 // Local-mean binarization: box side (work pixels) and how much darker than the box mean a
 // pixel must be to count as dark (gray levels).
 constexpr int kBoxPx = 15;
-constexpr double kDarkerBy = 7.0;
+constexpr int kDarkerBy = 7;
 // Pyramid levels (scale of the work image) and the largest hull side each one keeps (work
 // pixels; larger codes are found at the next level, where the box spans more modules).
 constexpr double kLevelScales[] = {1.0, 0.5, 0.25};
@@ -208,9 +208,7 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
     } else {
       small = gray;
     }
-    cv::Mat dark;
-    cv::adaptiveThreshold(small, dark, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, kBoxPx,
-                          kDarkerBy);
+    const cv::Mat dark = DarkerThanLocalMean(small, kBoxPx, kDarkerBy);
     const double min_side = std::max(8.0, min_side_px * scale);
     const bool last_level = scale == kLevelScales[std::size(kLevelScales) - 1];
     // Dark components from runs (detect/components.h), sized by their boxes before any hull:

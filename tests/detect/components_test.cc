@@ -1,4 +1,5 @@
-// Connected components from runs (detect/components.h): the same components and boxes as
+// Connected components from runs and the local-mean binarization (detect/components.h): the
+// binarization bit for bit OpenCV's adaptiveThreshold; the same components and boxes as
 // OpenCV's 8-connected labelling on random images, each component's row ends spanning the same
 // convex hull as all its pixels, raster order, the box filter, and the corner cases (empty,
 // all dark, one-pixel rows and columns, diagonal joins, wide images whose runs cross the
@@ -107,6 +108,34 @@ TEST(DetectComponents, KeepFiltersByBoxAndCornerCases) {
   const std::vector<RunComponent> in_view = RunComponents(view);
   ASSERT_EQ(in_view.size(), 1u);
   EXPECT_EQ(in_view[0].box, cv::Rect(1, 1, 20, 10));
+}
+
+TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
+  cv::RNG rng(11);
+  for (int trial = 0; trial < 24; ++trial) {
+    const int cols = 1 + rng.uniform(0, 120), rows = 1 + rng.uniform(0, 90);
+    cv::Mat gray(rows, cols, CV_8U);
+    // Smooth shapes and noise: many pixels near the threshold.
+    rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(5, 5), 2.0);
+    for (const int box : {3, 5, 7, 9, 15}) {
+      for (const int darker_by : {0, 7, 20}) {
+        cv::Mat expected;
+        cv::adaptiveThreshold(gray, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, box,
+                              darker_by);
+        const cv::Mat dark = DarkerThanLocalMean(gray, box, darker_by);
+        ASSERT_EQ(cv::countNonZero(dark != expected), 0)
+            << "trial " << trial << " " << cols << "x" << rows << " box " << box << " by " << darker_by;
+      }
+    }
+  }
+  // A view into a larger image: its own border is replicated (as BORDER_ISOLATED).
+  cv::Mat big(100, 140, CV_8U);
+  rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+  const cv::Mat view = big(cv::Rect(13, 9, 77, 61));
+  cv::Mat expected;
+  cv::adaptiveThreshold(view, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, 15, 7);
+  EXPECT_EQ(cv::countNonZero(DarkerThanLocalMean(view, 15, 7) != expected), 0);
 }
 
 }  // namespace
