@@ -54,8 +54,16 @@ struct DataMatrixCandidate {
 // within 8 % of a side of it (light modules near that corner can leave the dark component well short).
 std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates);
 
+// A cheap test of a candidate's rectified patch (`side` px symbol at (`margin`, `margin`), the
+// L's corner bottom-left) before any decoder: the L darker than the lightest modules inside by
+// at least 8 gray levels, and 20-80 % of a 9 x 9 grid over the inside darker than halfway
+// between the two (the data modules mix dark and light).
+// Implemented in detect/datamatrix.cc.
+bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side);
+
 // Rectifies a candidate onto a small upright patch (side 48-140 px and a 30 % quiet zone,
-// through the homography of its corners), starts libdmtx only at seed pixels on the L's two
+// through the homography of its corners), gives up unless DataMatrixPatchPlausible, starts
+// libdmtx only at seed pixels on the L's two
 // outer edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and falls
 // back to zxing-cpp's DataMatrix reader on the same patch (the symbol at its centre, where
 // zxing 1.4 starts its search). When zxing reads the same text as libdmtx on the patch, its
