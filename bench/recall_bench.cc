@@ -5,11 +5,16 @@
 // exact (detect/synthetic.h draws through the homography of the projected square).
 //
 //   bench_recall_bench [--frames N] [--seed S] [--scenario hard|issue] [--families LIST] [--verbose]
-//                      [--dump N|all] [--no-write]
+//                      [--dump N|all] [--no-write] [--threads N] [--detections FILE]
 //
 // --scenario issue: issue 14's own frames (40-200 px, tilt up to 55 deg, blur sigma 0.5-1 px,
 // noise, lighting gradients; no extra condition), written to bench/results/recall_issue.json.
 // --dump N (or all) writes frame N (every frame) to /tmp/recall_frame_N.png.
+// --threads N: the multi-family detector's threads (DetectorOptions::threads, default 1); the
+// time per frame is then the CPU time of every thread of the process, and the wall time is
+// reported beside it.
+// --detections FILE writes every detection (frame, key, corners to 1e-4 px, quality): two
+// builds, or two thread counts, compared with diff.
 //
 // Per family and width bin (the code's shortest side in the image): codes, found (the
 // right id at the right place), misread (an id that is not in the frame), corner RMS of the
@@ -20,7 +25,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -234,10 +241,26 @@ struct Tally {
   }
 };
 
+double WallMs() {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
 int Run(int frames, uint64_t seed, const std::vector<std::string>& families, const Scenario& scenario,
-        bool verbose, bool write, int dump_frame) {
+        bool verbose, bool write, int dump_frame, int threads, const std::string& detections_path) {
   cv::RNG rng(seed);
-  const auto detector = CreateMultiDetector(families);
+  DetectorOptions options;
+  options.threads = threads;
+  const auto detector = CreateMultiDetector(families, options);
+  std::ofstream detections_file;
+  if (!detections_path.empty()) {
+    detections_file.open(detections_path);
+    if (!detections_file) {
+      std::cerr << "bench_recall_bench: cannot write " << detections_path << "\n";
+      return 1;
+    }
+  }
+  std::vector<double> code_wall_ms, empty_wall_ms;
   std::map<std::string, std::map<int, Tally>> by_bin;           // family -> bin
   std::map<std::string, std::map<std::string, Tally>> by_cond;  // family -> condition
   std::map<std::string, long> misread;
@@ -258,10 +281,28 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
     }
     // Thread CPU time: the work done, comparable on a shared machine (wall time is that on an
     // idle core).
-    const double start_ms = FrameClock::ThreadCpuMs();
+    // With worker threads, the CPU time of the whole process (the bench does nothing else
+    // meanwhile).
+    const auto cpu_ms = [threads] {
+      return threads > 1 ? FrameClock::ProcessCpuMs() : FrameClock::ThreadCpuMs();
+    };
+    const double start_ms = cpu_ms(), start_wall_ms = WallMs();
     const std::vector<MarkerObservation> found = detector->Detect(frame.image);
-    const double ms = FrameClock::ThreadCpuMs() - start_ms;
+    const double ms = cpu_ms() - start_ms;
     (frame.codes.empty() ? empty_ms : code_ms).push_back(ms);
+    (frame.codes.empty() ? empty_wall_ms : code_wall_ms).push_back(WallMs() - start_wall_ms);
+    if (detections_file.is_open()) {
+      for (const MarkerObservation& obs : found) {
+        detections_file << f << ' ' << obs.key.ToString();
+        char buffer[32];
+        for (const Eigen::Vector2d& c : obs.corners_px) {
+          std::snprintf(buffer, sizeof(buffer), " %.4f %.4f", c.x(), c.y());
+          detections_file << buffer;
+        }
+        std::snprintf(buffer, sizeof(buffer), " %.4f\n", obs.quality.value_or(-1.0));
+        detections_file << buffer;
+      }
+    }
     if (verbose && ms > kSlowFrameMs) std::cout << "  frame " << f << ": " << ms << " ms of CPU\n";
     if (frame.codes.empty()) empty_detections += static_cast<long>(found.size());
     for (const MarkerObservation& obs : found) {
@@ -348,7 +389,8 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
   };
   nlohmann::json out;
   out["command"] = "bench_recall_bench --frames " + std::to_string(frames) + " --seed " +
-                   std::to_string(seed) + (scenario.name == "hard" ? "" : " --scenario " + scenario.name);
+                   std::to_string(seed) + (scenario.name == "hard" ? "" : " --scenario " + scenario.name) +
+                   (threads > 1 ? " --threads " + std::to_string(threads) : "");
   out["scenario"] = {{"name", scenario.name},
                      {"side_px", {scenario.min_side_px, scenario.max_side_px}},
                      {"max_tilt_deg", scenario.max_tilt_deg},
@@ -359,6 +401,9 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
   out["frames"] = frames;
   out["time_with_codes"] = stats(code_ms);
   out["time_empty"] = stats(empty_ms);
+  out["threads"] = threads;
+  out["wall_time_with_codes"] = stats(code_wall_ms);
+  out["wall_time_empty"] = stats(empty_wall_ms);
   out["empty_frame_detections"] = empty_detections;
   std::cout << "frames " << frames << " (seed " << seed << ", load " << load[0] << ")\n";
   for (const std::string& family : families) {
@@ -411,6 +456,11 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
       out["time_with_codes"].value("mean_ms", 0.0), out["time_with_codes"].value("max_ms", 0.0),
       out["time_empty"].value("mean_ms", 0.0), out["time_empty"].value("max_ms", 0.0), empty_detections,
       empty_ms.size());
+  if (threads > 1) {
+    std::printf("threads %d: wall time per frame with 1-4 codes: mean %.1f ms; empty: mean %.1f ms\n",
+                threads, out["wall_time_with_codes"].value("mean_ms", 0.0),
+                out["wall_time_empty"].value("mean_ms", 0.0));
+  }
   out["misses"] = misses;
   out["poor_corners"] = poor_corners;
   if (write) {
@@ -431,6 +481,8 @@ int main(int argc, char** argv) {
   uint64_t seed = 1;
   bool verbose = false, write = true;
   int dump_frame = -1;  // --dump N|all: writes frame N (or every frame) to /tmp/recall_frame_N.png
+  int threads = 1;
+  std::string detections_path;
   std::vector<std::string> families = {"qr", "datamatrix", "apriltag-36h11"};
   waymark::Scenario scenario;
   for (int i = 1; i < argc; ++i) {
@@ -459,12 +511,20 @@ int main(int argc, char** argv) {
       dump_frame = which == "all" ? -2 : std::atoi(which.c_str());
     } else if (arg == "--no-write") {
       write = false;
+    } else if (arg == "--threads" && i + 1 < argc) {
+      threads = std::atoi(argv[++i]);
+      if (threads < 1) {
+        std::cerr << "bench_recall_bench: --threads must be at least 1\n";
+        return 1;
+      }
+    } else if (arg == "--detections" && i + 1 < argc) {
+      detections_path = argv[++i];
     } else {
       std::cerr
           << "usage: bench_recall_bench [--frames N] [--seed S] [--scenario hard|issue] [--families LIST] "
-             "[--verbose] [--dump N|all] [--no-write]\n";
+             "[--verbose] [--dump N|all] [--no-write] [--threads N] [--detections FILE]\n";
       return 1;
     }
   }
-  return waymark::Run(frames, seed, families, scenario, verbose, write, dump_frame);
+  return waymark::Run(frames, seed, families, scenario, verbose, write, dump_frame, threads, detections_path);
 }

@@ -4,8 +4,11 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <iterator>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+
+#include "detect/components.h"
 
 namespace waymark {
 namespace {
@@ -13,7 +16,7 @@ namespace {
 // Local-mean binarization: box side (work pixels) and how much darker than the box mean a
 // pixel must be to count as dark (gray levels).
 constexpr int kBoxPx = 15;
-constexpr double kDarkerBy = 7.0;
+constexpr int kDarkerBy = 7;
 // Pyramid levels (scale of the work image) and the largest hull side each one keeps (work
 // pixels; larger codes are found at the next level, where the box spans more modules).
 constexpr double kLevelScales[] = {1.0, 0.5, 0.25};
@@ -181,32 +184,6 @@ std::vector<T> Deduplicate(const std::vector<T>& sorted, int max_count, QuadOf q
 
 std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px);
 
-// `dark` without its isolated pixels (no dark pixel among the 8 around them): sensor noise
-// leaves thousands of them in a binarized frame, and tracing each one was most of
-// cv::findContours' time. A lone pixel is a component of its own (8-connected, as
-// findContours joins dark pixels) far under any minimum side, and removing it joins or
-// splits no other component, so the contours kept are exactly those of `dark`.
-cv::Mat WithoutIsolatedPixels(const cv::Mat& dark) {
-  cv::Mat out = dark.clone();
-  const int rows = dark.rows, cols = dark.cols;
-  for (int y = 0; y < rows; ++y) {
-    const uint8_t* above = dark.ptr<uint8_t>(std::max(y - 1, 0));
-    const uint8_t* row = dark.ptr<uint8_t>(y);
-    const uint8_t* below = dark.ptr<uint8_t>(std::min(y + 1, rows - 1));
-    uint8_t* o = out.ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x) {
-      if (row[x] == 0) continue;
-      const int x0 = std::max(x - 1, 0), x1 = std::min(x + 1, cols - 1);
-      bool neighbour = false;
-      for (int k = x0; k <= x1 && !neighbour; ++k) {
-        neighbour = (y > 0 && above[k] != 0) || (y + 1 < rows && below[k] != 0) || (k != x && row[k] != 0);
-      }
-      if (!neighbour) o[x] = 0;
-    }
-  }
-  return out;
-}
-
 }  // namespace
 
 std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px) {
@@ -231,23 +208,27 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
     } else {
       small = gray;
     }
-    cv::Mat dark;
-    cv::adaptiveThreshold(small, dark, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, kBoxPx,
-                          kDarkerBy);
-    std::vector<std::vector<cv::Point>> contours;
-    std::vector<cv::Vec4i> hierarchy;
-    cv::findContours(WithoutIsolatedPixels(dark), contours, hierarchy, cv::RETR_CCOMP,
-                     cv::CHAIN_APPROX_SIMPLE);
+    const cv::Mat dark = DarkerThanLocalMean(small, kBoxPx, kDarkerBy);
     const double min_side = std::max(8.0, min_side_px * scale);
     const bool last_level = scale == kLevelScales[std::size(kLevelScales) - 1];
-    for (size_t i = 0; i < contours.size(); ++i) {
-      if (hierarchy[i][3] >= 0) continue;  // a hole, not a dark component's outline
-      const cv::Rect box = cv::boundingRect(contours[i]);
-      if (std::max(box.width, box.height) < min_side) continue;
-      if (!last_level && std::min(box.width, box.height) > kLevelMaxSidePx) continue;
+    // Dark components from runs (detect/components.h), sized by their boxes before any hull:
+    // sensor noise and text make thousands of small components, each one run or a few.
+    std::vector<RunComponent> components = RunComponents(dark, [&](const cv::Rect& box) {
+      return std::max(box.width, box.height) >= min_side &&
+             (last_level || std::min(box.width, box.height) <= kLevelMaxSidePx);
+    });
+    // Last found first (bottom-up), as cv::findContours listed them before.
+    std::reverse(components.begin(), components.end());
+    for (const RunComponent& component : components) {
       std::vector<cv::Point> hull;
-      cv::convexHull(contours[i], hull);
+      cv::convexHull(component.row_ends, hull);
       if (hull.size() < 4) continue;
+      // A canonical start (approxPolyDP below depends on it): the hull's vertex after the
+      // component's first pixel (top row, leftmost), which is always a vertex. This is where
+      // cv::convexHull of the traced outline started too.
+      const cv::Point first = component.row_ends.front();
+      const auto at_first = std::find(hull.begin(), hull.end(), first);
+      if (at_first != hull.end()) std::rotate(hull.begin(), at_first + 1, hull.end());
       const std::optional<Quad2d> quad = QuadFromHull(hull);
       if (!quad) continue;
       double shortest = 1e300, longest = 0.0;

@@ -5,14 +5,13 @@
 // The frame is binarized against its local mean (dark = at least 7 gray levels below the
 // mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
 // few modules of codes from about 10 to 400 px (levels above the last keep components up
-// to 130 work pixels; larger ones are the next level's). Every dark component's outer
-// contour gives a convex hull reduced to four corners (approxPolyDP; a fifth corner, where
-// the hull cuts off a light corner module as at a DataMatrix symbol's top-right, is
-// replaced by the intersection of its neighbouring sides). Each side is sampled just
-// inside itself (3 % of its length in, from 8 % to 92 % along): its dark fraction and its
-// number of dark runs; and the middle half of the quad: the standard deviation of its gray
-// levels over the border's contrast (just outside minus just inside the sides). The work
-// is a fixed function of the image (no clock).
+// to 130 work pixels; larger ones are the next level's). Every dark component (8-connected,
+// from the binary image's runs: detect/components.h) gives a convex hull reduced to four corners
+// (approxPolyDP; a fifth corner, where the hull cuts off a light corner module as at a DataMatrix symbol's
+// top-right, is replaced by the intersection of its neighbouring sides). Each side is sampled just inside
+// itself (3 % of its length in, from 8 % to 92 % along): its dark fraction and its number of dark runs; and
+// the middle half of the quad: the standard deviation of its gray levels over the border's contrast (just
+// outside minus just inside the sides). The work is a fixed function of the image (no clock).
 #pragma once
 
 #include <array>
@@ -55,8 +54,16 @@ struct DataMatrixCandidate {
 // within 8 % of a side of it (light modules near that corner can leave the dark component well short).
 std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates);
 
+// A cheap test of a candidate's rectified patch (`side` px symbol at (`margin`, `margin`), the
+// L's corner bottom-left) before any decoder: the L darker than the lightest modules inside by
+// at least 8 gray levels, and 20-80 % of a 9 x 9 grid over the inside darker than halfway
+// between the two (the data modules mix dark and light).
+// Implemented in detect/datamatrix.cc.
+bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side);
+
 // Rectifies a candidate onto a small upright patch (side 48-140 px and a 30 % quiet zone,
-// through the homography of its corners), starts libdmtx only at seed pixels on the L's two
+// through the homography of its corners), gives up unless DataMatrixPatchPlausible, starts
+// libdmtx only at seed pixels on the L's two
 // outer edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and falls
 // back to zxing-cpp's DataMatrix reader on the same patch (the symbol at its centre, where
 // zxing 1.4 starts its search). When zxing reads the same text as libdmtx on the patch, its

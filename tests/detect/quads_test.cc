@@ -50,6 +50,37 @@ TEST(DetectQuads, DataMatrixCandidateInEveryRotationWithItsOrientation) {
   }
 }
 
+// The test before the decoders: a symbol's patch passes, also dim (contrast 40) and blurred;
+// an even inside (light or dark) or no contrast fails.
+TEST(DetectQuads, DataMatrixPatchPlausibleTurnsAwayClutter) {
+  const int side = 60, margin = 18, size = side + 2 * margin;
+  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
+                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
+  const SymbolImage symbol = DataMatrixSymbol("P1");
+  const auto patch_with = [&](int dark, int light) {
+    cv::Mat patch(size, size, CV_8U, cv::Scalar(light));
+    DrawSymbol(symbol, square, &patch, dark, light);
+    return patch;
+  };
+  EXPECT_TRUE(DataMatrixPatchPlausible(patch_with(20, 235), margin, side));
+  cv::Mat dim = patch_with(90, 130);
+  cv::GaussianBlur(dim, dim, cv::Size(0, 0), 1.0);
+  EXPECT_TRUE(DataMatrixPatchPlausible(dim, margin, side));
+  // An L around an even inside (the corner of a frame).
+  cv::Mat frame(size, size, CV_8U, cv::Scalar(235));
+  cv::rectangle(frame, cv::Rect(margin, margin, 6, side), cv::Scalar(20), cv::FILLED);
+  cv::rectangle(frame, cv::Rect(margin, margin + side - 6, side, 6), cv::Scalar(20), cv::FILLED);
+  EXPECT_FALSE(DataMatrixPatchPlausible(frame, margin, side));
+  // An L around a filled box.
+  cv::Mat filled = frame.clone();
+  cv::rectangle(filled, cv::Rect(margin, margin, side, side), cv::Scalar(20), cv::FILLED);
+  EXPECT_FALSE(DataMatrixPatchPlausible(filled, margin, side));
+  // No contrast.
+  EXPECT_FALSE(DataMatrixPatchPlausible(cv::Mat(size, size, CV_8U, cv::Scalar(128)), margin, side));
+}
+
 TEST(DetectQuads, SmallAndLargeSymbolsAreCandidates) {
   for (const double side : {22.0, 40.0, 380.0}) {
     cv::Mat image = Canvas(1280, 960);

@@ -1,0 +1,192 @@
+#include "detect/components.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+namespace waymark {
+namespace {
+
+struct Run {
+  int y, x0, x1;  // inclusive ends
+};
+
+int Find(std::vector<int>& parent, int i) {
+  int root = i;
+  while (parent[root] != root) root = parent[root];
+  while (parent[i] != root) {
+    const int next = parent[i];
+    parent[i] = root;
+    i = next;
+  }
+  return root;
+}
+
+// The smaller index becomes the root: a component's root is its first run in raster order.
+void Union(std::vector<int>& parent, int a, int b) {
+  a = Find(parent, a);
+  b = Find(parent, b);
+  if (a < b) {
+    parent[b] = a;
+  } else if (b < a) {
+    parent[a] = b;
+  }
+}
+
+// Appends the runs of non-zero pixels of one row; light stretches are skipped eight pixels
+// at a time.
+void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
+  int x = 0;
+  while (x < cols) {
+    while (x + 8 <= cols) {
+      uint64_t word;
+      std::memcpy(&word, row + x, 8);
+      if (word != 0) break;
+      x += 8;
+    }
+    while (x < cols && row[x] == 0) ++x;
+    if (x >= cols) break;
+    const int start = x;
+    while (x < cols && row[x] != 0) ++x;
+    runs->push_back({y, start, x - 1});
+  }
+}
+
+}  // namespace
+
+cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
+  // Box sums in 16 bits: at most 255 * 15 * 15.
+  CV_Assert(gray.type() == CV_8UC1 && box >= 3 && box % 2 == 1 && box <= 15);
+  const int rows = gray.rows, cols = gray.cols, r = box / 2;
+  cv::Mat dark(rows, cols, CV_8U);
+  if (rows == 0 || cols == 0) return dark;
+  // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
+  // columns on each side with the border columns' sums; updated row by row. Unsigned 16-bit
+  // arithmetic wraps, but every sum fits, so the wrapped differences are exact.
+  const int padded_cols = cols + 2 * r;
+  std::vector<uint16_t> column(padded_cols, 0);
+  uint16_t* const c = column.data() + r;
+  for (int dy = -r; dy <= r; ++dy) {
+    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
+  }
+  // Sums of 2, 4 and 8 neighbouring columns: a box sum is the sum of a few of them (its
+  // width in binary), each pass a plain loop the compiler vectorizes.
+  std::vector<uint16_t> pow2[3];
+  for (auto& p : pow2) p.resize(padded_cols);
+  const std::vector<uint16_t> zeros(padded_cols, 0);
+  const uint16_t* parts[4];
+  for (int k = 3, start = 0, n = 0; k >= 0; --k, ++n) {
+    const uint16_t* base = k == 0 ? column.data() : pow2[k - 1].data();
+    parts[n] = ((box >> k) & 1) != 0 ? base + start : zeros.data();
+    if (((box >> k) & 1) != 0) start += 1 << k;
+  }
+  // Dark when round(sum / area) - pixel >= darker_by, i.e. sum / area >= pixel + darker_by -
+  // 0.5 (sum / area is never a half-integer: area is odd), i.e. sum >= area pixel + t with
+  // t = ceil(area (2 darker_by - 1) / 2); in 16 bits when that fits.
+  const int area = box * box;
+  const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
+  const bool narrow = t_exact >= 0 && area * 255 + t_exact <= 65535;
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < r; ++x) {
+      column[x] = c[0];
+      c[cols + x] = c[cols - 1];
+    }
+    for (int k = 1, step = 1; k < 4 && (1 << k) <= box; ++k, step *= 2) {
+      const uint16_t* lower = k == 1 ? column.data() : pow2[k - 2].data();
+      uint16_t* out = pow2[k - 1].data();
+      for (int x = 0; x + step < padded_cols; ++x) out[x] = static_cast<uint16_t>(lower[x] + lower[x + step]);
+    }
+    const uint8_t* in = gray.ptr<uint8_t>(y);
+    uint8_t* out = dark.ptr<uint8_t>(y);
+    const uint16_t *p0 = parts[0], *p1 = parts[1], *p2 = parts[2], *p3 = parts[3];
+    if (narrow) {
+      const uint16_t a16 = static_cast<uint16_t>(area), t16 = static_cast<uint16_t>(t_exact);
+      for (int x = 0; x < cols; ++x) {
+        const uint16_t sum = static_cast<uint16_t>(p0[x] + p1[x] + p2[x] + p3[x]);
+        out[x] = sum >= static_cast<uint16_t>(a16 * in[x] + t16) ? 255 : 0;
+      }
+    } else {
+      for (int x = 0; x < cols; ++x) {
+        const int sum = p0[x] + p1[x] + p2[x] + p3[x];
+        out[x] = sum >= area * in[x] + t_exact ? 255 : 0;
+      }
+    }
+    if (y + 1 == rows) break;
+    // Slide down: add row y + 1 + r, drop row y - r (both clamped to the image).
+    const uint8_t* add = gray.ptr<uint8_t>(std::min(y + 1 + r, rows - 1));
+    const uint8_t* drop = gray.ptr<uint8_t>(std::max(y - r, 0));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + add[x] - drop[x]);
+  }
+  return dark;
+}
+
+std::vector<RunComponent> RunComponents(const cv::Mat& binary,
+                                        const std::function<bool(const cv::Rect&)>& keep) {
+  CV_Assert(binary.type() == CV_8UC1);
+  std::vector<Run> runs;
+  runs.reserve(static_cast<size_t>(binary.rows) * 8);
+  std::vector<int> parent;
+  size_t previous_begin = 0, previous_end = 0;
+  for (int y = 0; y < binary.rows; ++y) {
+    const size_t begin = runs.size();
+    RowRuns(binary.ptr<uint8_t>(y), binary.cols, y, &runs);
+    for (size_t i = begin; i < runs.size(); ++i) parent.push_back(static_cast<int>(i));
+    // Runs of the row above touching this run, diagonals included.
+    size_t j = previous_begin;
+    for (size_t i = begin; i < runs.size(); ++i) {
+      while (j < previous_end && runs[j].x1 < runs[i].x0 - 1) ++j;
+      for (size_t k = j; k < previous_end && runs[k].x0 <= runs[i].x1 + 1; ++k) {
+        Union(parent, static_cast<int>(i), static_cast<int>(k));
+      }
+    }
+    previous_begin = begin;
+    previous_end = runs.size();
+  }
+  // Bounding boxes per root (a root is its component's first run).
+  const int n = static_cast<int>(runs.size());
+  std::vector<int> root(n);
+  std::vector<int> x0(n), x1(n), y1(n), count(n, 0);
+  for (int i = 0; i < n; ++i) {
+    const int r = root[i] = Find(parent, i);
+    const Run& run = runs[i];
+    if (r == i) {
+      x0[r] = run.x0;
+      x1[r] = run.x1;
+      y1[r] = run.y;
+    } else {
+      x0[r] = std::min(x0[r], run.x0);
+      x1[r] = std::max(x1[r], run.x1);
+      y1[r] = std::max(y1[r], run.y);
+    }
+    ++count[r];
+  }
+  // The kept components, in the order of their roots; their run ends in a second pass.
+  std::vector<int> slot(n, -1);
+  std::vector<RunComponent> out;
+  for (int i = 0; i < n; ++i) {
+    if (root[i] != i) continue;
+    const cv::Rect box(x0[i], runs[i].y, x1[i] - x0[i] + 1, y1[i] - runs[i].y + 1);
+    if (keep && !keep(box)) continue;
+    slot[i] = static_cast<int>(out.size());
+    out.push_back({box, {}});
+    out.back().row_ends.reserve(2 * static_cast<size_t>(std::min(count[i], out.back().box.height)));
+  }
+  // Runs come row by row, left to right: a row's first run gives its left end, its last run
+  // its right end.
+  for (int i = 0; i < n; ++i) {
+    const int s = slot[root[i]];
+    if (s < 0) continue;
+    std::vector<cv::Point>& ends = out[s].row_ends;
+    if (!ends.empty() && ends.back().y == runs[i].y) {
+      ends.back().x = runs[i].x1;
+    } else {
+      ends.emplace_back(runs[i].x0, runs[i].y);
+      ends.emplace_back(runs[i].x1, runs[i].y);
+    }
+  }
+  return out;
+}
+
+}  // namespace waymark
