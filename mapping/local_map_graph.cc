@@ -296,6 +296,21 @@ double SearchGrid(const LocalMapGraphOptions& options, double length_m, const Co
 
 constexpr size_t kMaxClosurePartners = 16;
 
+// The mismatch up to which a closure counts in the heading-drift search, for two instances d
+// metres of path apart: search_truncation_m, or stage 2's position gate for them when wider.
+// What stage 1 leaves of a true closure grows with the path between its instances (a corner's
+// turn error the codes do not see swings the whole next leg: 10 mrad on a 500 m leg is 5 m), as
+// the gate says. With a fixed 5 m, a 1.4 km loop's right bend (more than 5 m off) cost as much
+// as any other: the search kept stage 1's k and the gate rejected the closure, or it took a bend
+// wrapped by two extra turns that passed the start within 5 m (header comment). The search's
+// sigma scales with the truncation (kSearchSigmaM at search_truncation_m), so
+// the cost is the same in whitened units at any size and the right bend's basin (the truncation
+// either side) is always wider than the coarse grid's step: the step moves a closure by at most
+// search_step_rad times the loop's extent, and the gate grows by gate_per_m times the path.
+double SearchTruncationM(const LocalMapGraphOptions& options, double path_between_m) {
+  return std::max(options.search_truncation_m, options.gate_m + options.gate_per_m * path_between_m);
+}
+
 // The heading-drift search of the header comment, per chain holding loop closures: moves the
 // stage-1 maps and instances of the chain by the best dk on a grid; returns the dk of the
 // longest chain searched (0 when none).
@@ -319,10 +334,14 @@ double SearchHeadingDrift(const std::vector<LocalMap>& maps, const std::vector<S
     // (earlier instance, later instance) of one code in this chain: each instance with at most
     // kMaxClosurePartners earlier ones, so a code revisited n times gives O(n) pairs, not n^2.
     std::vector<std::pair<int, int>> closures;
+    std::vector<double> truncation_m;  // per closure: SearchTruncationM
     for (const auto& [marker, list] : chain_instances[chain]) {
       for (size_t b = 1; b < list.size(); ++b) {
         for (size_t a = b > kMaxClosurePartners ? b - kMaxClosurePartners : 0; a < b; ++a) {
           closures.emplace_back(list[a], list[b]);
+          const double d =
+              std::abs(maps[instances[list[b]].first_map].path_m - maps[instances[list[a]].first_map].path_m);
+          truncation_m.push_back(SearchTruncationM(options, d));
         }
       }
     }
@@ -332,12 +351,15 @@ double SearchHeadingDrift(const std::vector<LocalMap>& maps, const std::vector<S
     for (size_t i = 0; i < members.size(); ++i) position[members[i]] = static_cast<int>(i);
     const auto cost = [&](const std::vector<SE3d>& bent) {
       double sum = 0.0;
-      for (const auto& [i, j] : closures) {
+      for (size_t c = 0; c < closures.size(); ++c) {
+        const auto& [i, j] = closures[c];
         const SE3d T_i = bent[position[sightings[instances[i].best].map]] * T_map_code[i];
         const SE3d T_j = bent[position[sightings[instances[j].best].map]] * T_map_code[j];
         const double e2 = (T_i.translation() - T_j.translation()).squaredNorm() +
                           std::pow(kLinkLeverM * RotationAngleBetween(T_i, T_j), 2);
-        sum += std::min(e2, options.search_truncation_m * options.search_truncation_m);
+        // In units of the closure's own scale: kSearchSigmaM times truncation / search_truncation_m.
+        const double scale = truncation_m[c] / options.search_truncation_m;
+        sum += std::min(e2, truncation_m[c] * truncation_m[c]) / (scale * scale);
       }
       return sum;
     };
@@ -452,6 +474,8 @@ Placement PlaceAndMerge(const std::vector<LocalMap>& maps, const Stage& stage,
 
 bool LocalMapGraphOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(IsFinitePositive(inlier_chi2), "local map graph: inlier_chi2 must be finite and > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(search_truncation_m),
+                       "local map graph: search_truncation_m must be finite and > 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(near_path_m, 0.0) && IsFiniteAtLeast(gate_m, 0.0) &&
                            IsFiniteAtLeast(gate_per_m, 0.0) && IsFiniteAtLeast(gate_rad, 0.0) &&
                            IsFiniteAtLeast(gate_rad_per_m, 0.0),

@@ -40,11 +40,18 @@
 // from their stage-1 increments with an extra drift dk (BendChain below) for dk on a grid over
 // +-search_max_rad_per_m (step search_step_rad / chain length, then ten times finer around the
 // best points), and the dk with the least
-//   sum over closures of min(e^2, search_truncation_m^2) / (1 m)^2 + (dk / search_sigma_rad_per_m)^2,
-//   e^2 = |p_first - p_later|^2 + (L angle(R_first, R_later))^2
+//   sum over closures of min(e^2, T^2) / (T / search_truncation_m)^2 + (dk / search_sigma_rad_per_m)^2,
+//   e^2 = |p_first - p_later|^2 + (L angle(R_first, R_later))^2,
+//   T = max(search_truncation_m, gate_m + gate_per_m d)   (d: path between the two instances)
 // is kept (ties: the smaller |dk|); k += dk. The prior term matters: a loop bent by whole extra
-// turns can pass near its start again (1 km corridor: 0.72 deg/m off, 1.5 m short), while the
-// right bend misses by the metres that stage 1's other errors leave.
+// turns can pass near its start again (1 km corridor: 0.72 deg/m off, 1.5 m short; a 1.4 km
+// one, 500 x 200 m: two extra turns close within 0.7 m), while the right bend misses by the
+// metres that stage 1's other errors leave, which grow with the loop (a corner's turn error
+// swings the whole next leg). T is stage 2's gate for the pair: a fixed 5 m made the right bend
+// of a 1.4 km loop (more than 5 m off) cost as much as any other, and the prior then chose a
+// wrong one or none; scaled so, loops under 90 m keep 5 m and a 1 m sigma, and the coarse step
+// (which moves a closure by at most search_step_rad times the loop's extent) stays inside the
+// basin.
 //
 // Stage 2 (closures). Groups are placed relative to each other along a maximum-quality spanning
 // forest of the instance pairs of one code in two groups (quality 1 / sigma as RankingSigma over
@@ -80,7 +87,8 @@ struct LocalMapGraphOptions {
   double near_path_m = 20.0;
   double search_max_rad_per_m = 0.02;     // heading-drift search range (+-), rad per metre
   double search_step_rad = 0.05;          // its step, as heading change over the chain
-  double search_truncation_m = 5.0;       // closure mismatch above this counts as this
+  double search_truncation_m = 5.0;       // closure mismatch above this counts as this (at least;
+                                          // wider for long closures, header comment)
   double search_sigma_rad_per_m = 0.002;  // how far stage 1's k may be off (search prior)
   double inlier_chi2 = 36.0;              // sighting inlier gate after stage 1 (6 whitened residuals)
   double gate_m = 0.5;

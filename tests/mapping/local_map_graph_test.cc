@@ -38,7 +38,10 @@ FusedPose Sighting(const SE3d& T_ref_code, std::mt19937* rng) {
   return fused;
 }
 
-Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
+// closure_offset_m moves the code seen at the loop's end along x (the path's direction there),
+// closure_offset_y_m across it (towards the loop's centre); drift_rad_per_m bends the odometry.
+Loop MakeLoop(std::uint32_t seed, double closure_offset_m, double drift_rad_per_m = kDriftRadPerM,
+              double closure_offset_y_m = 0.0) {
   std::mt19937 rng(seed);
   Loop loop;
   const double radius_m = kMaps / (2.0 * M_PI);
@@ -66,7 +69,7 @@ Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
     if (i == kMaps - 1) {
       const SE3d T_world_code0(
           loop.T_world_code[0].rotation(),
-          loop.T_world_code[0].translation() + Eigen::Vector3d(closure_offset_m, 0.0, 0.0));
+          loop.T_world_code[0].translation() + Eigen::Vector3d(closure_offset_m, closure_offset_y_m, 0.0));
       map.codes.emplace(0, Sighting(T_ref_world * T_world_code0, &rng));
     }
     loop.maps.push_back(map);
@@ -75,7 +78,7 @@ Loop MakeLoop(std::uint32_t seed, double closure_offset_m) {
     // The measured increment M of a true one C (factors/calibrated_odometry_factor.h, turn and
     // distance scale 0): theta_M = theta_C + k s, t_M = R(k s / 2) t_C.
     const SE2d C = SE2d::FromSE3(loop.T_world_ref[i].inverse() * loop.T_world_ref[i + 1]);
-    const double bend = kDriftRadPerM * C.translation().norm();
+    const double bend = drift_rad_per_m * C.translation().norm();
     const Eigen::Vector2d t_M = Eigen::Rotation2Dd(0.5 * bend) * C.translation();
     LocalMapLink link;
     link.map_a = i;
@@ -115,6 +118,29 @@ TEST(LocalMapGraphTest, ClosesALoopWhoseOdometryDriftedMoreThanHalfATurn) {
   // with c held after the search (the global solve refines it from the corners).
   EXPECT_LT(worst_m, 0.02 * kMaps) << "odometry alone " << composed_m << " m";
   for (const SE3d& T : graph.T_world_ref) EXPECT_NEAR(T.translation().z(), 0.0, 1e-9);  // planar
+}
+
+// What stage 1 leaves of a true closure grows with the loop: a corner's turn error that no code
+// measures swings the whole next leg (a 1.4 km sim corridor loop: 5-20 m). Here the code seen at
+// the loop's end is 8 m off across the path (no bend can absorb that), within stage 2's gate
+// after 399 m (0.5 + 0.05 * 399 = 20.5 m), and stage 1 is held at k = 0 by a tight prior while
+// the odometry bends 0.003 rad/m (1.5 sigma of the search's prior; 76 m at the closure). The
+// search's fixed 5 m truncation made every bend cost the same, so its prior kept dk = 0 and
+// the gate rejected the 76 m closure: the loop stayed open (measured before the change:
+// 0 closures accepted, worst map 37.9 m off); the truncation now grows like the gate.
+TEST(LocalMapGraphTest, FindsTheBendOfALoopThatStage1LeavesMetresOpen) {
+  constexpr double kDrift = 0.003;
+  const Loop loop = MakeLoop(7, 0.0, kDrift, 8.0);
+  LocalMapGraphOptions options;
+  options.given_calibration = Eigen::Vector3d::Zero();
+  options.given_calibration_sigma = Eigen::Vector3d(1e-7, 0.05, 0.05);
+  const LocalMapGraph graph = SolveLocalMapGraph(loop.maps, loop.links, true, options);
+  EXPECT_EQ(graph.closures_accepted, 1);
+  EXPECT_EQ(graph.closures_rejected, 0);
+  EXPECT_GT(graph.odometry_calibration[0], 0.5 * kDrift);
+  // Measured 10.5 m: the 8 m misfit closed and shared round the loop, and the sightings' noise
+  // (4.3 m in the test above).
+  EXPECT_LT(WorstPositionErrorM(graph.T_world_ref, loop.T_world_ref), 15.0);
 }
 
 TEST(LocalMapGraphTest, AClosureFarOffTheGateStaysApart) {
@@ -173,6 +199,10 @@ TEST(LocalMapGraphTest, OptionsAreChecked) {
   options.gate_per_m = -1.0;
   EXPECT_FALSE(options.Check(&why));
   EXPECT_NE(why.find("local map graph"), std::string::npos);
+  options = LocalMapGraphOptions();
+  options.search_truncation_m = 0.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("search_truncation_m"), std::string::npos);
   const Loop loop = MakeLoop(7, 0.0);
   EXPECT_THROW(SolveLocalMapGraph(loop.maps, loop.links, true, options), std::runtime_error);
 }
