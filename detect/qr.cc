@@ -20,6 +20,9 @@ namespace {
 // Crops larger than this (longer side, px) are not upscaled in pass 2.
 constexpr int kMaxUpscaleSidePx = 480;
 
+// Small-code boxes searched for finders per frame (ReadSmallCodeQuads).
+constexpr int kMaxSmallCodeBoxes = 16;
+
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
 // modules), less in larger versions.
 constexpr double kRefineWindowFraction = 0.035;
@@ -140,6 +143,32 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
   }
 }
 
+// Pass 2a'': small codes (about 18-80 px) whose finders neither the candidate regions nor
+// the finder quads give: a dark quad that may be a whole code (SmallQrCodeQuads), not read
+// yet, is searched for finders in its own box (padded by a third of its side, upscaled up
+// to 4x) and the triple at its centre is read; at most `max_boxes` boxes per frame.
+void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
+                        std::vector<MarkerObservation>* found) {
+  for (const DarkQuad& quad : SmallQrCodeQuads(FindDarkQuads(gray, min_side_px), max_boxes)) {
+    QrCandidate as_code;
+    as_code.corners_px = quad.corners_px;
+    if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : quad.corners_px) corners.emplace_back(c.x(), c.y());
+    cv::Rect box = cv::boundingRect(corners);
+    const int pad = static_cast<int>(std::ceil(std::max(box.width, box.height) / 3.0));
+    box = cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
+          cv::Rect(0, 0, gray.cols, gray.rows);
+    const Eigen::Vector2d centre = QuadCenter(quad.corners_px);
+    const double side = QuadMeanSide(quad.corners_px);
+    for (const QrCandidate& candidate : GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size())) {
+      if ((QuadCenter(candidate.corners_px) - centre).norm() > 0.3 * side) continue;
+      AppendUnique(ReadRectifiedQr(gray, candidate), found);
+      break;
+    }
+  }
+}
+
 class QrDetector : public MarkerDetector {
  public:
   explicit QrDetector(const DetectorOptions& options) : options_(options) {}
@@ -167,6 +196,7 @@ class QrDetector : public MarkerDetector {
           SecondPassRegions(gray, options_.max_candidates, options_.close_up);
       ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &work, &found);
       ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, &work, &found);
+      ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, &work, &found);
       RunSecondPass(gray, regions, attempts, &work, &found);
     }
     skipped_ = work.skipped();
