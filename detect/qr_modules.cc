@@ -24,6 +24,9 @@ constexpr int kMinModelModules = 40;
 // Soft decisions: the least certain modules flipped one at a time.
 constexpr int kSoftFlips = 8;
 constexpr int kQuietModules = 4;
+// Unoriented quads: module counts tried (versions 1-2), hypotheses fitted (best raw contrast).
+constexpr int kMaxUnorientedModules = 25;
+constexpr size_t kUnorientedFits = 2;
 
 // The blur model's neighbourhood: offsets (dr, dc) and their weight class (0 the module
 // itself, 1 edge neighbours, 2 diagonal, 3 two modules along an axis).
@@ -375,16 +378,10 @@ cv::Mat RenderQrModules(const std::vector<uint8_t>& dark, int modules) {
   return image;
 }
 
-std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px, int modules) {
-  if (gray.empty() || gray.type() != CV_8UC1) return {};
-  // The module count estimated from the finders can be a version off: the neighbours too,
-  // best known-pattern contrast first.
-  std::vector<QrModuleGrid> grids;
-  for (const int n : {modules, modules - 4, modules + 4}) {
-    if (const std::optional<QrModuleGrid> grid = FitQrModuleGrid(gray, corners_px, n)) grids.push_back(*grid);
-  }
-  std::stable_sort(grids.begin(), grids.end(),
-                   [](const QrModuleGrid& a, const QrModuleGrid& b) { return a.contrast > b.contrast; });
+namespace {
+
+// The grids decoded in turn (steps 2-4); the first read.
+std::vector<MarkerObservation> DecodeGrids(const cv::Mat& gray, const std::vector<QrModuleGrid>& grids) {
   for (const QrModuleGrid& grid : grids) {
     const std::optional<Deconvolved> modules_read = Deconvolve(gray, grid);
     if (!modules_read) continue;
@@ -399,6 +396,49 @@ std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2
     if (!read.empty()) return read;
   }
   return {};
+}
+
+}  // namespace
+
+std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px, int modules) {
+  if (gray.empty() || gray.type() != CV_8UC1) return {};
+  // The module count estimated from the finders can be a version off: the neighbours too,
+  // best known-pattern contrast first.
+  std::vector<QrModuleGrid> grids;
+  for (const int n : {modules, modules - 4, modules + 4}) {
+    if (const std::optional<QrModuleGrid> grid = FitQrModuleGrid(gray, corners_px, n)) grids.push_back(*grid);
+  }
+  std::stable_sort(grids.begin(), grids.end(),
+                   [](const QrModuleGrid& a, const QrModuleGrid& b) { return a.contrast > b.contrast; });
+  return DecodeGrids(gray, grids);
+}
+
+std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px) {
+  if (gray.empty() || gray.type() != CV_8UC1) return {};
+  struct Hypothesis {
+    Quad2d corners;
+    int modules;
+    double contrast;
+  };
+  std::vector<Hypothesis> hypotheses;
+  for (int rotation = 0; rotation < 4; ++rotation) {
+    const Quad2d corners = RotateCorners(corners_px, rotation);
+    for (int n = kMinGridModules; n <= kMaxUnorientedModules; n += 4) {
+      const double contrast = KnownContrast(gray, corners, n, KnownModules(n));
+      if (std::isfinite(contrast)) hypotheses.push_back({corners, n, contrast});
+    }
+  }
+  std::stable_sort(hypotheses.begin(), hypotheses.end(),
+                   [](const Hypothesis& a, const Hypothesis& b) { return a.contrast > b.contrast; });
+  std::vector<QrModuleGrid> grids;
+  for (size_t k = 0; k < hypotheses.size() && k < kUnorientedFits; ++k) {
+    if (const std::optional<QrModuleGrid> grid =
+            FitQrModuleGrid(gray, hypotheses[k].corners, hypotheses[k].modules))
+      grids.push_back(*grid);
+  }
+  std::stable_sort(grids.begin(), grids.end(),
+                   [](const QrModuleGrid& a, const QrModuleGrid& b) { return a.contrast > b.contrast; });
+  return DecodeGrids(gray, grids);
 }
 
 }  // namespace waymark

@@ -60,4 +60,10 @@ cv::Mat RenderQrModules(const std::vector<uint8_t>& dark, int modules);
 // counts tried: `modules` (21, 25, ... up to kMaxGridModules). Empty if nothing reads.
 std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px, int modules);
 
+// The same from a quad of unknown orientation (a whole code's outline, e.g. a dark quad of
+// the candidate stage, a module or so off): the four rotations and 21 or 25 modules are
+// ranked by the known modules' contrast at the quad's corners, the best kUnorientedFits
+// fitted (step 1) and read in order of fitted contrast.
+std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px);
+
 }  // namespace waymark

@@ -132,6 +132,26 @@ TEST(DetectQrModules, SmallBlurredCodesRead) {
   EXPECT_LT(read_by_zxing, cases);
 }
 
+// A whole code's outline in any corner order (a dark quad of the candidate stage): the
+// orientation comes from the known modules, the corners back in docs/design.md order.
+TEST(DetectQrModules, UnorientedQuadReads) {
+  const SymbolImage symbol = QrSymbol("r/91/12.5");
+  const int n = symbol.symbol.width;
+  const double module_px = 1.6;
+  const Quad2d truth = MakeQuad({80.4, 80.1}, module_px * n, 0.4, 1.12);
+  const cv::Mat image = SmallCode(symbol, truth, 0.8, 2.0);
+  for (int rotation = 0; rotation < 4; ++rotation) {
+    Quad2d start = RotateCorners(truth, rotation);
+    for (Eigen::Vector2d& c : start) c += Eigen::Vector2d(-0.4 * module_px, 0.3 * module_px);
+    const std::vector<MarkerObservation> read = ReadUnorientedQrModuleGrid(image, start);
+    ASSERT_EQ(read.size(), 1u) << rotation;
+    EXPECT_EQ(read[0].key.id, "r/91/12.5");
+    for (int i = 0; i < 4; ++i)
+      EXPECT_LT((read[0].corners_px[i] - truth[i]).norm(), 0.6 * module_px) << rotation;
+  }
+  EXPECT_TRUE(ReadUnorientedQrModuleGrid(cv::Mat(160, 160, CV_8U, cv::Scalar(128)), truth).empty());
+}
+
 // Small codes on a light card in a larger frame with some clutter: the dark-quad stage gives
 // each whole code as a quad at a coarse level (SmallQrCodeQuads), and the QR detector reads
 // them from there (pass 2a'': finders searched in the quad's box, module grid read).
