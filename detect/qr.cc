@@ -10,6 +10,7 @@
 #include "detect/common.h"
 #include "detect/qr_finder.h"
 #include "detect/qr_grid.h"
+#include "detect/qr_modules.h"
 #include "detect/quads.h"
 #include "detect/refine.h"
 #include "detect/zxing.h"
@@ -19,6 +20,18 @@ namespace {
 
 // Crops larger than this (longer side, px) are not upscaled in pass 2.
 constexpr int kMaxUpscaleSidePx = 480;
+
+// Small-code boxes searched for finders per frame (ReadSmallCodeQuads).
+constexpr int kMaxSmallCodeBoxes = 16;
+// A finder triple belongs to a small-code quad when its centre is within this fraction of the
+// quad's side of the quad's (an oblique code's coarse outline can be a module or two off).
+constexpr double kSmallCodeCentreFraction = 0.5;
+// Quads up to this side (px) with no finder triple are read as module grids from their own
+// corners (larger codes have finders the search finds: 7 modules of at least 2.4 px).
+constexpr double kMaxUnorientedSidePx = 50.0;
+// ... at most this many per frame (each is up to eight contrast evaluations, two grid fits
+// and their decodes; most such quads of a cluttered frame are no code).
+constexpr int kMaxUnorientedReads = 4;
 
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
 // modules), less in larger versions.
@@ -140,6 +153,44 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
   }
 }
 
+// Pass 2a'': small codes (about 18-80 px) whose finders neither the candidate regions nor
+// the finder quads give: a dark quad that may be a whole code (SmallQrCodeQuads), not read
+// yet, is searched for finders in its own box (padded by a third of its side, upscaled up
+// to 4x) and the triple at its centre is read, or, for a quad of at most kMaxUnorientedSidePx
+// with no such triple, its module grid from the quad's corners (detect/qr_modules.h, at most
+// kMaxUnorientedReads per frame); at most `max_boxes` boxes per frame.
+void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
+                        std::vector<MarkerObservation>* found) {
+  int unoriented_reads = 0;
+  for (const DarkQuad& quad : SmallQrCodeQuads(FindDarkQuads(gray, min_side_px), max_boxes)) {
+    QrCandidate as_code;
+    as_code.corners_px = quad.corners_px;
+    if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : quad.corners_px) corners.emplace_back(c.x(), c.y());
+    cv::Rect box = cv::boundingRect(corners);
+    const int pad = static_cast<int>(std::ceil(std::max(box.width, box.height) / 3.0));
+    box = cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
+          cv::Rect(0, 0, gray.cols, gray.rows);
+    const Eigen::Vector2d centre = QuadCenter(quad.corners_px);
+    const double side = QuadMeanSide(quad.corners_px);
+    bool read = false;
+    for (const QrCandidate& candidate : GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size())) {
+      if ((QuadCenter(candidate.corners_px) - centre).norm() > kSmallCodeCentreFraction * side) continue;
+      const std::vector<MarkerObservation> r = ReadRectifiedQr(gray, candidate);
+      AppendUnique(r, found);
+      read = !r.empty();
+      break;
+    }
+    // No finders (an oblique code's finders are foreshortened to a module or so of light
+    // ring): the module grid read from the quad's own corners, in any orientation.
+    if (!read && side <= kMaxUnorientedSidePx && unoriented_reads < kMaxUnorientedReads) {
+      ++unoriented_reads;
+      AppendUnique(ReadUnorientedQrModuleGrid(gray, quad.corners_px), found);
+    }
+  }
+}
+
 class QrDetector : public MarkerDetector {
  public:
   explicit QrDetector(const DetectorOptions& options) : options_(options) {}
@@ -167,6 +218,7 @@ class QrDetector : public MarkerDetector {
           SecondPassRegions(gray, options_.max_candidates, options_.close_up);
       ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &work, &found);
       ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, &work, &found);
+      ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, &work, &found);
       RunSecondPass(gray, regions, attempts, &work, &found);
     }
     skipped_ = work.skipped();

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "detect/qr_modules.h"
 #include "detect/refine.h"
 #include "detect/zxing.h"
 
@@ -40,6 +41,15 @@ constexpr int kQuadFinderSolidSides = 2;
 constexpr double kQuadFinderMinSpread = 0.2;
 // The light ring's contrast against the dark ring and centre, fraction of the quad's.
 constexpr double kMinRingContrast = 0.1;
+// The module-grid reader (detect/qr_modules.h) for codes whose rectified read failed with
+// modules under this many pixels (zxing reads larger ones when it can read them at all).
+constexpr double kMaxGridReaderModulePx = 3.0;
+// Whole small codes among the dark quads (SmallQrCodeQuads).
+constexpr double kSmallCodeMaxScale = 0.5;
+// Every side at least kSmallCodeMinSideDark dark, one under kSmallCodeMaxSideDark (four
+// solid sides: a filled box or an AprilTag's border).
+constexpr double kSmallCodeMinSideDark = 0.45, kSmallCodeMaxSideDark = 0.97;
+constexpr double kSmallCodeMinSpread = 0.2, kSmallCodeMaxSpread = 1.5;
 // Two finders whose centres are closer than this fraction of the smaller's width are one.
 constexpr double kSameFinderFraction = 0.3;
 // Triples: finder widths within this ratio, distances A-B and A-C within kMaxArmRatio
@@ -455,6 +465,25 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
   return GroupQrFinders(finders, image_size);
 }
 
+std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int max_quads) {
+  std::vector<DarkQuad> out;
+  for (const DarkQuad& q : quads) {
+    if (static_cast<int>(out.size()) >= max_quads) break;
+    const double side = QuadMeanSide(q.corners_px);
+    if (q.scale > kSmallCodeMaxScale || side < kMinSmallCodeSidePx || side > kMaxSmallCodeSidePx) continue;
+    const auto [lo, hi] = std::minmax_element(q.side_dark.begin(), q.side_dark.end());
+    if (*lo < kSmallCodeMinSideDark || *lo > kSmallCodeMaxSideDark) continue;
+    if (q.interior_spread < kSmallCodeMinSpread || q.interior_spread > kSmallCodeMaxSpread) continue;
+    // The same code found at two levels counts once.
+    const Eigen::Vector2d centre = QuadCenter(q.corners_px);
+    const bool seen = std::any_of(out.begin(), out.end(), [&](const DarkQuad& o) {
+      return (QuadCenter(o.corners_px) - centre).norm() < 0.3 * QuadMeanSide(o.corners_px);
+    });
+    if (!seen) out.push_back(q);
+  }
+  return out;
+}
+
 std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate) {
   if (gray.empty() || gray.type() != CV_8UC1 || !(candidate.module_px > 0.0)) return {};
   const double modules = std::clamp(QuadMeanSide(candidate.corners_px) / candidate.module_px, 21.0, 97.0);
@@ -482,7 +511,12 @@ std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCand
   cv::Mat rectified;
   cv::warpPerspective(gray, rectified, H_rect_image, cv::Size(canvas, canvas), cv::INTER_CUBIC,
                       cv::BORDER_REPLICATE);
-  const std::vector<MarkerObservation> read = ReadUpright(rectified);
+  std::vector<MarkerObservation> read = ReadUpright(rectified);
+  if (read.empty() && QuadMeanSide(quad) / modules < kMaxGridReaderModulePx) {
+    // Small modules under blur: read the module grid itself (detect/qr_modules.h).
+    const int n = 17 + 4 * static_cast<int>(std::lround((modules - 17.0) / 4.0));
+    if (n <= kMaxGridModules) return ReadQrModuleGrid(gray, quad, n);
+  }
   const Eigen::Vector2d middle(0.5 * (canvas - 1), 0.5 * (canvas - 1));
   const auto nearest = std::min_element(read.begin(), read.end(), [&](const auto& x, const auto& y) {
     return (QuadCenter(x.corners_px) - middle).norm() < (QuadCenter(y.corners_px) - middle).norm();

@@ -76,6 +76,16 @@ std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& find
 // once (the finer level's).
 std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::vector<DarkQuad>& quads);
 
+// Dark quads that may be a whole small QR code (QR codes of about 18-80 px, whose finders
+// are too small or too blurred for the finder quads above): a component found at a coarse
+// level (scale <= 0.5, where the code's modules merge into one blob), of mean side
+// kMinSmallCodeSidePx-kMaxSmallCodeSidePx, every side at least 45 % dark (the finders at its
+// ends, the data modules between) and one under 97 % (a solid box or an AprilTag border is
+// dark all round; a code's side with light outer modules is not)
+// and a varied inside (spread 0.2-1.5); in the order found, at most `max_quads`.
+inline constexpr double kMinSmallCodeSidePx = 18.0, kMaxSmallCodeSidePx = 80.0;
+std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int max_quads);
+
 // The bottom-right corner from the symbol's own edges: the intersection of the outer edge
 // of the top-right finder (right side, next to the top-right corner) and of the
 // bottom-left finder (bottom side, next to the bottom-left corner), found in `gray` within

@@ -58,6 +58,7 @@ std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology
   hints.setTryHarder(pass.try_harder);
   hints.setTryRotate(false);  // 2-D finders are rotation invariant; rotation only costs time
   hints.setTryDownscale(pass.try_downscale);
+  hints.setIsPure(pass.pure);
   const ZXing::ImageView view(gray.data, gray.cols, gray.rows, ZXing::ImageFormat::Lum,
                               static_cast<int>(gray.step[0]));
   const ZXing::Results results = ZXing::ReadBarcodes(view, hints);

@@ -18,6 +18,7 @@ struct ZxingPass {
   bool local_average_binarizer = true;  // false: global histogram
   bool try_harder = true;
   bool try_downscale = false;
+  bool pure = false;  // a clean, upright symbol filling the image with its quiet zone
 };
 
 // Decoded symbols of one symbology in `gray` (8-bit, one channel), with family set to
