@@ -20,15 +20,6 @@ constexpr int kMinSidePoints = 6;
 constexpr double kMinPointSpacingPx = 1.25;  // along a side
 constexpr double kMinSideInliers = 0.6;
 
-// H_image_module: module coordinates (pixel edges of the symbol, 0 .. n) to image pixels.
-cv::Matx33d ImageFromModules(const Quad2d& corners_px, int n) {
-  const float f = static_cast<float>(n);
-  const std::vector<cv::Point2f> modules = {{0.f, 0.f}, {f, 0.f}, {f, f}, {0.f, f}};
-  std::vector<cv::Point2f> image;
-  for (const Eigen::Vector2d& c : corners_px) image.emplace_back(c.x(), c.y());
-  return cv::Matx33d(cv::getPerspectiveTransform(modules, image));
-}
-
 Eigen::Vector2d Apply(const cv::Matx33d& H, double u, double v) {
   const cv::Vec3d p = H * cv::Vec3d(u, v, 1.0);
   return {p[0] / p[2], p[1] / p[2]};
@@ -162,6 +153,14 @@ double Score(const QrGridEstimate& grid) {
 }
 
 }  // namespace
+
+cv::Matx33d ImageFromModules(const Quad2d& corners_px, int n) {
+  const float f = static_cast<float>(n);
+  const std::vector<cv::Point2f> modules = {{0.f, 0.f}, {f, 0.f}, {f, f}, {0.f, f}};
+  std::vector<cv::Point2f> image;
+  for (const Eigen::Vector2d& c : corners_px) image.emplace_back(c.x(), c.y());
+  return cv::Matx33d(cv::getPerspectiveTransform(modules, image));
+}
 
 std::optional<QrGridEstimate> EstimateQrGrid(const cv::Mat& gray, const Quad2d& corners_px) {
   if (gray.empty() || gray.type() != CV_8UC1) return std::nullopt;

@@ -38,6 +38,10 @@ struct QrGridEstimate {
   double light_level = 0.0;    // mean gray level of finder light-ring module centres
 };
 
+// H_image_module: module coordinates (pixel edges of an n x n symbol, 0 .. n) to image pixels,
+// through the homography of the symbol's four outer corners (design.md order).
+cv::Matx33d ImageFromModules(const Quad2d& corners_px, int n);
+
 // The module grid of the upright code with corners `corners_px` in `gray` (8-bit), or
 // nullopt when the best module count's timing contrast is under 0.4 of its ring contrast
 // or its rings differ by less than 20 gray levels, or a sample leaves the image. Module counts

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <opencv2/imgproc.hpp>
 
+#include "detect/qr_grid.h"
 #include "detect/zxing.h"
 
 namespace waymark {
@@ -67,14 +68,6 @@ std::vector<int8_t> KnownModules(int n) {
     }
   }
   return known;
-}
-
-cv::Matx33d ImageFromModules(const Quad2d& corners_px, int n) {
-  const float f = static_cast<float>(n);
-  const std::vector<cv::Point2f> modules = {{0.f, 0.f}, {f, 0.f}, {f, f}, {0.f, f}};
-  std::vector<cv::Point2f> image;
-  for (const Eigen::Vector2d& c : corners_px) image.emplace_back(c.x(), c.y());
-  return cv::Matx33d(cv::getPerspectiveTransform(modules, image));
 }
 
 // Bilinear gray level at image point (x, y); false outside the image.
