@@ -113,6 +113,29 @@ void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, in
   }
 }
 
+// The bounding box of `corners` grown on every side by pad(its longer side) pixels, inside
+// the image.
+template <typename Pad>
+cv::Rect PaddedBox(const Quad2d& corners_px, Pad pad_of, const cv::Size& image) {
+  std::vector<cv::Point2f> corners;
+  for (const Eigen::Vector2d& c : corners_px) corners.emplace_back(c.x(), c.y());
+  const cv::Rect box = cv::boundingRect(corners);
+  const int pad = pad_of(std::max(box.width, box.height));
+  return cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
+         cv::Rect(0, 0, image.width, image.height);
+}
+
+// The first finder triple found in `box` whose centre is within `max_offset_px` of `centre`,
+// read rectified; empty when there is none or it does not read.
+std::vector<MarkerObservation> ReadFinderTripleNear(const cv::Mat& gray, const cv::Rect& box,
+                                                    const Eigen::Vector2d& centre, double max_offset_px) {
+  for (const QrCandidate& candidate : GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size())) {
+    if ((QuadCenter(candidate.corners_px) - centre).norm() > max_offset_px) continue;
+    return ReadRectifiedQr(gray, candidate);
+  }
+  return {};
+}
+
 // Pass 2a': QR candidates from the shared dark-quad stage (QrCandidatesFromQuads), for
 // codes that no candidate region holds (a region is a blob's box, and a small code near
 // other things is inside none of the few kept): best-shaped first, each not read yet is
@@ -129,24 +152,15 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
     if (CandidateIsRead(candidate, *found)) continue;
     if (!work->Allow()) continue;
     ++reads;
-    std::vector<cv::Point2f> corners;
-    for (const Eigen::Vector2d& c : candidate.corners_px) corners.emplace_back(c.x(), c.y());
-    cv::Rect box = cv::boundingRect(corners);
-    const int pad = static_cast<int>(std::ceil(0.25 * std::max(box.width, box.height)));
-    box = cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
-          cv::Rect(0, 0, gray.cols, gray.rows);
+    const cv::Rect box = PaddedBox(
+        candidate.corners_px, [](int side) { return static_cast<int>(std::ceil(0.25 * side)); }, gray.size());
     std::vector<MarkerObservation> read;
-    const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
     // A candidate larger than the finder search's working size is read from the quads' own
     // corners only: a triple of distant finder-like quads would cost a search of most of the
     // frame (40 ms on a recall bench frame).
-    const bool search = QuadMeanSide(candidate.corners_px) <= kMaxSearchedSidePx;
-    for (const QrCandidate& precise :
-         search ? GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size()) : std::vector<QrCandidate>{}) {
-      if ((QuadCenter(precise.corners_px) - centre).norm() > 0.25 * QuadMeanSide(candidate.corners_px))
-        continue;
-      read = ReadRectifiedQr(gray, precise);
-      break;
+    if (QuadMeanSide(candidate.corners_px) <= kMaxSearchedSidePx) {
+      read = ReadFinderTripleNear(gray, box, QuadCenter(candidate.corners_px),
+                                  0.25 * QuadMeanSide(candidate.corners_px));
     }
     if (read.empty()) read = ReadRectifiedQr(gray, candidate);
     AppendUnique(read, found);
@@ -166,22 +180,13 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
     QrCandidate as_code;
     as_code.corners_px = quad.corners_px;
     if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
-    std::vector<cv::Point2f> corners;
-    for (const Eigen::Vector2d& c : quad.corners_px) corners.emplace_back(c.x(), c.y());
-    cv::Rect box = cv::boundingRect(corners);
-    const int pad = static_cast<int>(std::ceil(std::max(box.width, box.height) / 3.0));
-    box = cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
-          cv::Rect(0, 0, gray.cols, gray.rows);
-    const Eigen::Vector2d centre = QuadCenter(quad.corners_px);
+    const cv::Rect box = PaddedBox(
+        quad.corners_px, [](int side) { return static_cast<int>(std::ceil(side / 3.0)); }, gray.size());
     const double side = QuadMeanSide(quad.corners_px);
-    bool read = false;
-    for (const QrCandidate& candidate : GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size())) {
-      if ((QuadCenter(candidate.corners_px) - centre).norm() > kSmallCodeCentreFraction * side) continue;
-      const std::vector<MarkerObservation> r = ReadRectifiedQr(gray, candidate);
-      AppendUnique(r, found);
-      read = !r.empty();
-      break;
-    }
+    const std::vector<MarkerObservation> r =
+        ReadFinderTripleNear(gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side);
+    AppendUnique(r, found);
+    const bool read = !r.empty();
     // No finders (an oblique code's finders are foreshortened to a module or so of light
     // ring): the module grid read from the quad's own corners, in any orientation.
     if (!read && side <= kMaxUnorientedSidePx && unoriented_reads < kMaxUnorientedReads) {

@@ -471,8 +471,8 @@ std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int m
     if (static_cast<int>(out.size()) >= max_quads) break;
     const double side = QuadMeanSide(q.corners_px);
     if (q.scale > kSmallCodeMaxScale || side < kMinSmallCodeSidePx || side > kMaxSmallCodeSidePx) continue;
-    const auto [lo, hi] = std::minmax_element(q.side_dark.begin(), q.side_dark.end());
-    if (*lo < kSmallCodeMinSideDark || *lo > kSmallCodeMaxSideDark) continue;
+    const double lo = *std::min_element(q.side_dark.begin(), q.side_dark.end());
+    if (lo < kSmallCodeMinSideDark || lo > kSmallCodeMaxSideDark) continue;
     if (q.interior_spread < kSmallCodeMinSpread || q.interior_spread > kSmallCodeMaxSpread) continue;
     // The same code found at two levels counts once.
     const Eigen::Vector2d centre = QuadCenter(q.corners_px);
