@@ -58,6 +58,44 @@ PoseBlock IdentityBlock() {
 
 }  // namespace
 
+GlobalProblem::GlobalProblem(const Survey& survey, const Initialization& init, const MapBuildOptions& options)
+    : survey_(survey), init_(init), options_(options) {
+  std::vector<std::string> mounted;
+  for (const auto& [name, camera] : survey.cameras) {
+    if (camera.T_robot_camera_sigma || camera.frame_wiggle_sigma) mounted.push_back(name);
+    if (camera.frame_wiggle_sigma) wiggle_slot_.emplace(name, wiggle_slot_.size());
+  }
+  const size_t frames = survey.frames.size(), markers = survey.markers.size(), boards = survey.boards.size();
+  const size_t wiggles = frames * wiggle_slot_.size();
+  // Never resized after this: the blocks' addresses are fixed.
+  blocks_.assign(frames + markers + boards + mounted.size() + wiggles + 1, IdentityBlock());
+  PoseBlock* next = blocks_.data();
+  const auto take = [&next](size_t count) {
+    const BlockRange range{next, count};
+    next += count;
+    return range;
+  };
+  robot_ = take(frames);
+  marker_ = take(markers);
+  board_ = take(boards);
+  for (const std::string& name : mounted) mount_[name] = take(1).first;
+  wiggle_blocks_ = take(wiggles);
+  calibration_ = take(1).first->data();
+  static_assert(kOdometryCalibrationSize <= kSE3BlockSize, "the calibration fits in a block");
+
+  for (size_t f = 0; f < robot_.size(); ++f) {
+    if (init.T_world_robot[f]) RobotToBlock(survey.motion, *init.T_world_robot[f], &robot_[f]);
+  }
+  for (size_t m = 0; m < marker_.size(); ++m) {
+    if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
+  }
+  InitBoards();
+  for (const std::string& name : mounted)
+    SE3ToBlock(survey.cameras.at(name).T_robot_camera, mount_[name]->data());
+  const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
+  for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
+}
+
 ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool robust,
                                             std::vector<std::string>* gauges) {
   problem_ = std::make_unique<ceres::Problem>();
@@ -78,26 +116,30 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
                 {robot_[obs.frame].data(), marker_[obs.marker].data()}, obs.marker);
       continue;
     }
-    if (!problem_->HasParameterBlock(mount->second.data())) {
-      AddMarkerBlock(problem_.get(), &mount->second);
+    if (!problem_->HasParameterBlock(mount->second->data())) {
+      AddMarkerBlock(problem_.get(), mount->second);
       if (camera.T_robot_camera_sigma) {
         // The camera file's mount is the prior's mean, its T_robot_camera_sigma the prior's
         // spread (rotation and translation in the camera's body frame).
         problem_->AddResidualBlock(
             PosePriorSE3Factor::Create(camera.T_robot_camera,
                                        SigmasToCovariance(*camera.T_robot_camera_sigma)),
-            nullptr, mount->second.data());
+            nullptr, mount->second->data());
       } else {
-        problem_->SetParameterBlockConstant(mount->second.data());  // held; only the wiggle moves
+        problem_->SetParameterBlockConstant(mount->second->data());  // held; only the wiggle moves
       }
     }
     if (!camera.frame_wiggle_sigma) {
       AddOnCode(CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountMarker),
-                loss, {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()},
+                loss, {robot_[obs.frame].data(), mount->second->data(), marker_[obs.marker].data()},
                 obs.marker);
       continue;
     }
-    PoseBlock& wiggle = wiggle_.try_emplace({obs.frame, obs.camera}, IdentityBlock()).first->second;
+    PoseBlock& wiggle =
+        *wiggle_
+             .try_emplace({obs.frame, obs.camera},
+                          &wiggle_blocks_[obs.frame * wiggle_slot_.size() + wiggle_slot_.at(obs.camera)])
+             .first->second;
     if (!problem_->HasParameterBlock(wiggle.data())) {
       AddMarkerBlock(problem_.get(), &wiggle);
       problem_->AddResidualBlock(
@@ -106,7 +148,7 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     }
     AddOnCode(
         CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountWiggleMarker),
-        loss, {robot_[obs.frame].data(), mount->second.data(), wiggle.data(), marker_[obs.marker].data()},
+        loss, {robot_[obs.frame].data(), mount->second->data(), wiggle.data(), marker_[obs.marker].data()},
         obs.marker);
   }
   if (loss != nullptr && active.empty()) delete loss;
@@ -166,7 +208,7 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     // Each frame's camera deviations touch only that frame and camera's residuals: they are
     // the independent set; frames, codes and mounts form the reduced system.
     std::set<const double*> wiggles;
-    for (const auto& [key, block] : wiggle_) wiggles.insert(block.data());
+    for (const auto& [key, block] : wiggle_) wiggles.insert(block->data());
     eliminate_first(wiggles);
   } else if (!FramesJoined()) {
     std::set<const double*> frames;
@@ -190,7 +232,6 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
 }
 
 void GlobalProblem::InitBoards() {
-  board_.assign(survey_.boards.size(), IdentityBlock());
   board_placed_.assign(survey_.boards.size(), false);
   for (size_t b = 0; b < survey_.boards.size(); ++b) {
     const std::optional<SE3d> T = InitialBoardPose(survey_, init_, static_cast<int>(b));
@@ -306,15 +347,15 @@ void GlobalProblem::AddOdometry() {
 }
 
 void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
-  if (!problem_->HasParameterBlock(calibration_.data())) {
-    problem_->AddParameterBlock(calibration_.data(), kOdometryCalibrationSize);
+  if (!problem_->HasParameterBlock(calibration_)) {
+    problem_->AddParameterBlock(calibration_, kOdometryCalibrationSize);
     problem_->AddResidualBlock(
         OdometryCalibrationPrior::Create(options_.odometry_calibration.value_or(Eigen::Vector3d::Zero()),
                                          options_.odometry_calibration_sigma.value_or(
                                              Eigen::Vector3d::Constant(options_.calibration_sigma))),
-        nullptr, calibration_.data());
+        nullptr, calibration_);
     if (options_.odometry_calibration && !options_.odometry_calibration_sigma) {
-      problem_->SetParameterBlockConstant(calibration_.data());
+      problem_->SetParameterBlockConstant(calibration_);
     }
   }
   const double scale = odometry_variance_scale_;
@@ -323,7 +364,7 @@ void GlobalProblem::AddCalibratedOdometry(const OdometryLink& link) {
           ? CalibratedOdometrySE2Factor::Create(SE2d::FromSE3(link.T_a_b), scale * link.covariance_se2)
           : CalibratedOdometrySE3Factor::Create(link.T_a_b, scale * link.covariance_se3);
   odometry_residuals_.push_back(problem_->AddResidualBlock(cost, nullptr, robot_[link.frame_a].data(),
-                                                           robot_[link.frame_b].data(), calibration_.data()));
+                                                           robot_[link.frame_b].data(), calibration_));
 }
 
 void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::vector<std::string>* gauges) {
@@ -413,16 +454,16 @@ void GlobalProblem::AddPriorsAndGauge(const std::set<int>& markers_used, std::ve
 std::map<std::string, SE3d> GlobalProblem::Mounts() const {
   std::map<std::string, SE3d> mounts;
   for (const auto& [name, block] : mount_) {
-    if (problem_ && problem_->HasParameterBlock(block.data()) &&
-        !problem_->IsParameterBlockConstant(block.data()))
-      mounts[name] = SE3FromBlock(block.data());
+    if (problem_ && problem_->HasParameterBlock(block->data()) &&
+        !problem_->IsParameterBlockConstant(block->data()))
+      mounts[name] = SE3FromBlock(block->data());
   }
   return mounts;
 }
 
 bool GlobalProblem::HasWiggle() const {
   for (const auto& [key, block] : wiggle_) {
-    if (problem_->HasParameterBlock(block.data())) return true;
+    if (problem_->HasParameterBlock(block->data())) return true;
   }
   return false;
 }
@@ -430,8 +471,8 @@ bool GlobalProblem::HasWiggle() const {
 std::map<std::string, std::vector<SE3d>> GlobalProblem::Wiggles() const {
   std::map<std::string, std::vector<SE3d>> wiggles;
   for (const auto& [key, block] : wiggle_) {
-    if (problem_ && problem_->HasParameterBlock(block.data()))
-      wiggles[key.second].push_back(SE3FromBlock(block.data()));
+    if (problem_ && problem_->HasParameterBlock(block->data()))
+      wiggles[key.second].push_back(SE3FromBlock(block->data()));
   }
   return wiggles;
 }
@@ -453,10 +494,10 @@ double GlobalProblem::SquaredError(int o) const {
     // The frame's deviation counts in the gate (whitened by its prior): a view that only fits
     // by moving its camera far off the mount is not hidden by the wiggle.
     const auto wiggle = wiggle_.find({obs.frame, obs.camera});
-    const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : wiggle->second;
+    const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : *wiggle->second;
     cost.reset(
         CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountWiggleMarker));
-    const double* blocks[4] = {robot_[obs.frame].data(), mount->second.data(), W.data(),
+    const double* blocks[4] = {robot_[obs.frame].data(), mount->second->data(), W.data(),
                                marker_[obs.marker].data()};
     evaluated = cost->Evaluate(blocks, residuals, nullptr);
     const Vector6d delta = SE3d().BoxMinus(SE3FromBlock(W.data()));
@@ -465,7 +506,7 @@ double GlobalProblem::SquaredError(int o) const {
          delta.tail<3>().squaredNorm() / (sigma[1] * sigma[1]);
   } else {
     cost.reset(CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountMarker));
-    const double* blocks[3] = {robot_[obs.frame].data(), mount->second.data(), marker_[obs.marker].data()};
+    const double* blocks[3] = {robot_[obs.frame].data(), mount->second->data(), marker_[obs.marker].data()};
     evaluated = cost->Evaluate(blocks, residuals, nullptr);
   }
   if (!evaluated) return std::numeric_limits<double>::infinity();
@@ -488,19 +529,19 @@ bool GlobalProblem::Covariances(int factor_rank, std::vector<std::optional<Matri
   std::vector<const double*> marginal_blocks = covariance_markers_;  // markers first, mounts, then c
   std::vector<std::string> mounts;
   for (const auto& [name, block] : mount_) {
-    if (problem_->HasParameterBlock(block.data()) && !problem_->IsParameterBlockConstant(block.data())) {
-      marginal_blocks.push_back(block.data());
+    if (problem_->HasParameterBlock(block->data()) && !problem_->IsParameterBlockConstant(block->data())) {
+      marginal_blocks.push_back(block->data());
       mounts.push_back(name);
     }
   }
-  if (CalibrationEstimated()) marginal_blocks.push_back(calibration_.data());
+  if (CalibrationEstimated()) marginal_blocks.push_back(calibration_);
   const InformationFactor information(problem_.get(), marginal_blocks, marginal_options);
   if (information.size() == 0) return covariance_markers_.empty();
   if (!information.positive_definite()) return false;
   const std::vector<Eigen::MatrixXd> manifold = information.Marginals();  // marginal_blocks order
   if (CalibrationEstimated()) *calibration_covariance = Eigen::Matrix3d(manifold.back());
   for (size_t i = 0; i < mounts.size(); ++i) {
-    const Matrix6d J = ManifoldToBodyTangentJacobian(SE3FromBlock(mount_.at(mounts[i]).data()));
+    const Matrix6d J = ManifoldToBodyTangentJacobian(SE3FromBlock(mount_.at(mounts[i])->data()));
     const Matrix6d body = J * Matrix6d(manifold[covariance_markers_.size() + i]) * J.transpose();
     (*mount_covariance)[mounts[i]] = 0.5 * (body + body.transpose());
   }

@@ -28,24 +28,10 @@ namespace waymark {
 // The global problem over the placed frames and markers of a survey.
 class GlobalProblem {
  public:
-  GlobalProblem(const Survey& survey, const Initialization& init, const MapBuildOptions& options)
-      : survey_(survey), init_(init), options_(options) {
-    robot_.resize(survey.frames.size());
-    marker_.resize(survey.markers.size());
-    for (size_t f = 0; f < robot_.size(); ++f) {
-      if (init.T_world_robot[f]) RobotToBlock(survey.motion, *init.T_world_robot[f], &robot_[f]);
-    }
-    for (size_t m = 0; m < marker_.size(); ++m) {
-      if (init.T_world_marker[m]) SE3ToBlock(*init.T_world_marker[m], marker_[m].data());
-    }
-    InitBoards();
-    for (const auto& [name, camera] : survey.cameras) {
-      if (camera.T_robot_camera_sigma || camera.frame_wiggle_sigma)
-        SE3ToBlock(camera.T_robot_camera, mount_[name].data());
-    }
-    const Eigen::Vector3d c = options.odometry_calibration.value_or(init.odometry_calibration);
-    for (int i = 0; i < kOdometryCalibrationSize; ++i) calibration_[i] = c[i];
-  }
+  GlobalProblem(const Survey& survey, const Initialization& init, const MapBuildOptions& options);
+  // The blocks point into blocks_: not copyable.
+  GlobalProblem(const GlobalProblem&) = delete;
+  GlobalProblem& operator=(const GlobalProblem&) = delete;
 
   // One solve over the observations in `active` (indices), with or without the robust loss.
   ceres::Solver::Summary Solve(const std::vector<int>& active, bool robust, std::vector<std::string>* gauges);
@@ -63,12 +49,11 @@ class GlobalProblem {
                    std::vector<std::optional<Matrix6d>>* board_covariance = nullptr) const;
   // The odometry calibration of the problem, nullopt when it has no calibrated odometry link.
   std::optional<Eigen::Vector3d> Calibration() const {
-    if (!problem_->HasParameterBlock(calibration_.data())) return std::nullopt;
+    if (!problem_->HasParameterBlock(calibration_)) return std::nullopt;
     return Eigen::Vector3d(calibration_[0], calibration_[1], calibration_[2]);
   }
   bool CalibrationEstimated() const {
-    return problem_->HasParameterBlock(calibration_.data()) &&
-           !problem_->IsParameterBlockConstant(calibration_.data());
+    return problem_->HasParameterBlock(calibration_) && !problem_->IsParameterBlockConstant(calibration_);
   }
 
   // Re-places the codes with an observation above the outlier gate by consensus over their
@@ -125,14 +110,35 @@ class GlobalProblem {
   const Survey& survey_;
   const Initialization& init_;
   const MapBuildOptions& options_;
-  std::vector<PoseBlock> robot_, marker_;
-  std::vector<PoseBlock> board_;  // per Survey::boards
+  // A run of pose blocks inside blocks_.
+  struct BlockRange {
+    PoseBlock* first = nullptr;
+    size_t count = 0;
+    PoseBlock& operator[](size_t i) const { return first[i]; }
+    size_t size() const { return count; }
+    PoseBlock* begin() const { return first; }
+    PoseBlock* end() const { return first + count; }
+  };
+  // Every parameter block of the problem lives in this one buffer, allocated once, in a fixed
+  // order: frames, codes, boards, mounts, each frame's camera wiggles, the odometry calibration.
+  // Ceres orders the blocks of an elimination group by their addresses (ParameterBlockOrdering
+  // holds std::set<double*>), and the Schur solves eliminate and factor in that order: with the
+  // blocks spread over the heap, where the allocator put them (which depends on the threads'
+  // timing) decided the rounding of the solve, and two builds of one survey differed in their
+  // last bits (docs/mapping.md, "Determinism").
+  std::vector<PoseBlock> blocks_;
+  BlockRange robot_, marker_;
+  BlockRange board_;  // per Survey::boards
   std::vector<bool> board_placed_;
   // Cameras whose mount is a block: estimated (T_robot_camera_sigma), or held constant with a
   // per-frame wiggle around it (frame_wiggle_sigma only).
-  std::map<std::string, PoseBlock> mount_;
-  std::map<std::pair<int, std::string>, PoseBlock> wiggle_;  // (frame, camera) -> W
-  std::array<double, kOdometryCalibrationSize> calibration_{0.0, 0.0, 0.0};
+  std::map<std::string, PoseBlock*> mount_;
+  // Each frame's deviation of a wiggling camera: blocks_ holds one per frame and such camera,
+  // frame-major (wiggle_slot_ gives the camera's place); wiggle_ lists those in the problem.
+  BlockRange wiggle_blocks_;
+  std::map<std::string, size_t> wiggle_slot_;
+  std::map<std::pair<int, std::string>, PoseBlock*> wiggle_;  // (frame, camera) -> W
+  double* calibration_ = nullptr;  // kOdometryCalibrationSize values at the start of a block
   double odometry_variance_scale_ = 1.0;
   std::vector<ceres::ResidualBlockId> odometry_residuals_;
   std::unique_ptr<ceres::Problem> problem_;
