@@ -40,12 +40,17 @@ Options:
                             (least squares on their corners), then scored
   --line                    also fit a 3-D line to the scored map's marker centres and print
                             the perpendicular residuals (RMS and max, mm)
+  --frames-of FILE          score only the frames this trajectory (TUM) has a pose for: two
+                            solutions on exactly the same observations when one of them has
+                            no pose for some frames (e.g. ours scored on the frames of
+                            TagSLAM's trajectory); the others are counted apart
   --stamp-tolerance S       seconds (default 0.001)
   --json FILE               also write the figures as JSON
   --out-map FILE            write the scored map (with the solved markers) in map.json format
 )";
 
-const std::set<std::string> kValues = {"map", "trajectory", "stamp-tolerance", "json", "out-map"};
+const std::set<std::string> kValues = {"map",  "trajectory", "frames-of", "stamp-tolerance",
+                                       "json", "out-map"};
 const std::set<std::string> kFlags = {"solve-missing-markers", "line"};
 
 std::string Mm(double metres) { return FormatFixed(1e3 * metres, 2); }
@@ -59,13 +64,11 @@ nlohmann::json StatsJson(const ReprojectionStats& s) {
 }
 
 std::string ScoreJson(const MapScore& score, const std::optional<LineFit>& line, size_t line_markers) {
-  nlohmann::json j = {{"observations_total", score.observations},
-                      {"scored", score.all.observations},
-                      {"without_pose", score.without_pose},
-                      {"without_marker", score.without_marker},
-                      {"not_projected", score.not_projected},
-                      {"frames_solved", score.frames_solved},
-                      {"all", StatsJson(score.all)}};
+  nlohmann::json j = {
+      {"observations_total", score.observations}, {"scored", score.all.observations},
+      {"without_pose", score.without_pose},       {"outside_frames_of", score.outside_frames_of},
+      {"without_marker", score.without_marker},   {"not_projected", score.not_projected},
+      {"frames_solved", score.frames_solved},     {"all", StatsJson(score.all)}};
   j["per_camera"] = nlohmann::json::array();
   for (const auto& s : score.per_camera) j["per_camera"].push_back(StatsJson(s));
   j["per_marker"] = nlohmann::json::array();
@@ -97,6 +100,7 @@ int RunScore(const std::vector<std::string>& argv) {
   MapScoreOptions options;
   options.solve_missing_markers = args.Flag("solve-missing-markers");
   if (const auto s = args.GetDouble("stamp-tolerance")) options.stamp_tolerance_s = *s;
+  if (args.Has("frames-of")) options.frames_of = ReadTum(*args.Get("frames-of"));
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("options: " + why);
   const MarkerMap map = ReadMap(args.Require("map"));

@@ -210,12 +210,16 @@ struct StatsAccumulator {
 };
 
 void ScoreObservations(const Survey& survey, const std::map<std::string, Camera>& cameras, const Poses& poses,
-                       MapScore* score) {
+                       const std::vector<bool>& frame_scored, MapScore* score) {
   StatsAccumulator all;
   std::map<std::string, StatsAccumulator> per_camera;
   std::map<MarkerKey, StatsAccumulator> per_marker;
   for (size_t o = 0; o < survey.observations.size(); ++o) {
     const SurveyObservation& obs = survey.observations[o];
+    if (!frame_scored[obs.frame]) {
+      ++score->outside_frames_of;
+      continue;
+    }
     if (!poses.T_world_robot[obs.frame]) {
       ++score->without_pose;
       continue;
@@ -296,7 +300,13 @@ MapScore ScoreMap(const Dataset& dataset, const MarkerMap& map,
   if (options.solve_missing_markers) {
     score.solved_markers = SolveMissingMarkers(survey, cameras, views, options.max_iterations, &poses);
   }
-  ScoreObservations(survey, cameras, poses, &score);
+  std::vector<bool> frame_scored(survey.frames.size(), true);
+  if (options.frames_of) {
+    const std::vector<std::optional<SE3d>> other =
+        FramesFromTrajectory(survey, *options.frames_of, options.stamp_tolerance_s);
+    for (size_t f = 0; f < other.size(); ++f) frame_scored[f] = other[f].has_value();
+  }
+  ScoreObservations(survey, cameras, poses, frame_scored, &score);
   score.map = MapWithSolved(survey, map, poses, score.solved_markers);
   return score;
 }
@@ -327,7 +337,10 @@ std::string FormatMapScore(const MapScore& score) {
   std::ostringstream out;
   out << "observations: " << score.all.observations << " of " << score.observations << " scored ("
       << score.without_pose << " without a frame pose, " << score.without_marker
-      << " of markers not in the map, " << score.not_projected << " not projected)\n";
+      << " of markers not in the map, " << score.not_projected << " not projected";
+  if (score.outside_frames_of > 0)
+    out << ", " << score.outside_frames_of << " in frames --frames-of has no pose for";
+  out << ")\n";
   if (score.frames_solved > 0) out << "frames solved from the map: " << score.frames_solved << "\n";
   if (!score.solved_markers.empty()) {
     out << "markers solved with the frames held fixed:";

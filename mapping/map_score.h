@@ -16,6 +16,10 @@
 // solutions of each view, the one with the least summed error wins, then least squares over the
 // frame's corners.
 //
+// Only the frames of another solution (frames_of): frames that trajectory has no pose for (within
+// stamp_tolerance_s) are left out and counted apart, so that two solutions, one of which has no
+// pose for some frames, are scored on exactly the same observations.
+//
 // Missing markers (solve_missing_markers): a marker the map lacks, seen from frames with a pose, is
 // solved with the frame poses held fixed: the consensus placement of mapping/initializer.h, then
 // plain least squares on its corners. This scores a peer whose reference gives the trajectory but
@@ -37,7 +41,8 @@ namespace waymark {
 struct MapScoreOptions {
   double stamp_tolerance_s = 1e-3;  // a trajectory pose serves a frame within this of its stamp
   bool solve_missing_markers = false;
-  int max_iterations = 100;  // per least-squares solve
+  std::optional<Trajectory> frames_of;  // score only the frames this trajectory has a pose for
+  int max_iterations = 100;             // per least-squares solve
   bool Check(std::string* why) const;
 };
 
@@ -55,6 +60,7 @@ struct MapScore {
   std::vector<ReprojectionStats> per_marker;
   size_t observations = 0;                // in the dataset
   size_t without_pose = 0;                // the frame has no pose
+  size_t outside_frames_of = 0;           // left out: MapScoreOptions::frames_of has no pose there
   size_t without_marker = 0;              // the marker is not in the map (and was not solved)
   size_t not_projected = 0;               // a corner behind the camera or beyond the field of view
   size_t frames_solved = 0;               // frame poses solved from the map (no trajectory given)

@@ -3,7 +3,8 @@
 # `waymark map build`, then `waymark map score` of our map and smoothed trajectory and of TagSLAM's
 # reference (its trajectory held fixed, the tags its markers.json lacks solved on the same corners),
 # printing a Markdown table: reprojection RMS (px, over corners) of both on every observation of
-# the set, observations used / rejected by our build, the components of our map, the build's
+# the set, ours also on exactly the observations the reference scores (`--frames-of` its trajectory:
+# the frames it has a pose for), observations used / rejected by our build, the components of our map, the build's
 # wall time and peak memory (/usr/bin/time -v; every build runs under a 10 GB address-space cap,
 # prlimit --as), the odometry time offset our build found, and test16's line fit of the tag
 # centres (mm).
@@ -26,8 +27,8 @@ trap 'rm -rf "$work"' EXIT
 # First number after a key in waymark map score's JSON ("rms_px" first appears under "all").
 json_number() { grep -o "\"$2\": *[-0-9.eE+]*" "$1" | head -n 1 | sed 's/.*: *//'; }
 
-echo "| set | observations | ours: used / rejected | components | ours: RMS (median) px | reference: RMS (median) px | reference: scored | build time, peak memory | odometry offset (s) | line fit of the tag centres, ours / reference |"
-echo "|---|---|---|---|---|---|---|---|---|---|"
+echo "| set | observations | ours: used / rejected | components | ours: RMS (median) px | ours on the reference's frames: RMS (median) px, scored | reference: RMS (median) px | reference: scored | build time, peak memory | odometry offset (s) | line fit of the tag centres, ours / reference |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for name in "${sets[@]}"; do
   set_dir=$data/$name
   /usr/bin/time -v -o "$work/$name.time.txt" prlimit --as=10000000000 -- \
@@ -40,6 +41,8 @@ for name in "${sets[@]}"; do
   [ "$name" = tagslam-test16 ] && line_args=(--line)
   "$waymark" map score "$set_dir" --map "$work/$name.map.json" --trajectory "$work/$name.tum" \
     "${line_args[@]}" --json "$work/$name.ours.json" > /dev/null
+  "$waymark" map score "$set_dir" --map "$work/$name.map.json" --trajectory "$work/$name.tum" \
+    --frames-of "$set_dir/reference/trajectory.tum" --json "$work/$name.common.json" > /dev/null
   "$waymark" map score "$set_dir" --map "$set_dir/reference/markers.json" \
     --trajectory "$set_dir/reference/trajectory.tum" --solve-missing-markers "${line_args[@]}" \
     --json "$work/$name.ref.json" > /dev/null
@@ -55,9 +58,11 @@ for name in "${sets[@]}"; do
       "$(json_number "$work/$name.ours.json" max_m | awk '{print $1 * 1000}')" \
       "$(json_number "$work/$name.ref.json" max_m | awk '{print $1 * 1000}')")
   fi
-  printf '| %s | %s | %s / %s | %s | %.3f (%.3f) | %.3f (%.3f) | %s | %s, %s MiB | %s | %s |\n' "$name" \
+  printf '| %s | %s | %s / %s | %s | %.3f (%.3f) | %.3f (%.3f), %s | %.3f (%.3f) | %s | %s, %s MiB | %s | %s |\n' "$name" \
     "$(json_number "$work/$name.ours.json" observations_total)" "$used" "$rejected" "$components" \
     "$(json_number "$work/$name.ours.json" rms_px)" "$(json_number "$work/$name.ours.json" median_px)" \
+    "$(json_number "$work/$name.common.json" rms_px)" "$(json_number "$work/$name.common.json" median_px)" \
+    "$(json_number "$work/$name.common.json" scored)" \
     "$(json_number "$work/$name.ref.json" rms_px)" "$(json_number "$work/$name.ref.json" median_px)" \
     "$(json_number "$work/$name.ref.json" scored)" "$wall" "$rss_mb" "${offset:-0}" "$line"
 done

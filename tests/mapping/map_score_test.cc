@@ -64,6 +64,30 @@ TEST(MapScoreTest, WrongMarkerShowsAndMissingPosesAreCounted) {
   EXPECT_LT(score.per_marker[0].rms_px, 0.5);
 }
 
+// Two solutions on exactly the same observations: the frames another trajectory has no pose for
+// are left out (and counted apart), whether or not the scored trajectory has poses there.
+TEST(MapScoreTest, FramesOfAnotherTrajectoryRestrictTheScoredObservations) {
+  const Dataset dataset = SyntheticSurvey(0.0);
+  MarkerMap map = TrueMap();
+  Trajectory trajectory = TrueTrajectory(dataset);
+  // Frame 10's pose is far off in the scored solution; the other solution has no pose for it.
+  trajectory[10].T = trajectory[10].T * SE3d::Exp((Vector6d() << 0, 0, 0, 0.2, 0, 0).finished());
+  const MapScore all = ScoreMap(dataset, map, trajectory);
+  MapScoreOptions options;
+  options.frames_of = TrueTrajectory(dataset);
+  options.frames_of->erase(options.frames_of->begin() + 10);
+  const MapScore same = ScoreMap(dataset, map, trajectory, options);
+  const size_t left_out = dataset.detections[10].markers.size();
+  ASSERT_GT(left_out, 0u);
+  EXPECT_EQ(all.outside_frames_of, 0u);
+  EXPECT_EQ(same.outside_frames_of, left_out);
+  EXPECT_EQ(same.without_pose, 0u);
+  EXPECT_EQ(same.all.observations + left_out, all.all.observations);
+  EXPECT_GT(all.all.max_px, 10.0);  // frame 10, 20 cm off: 19 px
+  EXPECT_LT(same.all.max_px, 3.0);  // corner noise only
+  EXPECT_NE(FormatMapScore(same).find("in frames --frames-of has no pose for"), std::string::npos);
+}
+
 TEST(MapScoreTest, MissingMarkerIsSolvedWithTheTrajectoryHeldFixed) {
   const Dataset dataset = SyntheticSurvey(0.0);
   MarkerMap map = TrueMap();
