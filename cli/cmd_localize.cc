@@ -39,6 +39,12 @@ point landmarks of MAP.json by the range-bearing EKF (online/range_bearing_local
 the map's range_bearing_noise (with its odometry_delay_s: the odometry's lag behind the
 measurements, estimated by the map build), starting at dataset.yaml's start_prior; it writes --out (the
 poses while not lost) and, when the dataset has a ground truth, prints the ATE and the NEES.
+The map's landmark errors (its position_covariance and position_covariance_factor) are handled as
+--map-uncertainty says:
+  --map-uncertainty M estimate (default: the landmarks' errors are states of the EKF, refined by
+                      the sightings), consider (Schmidt: kept correlated with the state, not
+                      estimated), in-noise (added to each sighting's noise as if independent) or
+                      ignore (the map taken as exact); range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -115,7 +121,8 @@ const std::set<std::string> kValues = {"map",
                                        "late-frame-window",
                                        "detect-budget-ms",
                                        "full-frame-every",
-                                       "start-pose"};
+                                       "start-pose",
+                                       "map-uncertainty"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -243,6 +250,14 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
   if (args.Flag("detect-images") || args.Flag("realtime"))
     throw std::invalid_argument("--detect-images and --realtime are not for range-bearing datasets");
   RangeBearingLocalizerOptions options;
+  if (args.Has("map-uncertainty")) {
+    const std::string name = *args.Get("map-uncertainty");
+    const auto mode = ParseRangeBearingMapUncertainty(name);
+    if (!mode)
+      throw std::invalid_argument(
+          "--map-uncertainty: expected estimate, consider, in-noise or ignore, got '" + name + "'");
+    options.map_uncertainty = *mode;
+  }
   if (map.range_bearing_noise) {
     options.noise = *map.range_bearing_noise;
   } else {
@@ -290,6 +305,8 @@ int RunDataset(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
+  if (args.Has("map-uncertainty"))
+    throw std::invalid_argument("--map-uncertainty is for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -302,6 +319,8 @@ int RunDataset(const Args& args) {
 // ---- Live mode ----
 
 int RunLive(const Args& args) {
+  if (args.Has("map-uncertainty"))
+    throw std::invalid_argument("--map-uncertainty is for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");

@@ -56,6 +56,34 @@ CovarianceFactor ParseCovarianceFactor(const JsonSource& source, const nlohmann:
   return factor;
 }
 
+// position_covariance_factor (point landmarks): 3 k numbers, row-major 3 x k, with
+// position_covariance - F F^T PSD (within 1e-6 of the largest variance). Held in memory as the
+// translation rows (3..5, tangent order [r, t]) of MapMarker::covariance_factor, the rotation
+// rows 0.
+CovarianceFactor ParsePositionCovarianceFactor(const JsonSource& source, const nlohmann::json& value,
+                                               const std::string& field,
+                                               const std::optional<Eigen::Matrix3d>& covariance) {
+  if (!value.is_array() || value.empty() || value.size() % 3 != 0) {
+    ThrowJsonError(source, field, "expected a non-empty array of 3 k numbers (row-major 3 x k)");
+  }
+  const std::vector<double> numbers = JsonNumbers(source, value, field, value.size());
+  const int k = static_cast<int>(numbers.size() / 3);
+  CovarianceFactor factor = CovarianceFactor::Zero(6, k);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < k; ++c) factor(3 + r, c) = numbers[k * r + c];
+  }
+  if (!covariance) ThrowJsonError(source, field, "expected a position_covariance with the factor");
+  const Eigen::Matrix3d residual = *covariance - factor.bottomRows<3>() * factor.bottomRows<3>().transpose();
+  const double min_eigenvalue =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(residual).eigenvalues().minCoeff();
+  if (min_eigenvalue < -1e-6 * covariance->diagonal().maxCoeff()) {
+    ThrowJsonError(
+        source, field,
+        "expected position_covariance - F F^T positive semi-definite (F F^T exceeds the covariance)");
+  }
+  return factor;
+}
+
 // {"tape_width_m": 0.05, "solid_side": "top", "dash_m": 0.1, "gap_m": 0.1}, every key optional.
 SquareTape ParseSquareTape(const JsonSource& source, const nlohmann::json& value, const std::string& field,
                            double side_m, ReadWarnings* warnings) {
@@ -140,6 +168,10 @@ MapMarker ParsePointMarker(const JsonSource& source, const nlohmann::json& value
       ThrowJsonError(source, cov_field, "expected a non-negative diagonal (variances)");
     marker.position_covariance = covariance;
   }
+  if (const nlohmann::json* factor = JsonMember(source, value, field, "position_covariance_factor", false)) {
+    marker.covariance_factor = ParsePositionCovarianceFactor(
+        source, *factor, JsonField(field, "position_covariance_factor"), marker.position_covariance);
+  }
   ParseFixedAndComponent(source, value, field, &marker);
   for (const char* key : {"size_m", "T_world_marker", "covariance", "covariance_factor", "square"}) {
     if (JsonMember(source, value, field, key, false)) {
@@ -148,7 +180,8 @@ MapMarker ParsePointMarker(const JsonSource& source, const nlohmann::json& value
     }
   }
   JsonWarnUnknownKeys(source, value, field,
-                      {"family", "id", "p_world_marker", "position_covariance", "fixed", "component"},
+                      {"family", "id", "p_world_marker", "position_covariance", "position_covariance_factor",
+                       "fixed", "component"},
                       warnings);
   return marker;
 }
@@ -338,14 +371,15 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
     map.range_bearing_noise = ParseRangeBearingNoise(source, *noise, warnings);
   }
   std::set<MarkerKey> seen;
-  std::optional<long> factor_columns;  // k, the same for every marker
+  std::optional<long> factor_columns;        // k, the same for every marker
+  std::optional<long> point_factor_columns;  // k of position_covariance_factor, the same for every point
   for (size_t i = 0; i < markers.size(); ++i) {
     const std::string field = JsonField("markers", i);
     MapMarker marker = ParseMarker(source, markers[i], field, warnings, poses);
     if (!seen.insert(marker.key).second) {
       ThrowJsonError(source, field, "duplicate marker " + marker.key.ToString());
     }
-    if (marker.covariance_factor) {
+    if (!marker.is_point && marker.covariance_factor) {
       const long k = marker.covariance_factor->cols();
       if (factor_columns && *factor_columns != k) {
         ThrowJsonError(source, JsonField(field, "covariance_factor"),
@@ -353,6 +387,15 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
                            " like the markers before, got 6 x " + std::to_string(k));
       }
       factor_columns = k;
+    }
+    if (marker.is_point && marker.covariance_factor) {
+      const long k = marker.covariance_factor->cols();
+      if (point_factor_columns && *point_factor_columns != k) {
+        ThrowJsonError(source, JsonField(field, "position_covariance_factor"),
+                       "expected 3 x " + std::to_string(*point_factor_columns) +
+                           " like the point landmarks before, got 3 x " + std::to_string(k));
+      }
+      point_factor_columns = k;
     }
     map.markers.push_back(std::move(marker));
   }
@@ -392,6 +435,14 @@ nlohmann::ordered_json MarkerJson(const MapMarker& marker) {
         for (int c = 0; c < 3; ++c) covariance.push_back((*marker.position_covariance)(r, c));
       }
       json["position_covariance"] = covariance;
+    }
+    if (marker.covariance_factor) {  // its translation rows
+      nlohmann::ordered_json factor = nlohmann::ordered_json::array();
+      for (int r = 3; r < 6; ++r) {
+        for (int c = 0; c < marker.covariance_factor->cols(); ++c)
+          factor.push_back((*marker.covariance_factor)(r, c));
+      }
+      json["position_covariance_factor"] = factor;
     }
     json["fixed"] = marker.fixed;
     if (marker.component) json["component"] = *marker.component;
@@ -476,10 +527,17 @@ void CheckWritablePoint(const MapMarker& marker, std::set<MarkerKey>* seen) {
   if (!marker.T_world_marker.IsFinite()) throw std::invalid_argument(name + "position not finite");
   if (marker.T_world_marker.translation().cwiseAbs().maxCoeff() > kMaxCoordinateM)
     throw std::invalid_argument(name + "position beyond the coordinate range");
-  if (marker.covariance || marker.covariance_factor || marker.square_tape)
-    throw std::invalid_argument(name + "a pose covariance, covariance factor or tape on a point");
+  if (marker.covariance || marker.square_tape)
+    throw std::invalid_argument(name + "a pose covariance or tape on a point");
   if (marker.position_covariance && !marker.position_covariance->allFinite())
     throw std::invalid_argument(name + "position_covariance not finite");
+  // A point's covariance_factor is its position factor: translation rows only.
+  if (marker.covariance_factor && (!marker.position_covariance || marker.covariance_factor->cols() == 0 ||
+                                   !marker.covariance_factor->allFinite() ||
+                                   marker.covariance_factor->topRows<3>().cwiseAbs().maxCoeff() > 0.0))
+    throw std::invalid_argument(name +
+                                "position factor empty, not finite, with rotation rows or without a "
+                                "position_covariance");
   if (marker.component && *marker.component < 0) throw std::invalid_argument(name + "negative component");
   if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
 }

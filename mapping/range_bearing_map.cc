@@ -3,6 +3,7 @@
 #include <ceres/ceres.h>
 #include <ceres/covariance.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,6 +16,7 @@
 #include "factors/pose_prior_se2_factor.h"
 #include "factors/range_bearing_factor.h"
 #include "geometry/pose.h"
+#include "mapping/marginal_covariance.h"
 #include "mapping/serial_blas.h"
 #include "util/check.h"
 #include "util/format.h"
@@ -190,7 +192,9 @@ class Builder {
   void Activate(double end_s);
   bool TryPlace(DatasetState* state, double end_s);
   void PlaceLandmarks();
-  double Solve(bool robust);
+  // With `covariance`: also the mapped landmarks' covariance (stage 3b) at the solution.
+  double Solve(bool robust, bool covariance = false);
+  void LandmarkCovariance(ceres::Problem* problem);
   size_t MarkOutliers();
   void EstimateNoise();
   void SetDelay(DatasetState* state, double delay_s);
@@ -207,6 +211,8 @@ class Builder {
   double solver_time_s_ = 0.0;
   std::vector<std::string> notes_;
   std::vector<double> dataset_cost_;  // each dataset's share of the last Solve's cost
+  std::map<MarkerKey, Eigen::Matrix2d> landmark_covariance_;
+  std::map<MarkerKey, Eigen::Matrix<double, 2, Eigen::Dynamic>> landmark_factor_;
 };
 
 void Builder::Ingest(size_t k, const Dataset& dataset) {
@@ -334,7 +340,7 @@ void Builder::PlaceLandmarks() {
   }
 }
 
-double Builder::Solve(bool robust) {
+double Builder::Solve(bool robust, bool covariance) {
   ceres::Problem::Options problem_options;
   problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
@@ -399,6 +405,7 @@ double Builder::Solve(bool robust) {
     ceres::Solve(solver_options, &problem, &summary);
   }
   solver_time_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (covariance) LandmarkCovariance(&problem);
   dataset_cost_.assign(states_.size(), 0.0);
   for (size_t k = 0; k < states_.size(); ++k) {
     if (blocks[k].empty()) continue;
@@ -408,6 +415,63 @@ double Builder::Solve(bool robust) {
     problem.Evaluate(evaluate, &dataset_cost_[k], nullptr, nullptr, nullptr);
   }
   return summary.final_cost;
+}
+
+// Stage (3b), header. Landmarks with fewer than min_observations inlier sightings are in H but
+// get no covariance (they are not mapped).
+void Builder::LandmarkCovariance(ceres::Problem* problem) {
+  landmark_covariance_.clear();
+  landmark_factor_.clear();
+  std::map<MarkerKey, int> inliers;
+  for (const Observation& obs : observations_) {
+    if (!obs.outlier && obs.node < states_[obs.dataset].active) ++inliers[obs.key];
+  }
+  std::vector<MarkerKey> keys;
+  std::vector<const double*> blocks;
+  for (const auto& [key, landmark] : landmarks_) {
+    if (inliers[key] < options_.min_observations || !problem->HasParameterBlock(landmark.block)) continue;
+    keys.push_back(key);
+    blocks.push_back(landmark.block);
+  }
+  if (keys.empty()) return;
+  MarginalCovarianceOptions covariance_options;
+  covariance_options.num_threads = options_.num_threads;
+  const ScopedSerialLinearAlgebra serial;
+  const InformationFactor information(problem, blocks, covariance_options);
+  if (!information.positive_definite()) {
+    notes_.push_back("landmark covariance: the problem's information is singular (no covariance written)");
+    return;
+  }
+  const int n = static_cast<int>(keys.size());
+  if (n > options_.max_joint_covariance_landmarks) {
+    const std::vector<Eigen::MatrixXd> marginals = information.Marginals();
+    for (int i = 0; i < n; ++i) landmark_covariance_[keys[i]] = marginals[i];
+    notes_.push_back("landmark covariance: " + std::to_string(n) + " landmarks, more than " +
+                     std::to_string(options_.max_joint_covariance_landmarks) +
+                     ": marginals only, no joint factor");
+    return;
+  }
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(information.size(), 2 * n);
+  for (int i = 0; i < n; ++i) {
+    const int first = information.FirstColumn(blocks[i]);
+    B(first, 2 * i) = 1.0;
+    B(first + 1, 2 * i + 1) = 1.0;
+  }
+  const Eigen::MatrixXd X = information.Solve(B);  // H^-1 B
+  Eigen::MatrixXd sigma = B.transpose() * X;
+  sigma = 0.5 * (sigma + sigma.transpose()).eval();
+  for (int i = 0; i < n; ++i) landmark_covariance_[keys[i]] = sigma.block<2, 2>(2 * i, 2 * i);
+  const int k = std::min(options_.covariance_rank, 2 * n);
+  if (k <= 0) return;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(sigma);
+  if (eigen.info() != Eigen::Success) return;
+  // Eigenvalues ascending: the last k columns, largest first.
+  Eigen::MatrixXd F(2 * n, k);
+  for (int c = 0; c < k; ++c) {
+    const int j = 2 * n - 1 - c;
+    F.col(c) = eigen.eigenvectors().col(j) * std::sqrt(std::max(0.0, eigen.eigenvalues()[j]));
+  }
+  for (int i = 0; i < n; ++i) landmark_factor_[keys[i]] = F.middleRows(2 * i, 2);
 }
 
 size_t Builder::MarkOutliers() {
@@ -692,7 +756,7 @@ RangeBearingBuildResult Builder::Run() {
   }
   // (3) final.
   MarkOutliers();
-  Solve(false);
+  Solve(false, options_.landmark_covariance);
   MarkOutliers();
   EstimateRangeScale();
   return Collect();
@@ -736,6 +800,15 @@ RangeBearingBuildResult Builder::Collect() {
     marker.T_world_marker =
         SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(landmark.block[0], landmark.block[1], 0.0));
     marker.component = 0;
+    if (const auto c = landmark_covariance_.find(key); c != landmark_covariance_.end()) {
+      marker.position_covariance = Eigen::Matrix3d::Zero();
+      marker.position_covariance->topLeftCorner<2, 2>() = c->second;
+      if (const auto f = landmark_factor_.find(key); f != landmark_factor_.end()) {
+        // map.json position_covariance_factor: the translation rows of covariance_factor (x, y; z 0).
+        marker.covariance_factor = CovarianceFactor::Zero(6, f->second.cols());
+        marker.covariance_factor->middleRows<2>(3) = f->second;
+      }
+    }
     result.map.markers.push_back(marker);
   }
   for (DatasetState& state : states_) {

@@ -32,9 +32,19 @@
 // [-max_odometry_delay_s, max_odometry_delay_s] (every grid delay re-solved), refined by a
 // parabola, kept when a likelihood-ratio test (1 dof, 95 %) prefers it to 0; one more round of (2) follows.
 // (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations times are
-// reported, not mapped. (No landmark covariance is written yet.) (4) The range error common to
-// the landmarks of one frame (RangeBearingNoise::range_scale_sigma and range_scale_time_s, for
-// the EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale).
+// reported, not mapped. (3b) The landmarks' covariance from the final problem (below). (4) The range error
+// common to the landmarks of one frame (RangeBearingNoise::range_scale_sigma and range_scale_time_s, for the
+// EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale).
+//
+// Landmark covariance (3b): Sigma = the landmarks' block of H^-1, H = J^T J of the final problem
+// (squared loss) over every free block (nodes, landmarks, calibrations, sensor offsets and scales),
+// in the gauge of the start priors (else of the held first node); H^-1 B by the sparse LDL^T of
+// mapping/marginal_covariance.h (B selecting the 2 N landmark columns). Each landmark's 2 x 2 block
+// is its position_covariance (z row and column 0: a planar map); the top k = min(covariance_rank,
+// 2 N) eigenpairs of Sigma give F = V_k Lambda_k^(1/2), each landmark's two rows of F its
+// position_covariance_factor (z row 0): the landmarks' errors are correlated (they share the
+// surveying robots' trajectories), and a filter that takes them as independent grows overconfident
+// (online/range_bearing_localizer.h).
 #pragma once
 
 #include <functional>
@@ -67,6 +77,12 @@ struct RangeBearingBuildOptions {
   double max_odometry_delay_s = 0.5;
   double odometry_delay_step_s = 0.1;
   RangeBearingNoise initial_noise;  // the starting point of the estimation (stage 2)
+  // Stage (3b): each mapped landmark's position covariance and the rank-k factor of their joint
+  // covariance (map.json position_covariance, position_covariance_factor); the joint covariance
+  // (and so the factor) only for at most max_joint_covariance_landmarks landmarks.
+  bool landmark_covariance = true;
+  int covariance_rank = 20;
+  int max_joint_covariance_landmarks = 500;
   int max_iterations = 50;
   int num_threads = 1;
   std::function<void(const std::string&)> progress;

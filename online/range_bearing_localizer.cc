@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -33,6 +34,14 @@ std::string CheckRangeBearingNoise(const RangeBearingNoise& n) {
   return "";
 }
 
+std::optional<RangeBearingMapUncertainty> ParseRangeBearingMapUncertainty(const std::string& name) {
+  if (name == "estimate") return RangeBearingMapUncertainty::kEstimate;
+  if (name == "consider") return RangeBearingMapUncertainty::kConsider;
+  if (name == "in-noise") return RangeBearingMapUncertainty::kInNoise;
+  if (name == "ignore") return RangeBearingMapUncertainty::kIgnore;
+  return std::nullopt;
+}
+
 bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(CheckRangeBearingNoise(noise).empty(), "noise: " + CheckRangeBearingNoise(noise));
   WAYMARK_CHECK_OPTION(IsFinitePositive(gate_chi2), "gate_chi2 must be > 0");
@@ -46,6 +55,7 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(sensor_bias_sigma.allFinite() && (sensor_bias_sigma.array() > 0.0).all(),
                        "sensor_bias_sigma must be finite and > 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(bearing_scale_sigma), "bearing_scale_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(max_landmark_states >= 1, "max_landmark_states must be >= 1");
   return true;
 }
 
@@ -54,25 +64,96 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
                                              const SE2d& T_world_start,
                                              const Eigen::Matrix3d& start_covariance)
     : options_(options) {
-  x_.setZero();
-  x_.head<3>() << T_world_start.x(), T_world_start.y(), T_world_start.theta();
-  P_.setZero();
-  P_.topLeftCorner<3, 3>() = start_covariance;
-  P_.block<3, 3>(3, 3) = options.calibration_sigma.cwiseAbs2().asDiagonal();
-  P_.block<2, 2>(6, 6) = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
-  P_(8, 8) = options.noise.range_scale_sigma * options.noise.range_scale_sigma;
-  P_(9, 9) = options.bearing_scale_sigma * options.bearing_scale_sigma;
   std::string why;
   if (!options.Check(&why)) throw std::invalid_argument("range-bearing localizer: " + why);
   if (!IsSpd(start_covariance))
     throw std::invalid_argument(
         "range-bearing localizer: the start covariance is not symmetric positive definite");
   for (const MapMarker& marker : map.markers) {
-    if (!marker.is_point) continue;
-    std::optional<Eigen::Matrix2d> covariance;
-    if (marker.position_covariance) covariance = marker.position_covariance->topLeftCorner<2, 2>();
-    landmarks_[marker.key] = {marker.T_world_marker.translation().head<2>(), covariance};
+    if (marker.is_point && marker.position_covariance && marker.covariance_factor)
+      k_ = std::max(k_, static_cast<int>(marker.covariance_factor->cols()));
   }
+  if (!Augmented()) k_ = 0;
+  for (const MapMarker& marker : map.markers) {
+    if (!marker.is_point) continue;
+    Landmark landmark;
+    landmark.l_map = marker.T_world_marker.translation().head<2>();
+    landmark.F = Eigen::Matrix<double, 2, Eigen::Dynamic>::Zero(2, k_);
+    if (marker.position_covariance) {
+      landmark.sigma = marker.position_covariance->topLeftCorner<2, 2>();
+      landmark.D = *landmark.sigma;
+      if (k_ > 0 && marker.covariance_factor) {
+        // A point's position factor: the translation rows of covariance_factor (map_io.h).
+        const CovarianceFactor& F = *marker.covariance_factor;
+        landmark.F.leftCols(F.cols()) = F.middleRows<2>(3);
+        landmark.D = *landmark.sigma - landmark.F * landmark.F.transpose();
+        // Round-off of the factor: keep D symmetric positive semi-definite.
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(0.5 *
+                                                                   (landmark.D + landmark.D.transpose()));
+        landmark.D = eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).asDiagonal() *
+                     eigen.eigenvectors().transpose();
+      }
+    }
+    landmarks_[marker.key] = landmark;
+  }
+  x_ = Eigen::VectorXd::Zero(kStateSize + k_);
+  x_.head<3>() << T_world_start.x(), T_world_start.y(), T_world_start.theta();
+  P_ = Eigen::MatrixXd::Zero(kStateSize + k_, kStateSize + k_);
+  P_.topLeftCorner<3, 3>() = start_covariance;
+  P_.block<3, 3>(3, 3) = options.calibration_sigma.cwiseAbs2().asDiagonal();
+  P_.block<2, 2>(6, 6) = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
+  P_(8, 8) = options.noise.range_scale_sigma * options.noise.range_scale_sigma;
+  P_(9, 9) = options.bearing_scale_sigma * options.bearing_scale_sigma;
+  P_.bottomRightCorner(k_, k_).setIdentity();
+}
+
+std::optional<Eigen::Vector2d> RangeBearingLocalizer::LandmarkPosition(const MarkerKey& key) const {
+  const auto it = landmarks_.find(key);
+  if (it == landmarks_.end()) return std::nullopt;
+  Eigen::Vector2d l = it->second.l_map;
+  if (options_.map_uncertainty != RangeBearingMapUncertainty::kEstimate) return l;
+  if (k_ > 0) l += it->second.F * x_.segment(kStateSize, k_);
+  if (const auto slot = slots_.find(key); slot != slots_.end()) l += x_.segment<2>(slot->second.index);
+  return l;
+}
+
+void RangeBearingLocalizer::DropSlot(const MarkerKey& key) {
+  const int index = slots_.at(key).index, n = static_cast<int>(x_.size());
+  const int tail = n - index - 2;
+  // Marginalizing a Gaussian: drop its rows and columns.
+  x_.segment(index, tail) = x_.tail(tail).eval();
+  P_.middleRows(index, tail) = P_.bottomRows(tail).eval();
+  P_.middleCols(index, tail) = P_.rightCols(tail).eval();
+  x_.conservativeResize(n - 2);
+  P_.conservativeResize(n - 2, n - 2);
+  slots_.erase(key);
+  for (auto& [other, slot] : slots_) {
+    if (slot.index > index) slot.index -= 2;
+  }
+  ++counts_["landmark states dropped"];
+}
+
+int RangeBearingLocalizer::SlotOf(const MarkerKey& key, const Landmark& landmark) {
+  if (!landmark.sigma) return -1;
+  if (const auto it = slots_.find(key); it != slots_.end()) {
+    it->second.last_used = updates_;
+    return it->second.index;
+  }
+  if (static_cast<int>(slots_.size()) >= options_.max_landmark_states) {
+    const auto oldest = std::min_element(slots_.begin(), slots_.end(), [](const auto& a, const auto& b) {
+      return a.second.last_used < b.second.last_used;
+    });
+    DropSlot(oldest->first);
+  }
+  const int n = static_cast<int>(x_.size());
+  x_.conservativeResize(n + 2);
+  x_.tail<2>().setZero();
+  P_.conservativeResize(n + 2, n + 2);
+  P_.rightCols<2>().setZero();
+  P_.bottomRows<2>().setZero();
+  P_.bottomRightCorner<2, 2>() = landmark.D;
+  slots_[key] = {n, updates_};
+  return n;
 }
 
 RangeBearingLocalizer::Vector6 RangeBearingLocalizer::PredictState(const Vector6& x, const SE2d& T_a_b,
@@ -118,6 +199,11 @@ Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalize
   return H;
 }
 
+Eigen::Matrix2d RangeBearingLocalizer::MeasureLandmarkJacobian(const Vector6& x,
+                                                               const Eigen::Vector2d& l_world) {
+  return -MeasureStateJacobian(x, l_world).leftCols<2>();
+}
+
 Eigen::Vector2d RangeBearingLocalizer::Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world) {
   const Eigen::Vector2d d = l_world - x.head<2>();
   return Eigen::Vector2d(d.norm(), WrapAngle(std::atan2(d.y(), d.x()) - x[2]));
@@ -135,8 +221,9 @@ Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::
 void RangeBearingLocalizer::Predict(const SE2d& T_a_b, double dt_s) {
   const RangeBearingNoise& n = options_.noise;
   const double phi = n.range_scale_sigma > 0.0 ? std::exp(-std::max(0.0, dt_s) / n.range_scale_time_s) : 1.0;
-  const Matrix6 F = PredictJacobian(x_, T_a_b, phi);
-  const double c = std::cos(x_[2]), s = std::sin(x_[2]);
+  const Vector6 x = x_.head<kStateSize>();
+  const Matrix6 F = PredictJacobian(x, T_a_b, phi);
+  const double c = std::cos(x[2]), s = std::sin(x[2]);
   Eigen::Matrix<double, kStateSize, 3> G = Eigen::Matrix<double, kStateSize, 3>::Zero();
   G.topLeftCorner<2, 2>() << c, -s, s, c;
   G(2, 2) = 1.0;
@@ -144,10 +231,18 @@ void RangeBearingLocalizer::Predict(const SE2d& T_a_b, double dt_s) {
   const double var_t = n.odometry_q_t * (d + kLinkFloorM);
   const double var_r = n.odometry_q_r * (std::abs(T_a_b.theta()) + n.odometry_c_d * d + kLinkFloorRad);
   const Eigen::Matrix3d Q = Eigen::Vector3d(var_t, var_t, var_r).asDiagonal();
-  x_ = PredictState(x_, T_a_b, phi);
-  P_ = F * P_ * F.transpose() + G * Q * G.transpose();
-  P_(8, 8) += n.range_scale_sigma * n.range_scale_sigma * (1.0 - phi * phi);
-  P_ = 0.5 * (P_ + P_.transpose());
+  x_.head<kStateSize>() = PredictState(x, T_a_b, phi);
+  // F_aug = blockdiag(F, I): the robot's rows and columns only.
+  const Matrix6 P_xx = P_.topLeftCorner<kStateSize, kStateSize>();
+  Matrix6 next = F * P_xx * F.transpose() + G * Q * G.transpose();
+  next(8, 8) += n.range_scale_sigma * n.range_scale_sigma * (1.0 - phi * phi);
+  P_.topLeftCorner<kStateSize, kStateSize>() = 0.5 * (next + next.transpose());
+  const int rest = static_cast<int>(x_.size()) - kStateSize;
+  if (rest > 0) {
+    const Eigen::MatrixXd P_xm = F * P_.topRightCorner(kStateSize, rest);
+    P_.topRightCorner(kStateSize, rest) = P_xm;
+    P_.bottomLeftCorner(rest, kStateSize) = P_xm.transpose();
+  }
   CheckLost();
 }
 
@@ -157,8 +252,11 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
     ++counts_["unknown landmark"];
     return RangeBearingUpdate::kUnknownLandmark;
   }
-  const Eigen::Vector2d& l = it->second.first;
-  if ((l - x_.head<2>()).norm() < 1e-3) {
+  ++updates_;
+  const Landmark& landmark = it->second;
+  const Vector6 x = x_.head<kStateSize>();
+  const Eigen::Vector2d l = *LandmarkPosition(observation.key);
+  if ((l - x.head<2>()).norm() < 1e-3) {
     ++counts_["degenerate"];
     return RangeBearingUpdate::kDegenerate;
   }
@@ -176,14 +274,20 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
   }
   const double sigma_bearing = observation.sigma_bearing_rad.value_or(n.bearing_rad);
   Eigen::Matrix2d R = Eigen::Vector2d(var_range, sigma_bearing * sigma_bearing).asDiagonal();
-  const Eigen::Matrix<double, 2, kStateSize> H = MeasureStateJacobian(x_, l);
-  if (it->second.second) {
-    const Eigen::Matrix2d H_l = -H.leftCols<2>();
-    R += H_l * *it->second.second * H_l.transpose();
-  }
-  const Eigen::Vector2d predicted = MeasureState(x_, l);
+  const Eigen::Matrix<double, 2, kStateSize> H_x = MeasureStateJacobian(x, l);
+  const Eigen::Matrix2d H_l = -H_x.leftCols<2>();
+  if (options_.map_uncertainty == RangeBearingMapUncertainty::kInNoise && landmark.sigma)
+    R += H_l * *landmark.sigma * H_l.transpose();
+  const int slot = Augmented() ? SlotOf(observation.key, landmark) : -1;
+  const int size = static_cast<int>(x_.size());
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, size);
+  H.leftCols<kStateSize>() = H_x;
+  if (k_ > 0) H.middleCols(kStateSize, k_) = H_l * landmark.F;
+  if (slot >= 0) H.middleCols<2>(slot) = H_l;
+  const Eigen::Vector2d predicted = MeasureState(x, l);
   const Eigen::Vector2d y(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
-  const Eigen::Matrix2d S = H * P_ * H.transpose() + R;
+  const Eigen::MatrixXd HP = H * P_;  // 2 x size
+  const Eigen::Matrix2d S = HP * H.transpose() + R;
   const Eigen::LLT<Eigen::Matrix2d> llt(S);
   if (llt.info() != Eigen::Success) {
     ++counts_["degenerate"];
@@ -203,12 +307,16 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
     }
     return RangeBearingUpdate::kGated;
   }
-  const Eigen::Matrix<double, kStateSize, 2> K = llt.solve(H * P_).transpose();
+  Eigen::MatrixXd K = llt.solve(HP).transpose();  // size x 2
+  // Schmidt: the map's error is considered, not estimated.
+  if (options_.map_uncertainty == RangeBearingMapUncertainty::kConsider)
+    K.bottomRows(size - kStateSize).setZero();
   x_ += K * y;
   x_[2] = WrapAngle(x_[2]);
-  const Matrix6 I_KH = Matrix6::Identity() - K * H;
-  P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();
-  P_ = 0.5 * (P_ + P_.transpose());
+  // Joseph form (I - K H) P (I - K H)^T + K R K^T, expanded: right for any gain.
+  const Eigen::MatrixXd KHP = K * HP;
+  P_ += -KHP - KHP.transpose() + K * S * K.transpose();
+  P_ = 0.5 * (P_ + P_.transpose()).eval();
   ++counts_["accepted"];
   rejections_in_row_ = 0;
   ++accepted_in_row_;

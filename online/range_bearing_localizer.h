@@ -19,16 +19,37 @@
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
 //   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad), and
 //   q_s = range_scale_sigma^2 (1 - phi^2) on s_range.
-// Update with a landmark l (map position, 2-D; its map covariance Sigma_l when present):
+// Update with a landmark l (2-D; the map's position, or as the augmented state holds it, below):
 //   d = l - t, q = |d|^2, r = sqrt(q), beta = wrap(atan2(d_y, d_x) - theta),
 //   h(x) = [(1 + s_range) r + b_range, wrap((1 + k_bearing) beta + b_bearing)]
 //   H = [[-(1 + s_range) d_x/r, -(1 + s_range) d_y/r, 0, 0 0 0, 1, 0, r, 0],
 //        [(1 + k_bearing) [d_y/q, -d_x/q, -1], 0 0 0, 0, 1, 0, beta]], H_l = -H[:, 0:2],  y = [range - h_0,
-//        wrap(bearing - h_1)],  S = H P H^T + R + H_l Sigma_l
-//   H_l^T, R = diag(sigma_w^2, sigma_bearing^2), sigma_w^2 = max(sigma_range(range)^2 - (range_scale_sigma
+//        wrap(bearing - h_1)],  S = H P H^T + R (the augmented form below),
+//   R = diag(sigma_w^2, sigma_bearing^2), sigma_w^2 = max(sigma_range(range)^2 - (range_scale_sigma
 //   range)^2, range_a_m^2) (the range variance less its common part; an observation's own sigma as given)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
 //   K = P H^T S^-1 (LLT), x += K y, P = (I - K H) P (I - K H)^T + K R' K^T (Joseph), symmetrized.
+// The map's landmark errors (map_uncertainty). A landmark's map error eps_l = l_true - l_map is one
+// draw that every sighting of it shares, and the landmarks' errors are correlated (map.json
+// position_covariance and position_covariance_factor, mapping/range_bearing_map.h; in memory
+// MapMarker::position_covariance and the translation rows 3, 4 of MapMarker::covariance_factor):
+//   eps_l = F_l xi + eta_l,  xi ~ N(0, I_k) common to all landmarks,  eta_l ~ N(0, D_l),
+//   D_l = Sigma_l - F_l F_l^T  (Sigma_l the 2 x 2 position covariance; without a factor k = 0, D_l =
+//   Sigma_l),
+// kEstimate and kConsider augment the state with xi (k entries, from the start, N(0, I)) and with
+// eta_l of every landmark seen (2 entries, added at its first sighting with mean 0, covariance D_l
+// and no correlation; at most max_landmark_states landmarks, the least recently seen one dropped
+// (marginalized) for a new one: a landmark dropped and seen again starts afresh). The update uses
+// the landmark at l = l_map + F_l xi + eta_l:
+//   H_aug = [H, H_l F_l, H_l (at eta_l's entries), 0 elsewhere],  H_l = dh/dl = -H[:, 0:2],
+//   S = H_aug P_aug H_aug^T + R,  K = P_aug H_aug^T S^-1,
+//   P_aug = P_aug - K (H_aug P_aug) - (H_aug P_aug)^T K^T + K S K^T   (the Joseph form, expanded).
+// kEstimate updates xi and eta too (the map is refined by the robot's own sightings); kConsider
+// (Schmidt) zeroes their rows of K, so their mean stays 0 and their own covariance stays the map's,
+// while their correlation with the robot's state is kept. Either way a repeated sighting of a
+// landmark does not count its map error as new information. kInNoise (the earlier behaviour) adds
+// H_l Sigma_l H_l^T to R at every sighting (each sighting's map error independent); kIgnore takes
+// the map as exact. Prediction: F_aug = blockdiag(F, I), the noise on the robot's state only.
 // A landmark absent from the map (an unknown or misread code) is rejected and counted.
 // Lost: the position's largest standard deviation exceeds lost_sigma_m, or lost_rejections
 // observations in a row failed the gate (then P is inflated to reacquire_sigma_m /
@@ -50,6 +71,10 @@ namespace waymark {
 // Why a noise model is unusable ("" when fine).
 std::string CheckRangeBearingNoise(const RangeBearingNoise& noise);
 
+enum class RangeBearingMapUncertainty { kEstimate, kConsider, kInNoise, kIgnore };
+// "estimate", "consider", "in-noise", "ignore"; nullopt for other names.
+std::optional<RangeBearingMapUncertainty> ParseRangeBearingMapUncertainty(const std::string& name);
+
 struct RangeBearingLocalizerOptions {
   RangeBearingNoise noise;
   double gate_chi2 = 13.8155;  // 2 dof, 99.9 %
@@ -64,6 +89,8 @@ struct RangeBearingLocalizerOptions {
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
   // Sigma of the sensor's bearing scale error at the start (0).
   double bearing_scale_sigma = 0.1;
+  RangeBearingMapUncertainty map_uncertainty = RangeBearingMapUncertainty::kEstimate;
+  int max_landmark_states = 64;  // eta_l blocks kept (kEstimate, kConsider)
   bool Check(std::string* why) const;
 };
 
@@ -85,6 +112,12 @@ class RangeBearingLocalizer {
   Eigen::Vector2d sensor_bias() const { return x_.segment<2>(6); }
   double range_scale() const { return x_[8]; }
   double bearing_scale() const { return x_[9]; }
+  // The augmented state: k (xi) and the landmarks' eta blocks held now.
+  int map_modes() const { return k_; }
+  int landmark_states() const { return static_cast<int>(slots_.size()); }
+  // The landmark's position as the filter holds it now (l_map + F_l xi + eta_l; the map's under
+  // kConsider, kInNoise, kIgnore); nullopt for a landmark absent from the map.
+  std::optional<Eigen::Vector2d> LandmarkPosition(const MarkerKey& key) const;
   bool lost() const { return lost_; }
   // Counts: accepted, unknown, gated, degenerate, became lost, regained.
   const std::map<std::string, long>& counts() const { return counts_; }
@@ -99,6 +132,8 @@ class RangeBearingLocalizer {
   static Eigen::Vector2d MeasureState(const Vector6& x, const Eigen::Vector2d& l_world);
   static Eigen::Matrix<double, 2, kStateSize> MeasureStateJacobian(const Vector6& x,
                                                                    const Eigen::Vector2d& l_world);
+  // d h / d l of MeasureState (the landmark's world position).
+  static Eigen::Matrix2d MeasureLandmarkJacobian(const Vector6& x, const Eigen::Vector2d& l_world);
   static Eigen::Vector2d Measure(const Eigen::Vector3d& x, const Eigen::Vector2d& l_world);
   static Eigen::Matrix<double, 2, 3> MeasureJacobian(const Eigen::Vector3d& x,
                                                      const Eigen::Vector2d& l_world);
@@ -106,10 +141,32 @@ class RangeBearingLocalizer {
  private:
   void CheckLost();
 
+  struct Landmark {
+    Eigen::Vector2d l_map;
+    std::optional<Eigen::Matrix2d> sigma;         // the map's marginal covariance
+    Eigen::Matrix2d D = Eigen::Matrix2d::Zero();  // sigma - F F^T
+    Eigen::Matrix<double, 2, Eigen::Dynamic> F;   // 2 x k (zero without a factor)
+  };
+  struct Slot {
+    int index = 0;  // first entry of eta_l in x_
+    long last_used = 0;
+  };
+  bool Augmented() const {
+    return options_.map_uncertainty == RangeBearingMapUncertainty::kEstimate ||
+           options_.map_uncertainty == RangeBearingMapUncertainty::kConsider;
+  }
+  // Adds eta_l of `key` to the state (dropping the least recently used one when full); -1 when
+  // the landmark has no covariance.
+  int SlotOf(const MarkerKey& key, const Landmark& landmark);
+  void DropSlot(const MarkerKey& key);
+
   RangeBearingLocalizerOptions options_;
-  std::map<MarkerKey, std::pair<Eigen::Vector2d, std::optional<Eigen::Matrix2d>>> landmarks_;
-  Vector6 x_;
-  Matrix6 P_;
+  std::map<MarkerKey, Landmark> landmarks_;
+  int k_ = 0;  // columns of the map's factor (xi's entries at kStateSize ..)
+  std::map<MarkerKey, Slot> slots_;
+  long updates_ = 0;
+  Eigen::VectorXd x_;  // [robot state (kStateSize), xi (k_), eta blocks]
+  Eigen::MatrixXd P_;
   bool lost_ = false;
   int rejections_in_row_ = 0;
   int accepted_in_row_ = 0;

@@ -7,7 +7,10 @@
 #   3. waymark eval: landmark RMSE after SE(2) alignment; per robot ATE and RPE (1 m) of the
 #      smoothed trajectory and of dead reckoning after SE(2) alignment; a top-view SVG per robot
 #   4. waymark map build robot1 robot2 robot3; waymark localize robot4 and robot5 against it
-#      (ATE in the map's frame, NEES)
+#      (ATE in the map's frame, NEES): the map's landmark errors as states of the EKF (default),
+#      considered (Schmidt), in each sighting's noise, ignored (the map taken as exact: the
+#      filter before the map had a covariance), and a control against the true landmark
+#      positions; the map's covariance against its error (scripts/map-covariance-check.py)
 # Usage: scripts/accuracy-mrclam.sh [RUN_DIR] [OUT_DIR]   (OUT_DIR default: out/mrclam; needs
 # build/waymark: scripts/build.sh --target waymark)
 set -euo pipefail
@@ -49,11 +52,29 @@ if [[ ${#robots[@]} -ge 5 ]]; then
   "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" \
     --out "$out/map-123.json" --trajectory-dir "$out/smoothed-123"
   "$waymark" eval --map "$out/map-123.json" --gt-map "$gt_map"
+  echo "== the map's landmark covariance against its error (no alignment)"
+  python3 scripts/map-covariance-check.py "$out/map-123.json" "$gt_map"
+  # Control: the true landmark positions (no covariance) with the map's noise model.
+  python3 - "$out/map-123.json" "$gt_map" "$out/map-truth.json" <<'EOF'
+import json, sys
+built, truth = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+truth["range_bearing_noise"] = built["range_bearing_noise"]
+for marker in truth["markers"]:
+    marker.pop("position_covariance", None)
+json.dump(truth, open(sys.argv[3], "w"))
+EOF
   for robot in robot4 robot5; do
     echo "== $robot: online against the map of robots 1-3"
     "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --out "$out/$robot-online.tum"
     "$waymark" eval --est "$out/$robot-online.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
       --align none --max-dt 0.02 --markers "$out/map-123.json" --gt-map "$gt_map" \
       --plot "$out/$robot-online.svg"
+    for mode in consider in-noise ignore; do
+      echo "== $robot: online, the map's errors $mode"
+      "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --map-uncertainty "$mode" \
+        --out "$out/$robot-online-$mode.tum"
+    done
+    echo "== $robot: online against the true landmark positions (control)"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --out "$out/$robot-online-truth-map.tum"
   done
 fi

@@ -101,6 +101,26 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
   EXPECT_THAT(localize.out, HasSubstr("NEES: mean "));
   EXPECT_GT(ReadTum(dir_ / "robot2.tum").size(), 1000u);
+  // The map carries each landmark's covariance and its rows of the joint factor.
+  ASSERT_TRUE(map.markers.front().position_covariance);
+  ASSERT_TRUE(map.markers.front().covariance_factor);
+  EXPECT_EQ(map.markers.front().covariance_factor->cols(), 20);
+  const RunResult consider =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-consider.tum").string() + " --map-uncertainty consider");
+  ASSERT_EQ(consider.exit_code, 0) << consider.err;
+  EXPECT_THAT(consider.out, HasSubstr("NEES: mean "));
+  const RunResult bad =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "x.tum").string() + " --map-uncertainty schmidt");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_THAT(bad.err,
+              HasSubstr("--map-uncertainty: expected estimate, consider, in-noise or ignore, got 'schmidt'"));
+  EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
+  const RunResult live = Run("localize " + (dir_ / "robot2").string() + " --map " +
+                             (dir_ / "map.json").string() + " --live --map-uncertainty consider");
+  EXPECT_NE(live.exit_code, 0);
+  EXPECT_THAT(live.err, HasSubstr("--map-uncertainty is for range-bearing datasets, not --live"));
 }
 
 TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
@@ -133,6 +153,11 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
           (dir_ / "m2.json").string() + " --trajectory " + (dir_ / "t.tum").string());
   EXPECT_EQ(one_file.exit_code, 1);
   EXPECT_THAT(one_file.err, HasSubstr("--trajectory is for one dataset"));
+  const RunResult camera =
+      Run("localize " + (dir_ / "survey5").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "run.tum").string() + " --map-uncertainty consider");
+  EXPECT_NE(camera.exit_code, 0);
+  EXPECT_THAT(camera.err, HasSubstr("--map-uncertainty is for range-bearing datasets (range_bearing.jsonl)"));
 }
 
 }  // namespace

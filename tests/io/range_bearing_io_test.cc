@@ -138,6 +138,56 @@ TEST(RangeBearingIo, PointLandmarkInTheMapFormat) {
       HasSubstr("unknown family \"barcode\""));
 }
 
+TEST(RangeBearingIo, PointLandmarkCovarianceFactor) {
+  MarkerMap map;
+  for (const char* id : {"1", "2"}) {
+    MapMarker point;
+    point.is_point = true;
+    point.key = {kFamilyBarcode, id};
+    point.position_covariance = Eigen::Vector3d(4e-4, 5e-4, 0.0).asDiagonal();
+    // map.json position_covariance_factor; in memory the translation rows of covariance_factor.
+    point.covariance_factor = CovarianceFactor::Zero(6, 2);
+    point.covariance_factor->bottomRows<3>() << 0.01, -0.005, 0.003, 0.012, 0.0, 0.0;
+    map.markers.push_back(point);
+  }
+  const MarkerMap back = ParseMap(FormatMap(map), "map.json");
+  ASSERT_EQ(back.markers.size(), 2u);
+  ASSERT_TRUE(back.markers[1].covariance_factor);
+  EXPECT_EQ(*back.markers[1].covariance_factor, *map.markers[1].covariance_factor);
+  EXPECT_THAT(FormatMap(map), HasSubstr("\"position_covariance_factor\":[0.01,-0.005,0.003,0.012,0.0,0.0]"));
+  const auto error = [](const std::string& markers) -> std::string {
+    try {
+      ParseMap("{\"format\": \"waymark-map\", \"version\": 1, \"markers\": [" + markers + "]}", "map.json");
+    } catch (const FormatError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  const std::string head = R"({"family": "barcode", "id": "1", "p_world_marker": [1, 2, 0], )";
+  const std::string cov = R"("position_covariance": [1e-4, 0, 0, 0, 1e-4, 0, 0, 0, 0], )";
+  EXPECT_THAT(error(head + R"("position_covariance_factor": [0.001, 0.001, 0.0]})"),
+              HasSubstr("map.json:1: markers[0].position_covariance_factor: expected a position_covariance "
+                        "with the factor"));
+  EXPECT_THAT(error(head + cov + R"("position_covariance_factor": [0.001, 0.001]})"),
+              HasSubstr("markers[0].position_covariance_factor: expected a non-empty array of 3 k numbers"));
+  EXPECT_THAT(
+      error(head + cov + R"("position_covariance_factor": [0.1, 0.0, 0.0]})"),
+      HasSubstr("markers[0].position_covariance_factor: expected position_covariance - F F^T positive "
+                "semi-definite"));
+  EXPECT_THAT(
+      error(head + cov + R"("position_covariance_factor": [0.001, 0.001, 0.0]}, )" +
+            R"({"family": "barcode", "id": "2", "p_world_marker": [1, 2, 0], )" + cov +
+            R"("position_covariance_factor": [0.001, 0.0, 0.001, 0.0, 0.0, 0.0]})"),
+      HasSubstr("markers[1].position_covariance_factor: expected 3 x 1 like the point landmarks before, "
+                "got 3 x 2"));
+  // The writer refuses a factor with rotation rows, or without a covariance.
+  (*map.markers[0].covariance_factor)(0, 0) = 0.001;
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+  (*map.markers[0].covariance_factor)(0, 0) = 0.0;
+  map.markers[0].position_covariance.reset();
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+}
+
 TEST(RangeBearingIo, DatasetWithRangeBearingAndStartPrior) {
   const fs::path dir = fs::temp_directory_path() / ("waymark_rb_dataset_" + std::to_string(getpid()));
   fs::remove_all(dir);

@@ -7,6 +7,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <cmath>
 
 #include "tests/mapping/range_bearing_world.h"
@@ -53,6 +55,47 @@ TEST(RangeBearingMap, TwoRobotsWithStartPriors) {
   EXPECT_EQ(result.datasets[0].gauge, "start prior");
   // The odometry's 3 % scale error is found (distance_scale = -3 % / 1.03).
   EXPECT_NEAR(result.datasets[0].odometry_calibration[2], -0.029, 0.01);
+}
+
+TEST(RangeBearingMap, TheLandmarksCovarianceDescribesTheirError) {
+  // Stage (3b): every landmark gets its position covariance and its rows of the joint factor
+  // (k = min(20, 2 N) = 20 for ten landmarks); F_i F_i^T stays within the marginal; the map's
+  // error against the truth (start priors at the truth: the same gauge), normalized by the
+  // joint covariance F F^T + blockdiag(D_i), is one draw of chi-square(20) / 20.
+  const testing::RangeBearingWorldOptions world;
+  const Dataset a = testing::RangeBearingRobot(0, 1, world), b = testing::RangeBearingRobot(1, 2, world);
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b});
+  const size_t n = result.map.markers.size();
+  ASSERT_EQ(n, 10u);
+  Eigen::MatrixXd F(2 * n, 20), sigma = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  Eigen::VectorXd e(2 * n);
+  for (size_t i = 0; i < n; ++i) {
+    const MapMarker& m = result.map.markers[i];
+    ASSERT_TRUE(m.position_covariance);
+    ASSERT_TRUE(m.covariance_factor);  // a point's: the translation rows
+    ASSERT_EQ(m.covariance_factor->cols(), 20);
+    EXPECT_EQ(m.covariance_factor->topRows<3>().norm(), 0.0);
+    EXPECT_EQ(m.covariance_factor->row(5).norm(), 0.0);
+    EXPECT_EQ(m.position_covariance->row(2).norm(), 0.0);
+    const Eigen::Matrix2d marginal = m.position_covariance->topLeftCorner<2, 2>();
+    EXPECT_GT(marginal.determinant(), 0.0);
+    F.middleRows(2 * i, 2) = m.covariance_factor->middleRows<2>(3);
+    const Eigen::Matrix2d D = marginal - F.middleRows(2 * i, 2) * F.middleRows(2 * i, 2).transpose();
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(D).eigenvalues().minCoeff(), -1e-12);
+    sigma.block<2, 2>(2 * i, 2 * i) = D;
+    e.segment<2>(2 * i) =
+        (m.T_world_marker.translation() - a.groundtruth_markers->Find(m.key)->T_world_marker.translation())
+            .head<2>();
+  }
+  sigma += F * F.transpose();
+  const double normalized = e.dot(sigma.ldlt().solve(e)) / (2.0 * n);
+  EXPECT_GT(normalized, 0.3);  // chi-square(20) / 20: 99.9 % within [0.30, 2.27]
+  EXPECT_LT(normalized, 2.27);
+  // Without it: no covariance written.
+  RangeBearingBuildOptions options;
+  options.landmark_covariance = false;
+  const RangeBearingBuildResult plain = BuildRangeBearingMap({&a, &b}, options);
+  EXPECT_FALSE(plain.map.markers[0].position_covariance);
 }
 
 TEST(RangeBearingMap, TheOdometryDelayIsEstimatedPerDataset) {

@@ -80,6 +80,30 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     const Eigen::MatrixXd H_state_numeric = testing::NumericJacobian(measure_state, x6, 1e-6, wrap);
     EXPECT_LT((H_state_numeric - RangeBearingLocalizer::MeasureStateJacobian(x6, l)).cwiseAbs().maxCoeff(),
               1e-6);
+    // The landmark's own Jacobian, and the augmented state's [x, xi, eta] with
+    // l = l_map + F xi + eta (k = 3), as the update composes them.
+    const auto measure_landmark = [&](const Eigen::VectorXd& p) -> Eigen::VectorXd {
+      return RangeBearingLocalizer::MeasureState(x6, p);
+    };
+    const Eigen::Matrix2d H_l = RangeBearingLocalizer::MeasureLandmarkJacobian(x6, l);
+    EXPECT_LT((testing::NumericJacobian(measure_landmark, l, 1e-6, wrap) - H_l).cwiseAbs().maxCoeff(), 1e-6);
+    Eigen::Matrix<double, 2, 3> F_l;
+    F_l << 0.03 * u(rng), 0.01 * u(rng), 0.02 * u(rng), 0.01 * u(rng), 0.03 * u(rng), 0.02 * u(rng);
+    Eigen::VectorXd augmented(RangeBearingLocalizer::kStateSize + 5);
+    augmented << x6, 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng), 0.01 * u(rng), 0.01 * u(rng);
+    const auto measure_augmented = [&](const Eigen::VectorXd& z) -> Eigen::VectorXd {
+      const Eigen::Vector2d p = l + F_l * z.segment<3>(10) + z.segment<2>(13);
+      return RangeBearingLocalizer::MeasureState(z.head<10>(), p);
+    };
+    const Eigen::Vector2d l_now = l + F_l * augmented.segment<3>(10) + augmented.segment<2>(13);
+    const RangeBearingLocalizer::Vector6 x_now = augmented.head<10>();
+    Eigen::Matrix<double, 2, 15> H_augmented;
+    const Eigen::Matrix2d H_l_now = RangeBearingLocalizer::MeasureLandmarkJacobian(x_now, l_now);
+    H_augmented << RangeBearingLocalizer::MeasureStateJacobian(x_now, l_now), H_l_now * F_l, H_l_now;
+    EXPECT_LT((testing::NumericJacobian(measure_augmented, augmented, 1e-6, wrap) - H_augmented)
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-6);
     const Eigen::Vector2d h = RangeBearingLocalizer::MeasureState(x6, l),
                           h_pose = RangeBearingLocalizer::Measure(x, l);
     EXPECT_NEAR(h[0], (1.0 + x6[8]) * h_pose[0] + x6[6], 1e-12);
@@ -219,6 +243,153 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBoundsWithARangeScaleCommonToThe
   EXPECT_LT(mean, ChiSquareQuantile(0.975, 3 * runs) / runs);
 }
 
+// Four landmarks whose map errors are correlated: Sigma = F F^T + blockdiag(D), F (8 x 3) with a
+// common shift of the whole map and two random modes, D = (1 cm)^2 I.
+MarkerMap FourLandmarksWithCovariance(Eigen::MatrixXd* sigma_out) {
+  const double positions[4][2] = {{3.0, 1.0}, {2.0, -2.0}, {-1.0, 2.5}, {-2.0, -1.5}};
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 1.0);
+  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(8, 3);
+  for (int i = 0; i < 4; ++i) {
+    F(2 * i, 0) = 0.03;  // the whole map shifted in x and y together
+    F(2 * i + 1, 0) = 0.02;
+    for (int r = 0; r < 2; ++r) {
+      F(2 * i + r, 1) = 0.02 * n(rng);
+      F(2 * i + r, 2) = 0.02 * n(rng);
+    }
+  }
+  const Eigen::Matrix2d D = Eigen::Matrix2d::Identity() * 1e-4;
+  MarkerMap map;
+  for (int i = 0; i < 4; ++i) {
+    MapMarker m;
+    m.is_point = true;
+    m.key = {kFamilyBarcode, std::to_string(i + 1)};
+    m.T_world_marker =
+        SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(positions[i][0], positions[i][1], 0.0));
+    m.position_covariance = Eigen::Matrix3d::Zero();
+    m.position_covariance->topLeftCorner<2, 2>() =
+        F.middleRows(2 * i, 2) * F.middleRows(2 * i, 2).transpose() + D;
+    m.covariance_factor = CovarianceFactor::Zero(6, 3);  // a point's: the translation rows
+    m.covariance_factor->middleRows<2>(3) = F.middleRows(2 * i, 2);
+    map.markers.push_back(m);
+  }
+  *sigma_out = F * F.transpose();
+  for (int i = 0; i < 4; ++i) sigma_out->block<2, 2>(2 * i, 2 * i) += D;
+  return map;
+}
+
+// Mean NEES of the pose after 100 steps (all four landmarks seen at every step: each landmark's
+// map error is met a hundred times), over `runs` runs; each run draws the true landmarks from the
+// map's joint covariance (the map is the truth plus one such error), the odometry noise from the
+// model, no sensor bias.
+double MonteCarloMeanNeesWithMapError(const RangeBearingLocalizerOptions& options, const MarkerMap& map,
+                                      const Eigen::MatrixXd& sigma, unsigned seed, int runs) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const Eigen::MatrixXd L = sigma.llt().matrixL();
+  double sum = 0.0;
+  for (int run = 0; run < runs; ++run) {
+    Eigen::VectorXd draw(8);
+    for (int i = 0; i < 8; ++i) draw[i] = n(rng);
+    const Eigen::VectorXd eps = L * draw;
+    const Eigen::Vector3d sigma0(0.05, 0.05, 0.02);
+    SE2d truth;
+    const SE2d start(sigma0[0] * n(rng), sigma0[1] * n(rng), sigma0[2] * n(rng));
+    RangeBearingLocalizer filter(map, options, start, Eigen::Matrix3d(sigma0.cwiseAbs2().asDiagonal()));
+    for (int step = 0; step < 100; ++step) {
+      const SE2d M(0.05, 0.0, 0.03);
+      const double d = 0.05;
+      const double st = std::sqrt(options.noise.odometry_q_t * (d + 1e-3));
+      const double sr = std::sqrt(options.noise.odometry_q_r * (0.03 + 0.1 * d + 1e-3));
+      truth = truth * SE2d(0.05 + st * n(rng), st * n(rng), 0.03 + sr * n(rng));
+      filter.Predict(M);
+      const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+      for (int i = 0; i < 4; ++i) {
+        const Eigen::Vector2d l =
+            map.markers[i].T_world_marker.translation().head<2>() + eps.segment<2>(2 * i);
+        Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, l);
+        z[0] += (options.noise.range_a_m + options.noise.range_b * z[0]) * n(rng);
+        z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
+        filter.Update(Sighting(map.markers[i].key.id, z));
+      }
+    }
+    const Eigen::Vector3d e(truth.x() - filter.pose().x(), truth.y() - filter.pose().y(),
+                            WrapAngle(truth.theta() - filter.pose().theta()));
+    sum += e.dot(filter.covariance().llt().solve(e));
+  }
+  return sum / runs;
+}
+
+TEST(RangeBearingLocalizer, MapErrorsAsStatesKeepTheNeesInsideBounds) {
+  // The map's landmarks are off by a correlated error of about 3-4 cm; the sightings are good to
+  // 1 cm and 5 mrad and repeat. As states (estimate) or considered (Schmidt), the map error is met
+  // once; added to each sighting's noise (in-noise) it is taken as new information every time,
+  // and the filter grows overconfident; taken as exact (ignore), more so.
+  Eigen::MatrixXd sigma;
+  const MarkerMap map = FourLandmarksWithCovariance(&sigma);
+  RangeBearingLocalizerOptions options;
+  options.noise.range_a_m = 0.01;
+  options.noise.range_b = 0.0;
+  options.noise.bearing_rad = 0.005;
+  options.noise.odometry_q_t = 1e-4;
+  options.noise.odometry_q_r = 1e-4;
+  options.noise.odometry_c_d = 0.1;
+  options.calibration_sigma = Eigen::Vector3d::Constant(1e-6);  // no calibration error drawn
+  options.sensor_bias_sigma = Eigen::Vector2d::Constant(1e-6);
+  options.bearing_scale_sigma = 1e-6;
+  const int runs = 200;
+  const double lower = ChiSquareQuantile(0.025, 3 * runs) / runs,
+               upper = ChiSquareQuantile(0.975, 3 * runs) / runs;
+  for (const RangeBearingMapUncertainty mode :
+       {RangeBearingMapUncertainty::kEstimate, RangeBearingMapUncertainty::kConsider}) {
+    options.map_uncertainty = mode;
+    const double mean = MonteCarloMeanNeesWithMapError(options, map, sigma, 21, runs);
+    EXPECT_GT(mean, lower) << static_cast<int>(mode);
+    EXPECT_LT(mean, upper) << static_cast<int>(mode);
+  }
+  options.map_uncertainty = RangeBearingMapUncertainty::kInNoise;
+  EXPECT_GT(MonteCarloMeanNeesWithMapError(options, map, sigma, 21, runs), 2.0 * upper);
+  options.map_uncertainty = RangeBearingMapUncertainty::kIgnore;
+  EXPECT_GT(MonteCarloMeanNeesWithMapError(options, map, sigma, 21, runs), 2.0 * upper);
+}
+
+TEST(RangeBearingLocalizer, LandmarkStatesAreCappedAndTheMapRefinedOnlyWhenEstimated) {
+  Eigen::MatrixXd sigma;
+  const MarkerMap map = FourLandmarksWithCovariance(&sigma);
+  RangeBearingLocalizerOptions options;
+  options.max_landmark_states = 2;
+  const Eigen::Vector3d truth(0.5, 0.2, 0.1);
+  for (const RangeBearingMapUncertainty mode :
+       {RangeBearingMapUncertainty::kEstimate, RangeBearingMapUncertainty::kConsider,
+        RangeBearingMapUncertainty::kInNoise}) {
+    options.map_uncertainty = mode;
+    RangeBearingLocalizer filter(map, options, SE2d(0.5, 0.2, 0.1),
+                                 Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal());
+    const bool augmented = mode != RangeBearingMapUncertainty::kInNoise;
+    EXPECT_EQ(filter.map_modes(), augmented ? 3 : 0);
+    for (int i = 0; i < 4; ++i) {
+      const Eigen::Vector2d l =
+          map.markers[i].T_world_marker.translation().head<2>() + Eigen::Vector2d(0.02, -0.01);
+      ASSERT_EQ(filter.Update(Sighting(map.markers[i].key.id, RangeBearingLocalizer::Measure(truth, l))),
+                RangeBearingUpdate::kAccepted);
+      EXPECT_EQ(filter.landmark_states(), augmented ? std::min(i + 1, 2) : 0);
+    }
+    EXPECT_EQ(
+        filter.counts().count("landmark states dropped") ? filter.counts().at("landmark states dropped") : 0,
+        augmented ? 2 : 0);
+    const Eigen::Vector2d moved =
+        *filter.LandmarkPosition(map.markers[3].key) - map.markers[3].T_world_marker.translation().head<2>();
+    if (mode == RangeBearingMapUncertainty::kEstimate) {
+      EXPECT_GT(moved.norm(), 1e-4);
+    } else {
+      EXPECT_EQ(moved.norm(), 0.0);
+    }
+    const Eigen::MatrixXd P = filter.covariance();
+    EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(P).info(), Eigen::Success);
+    EXPECT_FALSE(filter.LandmarkPosition({kFamilyBarcode, "99"}));
+  }
+}
+
 TEST(RangeBearingLocalizer, TheBearingScaleIsEstimated) {
   // The sensor reads every bearing 6 % too large; the robot drives a circle among six
   // landmarks seeing each at bearings up to 0.6 rad; the filter's k_bearing converges to it.
@@ -265,6 +436,12 @@ TEST(RangeBearingLocalizer, RefusesBadInput) {
                std::invalid_argument);
   EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), {}, SE2d(), -Eigen::Matrix3d::Identity()),
                std::invalid_argument);
+  RangeBearingLocalizerOptions no_states;
+  no_states.max_landmark_states = 0;
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), no_states, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  EXPECT_EQ(ParseRangeBearingMapUncertainty("consider"), RangeBearingMapUncertainty::kConsider);
+  EXPECT_FALSE(ParseRangeBearingMapUncertainty("schmidt"));
 }
 
 }  // namespace
