@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <tuple>
 
 #include "detect/detector.h"
 #include "detect/qr_finder.h"
@@ -150,6 +151,26 @@ TEST(DetectQrModules, UnorientedQuadReads) {
       EXPECT_LT((read[0].corners_px[i] - truth[i]).norm(), 0.6 * module_px) << rotation;
   }
   EXPECT_TRUE(ReadUnorientedQrModuleGrid(cv::Mat(160, 160, CV_8U, cv::Scalar(128)), truth).empty());
+}
+
+// Unoriented quads are gated by the known modules' contrast (most are clutter): a dim code
+// (60 gray levels between its modules, a low-light frame) still reads; the same code at 6
+// levels, where its known modules differ by under 5, is not fitted or decoded at all.
+TEST(DetectQrModules, UnorientedReadNeedsKnownModuleContrast) {
+  const SymbolImage symbol = QrSymbol("r/91/12.5");
+  const int n = symbol.symbol.width;
+  const double module_px = 1.7;
+  const Quad2d truth = MakeQuad({80.4, 80.1}, module_px * n, 0.3, 1.1);
+  for (const auto& [dark, light, reads] : {std::tuple<int, int, bool>{70, 130, true}, {124, 130, false}}) {
+    cv::Mat image(160, 160, CV_8U, cv::Scalar(light));
+    DrawSymbol(symbol, truth, &image, dark, light);
+    cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+    const std::vector<MarkerObservation> read = ReadUnorientedQrModuleGrid(image, RotateCorners(truth, 1));
+    EXPECT_EQ(read.size(), reads ? 1u : 0u) << dark << " " << light;
+    if (reads && !read.empty()) {
+      EXPECT_EQ(read[0].key.id, "r/91/12.5");
+    }
+  }
 }
 
 // Small codes on a light card in a larger frame with some clutter: the dark-quad stage gives
