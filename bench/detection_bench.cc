@@ -1,7 +1,8 @@
 // Detection benchmark: decode rates on the real photos of ../shared/data/codes and
 // per-frame times on synthetic 1280x960 frames, one thread.
 //
-//   bench_detection_bench [--report-only] [google benchmark flags]
+//   bench_detection_bench [--report-only] [--no-write] [google benchmark flags]
+//   bench_detection_bench --help
 //
 // Plain report (stdout, and bench/results/detection.json written atomically):
 //   - per photo set: images whose expected text (NN.txt, or bytes NN.bin) is among the
@@ -13,7 +14,8 @@
 //   - all three families at once (CreateMultiDetector) on 1 and 2 threads, the codes of the
 //     three families mixed: mean CPU time of the process per frame, median wall time.
 // Then Google Benchmark runs the same frames (BM_Detect/<family>/<codes>) unless
-// --report-only is given.
+// --report-only is given. --no-write prints the report without writing the JSON file (a
+// measurement on a loaded machine); an unknown flag is an error before anything runs.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -229,7 +231,7 @@ nlohmann::json TimeAllFamilies(int codes, int threads, int repeats) {
           {"decoded", found},         {"repeats", repeats}};
 }
 
-void Report() {
+void Report(bool write) {
   nlohmann::json out;
   double load[3] = {0, 0, 0};
   getloadavg(load, 3);
@@ -251,6 +253,7 @@ void Report() {
   for (int threads : {1, 2}) {
     for (int codes : {0, 1, 4}) out["all_families"].push_back(TimeAllFamilies(codes, threads, 15));
   }
+  if (!write) return;
   const fs::path json = fs::path(WAYMARK_SOURCE_DIR) / "bench" / "results" / "detection.json";
   AtomicWriteFile(json, out.dump(2) + "\n");
   std::cout << "wrote " << json.string() << "\n";
@@ -272,16 +275,30 @@ void BM_Detect(benchmark::State& state, const std::string& family, int codes) {
 
 int main(int argc, char** argv) {
   cv::setNumThreads(1);  // one core: OpenCV's own worker threads off (wall and CPU time comparable)
-  bool report_only = false;
+  bool report_only = false, write = true;
   std::vector<char*> rest;
   for (int i = 0; i < argc; ++i) {
-    if (std::string(argv[i]) == "--report-only") {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::cout << "Usage: bench_detection_bench [--report-only] [--no-write] [google benchmark flags]\n"
+                   "Decode rates on ../shared/data/codes and per-frame times on synthetic frames;\n"
+                   "writes bench/results/detection.json unless --no-write, then runs Google\n"
+                   "Benchmark unless --report-only.\n";
+      return 0;
+    }
+    if (arg == "--report-only") {
       report_only = true;
+    } else if (arg == "--no-write") {
+      write = false;
     } else {
       rest.push_back(argv[i]);
     }
   }
-  waymark::Report();
+  // Google Benchmark's flags are checked before anything runs or is written.
+  int rest_argc = static_cast<int>(rest.size());
+  benchmark::Initialize(&rest_argc, rest.data());
+  if (benchmark::ReportUnrecognizedArguments(rest_argc, rest.data())) return 1;
+  waymark::Report(write);
   if (report_only) return 0;
   for (const std::string& family : waymark::kTimedFamilies) {
     for (int codes : {0, 1, 4}) {
@@ -291,8 +308,6 @@ int main(int argc, char** argv) {
           ->Unit(benchmark::kMillisecond);
     }
   }
-  int rest_argc = static_cast<int>(rest.size());
-  benchmark::Initialize(&rest_argc, rest.data());
   benchmark::RunSpecifiedBenchmarks();
   return 0;
 }

@@ -390,6 +390,13 @@ int main(int argc, char** argv) {
   std::vector<char*> rest;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::cout
+          << "Usage: bench_online_bench [--quick] [--report-only] [--corners-only] [google benchmark flags]\n"
+             "Prints the report and writes bench/results/online.json (not with --corners-only),\n"
+             "then runs Google Benchmark unless --report-only.\n";
+      return 0;
+    }
     if (arg == "--report-only") {
       report_only = true;
     } else if (arg == "--corners-only") {
@@ -401,14 +408,16 @@ int main(int argc, char** argv) {
       rest.push_back(argv[i]);
     }
   }
+  // Google Benchmark's flags are checked before anything runs or is written.
+  int rest_argc = static_cast<int>(rest.size());
+  benchmark::Initialize(&rest_argc, rest.data());
+  if (benchmark::ReportUnrecognizedArguments(rest_argc, rest.data())) return 1;
   waymark::Report();
   if (report_only) return 0;
   benchmark::RegisterBenchmark("BM_CornerUpdateRun", waymark::BM_CornerUpdateRun)
       ->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("BM_DetectAndUpdate", waymark::BM_DetectAndUpdate)
       ->Unit(benchmark::kMillisecond);
-  int rest_argc = static_cast<int>(rest.size());
-  benchmark::Initialize(&rest_argc, rest.data());
   benchmark::RunSpecifiedBenchmarks();
   return 0;
 }
