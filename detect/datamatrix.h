@@ -1,10 +1,12 @@
 // DataMatrix detector (family "datamatrix"). Found by Waymark, decoded by libdmtx.
 //
 // Pass 1: Waymark's own candidates (detect/quads.h: dark components whose quad shows the
-// solid L finder and the dashed timing pattern), at most
-// DetectorOptions::max_datamatrix_candidates per frame, best first, each not already
-// holding a decoded symbol rectified onto a small upright patch and read there
-// (ReadDataMatrixCandidate): libdmtx started only at seed pixels on the L's two outer edges,
+// solid L finder and the dashed timing pattern, or an L alone), best first, at most 4 x
+// DetectorOptions::max_datamatrix_candidates per frame rectified onto a small upright patch
+// and tested there (RectifyDataMatrixCandidate: contrast, a mixed inside, a timing pattern);
+// of those that pass, the ones with a clear timing pattern first, at most
+// max_datamatrix_candidates not already holding a decoded symbol are read
+// (DecodeDataMatrixPatch): libdmtx started only at seed pixels on the L's two outer edges,
 // zxing-cpp on the same patch as the rescue. No libdmtx scan of the frame or of a region.
 // Pass 2 (second_pass), for symbols whose L the candidate stage did not see (glare, a bar
 // across it, a symbol touching other dark things): zxing-cpp on the candidate regions

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <iterator>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
@@ -29,6 +30,10 @@ constexpr double kSolidMin = 0.85;
 // where a module is a pixel or two, reads 80-85 % dark).
 constexpr double kLSolidMin = 0.8;
 constexpr double kDashedMin = 0.15;
+// An L without a timing pattern on the hull's other sides (DataMatrixCandidates): its legs,
+// and its score's factor (below every L with its timing pattern).
+constexpr double kLAloneSolidMin = 0.75;
+constexpr double kLAloneScale = 0.5;
 constexpr int kDashedMinRuns = 2;
 constexpr int kRunsForFullScore = 5;
 // DataMatrix: the hull's top-right corner is kept when within this fraction of the mean
@@ -42,6 +47,10 @@ constexpr double kInteriorMinSpread = 0.2;
 // 70 read) had a spread >= 0.46, while a third of the 1598 L-shaped candidates not read
 // were under 0.3 (a bare corner of a frame, text): each cost 0.7 ms of libdmtx seeds.
 constexpr double kDataMatrixMinSpread = 0.3;
+// DataMatrix candidates at one place are one symbol's only when of about one size (the same
+// symbol at two levels): on issue-scenario seed 1 the dark background around a symbol's card
+// (an L-shaped quad 1.7x the symbol, ranked first) hid the symbol's own candidate.
+constexpr double kDuplicateMaxSizeRatio = 1.4;
 
 double Cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
 
@@ -166,16 +175,20 @@ bool Dashed(double dark_fraction, int runs) {
   return dark_fraction >= kDashedMin && dark_fraction < kSolidMin && runs >= kDashedMinRuns;
 }
 
-// Drops quads whose centre lies within half a side of a better one (input best first).
+// Drops quads whose centre lies within half a side of a better one (input best first) and,
+// when max_size_ratio is finite, whose mean side is within that ratio of it: a symbol inside a
+// larger dark outline (the background around its card, a frame) is not that outline's duplicate.
 template <typename T, typename QuadOf>
-std::vector<T> Deduplicate(const std::vector<T>& sorted, int max_count, QuadOf quad_of) {
+std::vector<T> Deduplicate(const std::vector<T>& sorted, int max_count, QuadOf quad_of,
+                           double max_size_ratio = std::numeric_limits<double>::infinity()) {
   std::vector<T> kept;
   for (const T& c : sorted) {
     if (static_cast<int>(kept.size()) >= max_count) break;
     const Quad2d& q = quad_of(c);
     const bool duplicate = std::any_of(kept.begin(), kept.end(), [&](const T& k) {
-      return (QuadCenter(quad_of(k)) - QuadCenter(q)).norm() <
-             0.5 * std::min(QuadMeanSide(quad_of(k)), QuadMeanSide(q));
+      const double a = QuadMeanSide(quad_of(k)), b = QuadMeanSide(q);
+      return (QuadCenter(quad_of(k)) - QuadCenter(q)).norm() < 0.5 * std::min(a, b) &&
+             std::max(a, b) < max_size_ratio * std::min(a, b);
     });
     if (!duplicate) kept.push_back(c);
   }
@@ -267,6 +280,7 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
   for (const DarkQuad& q : quads) {
     if (q.interior_spread < kDataMatrixMinSpread) continue;
     std::optional<DataMatrixCandidate> best;
+    bool best_dashed = false;
     for (int k = 0; k < 4; ++k) {
       // Corner k is the L's corner: sides k-1 (ends at k) and k (starts at k) solid, the
       // two others dashed (the timing pattern).
@@ -279,6 +293,8 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
       const double score =
           std::min(q.side_dark[s1], q.side_dark[s2]) * (0.8 + 0.2 * runs / kRunsForFullScore);
       if (best && best->score >= score) continue;
+      if (!best_dashed && best) best.reset();  // an L with its timing pattern beats an L alone
+      best_dashed = true;
       DataMatrixCandidate c;
       // The L's corner is the upright symbol's bottom-left: TL, TR, BR, BL = k+1, k+2, k+3, k.
       for (int i = 0; i < 4; ++i) c.corners_px[i] = q.corners_px[(k + 1 + i) % 4];
@@ -292,13 +308,32 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
       c.score = score;
       best = c;
     }
+    if (!best) {
+      // An L alone: two adjacent solid sides and the others not (light modules near the
+      // far corner can leave the component's hull well inside the timing pattern, so the
+      // hull's other sides run through the quiet zone). The far corner is the L's
+      // parallelogram completion; ranked after every L with its timing pattern.
+      for (int k = 0; k < 4; ++k) {
+        const int s1 = (k + 3) % 4, s2 = k, t1 = (k + 1) % 4, t2 = (k + 2) % 4;
+        if (q.side_dark[s1] < kLAloneSolidMin || q.side_dark[s2] < kLAloneSolidMin) continue;
+        if (q.side_dark[t1] >= kSolidMin || q.side_dark[t2] >= kSolidMin) continue;
+        const double score = kLAloneScale * std::min(q.side_dark[s1], q.side_dark[s2]);
+        if (best && best->score >= score) continue;
+        DataMatrixCandidate c;
+        for (int i = 0; i < 4; ++i) c.corners_px[i] = q.corners_px[(k + 1 + i) % 4];
+        c.corners_px[1] = c.corners_px[0] + c.corners_px[2] - c.corners_px[3];
+        c.score = score;
+        best = c;
+      }
+    }
     if (best) all.push_back(*best);
   }
   std::stable_sort(all.begin(), all.end(), [](const DataMatrixCandidate& a, const DataMatrixCandidate& b) {
     return a.score > b.score;
   });
-  return Deduplicate(all, max_candidates,
-                     [](const DataMatrixCandidate& c) -> const Quad2d& { return c.corners_px; });
+  return Deduplicate(
+      all, max_candidates, [](const DataMatrixCandidate& c) -> const Quad2d& { return c.corners_px; },
+      kDuplicateMaxSizeRatio);
 }
 
 std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px,

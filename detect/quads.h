@@ -16,6 +16,7 @@
 
 #include <array>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "detect/common.h"
@@ -48,29 +49,54 @@ struct DataMatrixCandidate {
 };
 
 // The quads with a varied interior (spread >= 0.3: the data modules), two adjacent solid sides
-// (>= 85 % dark) and two dashed ones (15-85 % dark, at least 2 dark runs), best first, at most
-// `max_candidates`, duplicates (a centre within half a side of a better one, e.g. the same symbol at two
-// levels) dropped. The top-right corner is the L's parallelogram completion unless the hull's corner is
-// within 8 % of a side of it (light modules near that corner can leave the dark component well short).
+// (>= 80 % dark) and two dashed ones (15-85 % dark, at least 2 dark runs), best first, at most
+// `max_candidates`, duplicates (a centre within half a side of a better one and a size within 1.4x
+// of it, e.g. the same symbol at two levels) dropped. The top-right corner is the L's parallelogram
+// completion unless the hull's corner is within 8 % of a side of it (light modules near that corner
+// can leave the dark component well short). After them, an L alone: a quad with a varied interior,
+// two adjacent sides >= 75 % dark and neither other side solid (the hull cut deep into the timing
+// pattern), its top-right corner the completion, its score half its legs' solidity.
 std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates);
 
 // A cheap test of a candidate's rectified patch (`side` px symbol at (`margin`, `margin`), the
 // L's corner bottom-left) before any decoder: the L darker than the lightest modules inside by
-// at least 8 gray levels, and 20-80 % of a 9 x 9 grid over the inside darker than halfway
-// between the two (the data modules mix dark and light).
+// at least 8 gray levels, 20-80 % of a 9 x 9 grid over the inside darker than halfway
+// between the two (the data modules mix dark and light), and a timing pattern: two adjacent
+// sides each with at least 2 dark runs along a line near it (from 3 % of the side outside
+// to 8 % inside; the orientation may be a quarter turn off). *timing_runs (when not null):
+// the larger over adjacent side pairs of the pair's smaller run count (0 when the contrast
+// or inside test fails).
 // Implemented in detect/datamatrix.cc.
-bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side);
+bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* timing_runs = nullptr);
 
-// Rectifies a candidate onto a small upright patch (side 48-140 px and a 30 % quiet zone,
-// through the homography of its corners), gives up unless DataMatrixPatchPlausible, starts
-// libdmtx only at seed pixels on the L's two
-// outer edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and falls
-// back to zxing-cpp's DataMatrix reader on the same patch (the symbol at its centre, where
+// A candidate rectified onto a small upright patch (side 48-140 px and a 30 % quiet zone, through
+// the homography of its corners).
+struct DataMatrixPatch {
+  cv::Mat patch;
+  cv::Matx33d patch_to_frame;
+  int side = 0;
+  int margin = 0;
+  int timing_runs = 0;  // DataMatrixPatchPlausible's
+  DataMatrixCandidate candidate;
+};
+
+// The candidate's patch, or nothing unless DataMatrixPatchPlausible. Implemented in
+// detect/datamatrix.cc.
+std::optional<DataMatrixPatch> RectifyDataMatrixCandidate(const cv::Mat& gray,
+                                                          const DataMatrixCandidate& candidate);
+
+// Decodes a rectified candidate: libdmtx started only at seed pixels on the L's two outer
+// edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and zxing-cpp's
+// DataMatrix reader on the same patch as the fallback (the symbol at its centre, where
 // zxing 1.4 starts its search). When zxing reads the same text as libdmtx on the patch, its
 // corners are returned (a better start for the refinement), and its text replaces a libdmtx
-// text with control bytes (ECI designators, which libdmtx passes through).
-// Corners in frame pixels, docs/design.md order, not refined.
+// text with control bytes (ECI designators, which libdmtx passes through). A symbol whose
+// centre is more than a fifth of a side from the candidate's, or whose size is off by more
+// than 40 %, is dropped. Corners in frame pixels, docs/design.md order, not refined.
 // Implemented in detect/datamatrix.cc with the rest of the libdmtx glue.
+std::vector<MarkerObservation> DecodeDataMatrixPatch(const DataMatrixPatch& patch);
+
+// RectifyDataMatrixCandidate then DecodeDataMatrixPatch.
 std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray,
                                                        const DataMatrixCandidate& candidate);
 
