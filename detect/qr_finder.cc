@@ -442,6 +442,7 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
   const cv::Size image_size = gray.size();
   std::vector<QrFinderPattern> finders;
   for (const DarkQuad& q : quads) {
+    if (q.l_completion) continue;  // a DataMatrix L's completion, not a hull
     int solid = 0;
     double weakest = 1.0;
     for (const double dark : q.side_dark) {
@@ -469,6 +470,7 @@ std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int m
   std::vector<DarkQuad> out;
   for (const DarkQuad& q : quads) {
     if (static_cast<int>(out.size()) >= max_quads) break;
+    if (q.l_completion) continue;  // a DataMatrix L's completion, not a hull
     const double side = QuadMeanSide(q.corners_px);
     if (q.scale > kSmallCodeMaxScale || side < kMinSmallCodeSidePx || side > kMaxSmallCodeSidePx) continue;
     const double lo = *std::min_element(q.side_dark.begin(), q.side_dark.end());

@@ -34,6 +34,11 @@ constexpr double kDashedMin = 0.15;
 // and its score's factor (below every L with its timing pattern).
 constexpr double kLAloneSolidMin = 0.75;
 constexpr double kLAloneScale = 0.5;
+// An L's completion quad (DarkQuad::l_completion) ranks after every hull's quad: where both
+// are candidates of one symbol, the hull's patch is the one zxing confirms on, whose corners
+// start the refinement (`e2e_render_detect_test`: a symbol at the image border read from the
+// completion first kept libdmtx's corners, 0.92 px off; ranked at 0.9 of a hull's it was).
+constexpr double kLCompletionScale = 0.5;
 constexpr int kDashedMinRuns = 2;
 constexpr int kRunsForFullScore = 5;
 // DataMatrix: the hull's top-right corner is kept when within this fraction of the mean
@@ -97,6 +102,39 @@ std::optional<Quad2d> QuadFromHull(const std::vector<cv::Point>& hull) {
     return quad;
   }
   return std::nullopt;
+}
+
+// The quad of an L: the polygon of the hull (3 % of its perimeter) with five or six corners,
+// its longest side and the longer of that side's neighbours as the legs, the far corner their
+// parallelogram completion; clockwise on screen. A DataMatrix symbol whose light modules near
+// the far corner leave the hull well short of it (two or three hull sides across the corner).
+std::optional<Quad2d> LQuadFromHull(const std::vector<cv::Point>& hull) {
+  std::vector<cv::Point> poly;
+  cv::approxPolyDP(hull, poly, 0.03 * cv::arcLength(hull, true), true);
+  const size_t n = poly.size();
+  if (n != 5 && n != 6) return std::nullopt;
+  std::vector<Eigen::Vector2d> p;
+  for (const cv::Point& q : poly) p.emplace_back(q.x, q.y);
+  const auto length = [&](size_t i) { return (p[(i + 1) % n] - p[i]).norm(); };
+  size_t longest = 0;
+  for (size_t i = 1; i < n; ++i) {
+    if (length(i) > length(longest)) longest = i;
+  }
+  // Side i runs p[i] -> p[i+1]; its neighbours are sides i-1 and i+1.
+  const size_t before = (longest + n - 1) % n, after = (longest + 1) % n;
+  Eigen::Vector2d corner, end1, end2;
+  if (length(before) >= length(after)) {
+    corner = p[longest];
+    end1 = p[before];
+    end2 = p[(longest + 1) % n];
+  } else {
+    corner = p[(longest + 1) % n];
+    end1 = p[longest];
+    end2 = p[(after + 1) % n];
+  }
+  Quad2d quad = {corner, end1, end1 + end2 - corner, end2};
+  if (Cross(quad[1] - quad[0], quad[2] - quad[1]) < 0) std::swap(quad[1], quad[3]);
+  return quad;
 }
 
 struct SideSamples {
@@ -242,31 +280,48 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
       const cv::Point first = component.row_ends.front();
       const auto at_first = std::find(hull.begin(), hull.end(), first);
       if (at_first != hull.end()) std::rotate(hull.begin(), at_first + 1, hull.end());
+      const auto add = [&](const Quad2d& quad, bool l_completion) {
+        double shortest = 1e300, longest = 0.0;
+        for (int j = 0; j < 4; ++j) {
+          const double side = (quad[(j + 1) % 4] - quad[j]).norm();
+          shortest = std::min(shortest, side);
+          longest = std::max(longest, side);
+        }
+        if (shortest < min_side || longest > kMaxAspect * shortest) return;
+        DarkQuad q;
+        for (int j = 0; j < 4; ++j) {
+          const SideSamples side = SampleSide(dark, quad[j], quad[(j + 1) % 4]);
+          q.side_dark[j] = side.dark_fraction;
+          q.side_runs[j] = side.runs;
+        }
+        q.interior_spread = InteriorSpread(small, quad);
+        // Work pixels -> frame pixels (pixel centres: scaling is about pixel edges), and the
+        // outline through the dark pixels' centres -> their outer edges (half a pixel out).
+        const Eigen::Vector2d centre = QuadCenter(quad);
+        for (int j = 0; j < 4; ++j) {
+          const Eigen::Vector2d out = (quad[j] - centre).normalized() * 0.5;
+          q.corners_px[j] = ((quad[j] + out).array() + 0.5) / scale - 0.5;
+        }
+        q.scale = scale;
+        q.l_completion = l_completion;
+        all.push_back(q);
+      };
       const std::optional<Quad2d> quad = QuadFromHull(hull);
-      if (!quad) continue;
-      double shortest = 1e300, longest = 0.0;
-      for (int j = 0; j < 4; ++j) {
-        const double side = ((*quad)[(j + 1) % 4] - (*quad)[j]).norm();
-        shortest = std::min(shortest, side);
-        longest = std::max(longest, side);
+      if (quad) add(*quad, false);
+      // The L's own quad when the hull has five or six corners and its two longest adjacent
+      // sides complete to another quad (DataMatrixCandidates only).
+      if (const std::optional<Quad2d> l_quad = LQuadFromHull(hull)) {
+        const bool same = quad && [&] {
+          for (int j = 0; j < 4; ++j) {
+            const double d =
+                std::min({((*l_quad)[j] - (*quad)[0]).norm(), ((*l_quad)[j] - (*quad)[1]).norm(),
+                          ((*l_quad)[j] - (*quad)[2]).norm(), ((*l_quad)[j] - (*quad)[3]).norm()});
+            if (d > kCompletionTolerance * QuadMeanSide(*quad)) return false;
+          }
+          return true;
+        }();
+        if (!same) add(*l_quad, true);
       }
-      if (shortest < min_side || longest > kMaxAspect * shortest) continue;
-      DarkQuad q;
-      for (int j = 0; j < 4; ++j) {
-        const SideSamples side = SampleSide(dark, (*quad)[j], (*quad)[(j + 1) % 4]);
-        q.side_dark[j] = side.dark_fraction;
-        q.side_runs[j] = side.runs;
-      }
-      q.interior_spread = InteriorSpread(small, *quad);
-      // Work pixels -> frame pixels (pixel centres: scaling is about pixel edges), and the
-      // outline through the dark pixels' centres -> their outer edges (half a pixel out).
-      const Eigen::Vector2d centre = QuadCenter(*quad);
-      for (int j = 0; j < 4; ++j) {
-        const Eigen::Vector2d out = ((*quad)[j] - centre).normalized() * 0.5;
-        q.corners_px[j] = (((*quad)[j] + out).array() + 0.5) / scale - 0.5;
-      }
-      q.scale = scale;
-      all.push_back(q);
     }
   }
   return all;
@@ -280,7 +335,6 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
   for (const DarkQuad& q : quads) {
     if (q.interior_spread < kDataMatrixMinSpread) continue;
     std::optional<DataMatrixCandidate> best;
-    bool best_dashed = false;
     for (int k = 0; k < 4; ++k) {
       // Corner k is the L's corner: sides k-1 (ends at k) and k (starts at k) solid, the
       // two others dashed (the timing pattern).
@@ -290,11 +344,10 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
       // The L's solidity, and among orientations of one quad the one whose other two sides
       // alternate most (the timing pattern).
       const int runs = std::min(std::min(q.side_runs[t1], q.side_runs[t2]), kRunsForFullScore);
-      const double score =
-          std::min(q.side_dark[s1], q.side_dark[s2]) * (0.8 + 0.2 * runs / kRunsForFullScore);
+      const double score = std::min(q.side_dark[s1], q.side_dark[s2]) *
+                           (0.8 + 0.2 * runs / kRunsForFullScore) *
+                           (q.l_completion ? kLCompletionScale : 1.0);
       if (best && best->score >= score) continue;
-      if (!best_dashed && best) best.reset();  // an L with its timing pattern beats an L alone
-      best_dashed = true;
       DataMatrixCandidate c;
       // The L's corner is the upright symbol's bottom-left: TL, TR, BR, BL = k+1, k+2, k+3, k.
       for (int i = 0; i < 4; ++i) c.corners_px[i] = q.corners_px[(k + 1 + i) % 4];
@@ -317,7 +370,8 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
         const int s1 = (k + 3) % 4, s2 = k, t1 = (k + 1) % 4, t2 = (k + 2) % 4;
         if (q.side_dark[s1] < kLAloneSolidMin || q.side_dark[s2] < kLAloneSolidMin) continue;
         if (q.side_dark[t1] >= kSolidMin || q.side_dark[t2] >= kSolidMin) continue;
-        const double score = kLAloneScale * std::min(q.side_dark[s1], q.side_dark[s2]);
+        const double score = kLAloneScale * std::min(q.side_dark[s1], q.side_dark[s2]) *
+                             (q.l_completion ? kLCompletionScale : 1.0);
         if (best && best->score >= score) continue;
         DataMatrixCandidate c;
         for (int i = 0; i < 4; ++i) c.corners_px[i] = q.corners_px[(k + 1 + i) % 4];
@@ -340,7 +394,7 @@ std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double 
                                      int max_candidates) {
   std::vector<std::pair<double, Quad2d>> all;
   for (const DarkQuad& q : quads) {
-    if (QuadMeanSide(q.corners_px) > max_side_px) continue;
+    if (q.l_completion || QuadMeanSide(q.corners_px) > max_side_px) continue;
     const double solid = std::min({q.side_dark[0], q.side_dark[1], q.side_dark[2], q.side_dark[3]});
     if (solid < kSolidMin) continue;
     // A tag's inside mixes dark and light bits (a filled box or an empty frame is even).

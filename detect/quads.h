@@ -11,7 +11,10 @@
 // top-right, is replaced by the intersection of its neighbouring sides). Each side is sampled just inside
 // itself (3 % of its length in, from 8 % to 92 % along): its dark fraction and its number of dark runs; and
 // the middle half of the quad: the standard deviation of its gray levels over the border's contrast (just
-// outside minus just inside the sides). The work is a fixed function of the image (no clock).
+// outside minus just inside the sides). A hull whose polygon (3 % of its perimeter) has five or six
+// corners also gives the quad of an L (its longest side and the longer neighbour as the legs, the
+// far corner their parallelogram completion; DarkQuad::l_completion), when that differs from the
+// hull's quad: for DataMatrix candidates only. The work is a fixed function of the image (no clock).
 #pragma once
 
 #include <array>
@@ -29,6 +32,9 @@ struct DarkQuad {
   std::array<int, 4> side_runs;
   double interior_spread = 0.0;  // gray-level spread inside / the border's contrast
   double scale = 1.0;            // the level it was found at
+  // An L's parallelogram completion rather than the hull's quad (a hull of five or six corners
+  // whose two longest adjacent sides are the legs): for DataMatrix candidates only.
+  bool l_completion = false;
 };
 
 // Every dark component's quad with each side at least `min_side_px` (and at most 3.5 times
@@ -55,7 +61,8 @@ struct DataMatrixCandidate {
 // completion unless the hull's corner is within 8 % of a side of it (light modules near that corner
 // can leave the dark component well short). After them, an L alone: a quad with a varied interior,
 // two adjacent sides >= 75 % dark and neither other side solid (the hull cut deep into the timing
-// pattern), its top-right corner the completion, its score half its legs' solidity.
+// pattern), its top-right corner the completion, its score half its legs' solidity. Quads
+// with l_completion score half (after every hull's quad).
 std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad>& quads, int max_candidates);
 
 // A cheap test of a candidate's rectified patch (`side` px symbol at (`margin`, `margin`), the

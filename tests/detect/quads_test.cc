@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -168,6 +169,54 @@ TEST(DetectQuads, LAloneCandidateCompletesTheParallelogram) {
   EXPECT_LT(MaxCornerError(candidates[1].corners_px, expected), 1e-9);
   cut.side_dark = {0.9, 0.9, 0.95, 1.0};  // four solid sides
   EXPECT_TRUE(DataMatrixCandidates({cut}, 4).empty());
+}
+
+// A dark component whose hull is an L's square with its far corner cut by two sides (a
+// DataMatrix symbol whose light modules near the far corner leave the hull well short of
+// it): five corners, the cut is not the shortest side, so the hull's quad (shortest side
+// removed) is not the square. The L's parallelogram completion is one more dark quad, marked
+// (for DataMatrix candidates only: never an AprilTag border).
+TEST(DetectQuads, LCompletionQuadWhenTheHullIsCutDeep) {
+  for (int r = 0; r < 4; ++r) {
+    cv::Mat image = Canvas();
+    // Clockwise from the L's corner: (100, 300), up the left leg, the cut, down to the bottom leg.
+    const Eigen::Vector2d centre(150, 250);
+    const std::vector<Eigen::Vector2d> shape = {Eigen::Vector2d(100, 300), Eigen::Vector2d(100, 200),
+                                                Eigen::Vector2d(140, 200), Eigen::Vector2d(200, 260),
+                                                Eigen::Vector2d(200, 300)};
+    const Quad2d square = {Eigen::Vector2d(100, 200), Eigen::Vector2d(200, 200), Eigen::Vector2d(200, 300),
+                           Eigen::Vector2d(100, 300)};
+    const auto turn = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {  // r quarter turns, then moved
+      Eigen::Vector2d d = p - centre;
+      for (int k = 0; k < r; ++k) d = Eigen::Vector2d(-d.y(), d.x());
+      return Eigen::Vector2d(320, 240) + d;
+    };
+    std::vector<cv::Point> polygon;
+    for (const Eigen::Vector2d& p : shape) {
+      const Eigen::Vector2d q = turn(p);
+      polygon.emplace_back(static_cast<int>(q.x()), static_cast<int>(q.y()));
+    }
+    cv::fillConvexPoly(image, polygon, cv::Scalar(30));
+    const std::vector<DarkQuad> quads = FindDarkQuads(image);
+    int completions = 0;
+    for (const DarkQuad& q : quads) {
+      if (!q.l_completion) continue;
+      ++completions;
+      double worst = 1e9;  // the quad's corners against the turned square's, in any rotation
+      for (int k = 0; k < 4; ++k) {
+        double e = 0.0;
+        for (int i = 0; i < 4; ++i) e = std::max(e, (q.corners_px[(i + k) % 4] - turn(square[i])).norm());
+        worst = std::min(worst, e);
+      }
+      EXPECT_LT(worst, 4.0) << "rotation " << r;  // a pixel of the level it was found at (1/4)
+    }
+    EXPECT_GE(completions, 1) << "rotation " << r;
+    EXPECT_TRUE(SolidBorderQuads(quads, 400.0, 16).empty()) << "rotation " << r;
+  }
+  // A square has no L completion.
+  cv::Mat image = Canvas();
+  cv::rectangle(image, cv::Rect(100, 100, 80, 80), cv::Scalar(30), cv::FILLED);
+  for (const DarkQuad& q : FindDarkQuads(image)) EXPECT_FALSE(q.l_completion);
 }
 
 // A symbol inside a larger L-shaped quad at the same place (the dark background around its
