@@ -450,16 +450,18 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
     }
     out["families"].push_back(fam);
   }
+  // A run with no empty frame (or none with codes) has no such timing: 0.
+  const auto field = [&out](const char* timing, const char* key) {
+    return out.contains(timing) && out[timing].is_object() ? out[timing].value(key, 0.0) : 0.0;
+  };
   std::printf(
       "CPU time per frame with 1-4 codes: mean %.1f ms, max %.1f ms; empty: mean %.1f ms, max %.1f ms; "
       "%ld detections on %zu empty frames\n",
-      out["time_with_codes"].value("mean_ms", 0.0), out["time_with_codes"].value("max_ms", 0.0),
-      out["time_empty"].value("mean_ms", 0.0), out["time_empty"].value("max_ms", 0.0), empty_detections,
-      empty_ms.size());
+      field("time_with_codes", "mean_ms"), field("time_with_codes", "max_ms"), field("time_empty", "mean_ms"),
+      field("time_empty", "max_ms"), empty_detections, empty_ms.size());
   if (threads > 1) {
     std::printf("threads %d: wall time per frame with 1-4 codes: mean %.1f ms; empty: mean %.1f ms\n",
-                threads, out["wall_time_with_codes"].value("mean_ms", 0.0),
-                out["wall_time_empty"].value("mean_ms", 0.0));
+                threads, field("wall_time_with_codes", "mean_ms"), field("wall_time_empty", "mean_ms"));
   }
   out["misses"] = misses;
   out["poor_corners"] = poor_corners;
