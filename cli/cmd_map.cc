@@ -431,6 +431,7 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
     nlohmann::json report = {{"landmarks", result.map.markers.size()},
                              {"observations_used", result.observations},
                              {"outliers", result.outliers},
+                             {"range_outliers", result.range_outliers},
                              {"range_rms_m", result.range_rms_m},
                              {"bearing_rms_rad", result.bearing_rms_rad},
                              {"solver_time_s", result.solver_time_s},
@@ -449,6 +450,7 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
            {"nodes", d.nodes},
            {"observations", d.observations},
            {"outliers", d.outliers},
+           {"range_outliers", d.range_outliers},
            {"gauge", d.gauge},
            {"sensor_bias", {d.sensor_bias[0], d.sensor_bias[1]}},
            {"bearing_scale", d.bearing_scale},
@@ -465,7 +467,8 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
   }
   AtomicWriteFiles({files.begin(), files.end()});
   std::cout << "landmarks: " << result.map.markers.size() << " (point landmarks, one component)\n"
-            << "observations: " << result.observations << " used, " << result.outliers << " outliers\n"
+            << "observations: " << result.observations << " used (" << result.range_outliers
+            << " of them for their bearing only: range outliers), " << result.outliers << " outliers\n"
             << "residual RMS: range " << FormatFixed(result.range_rms_m, 3) << " m, bearing "
             << FormatFixed(result.bearing_rms_rad, 4) << " rad\n"
             << "noise estimated: sigma_range " << FormatSignificant(result.noise.range_a_m, 3) << " m + "

@@ -123,6 +123,33 @@ class BiasedRangeBearingFactor {
   const double inv_sigma_bearing_;
 };
 
+// The bearing part of BiasedRangeBearingFactor alone (1 residual, the same blocks): a sighting whose
+// range is an outlier (a barcode's apparent size misread) and whose bearing is not.
+class BiasedBearingFactor {
+ public:
+  BiasedBearingFactor(double range_m, double bearing_rad, double sigma_range_m, double sigma_bearing_rad)
+      : biased_(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad) {}
+
+  template <typename T>
+  bool operator()(const T* const T_world_robot, const T* const l_world, const T* const sensor,
+                  T* residuals) const {
+    T both[2];
+    if (!biased_(T_world_robot, l_world, sensor, both)) return false;
+    residuals[0] = both[1];
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double range_m, double bearing_rad, double sigma_range_m,
+                                     double sigma_bearing_rad) {
+    return new ceres::AutoDiffCostFunction<BiasedBearingFactor, 1, kSE2BlockSize, kPointLandmark2Size,
+                                           kRangeBearingSensorSize>(
+        new BiasedBearingFactor(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad));
+  }
+
+ private:
+  const BiasedRangeBearingFactor biased_;
+};
+
 // r = [b_range / sigma_range_m, b_bearing / sigma_bearing_rad, k_bearing / sigma_scale]: the weak prior
 // that keeps an unexcited sensor offset at 0.
 struct SensorBiasPrior {

@@ -78,6 +78,7 @@ struct Observation {
   double range_m = 0.0, bearing_rad = 0.0;
   std::optional<double> sigma_range_m, sigma_bearing_rad;
   bool outlier = false;
+  bool range_outlier = false;  // its range set aside, its bearing kept (not an `outlier`)
 };
 
 struct Landmark {
@@ -380,6 +381,13 @@ double Builder::Solve(bool robust, bool covariance) {
     Landmark& l = landmarks_.at(obs.key);
     DatasetState& state = states_[obs.dataset];
     ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
+    if (obs.range_outlier) {
+      blocks[obs.dataset].push_back(problem.AddResidualBlock(
+          BiasedBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
+                                      SigmaBearing(obs, state.noise)),
+          loss, state.nodes[obs.node].block, l.block, state.sensor));
+      continue;
+    }
     blocks[obs.dataset].push_back(problem.AddResidualBlock(
         BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
                                          SigmaBearing(obs, state.noise)),
@@ -479,9 +487,14 @@ size_t Builder::MarkOutliers() {
   for (Observation& obs : observations_) {
     const Eigen::Vector2d e = Error(obs, states_, landmarks_);
     const RangeBearingNoise& noise = states_[obs.dataset].noise;
-    const double chi2 =
-        std::pow(e[0] / SigmaRange(obs, noise), 2) + std::pow(e[1] / SigmaBearing(obs, noise), 2);
-    obs.outlier = chi2 > options_.outlier_chi2;
+    const double range_chi2 = std::pow(e[0] / SigmaRange(obs, noise), 2);
+    const double bearing_chi2 = std::pow(e[1] / SigmaBearing(obs, noise), 2);
+    if (options_.separate_range_outliers) {
+      obs.outlier = bearing_chi2 > options_.outlier_chi2_1dof;
+      obs.range_outlier = !obs.outlier && range_chi2 > options_.outlier_chi2_1dof;
+    } else {
+      obs.outlier = range_chi2 + bearing_chi2 > options_.outlier_chi2;
+    }
     outliers += obs.outlier;
   }
   return outliers;
@@ -674,7 +687,9 @@ void Builder::EstimateRangeScale() {
   for (size_t k = 0; k < states_.size(); ++k) {
     std::map<size_t, std::vector<double>> frames;
     for (const Observation& obs : observations_) {
-      if (obs.dataset != k || obs.outlier || obs.node >= states_[k].active || obs.range_m <= 0.0) continue;
+      if (obs.dataset != k || obs.outlier || obs.range_outlier || obs.node >= states_[k].active ||
+          obs.range_m <= 0.0)
+        continue;
       frames[obs.node].push_back(Error(obs, states_, landmarks_)[0] / obs.range_m);
     }
     std::vector<std::pair<double, double>> means;  // (stamp, m_f)
@@ -780,11 +795,17 @@ RangeBearingBuildResult Builder::Collect() {
     ++state.summary.observations;
     ++result.observations;
     const Eigen::Vector2d e = Error(obs, states_, landmarks_);
-    sum_range += e[0] * e[0];
+    if (obs.range_outlier) {
+      ++state.summary.range_outliers;
+      ++result.range_outliers;
+    } else {
+      sum_range += e[0] * e[0];
+    }
     sum_bearing += e[1] * e[1];
   }
+  if (result.observations > result.range_outliers)
+    result.range_rms_m = std::sqrt(sum_range / (result.observations - result.range_outliers));
   if (result.observations > 0) {
-    result.range_rms_m = std::sqrt(sum_range / result.observations);
     result.bearing_rms_rad = std::sqrt(sum_bearing / result.observations);
   }
   for (const auto& [key, landmark] : landmarks_) {

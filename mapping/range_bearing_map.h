@@ -24,11 +24,13 @@
 // observation; Cauchy loss (cauchy_scale, whitened units). (2) noise_rounds rounds of: the range
 // sigma line a + b r is fitted to the robust spread (1.4826 MAD) of the range residuals of every
 // observation in range bins, the bearing sigma to that of the bearing residuals; observations
-// whose whitened squared residual exceeds outlier_chi2 are set aside as outliers; q_t, q_r are scaled so that
-// the odometry's disagreement with the solved trajectory over windows of noise_window_s matches the model;
-// solve again. (2b) the odometry's delay behind the measurements (commanded velocities lead the
-// motion; RangeBearingNoise::odometry_delay_s), per dataset: nodes take the odometry at
-// stamp - delay; the delay minimizes the dataset's own cost over a grid in
+// whose whitened squared bearing residual exceeds outlier_chi2_1dof are set aside as outliers, and
+// of the others those whose whitened squared range residual exceeds it keep their bearing alone
+// (BiasedBearingFactor; separate_range_outliers, else one 2-dof test against outlier_chi2); q_t, q_r are
+// scaled so that the odometry's disagreement with the solved trajectory over windows of noise_window_s
+// matches the model; solve again. (2b) the odometry's delay behind the measurements (commanded velocities
+// lead the motion; RangeBearingNoise::odometry_delay_s), per dataset: nodes take the odometry at stamp -
+// delay; the delay minimizes the dataset's own cost over a grid in
 // [-max_odometry_delay_s, max_odometry_delay_s] (every grid delay re-solved), refined by a
 // parabola, kept when a likelihood-ratio test (1 dof, 95 %) prefers it to 0; one more round of (2) follows.
 // (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations times are
@@ -61,6 +63,9 @@ struct RangeBearingBuildOptions {
   double window_s = 60.0;
   double cauchy_scale = 3.0;
   double outlier_chi2 = 13.8;  // 2 degrees of freedom, 99.9 %
+  // Range and bearing tested apart (chi-square 1 dof, 99.9 %): a range outlier keeps its bearing.
+  bool separate_range_outliers = true;
+  double outlier_chi2_1dof = 10.83;
   int min_observations = 3;
   int noise_rounds = 3;
   double noise_window_s = 5.0;
@@ -94,6 +99,7 @@ struct RangeBearingDatasetSummary {
   size_t nodes = 0;
   size_t observations = 0;  // range-bearing observations of landmarks used in the final solve
   size_t outliers = 0;
+  size_t range_outliers = 0;  // observations whose range was set aside and bearing kept (in `observations`)
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   Eigen::Vector2d sensor_bias = Eigen::Vector2d::Zero();  // range offset (m), bearing offset (rad)
   double bearing_scale = 0.0;  // the sensor's bearing scale error (bearings read 1 + this times too large)
@@ -109,7 +115,8 @@ struct RangeBearingBuildResult {
   std::vector<std::pair<MarkerKey, std::string>> unmapped;
   size_t observations = 0;
   size_t outliers = 0;
-  double range_rms_m = 0.0;  // residuals of the inliers, final solve
+  size_t range_outliers = 0;  // set aside for their range only, their bearing used (in `observations`)
+  double range_rms_m = 0.0;   // residuals of the inliers, final solve
   double bearing_rms_rad = 0.0;
   double solver_time_s = 0.0;
   std::vector<std::string> notes;

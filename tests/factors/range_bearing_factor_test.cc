@@ -103,6 +103,28 @@ TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
   EXPECT_NEAR(prior_residuals[2], 0.5, 1e-12);
 }
 
+TEST(RangeBearingFactor, BearingAloneIsTheBiasedFactorsBearingRowWithItsGradients) {
+  std::mt19937 rng(10);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    double r[3] = {u(rng), u(rng), 0.0};
+    double l[2] = {r[0] + 2.0 + std::abs(u(rng)), r[1] + u(rng)};
+    r[2] = std::atan2(l[1] - r[1], l[0] - r[0]) + u(rng) / 6.0;
+    double b[3] = {0.05 * u(rng), 0.01 * u(rng), 0.02 * u(rng)};
+    const double range = 2.5 + 0.5 * u(rng), bearing = 0.1 * u(rng);
+    const std::unique_ptr<ceres::CostFunction> both(
+        BiasedRangeBearingFactor::Create(range, bearing, 0.05, 0.02));
+    const std::unique_ptr<ceres::CostFunction> alone(BiasedBearingFactor::Create(range, bearing, 0.05, 0.02));
+    const double* parameters[3] = {r, l, b};
+    double residuals[2], residual = testing::kNaN;
+    ASSERT_TRUE(both->Evaluate(parameters, residuals, nullptr));
+    ASSERT_TRUE(alone->Evaluate(parameters, &residual, nullptr));
+    EXPECT_EQ(alone->num_residuals(), 1);
+    EXPECT_EQ(residual, residuals[1]);
+    testing::ExpectGradientsMatch(*alone, {nullptr, nullptr, nullptr}, {r, l, b}, 1e-6, "biased bearing");
+  }
+}
+
 TEST(RangeBearingFactor, LandmarkAtTheRobotIsRejected) {
   double robot[3] = {1.0, 1.0, 0.3};
   double landmark[2] = {1.0, 1.0 + 1e-4};
