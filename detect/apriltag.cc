@@ -94,41 +94,82 @@ class AprilTagDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    // libapriltag 3.3 crashes on images only a few pixels across once decimated (e.g.
-    // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
-    const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * options_.apriltag_decimate);
-    if (gray.cols < min_side_px || gray.rows < min_side_px) return {};
+    if (TooSmall(gray)) return {};
     std::vector<MarkerObservation> raw = Run(detector_, gray, cv::Point(0, 0));
     FrameWork work(options_.live_budget_ms);
-    if (options_.second_pass && options_.apriltag_decimate > 1.0) {
-      // Pass 2: tags too small for the decimated quad search, at full resolution but only
-      // where a solid dark border is (detect/quads.h), each crop holding no tag yet.
-      const double max_side = kSecondPassMaxSidePerDecimate * options_.apriltag_decimate;
-      for (const Quad2d& quad :
-           SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px), max_side, kMaxSecondPassQuads)) {
-        const Eigen::Vector2d centre = QuadCenter(quad);
-        const bool known = std::any_of(raw.begin(), raw.end(), [&centre](const MarkerObservation& o) {
-          return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
-        });
-        if (known || !work.Allow()) continue;
-        std::vector<cv::Point2f> points;
-        for (const Eigen::Vector2d& c : quad) points.emplace_back(float(c.x()), float(c.y()));
-        cv::Rect box = cv::boundingRect(points);
-        const int margin =
-            static_cast<int>(std::ceil(kCropMarginFraction * std::max(box.width, box.height))) + 2;
-        box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
-              cv::Rect(0, 0, gray.cols, gray.rows);
-        if (box.width < kMinImageSidePx || box.height < kMinImageSidePx) continue;
-        for (const MarkerObservation& obs : Run(full_resolution_, gray(box), box.tl())) {
-          const bool seen = std::any_of(raw.begin(), raw.end(),
-                                        [&obs](const MarkerObservation& o) { return SameDetection(o, obs); });
-          if (!seen) raw.push_back(obs);
-        }
+    if (options_.second_pass) SecondPasses(gray, &work, &raw);
+    skipped_ = work.skipped();
+    return Finish(gray, RefineObservations(gray, raw, Refines()));
+  }
+
+  std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
+    staged_.gray = ToGray8(image);
+    staged_.raw.clear();
+    if (!TooSmall(staged_.gray)) staged_.raw = Run(detector_, staged_.gray, cv::Point(0, 0));
+    staged_.refined = RefineObservations(staged_.gray, staged_.raw, Refines());
+    staged_.started = true;
+    skipped_ = 0;
+    return Finish(staged_.gray, staged_.refined);
+  }
+
+  std::vector<MarkerObservation> DetectSecondPasses() override {
+    staged_.CheckStarted();
+    const cv::Mat& gray = staged_.gray;
+    if (TooSmall(gray)) return {};
+    FrameWork work(options_.live_budget_ms);
+    std::vector<MarkerObservation> raw = staged_.raw;
+    if (options_.second_pass) SecondPasses(gray, &work, &raw);
+    skipped_ = work.skipped();
+    const bool refine = Refines();
+    return Finish(gray, staged_.RefinedWith(raw, [&gray, refine](MarkerObservation* obs) {
+      *obs = RefineObservations(gray, {*obs}, refine).front();
+    }));
+  }
+
+ private:
+  // libapriltag 3.3 crashes on images only a few pixels across once decimated (e.g.
+  // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
+  bool TooSmall(const cv::Mat& gray) const {
+    const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * options_.apriltag_decimate);
+    return gray.cols < min_side_px || gray.rows < min_side_px;
+  }
+
+  bool Refines() const { return options_.refine_corners && !tag_family_->reversed_border; }
+
+  void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* raw) {
+    if (options_.apriltag_decimate <= 1.0) return;
+    // Pass 2: tags too small for the decimated quad search, at full resolution but only
+    // where a solid dark border is (detect/quads.h), each crop holding no tag yet.
+    const double max_side = kSecondPassMaxSidePerDecimate * options_.apriltag_decimate;
+    for (const Quad2d& quad :
+         SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px), max_side, kMaxSecondPassQuads)) {
+      const Eigen::Vector2d centre = QuadCenter(quad);
+      const bool known = std::any_of(raw->begin(), raw->end(), [&centre](const MarkerObservation& o) {
+        return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
+      });
+      if (known || !work->Allow()) continue;
+      std::vector<cv::Point2f> points;
+      for (const Eigen::Vector2d& c : quad) points.emplace_back(float(c.x()), float(c.y()));
+      cv::Rect box = cv::boundingRect(points);
+      const int margin =
+          static_cast<int>(std::ceil(kCropMarginFraction * std::max(box.width, box.height))) + 2;
+      box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
+            cv::Rect(0, 0, gray.cols, gray.rows);
+      if (box.width < kMinImageSidePx || box.height < kMinImageSidePx) continue;
+      for (const MarkerObservation& obs : Run(full_resolution_, gray(box), box.tl())) {
+        const bool seen = std::any_of(raw->begin(), raw->end(),
+                                      [&obs](const MarkerObservation& o) { return SameDetection(o, obs); });
+        if (!seen) raw->push_back(obs);
       }
     }
-    skipped_ = work.skipped();
-    const bool refine = options_.refine_corners && !tag_family_->reversed_border;
-    std::vector<MarkerObservation> out = FinishObservations(gray, raw, refine, options_.min_side_px);
+  }
+
+  // The refined reads (RefineObservations) checked and, when refined, those whose border the
+  // refinement did not find dropped.
+  std::vector<MarkerObservation> Finish(const cv::Mat& gray,
+                                        const std::vector<MarkerObservation>& refined) const {
+    const bool refine = Refines();
+    std::vector<MarkerObservation> out = KeepValidObservations(gray, refined, options_.min_side_px);
     if (refine) {
       // A tag whose border the refinement cannot find where libapriltag put it (quality 0)
       // has corners that are not the border's: a dark bar across the border joins it, and
@@ -141,7 +182,6 @@ class AprilTagDetector : public MarkerDetector {
     return out;
   }
 
- private:
   // libapriltag on `gray` (a view into the frame at `offset`): corners in frame pixels,
   // DESIGN.md order, OpenCV's pixel centres.
   std::vector<MarkerObservation> Run(apriltag_detector_t* detector, const cv::Mat& gray,
@@ -172,6 +212,7 @@ class AprilTagDetector : public MarkerDetector {
   apriltag_detector_t* detector_ = nullptr;
   apriltag_detector_t* full_resolution_ = nullptr;  // quad_decimate 1, for pass 2's crops
   int skipped_ = 0;
+  StagedDetection staged_;
 };
 
 }  // namespace

@@ -285,10 +285,11 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
   }
 }
 
-std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray,
+std::vector<MarkerObservation> RefineObservations(const cv::Mat& gray,
                                                   const std::vector<MarkerObservation>& raw,
-                                                  bool refine_corners, double min_side_px) {
+                                                  bool refine_corners) {
   std::vector<MarkerObservation> out;
+  out.reserve(raw.size());
   for (MarkerObservation obs : raw) {
     if (refine_corners) {
       obs.quality = 0.0;
@@ -297,10 +298,30 @@ std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray,
         obs.quality = refined->inlier_fraction;
       }
     }
+    out.push_back(obs);
+  }
+  return out;
+}
+
+std::vector<MarkerObservation> KeepValidObservations(const cv::Mat& gray,
+                                                     const std::vector<MarkerObservation>& refined,
+                                                     double min_side_px) {
+  std::vector<MarkerObservation> out;
+  for (const MarkerObservation& obs : refined) {
     if (!QuadIsValid(obs.corners_px, gray.size(), min_side_px)) continue;
     AppendUnique({obs}, &out);
   }
   return out;
+}
+
+std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray,
+                                                  const std::vector<MarkerObservation>& raw,
+                                                  bool refine_corners, double min_side_px) {
+  return KeepValidObservations(gray, RefineObservations(gray, raw, refine_corners), min_side_px);
+}
+
+void StagedDetection::CheckStarted() const {
+  if (!started) throw std::logic_error("detector: DetectSecondPasses() without DetectFirstPass()");
 }
 
 }  // namespace waymark

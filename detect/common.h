@@ -112,6 +112,40 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
 std::vector<MarkerObservation> FinishObservations(const cv::Mat& gray,
                                                   const std::vector<MarkerObservation>& raw,
                                                   bool refine_corners, double min_side_px);
+// FinishObservations in its two steps (FinishObservations(g, raw, r, m) ==
+// KeepValidObservations(g, RefineObservations(g, raw, r), m)), so that a detector run in two
+// stages (MarkerDetector::DetectFirstPass) refines each quad once.
+std::vector<MarkerObservation> RefineObservations(const cv::Mat& gray,
+                                                  const std::vector<MarkerObservation>& raw,
+                                                  bool refine_corners);
+std::vector<MarkerObservation> KeepValidObservations(const cv::Mat& gray,
+                                                     const std::vector<MarkerObservation>& refined,
+                                                     double min_side_px);
+
+// What a detector keeps between MarkerDetector::DetectFirstPass and DetectSecondPasses: the
+// image (gray), the first pass's reads before refinement (`raw`) and the same reads refined
+// (`refined`, one per raw read, in order; the second passes only append to `raw`).
+struct StagedDetection {
+  bool started = false;
+  cv::Mat gray;
+  std::vector<MarkerObservation> raw;
+  std::vector<MarkerObservation> refined;
+  // The first pass's reads followed by `more` (the second passes' reads), refined; each read
+  // of the first pass is refined once. `refine` refines one read in place.
+  template <typename Refine>
+  std::vector<MarkerObservation> RefinedWith(const std::vector<MarkerObservation>& raw_after,
+                                             Refine refine) const {
+    std::vector<MarkerObservation> out = refined;
+    for (size_t i = raw.size(); i < raw_after.size(); ++i) {
+      MarkerObservation obs = raw_after[i];
+      refine(&obs);
+      out.push_back(obs);
+    }
+    return out;
+  }
+  // Throws std::logic_error unless DetectFirstPass ran.
+  void CheckStarted() const;
+};
 
 // A 64-bit hash of an 8-bit single-channel image's size and pixels (four interleaved
 // multiply-xor lanes over 8-byte words, then the tail; about 0.05 ms for 1280x960).

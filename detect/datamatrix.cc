@@ -50,6 +50,41 @@ class DataMatrixDetector : public MarkerDetector {
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
     FrameWork work(options_.live_budget_ms);
+    std::vector<MarkerObservation> found = FirstPass(gray, &work);
+    if (options_.second_pass) SecondPasses(gray, &work, &found);
+    skipped_ = work.skipped();
+    return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
+  }
+
+  std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
+    staged_.gray = ToGray8(image);
+    FrameWork work(options_.live_budget_ms);
+    staged_.raw = FirstPass(staged_.gray, &work);
+    staged_.refined = RefineObservations(staged_.gray, staged_.raw, options_.refine_corners);
+    staged_.started = true;
+    skipped_ = work.skipped();
+    return KeepValidObservations(staged_.gray, staged_.refined, options_.min_side_px);
+  }
+
+  std::vector<MarkerObservation> DetectSecondPasses() override {
+    staged_.CheckStarted();
+    FrameWork work(options_.live_budget_ms);
+    std::vector<MarkerObservation> found = staged_.raw;
+    if (options_.second_pass) SecondPasses(staged_.gray, &work, &found);
+    skipped_ = work.skipped();
+    const cv::Mat& gray = staged_.gray;
+    const bool refine = options_.refine_corners;
+    return KeepValidObservations(gray,
+                                 staged_.RefinedWith(found,
+                                                     [&gray, refine](MarkerObservation* obs) {
+                                                       *obs =
+                                                           RefineObservations(gray, {*obs}, refine).front();
+                                                     }),
+                                 options_.min_side_px);
+  }
+
+ private:
+  std::vector<MarkerObservation> FirstPass(const cv::Mat& gray, FrameWork* work) const {
     std::vector<MarkerObservation> found;
     // Pass 1: Waymark's own candidates (the L finder and the timing pattern), each rectified
     // onto its own small patch (detect/quads.h) and tested there; of those that pass, the
@@ -74,27 +109,25 @@ class DataMatrixDetector : public MarkerDetector {
       const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
         return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
       });
-      if (known || !work.Allow()) continue;
+      if (known || !work->Allow()) continue;
       ++decoded;
       AppendUnique(DecodeDataMatrixPatch(patch), &found);
     }
-    if (options_.second_pass) {
-      // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
-      // a symbol touching other dark things): zxing on the candidate regions holding no
-      // symbol yet, then on small ones upscaled.
-      const std::vector<cv::Rect> regions =
-          SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-      RunSecondPass(
-          gray, regions,
-          {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
-           [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
-          &work, &found);
-    }
-    skipped_ = work.skipped();
-    return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
+    return found;
   }
 
- private:
+  void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* found) const {
+    // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
+    // a symbol touching other dark things): zxing on the candidate regions holding no
+    // symbol yet, then on small ones upscaled.
+    const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
+    RunSecondPass(
+        gray, regions,
+        {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
+         [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
+        work, found);
+  }
+
   static std::vector<MarkerObservation> ReadUpscaled(const cv::Mat& crop) {
     if (std::max(crop.cols, crop.rows) > kMaxUpscaleSidePx) return {};
     cv::Mat big;
@@ -106,6 +139,7 @@ class DataMatrixDetector : public MarkerDetector {
 
   DetectorOptions options_;
   int skipped_ = 0;
+  StagedDetection staged_;
 };
 
 // Owns libdmtx's objects for one scan.

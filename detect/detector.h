@@ -86,6 +86,18 @@ class MarkerDetector {
   // Second-pass attempts the last Detect() skipped because DetectorOptions::live_budget_ms
   // ran out (always 0 when it is 0).
   virtual int SkippedAttempts() const { return 0; }
+
+  // Detect() in two stages on one image, for the live loop's predicted regions
+  // (runner/predicted_regions.h), which want the second passes only where the first found too
+  // few codes. DetectFirstPass(image) returns what Detect(image) returns with
+  // DetectorOptions::second_pass off; DetectSecondPasses() then returns what Detect(image)
+  // returns with this detector's options, continuing from the first pass's reads (neither the
+  // first pass nor the corner refinement of its reads runs again). `image` must stay alive and
+  // unchanged until DetectSecondPasses() or the next DetectFirstPass(). Each stage has its own
+  // live budget (DetectorOptions::live_budget_ms), and SkippedAttempts() is the last stage's.
+  // DetectSecondPasses() throws std::logic_error before any DetectFirstPass().
+  virtual std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) = 0;
+  virtual std::vector<MarkerObservation> DetectSecondPasses() = 0;
 };
 
 // Family names CreateDetector accepts: qr, datamatrix, and apriltag-<name> for every

@@ -59,9 +59,28 @@ class MultiDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);  // convert once for every family
-    // Each family on whichever worker takes it next (one detector is never used by two
-    // threads at once); the results are merged in the families' order, so the output does
-    // not depend on the thread count or on which thread finished first.
+    return EachFamily([&gray](MarkerDetector& d) { return d.Detect(gray); });
+  }
+
+  std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
+    staged_gray_ = ToGray8(image);  // kept for the families' DetectSecondPasses()
+    return EachFamily([this](MarkerDetector& d) { return d.DetectFirstPass(staged_gray_); });
+  }
+
+  std::vector<MarkerObservation> DetectSecondPasses() override {
+    if (staged_gray_.empty())
+      throw std::logic_error("detector: DetectSecondPasses() without DetectFirstPass()");
+    return EachFamily([](MarkerDetector& d) { return d.DetectSecondPasses(); });
+  }
+
+  int SkippedAttempts() const override { return skipped_; }
+
+ private:
+  // `run` on each family's detector, each family on whichever worker takes it next (one
+  // detector is never used by two threads at once); the results are merged in the families'
+  // order, so the output does not depend on the thread count or on which thread finished first.
+  template <typename Run>
+  std::vector<MarkerObservation> EachFamily(Run run) {
     const size_t n = detectors_.size();
     std::vector<std::vector<MarkerObservation>> found(n);
     std::vector<int> skipped(n, 0);
@@ -70,7 +89,7 @@ class MultiDetector : public MarkerDetector {
     const auto work = [&] {
       for (size_t i = next++; i < n; i = next++) {
         try {
-          found[i] = detectors_[i]->Detect(gray);
+          found[i] = run(*detectors_[i]);
           skipped[i] = detectors_[i]->SkippedAttempts();
         } catch (...) {
           errors[i] = std::current_exception();
@@ -91,10 +110,8 @@ class MultiDetector : public MarkerDetector {
     return all;
   }
 
-  int SkippedAttempts() const override { return skipped_; }
-
- private:
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;
+  cv::Mat staged_gray_;
   int threads_ = 1;
   int skipped_ = 0;
 };

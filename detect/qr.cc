@@ -206,32 +206,67 @@ class QrDetector : public MarkerDetector {
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
     FrameWork work(options_.live_budget_ms);
-    std::vector<MarkerObservation> found = ReadWithZxing(gray, ZxingSymbology::kQrCode, ZxingPass{});
-    if (options_.second_pass) {
-      const std::vector<CropAttempt> attempts = {
-          [](const cv::Mat& crop) { return ReadInverted(crop); },
-          [](const cv::Mat& crop) { return ReadUpscaled(crop); },
-          [](const cv::Mat& crop) { return ReadGlobalHistogram(crop); },
-          // WeChat costs milliseconds per crop: only for close-ups, where the crop is the
-          // whole image (pass 1 and the cheap attempts read codes in larger frames).
-          [this, full = gray.size()](const cv::Mat& crop) {
-            return options_.close_up && crop.size() == full ? ReadWeChat(crop)
-                                                            : std::vector<MarkerObservation>{};
-          },
-      };
-      const std::vector<cv::Rect> regions =
-          SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-      ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &work, &found);
-      ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, &work, &found);
-      ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, &work, &found);
-      RunSecondPass(gray, regions, attempts, &work, &found);
-    }
+    std::vector<MarkerObservation> found = FirstPass(gray);
+    if (options_.second_pass) SecondPasses(gray, &work, &found);
     skipped_ = work.skipped();
+    return KeepValidObservations(gray, Refine(gray, found), options_.min_side_px);
+  }
+
+  std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
+    staged_.gray = ToGray8(image);
+    staged_.raw = FirstPass(staged_.gray);
+    staged_.refined = Refine(staged_.gray, staged_.raw);
+    staged_.started = true;
+    skipped_ = 0;
+    return KeepValidObservations(staged_.gray, staged_.refined, options_.min_side_px);
+  }
+
+  std::vector<MarkerObservation> DetectSecondPasses() override {
+    staged_.CheckStarted();
+    FrameWork work(options_.live_budget_ms);
+    std::vector<MarkerObservation> found = staged_.raw;
+    if (options_.second_pass) SecondPasses(staged_.gray, &work, &found);
+    skipped_ = work.skipped();
+    const cv::Mat& gray = staged_.gray;
+    const bool refine = options_.refine_corners;
+    return KeepValidObservations(gray,
+                                 staged_.RefinedWith(found,
+                                                     [&gray, refine](MarkerObservation* obs) {
+                                                       if (refine) RefineQrCorners(gray, obs);
+                                                     }),
+                                 options_.min_side_px);
+  }
+
+ private:
+  static std::vector<MarkerObservation> FirstPass(const cv::Mat& gray) {
+    return ReadWithZxing(gray, ZxingSymbology::kQrCode, ZxingPass{});
+  }
+
+  void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* found) {
+    const std::vector<CropAttempt> attempts = {
+        [](const cv::Mat& crop) { return ReadInverted(crop); },
+        [](const cv::Mat& crop) { return ReadUpscaled(crop); },
+        [](const cv::Mat& crop) { return ReadGlobalHistogram(crop); },
+        // WeChat costs milliseconds per crop: only for close-ups, where the crop is the
+        // whole image (pass 1 and the cheap attempts read codes in larger frames).
+        [this, full = gray.size()](const cv::Mat& crop) {
+          return options_.close_up && crop.size() == full ? ReadWeChat(crop)
+                                                          : std::vector<MarkerObservation>{};
+        },
+    };
+    const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
+    ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, work, found);
+    ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, work, found);
+    ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, work, found);
+    RunSecondPass(gray, regions, attempts, work, found);
+  }
+
+  // The corners refined (the quality is the refinement's inlier fraction, 0 if it failed).
+  std::vector<MarkerObservation> Refine(const cv::Mat& gray, std::vector<MarkerObservation> found) const {
     if (options_.refine_corners) {
       for (MarkerObservation& obs : found) RefineQrCorners(gray, &obs);
     }
-    // Refined above (the quality is the refinement's inlier fraction, 0 if it failed).
-    return FinishObservations(gray, found, /*refine_corners=*/false, options_.min_side_px);
+    return found;
   }
 
  private:
@@ -272,6 +307,7 @@ class QrDetector : public MarkerDetector {
 
   DetectorOptions options_;
   int skipped_ = 0;
+  StagedDetection staged_;
   cv::wechat_qrcode::WeChatQRCode wechat_;
   cv::QRCodeDetector corner_finder_;
 };

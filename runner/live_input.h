@@ -46,9 +46,8 @@ class LiveInput {
   std::ostream& err_;
   PredictedRegionPolicy region_policy_;  // before stream_, whose frames it serves
   LocalizeStream stream_;
-  std::unique_ptr<MarkerDetector> detector_;           // created at the first image line
-  std::unique_ptr<MarkerDetector> region_detector_;    // the same without close-ups (regions)
-  std::unique_ptr<MarkerDetector> region_first_pass_;  // and without second passes
+  std::unique_ptr<MarkerDetector> detector_;         // created at the first image line
+  std::unique_ptr<MarkerDetector> region_detector_;  // the same without close-ups (regions)
   ReadWarnings read_warnings_;
   RealtimePacer pacer_;
   long line_number_ = 0, malformed_ = 0, frames_ = 0, tracking_ = 0;
@@ -57,6 +56,7 @@ class LiveInput {
   // only and on the whole frame; their CPU time (ms, every thread of the process).
   long region_images_ = 0, whole_images_ = 0;
   double region_cpu_ms_ = 0.0, whole_cpu_ms_ = 0.0;
+  double region_read_cpu_ms_ = 0.0, whole_read_cpu_ms_ = 0.0;  // of which decoding the image files
 };
 
 }  // namespace waymark

@@ -61,16 +61,16 @@ std::vector<PredictedRegion> PredictedRegions(const std::vector<Vector8d>& quads
   return boxes;
 }
 
-std::vector<MarkerObservation> DetectInRegions(MarkerDetector& first_pass, MarkerDetector& full,
-                                               const cv::Mat& image,
+std::vector<MarkerObservation> DetectInRegions(MarkerDetector& detector, const cv::Mat& image,
                                                const std::vector<PredictedRegion>& regions, int* skipped) {
   std::vector<MarkerObservation> all;
   for (const PredictedRegion& region : regions) {
     const cv::Mat crop = image(region.rect);
-    std::vector<MarkerObservation> found = first_pass.Detect(crop);
+    std::vector<MarkerObservation> found = detector.DetectFirstPass(crop);
+    if (skipped != nullptr) *skipped += detector.SkippedAttempts();
     if (static_cast<int>(found.size()) < region.codes) {
-      found = full.Detect(crop);
-      if (skipped != nullptr) *skipped += full.SkippedAttempts();
+      found = detector.DetectSecondPasses();  // the first pass is not run again
+      if (skipped != nullptr) *skipped += detector.SkippedAttempts();
     }
     MapFromCrop(region.rect.tl(), 1.0, &found);
     AppendUnique(found, &all);

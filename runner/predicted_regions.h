@@ -44,13 +44,13 @@ std::vector<PredictedRegion> PredictedRegions(const std::vector<Vector8d>& quads
                                               const cv::Size& image_size,
                                               const PredictedRegionOptions& options);
 
-// Runs `first_pass` (a detector with DetectorOptions::second_pass off) on each region of
-// `image`, and `full` (second passes on) on a region where it found fewer codes than were
-// predicted there; returns the codes in full-image pixels (duplicates dropped; a code found by
-// two regions is reported once). A region whose codes the first passes read costs no second
-// pass. `skipped` (optional) adds the attempts `full` skipped under its live budget.
-std::vector<MarkerObservation> DetectInRegions(MarkerDetector& first_pass, MarkerDetector& full,
-                                               const cv::Mat& image,
+// Runs the first pass of `detector` (MarkerDetector::DetectFirstPass) on each region of
+// `image`, and its second passes (DetectSecondPasses, continuing from the first pass's reads,
+// which are not made again) on a region where it found fewer codes than were predicted there;
+// returns the codes in full-image pixels (duplicates dropped; a code found by two regions is
+// reported once). A region whose codes the first passes read costs no second pass. `skipped`
+// (optional) adds the attempts skipped under the detector's live budget.
+std::vector<MarkerObservation> DetectInRegions(MarkerDetector& detector, const cv::Mat& image,
                                                const std::vector<PredictedRegion>& regions,
                                                int* skipped = nullptr);
 

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <memory>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
@@ -74,6 +76,7 @@ TEST(PredictedRegions, DetectInRegionsFindsTheCodeWhereTheMapSays) {
   const auto detector = CreateMultiDetector({"qr", "datamatrix"});
   DetectorOptions options;
   options.close_up = false;
+  const auto in_regions = CreateMultiDetector({"qr", "datamatrix"}, options);
   options.second_pass = false;
   const auto first_pass = CreateMultiDetector({"qr", "datamatrix"}, options);
   const std::vector<MarkerObservation> whole = detector->Detect(image);
@@ -85,8 +88,7 @@ TEST(PredictedRegions, DetectInRegionsFindsTheCodeWhereTheMapSays) {
       PredictedRegions({predicted}, image.size(), PredictedRegionOptions{});
   ASSERT_EQ(regions.size(), 1u);
   int skipped = 0;
-  const std::vector<MarkerObservation> found =
-      DetectInRegions(*first_pass, *detector, image, regions, &skipped);
+  const std::vector<MarkerObservation> found = DetectInRegions(*in_regions, image, regions, &skipped);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "here");
   EXPECT_EQ(skipped, 0);
@@ -95,7 +97,7 @@ TEST(PredictedRegions, DetectInRegionsFindsTheCodeWhereTheMapSays) {
     EXPECT_LT((found[0].corners_px[k] - a[k]).norm(), 0.3) << k;
     EXPECT_LT((found[0].corners_px[k] - reference.corners_px[k]).norm(), 0.05) << k;
   }
-  EXPECT_TRUE(DetectInRegions(*first_pass, *detector, image, {}).empty());
+  EXPECT_TRUE(DetectInRegions(*in_regions, image, {}).empty());
   // A light-on-dark code only the second passes read (inverted crops): the first passes find
   // fewer codes than predicted, so the region gets the second passes.
   cv::Mat dark(480, 640, CV_8U, cv::Scalar(40));
@@ -105,9 +107,69 @@ TEST(PredictedRegions, DetectInRegionsFindsTheCodeWhereTheMapSays) {
   for (int k = 0; k < 4; ++k) at.segment<2>(2 * k) = c[k];
   const std::vector<PredictedRegion> one = PredictedRegions({at}, dark.size(), PredictedRegionOptions{});
   ASSERT_TRUE(first_pass->Detect(dark(one[0].rect)).empty());
-  const std::vector<MarkerObservation> inverted = DetectInRegions(*first_pass, *detector, dark, one);
+  const std::vector<MarkerObservation> inverted = DetectInRegions(*in_regions, dark, one);
   ASSERT_EQ(inverted.size(), 1u);
   EXPECT_EQ(inverted[0].key.id, "inverted");
+}
+
+// Counts the stages DetectInRegions asks of a detector (and forwards them).
+class CountingDetector : public MarkerDetector {
+ public:
+  explicit CountingDetector(std::unique_ptr<MarkerDetector> inner) : inner_(std::move(inner)) {}
+  std::vector<std::string> Families() const override { return inner_->Families(); }
+  std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
+    ++detects;
+    return inner_->Detect(image);
+  }
+  std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
+    ++first_passes;
+    return inner_->DetectFirstPass(image);
+  }
+  std::vector<MarkerObservation> DetectSecondPasses() override {
+    ++second_passes;
+    return inner_->DetectSecondPasses();
+  }
+  int detects = 0, first_passes = 0, second_passes = 0;
+
+ private:
+  std::unique_ptr<MarkerDetector> inner_;
+};
+
+// A region whose code the first pass misses (light on dark) is still read, by the second passes
+// alone: the first pass runs once per region, never again, and a region whose code the first
+// pass read gets no second passes. The result is what the full detector gives on the crop.
+TEST(PredictedRegions, SecondPassesContinueFromTheFirstPass) {
+  cv::Mat image(480, 1280, CV_8U, cv::Scalar(200));
+  const Quad2d plain = MakeQuad({250.0, 240.0}, 120.0, 0.2);
+  DrawSymbol(QrSymbol("plain"), plain, &image);
+  cv::rectangle(image, cv::Rect(700, 40, 400, 400), cv::Scalar(40), cv::FILLED);
+  const Quad2d dark = MakeQuad({900.0, 240.0}, 130.0, -0.1);
+  DrawSymbol(QrSymbol("inverted"), dark, &image, 235, 20);
+  std::vector<Vector8d> quads(2);
+  for (int k = 0; k < 4; ++k) {
+    quads[0].segment<2>(2 * k) = plain[k];
+    quads[1].segment<2>(2 * k) = dark[k];
+  }
+  const std::vector<PredictedRegion> regions =
+      PredictedRegions(quads, image.size(), PredictedRegionOptions{});
+  ASSERT_EQ(regions.size(), 2u);
+  DetectorOptions options;
+  options.close_up = false;
+  CountingDetector counting(CreateMultiDetector({"qr", "datamatrix"}, options));
+  const std::vector<MarkerObservation> found = DetectInRegions(counting, image, regions);
+  ASSERT_EQ(found.size(), 2u);
+  EXPECT_EQ(found[0].key.id, "plain");
+  EXPECT_EQ(found[1].key.id, "inverted");
+  EXPECT_EQ(counting.first_passes, 2);
+  EXPECT_EQ(counting.second_passes, 1);  // the dark region only
+  EXPECT_EQ(counting.detects, 0);
+  // The same as the full detector run from scratch on the dark region's crop.
+  std::vector<MarkerObservation> full =
+      CreateMultiDetector({"qr", "datamatrix"}, options)->Detect(image(regions[1].rect));
+  MapFromCrop(regions[1].rect.tl(), 1.0, &full);
+  ASSERT_EQ(full.size(), 1u);
+  EXPECT_EQ(full[0].quality, found[1].quality);
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(full[0].corners_px[k], found[1].corners_px[k]) << k;
 }
 
 }  // namespace
