@@ -33,7 +33,7 @@ for n in 1 10; do
   echo "--full-frame-every $n (load average $(cut -d' ' -f1 /proc/loadavg)):"
   "$bin" localize data/demo/run --map "$tmp/map.json" --live --detect-budget-ms 0 --full-frame-every "$n" \
     < "$tmp/live.jsonl" > "$tmp/poses-$n.jsonl" 2> "$tmp/err-$n.txt"
-  grep '^detection: .*predicted regions' "$tmp/err-$n.txt"
+  grep -E '^detection: .*(predicted regions|reading the image files)' "$tmp/err-$n.txt"
   python3 - "$PWD/data/demo/run/groundtruth/trajectory.tum" "$tmp/poses-$n.jsonl" <<'PY'
 import bisect, json, math, sys
 gt = [list(map(float, l.split())) for l in open(sys.argv[1]) if l.strip() and not l.startswith("#")]
