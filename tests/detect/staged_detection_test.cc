@@ -2,13 +2,12 @@
 // what Detect() gives, for every family and the multi-family detector.
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "detect/detector.h"
-#include <opencv2/imgproc.hpp>
-
 #include "detect/synthetic.h"
 
 namespace waymark {
@@ -56,7 +55,9 @@ TEST(StagedDetection, TwoStagesGiveWhatDetectGives) {
       ExpectSame(all, reference->Detect(image));
       // The second passes read more than the first here (else this test pins little): the
       // light-on-dark QR code and the small tag (the DataMatrix symbol is read by pass 1).
-      if (families != std::vector<std::string>{"datamatrix"}) EXPECT_GT(all.size(), first.size());
+      if (families != std::vector<std::string>{"datamatrix"}) {
+        EXPECT_GT(all.size(), first.size());
+      }
       // Stages on a second image start afresh.
       const cv::Mat blank(480, 640, CV_8U, cv::Scalar(200));
       EXPECT_TRUE(staged->DetectFirstPass(blank).empty());
@@ -66,7 +67,7 @@ TEST(StagedDetection, TwoStagesGiveWhatDetectGives) {
 }
 
 TEST(StagedDetection, SecondPassesWithoutAFirstPassThrow) {
-  for (const std::string& family : {"qr", "datamatrix", "apriltag-36h11"}) {
+  for (const std::string family : {"qr", "datamatrix", "apriltag-36h11"}) {
     const auto detector = CreateDetector(family);
     EXPECT_THROW(detector->DetectSecondPasses(), std::logic_error) << family;
   }
