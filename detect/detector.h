@@ -23,6 +23,8 @@
 
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -96,8 +98,20 @@ class MarkerDetector {
   // unchanged until DetectSecondPasses() or the next DetectFirstPass(). Each stage has its own
   // live budget (DetectorOptions::live_budget_ms), and SkippedAttempts() is the last stage's.
   // DetectSecondPasses() throws std::logic_error before any DetectFirstPass().
-  virtual std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) = 0;
-  virtual std::vector<MarkerObservation> DetectSecondPasses() = 0;
+  // The defaults serve a detector without stages of its own (a user's subclass written
+  // before the stages existed keeps compiling): the whole Detect() is the first stage, and
+  // DetectSecondPasses() returns its result again.
+  virtual std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) {
+    first_pass_ = Detect(image);
+    return *first_pass_;
+  }
+  virtual std::vector<MarkerObservation> DetectSecondPasses() {
+    if (!first_pass_) throw std::logic_error("DetectSecondPasses() before DetectFirstPass()");
+    return *first_pass_;
+  }
+
+ private:
+  std::optional<std::vector<MarkerObservation>> first_pass_;  // of the default stages
 };
 
 // Family names CreateDetector accepts: qr, datamatrix, and apriltag-<name> for every

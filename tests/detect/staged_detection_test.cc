@@ -75,5 +75,34 @@ TEST(StagedDetection, SecondPassesWithoutAFirstPassThrow) {
   EXPECT_THROW(multi->DetectSecondPasses(), std::logic_error);
 }
 
+// A detector written without stages of its own (as a user's subclass of the installed library
+// may be): the defaults make its whole Detect() the first stage, and the second returns it again.
+class DetectOnly : public MarkerDetector {
+ public:
+  std::vector<std::string> Families() const override { return {"qr"}; }
+  std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
+    ++calls;
+    MarkerObservation obs;
+    obs.key = {"qr", std::to_string(image.cols)};
+    obs.corners_px = {Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0), Eigen::Vector2d(1, 1),
+                      Eigen::Vector2d(0, 1)};
+    return {obs};
+  }
+  int calls = 0;
+};
+
+TEST(StagedDetection, DefaultStagesAreTheWholeDetect) {
+  DetectOnly detector;
+  EXPECT_THROW(detector.DetectSecondPasses(), std::logic_error);
+  const cv::Mat image(20, 30, CV_8U, cv::Scalar(255));
+  const std::vector<MarkerObservation> first = detector.DetectFirstPass(image);
+  const std::vector<MarkerObservation> second = detector.DetectSecondPasses();
+  ASSERT_EQ(first.size(), 1u);
+  ASSERT_EQ(second.size(), 1u);
+  EXPECT_EQ(first[0].key.id, "30");
+  EXPECT_EQ(second[0].key, first[0].key);
+  EXPECT_EQ(detector.calls, 1);  // Detect() once, not again for the second stage
+}
+
 }  // namespace
 }  // namespace waymark
