@@ -135,11 +135,7 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
                 obs.marker);
       continue;
     }
-    PoseBlock& wiggle =
-        *wiggle_
-             .try_emplace({obs.frame, obs.camera},
-                          &wiggle_blocks_[obs.frame * wiggle_slot_.size() + wiggle_slot_.at(obs.camera)])
-             .first->second;
+    PoseBlock& wiggle = Wiggle(obs.frame, obs.camera);
     if (!problem_->HasParameterBlock(wiggle.data())) {
       AddMarkerBlock(problem_.get(), &wiggle);
       problem_->AddResidualBlock(
@@ -208,7 +204,7 @@ ceres::Solver::Summary GlobalProblem::Solve(const std::vector<int>& active, bool
     // Each frame's camera deviations touch only that frame and camera's residuals: they are
     // the independent set; frames, codes and mounts form the reduced system.
     std::set<const double*> wiggles;
-    for (const auto& [key, block] : wiggle_) wiggles.insert(block->data());
+    for (const PoseBlock& block : wiggle_blocks_) wiggles.insert(block.data());
     eliminate_first(wiggles);
   } else if (!FramesJoined()) {
     std::set<const double*> frames;
@@ -462,17 +458,20 @@ std::map<std::string, SE3d> GlobalProblem::Mounts() const {
 }
 
 bool GlobalProblem::HasWiggle() const {
-  for (const auto& [key, block] : wiggle_) {
-    if (problem_->HasParameterBlock(block->data())) return true;
+  for (const PoseBlock& block : wiggle_blocks_) {
+    if (problem_->HasParameterBlock(block.data())) return true;
   }
   return false;
 }
 
 std::map<std::string, std::vector<SE3d>> GlobalProblem::Wiggles() const {
   std::map<std::string, std::vector<SE3d>> wiggles;
-  for (const auto& [key, block] : wiggle_) {
-    if (problem_ && problem_->HasParameterBlock(block->data()))
-      wiggles[key.second].push_back(SE3FromBlock(block->data()));
+  if (!problem_) return wiggles;
+  for (size_t f = 0; f < survey_.frames.size(); ++f) {
+    for (const auto& [name, slot] : wiggle_slot_) {
+      const PoseBlock& block = Wiggle(static_cast<int>(f), name);
+      if (problem_->HasParameterBlock(block.data())) wiggles[name].push_back(SE3FromBlock(block.data()));
+    }
   }
   return wiggles;
 }
@@ -493,8 +492,8 @@ double GlobalProblem::SquaredError(int o) const {
   } else if (camera.frame_wiggle_sigma) {
     // The frame's deviation counts in the gate (whitened by its prior): a view that only fits
     // by moving its camera far off the mount is not hidden by the wiggle.
-    const auto wiggle = wiggle_.find({obs.frame, obs.camera});
-    const PoseBlock W = wiggle == wiggle_.end() ? IdentityBlock() : *wiggle->second;
+    // Identity until a solve has moved it.
+    const PoseBlock& W = Wiggle(obs.frame, obs.camera);
     cost.reset(
         CornerCost(survey_.motion, camera, size_m, obs.corners_px, CornerBlocks::kRobotMountWiggleMarker));
     const double* blocks[4] = {robot_[obs.frame].data(), mount->second->data(), W.data(),

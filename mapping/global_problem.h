@@ -134,10 +134,12 @@ class GlobalProblem {
   // per-frame wiggle around it (frame_wiggle_sigma only).
   std::map<std::string, PoseBlock*> mount_;
   // Each frame's deviation of a wiggling camera: blocks_ holds one per frame and such camera,
-  // frame-major (wiggle_slot_ gives the camera's place); wiggle_ lists those in the problem.
+  // frame-major (wiggle_slot_ gives the camera's place), identity until a solve moves it.
   BlockRange wiggle_blocks_;
   std::map<std::string, size_t> wiggle_slot_;
-  std::map<std::pair<int, std::string>, PoseBlock*> wiggle_;  // (frame, camera) -> W
+  PoseBlock& Wiggle(int frame, const std::string& camera) const {
+    return wiggle_blocks_[frame * wiggle_slot_.size() + wiggle_slot_.at(camera)];
+  }
   double* calibration_ = nullptr;  // kOdometryCalibrationSize values at the start of a block
   double odometry_variance_scale_ = 1.0;
   std::vector<ceres::ResidualBlockId> odometry_residuals_;
