@@ -177,12 +177,19 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
 // Pass 2a'': small codes (about 18-80 px) whose finders neither the candidate regions nor
 // the finder quads give: a dark quad that may be a whole code (SmallQrCodeQuads), not read
 // yet, is searched for finders in its own box (padded by a third of its side, upscaled up
-// to 4x) and the triple at its centre is read, or, for a quad of at most kMaxUnorientedSidePx
-// with no such triple, its module grid from the quad's corners (detect/qr_modules.h, at most
-// kMaxUnorientedReads per frame); at most `max_boxes` boxes per frame.
+// to 4x) and the triple at its centre is read; then the quads of at most
+// kMaxUnorientedSidePx with no such triple, ranked by the contrast of their known modules
+// (UnorientedKnownModuleContrast: clutter quads come before a code in the stage's order, and
+// took the reads from it), are read as module grids from their own corners
+// (detect/qr_modules.h), at most kMaxUnorientedReads per frame; at most `max_boxes` boxes
+// per frame.
 void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
                         std::vector<MarkerObservation>* found) {
-  int unoriented_reads = 0;
+  struct Unoriented {
+    Quad2d corners_px;
+    double contrast;
+  };
+  std::vector<Unoriented> unoriented;
   for (const DarkQuad& quad : SmallQrCodeQuads(FindDarkQuads(gray, min_side_px), max_boxes)) {
     QrCandidate as_code;
     as_code.corners_px = quad.corners_px;
@@ -193,13 +200,22 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
     const std::vector<MarkerObservation> r =
         ReadFinderTripleNear(gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side);
     AppendUnique(r, found);
-    const bool read = !r.empty();
     // No finders (an oblique code's finders are foreshortened to a module or so of light
-    // ring): the module grid read from the quad's own corners, in any orientation.
-    if (!read && side <= kMaxUnorientedSidePx && unoriented_reads < kMaxUnorientedReads) {
-      ++unoriented_reads;
-      AppendUnique(ReadUnorientedQrModuleGrid(gray, quad.corners_px), found);
+    // ring): the module grid read from the quad's own corners, in any orientation, below.
+    if (r.empty() && side <= kMaxUnorientedSidePx) {
+      unoriented.push_back({quad.corners_px, UnorientedKnownModuleContrast(gray, quad.corners_px)});
     }
+  }
+  std::stable_sort(unoriented.begin(), unoriented.end(),
+                   [](const Unoriented& a, const Unoriented& b) { return a.contrast > b.contrast; });
+  int unoriented_reads = 0;
+  for (const Unoriented& u : unoriented) {
+    if (unoriented_reads >= kMaxUnorientedReads) break;
+    QrCandidate as_code;
+    as_code.corners_px = u.corners_px;
+    if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+    ++unoriented_reads;
+    AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
   }
 }
 
