@@ -89,28 +89,35 @@ bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObser
 // Pass 2a: QR candidates from finder patterns (detect/qr_finder.h) in each region
 // (smallest first) that is not one code already read, each candidate not read yet resampled
 // upright and read: at most `max_reads` candidates per frame (and none once a live frame's
-// time is up).
-void ReadFinderCandidates(const cv::Mat& gray, std::vector<cv::Rect> regions, int max_reads, FrameWork* work,
-                          std::vector<MarkerObservation>* found) {
+// time is up). Returns, for each region (in the order given), the number of finder patterns
+// found in it, or -1 where it was not searched.
+std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
+                                      int max_reads, FrameWork* work, std::vector<MarkerObservation>* found) {
   // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
   // many blobs) and small codes are the ones zxing misses on the whole frame.
-  std::stable_sort(regions.begin(), regions.end(),
-                   [](const cv::Rect& a, const cv::Rect& b) { return a.area() < b.area(); });
+  std::vector<int> order(regions.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::stable_sort(order.begin(), order.end(),
+                   [&regions](int a, int b) { return regions[a].area() < regions[b].area(); });
+  std::vector<int> finders_found(regions.size(), -1);
   int reads = 0;
-  for (const cv::Rect& region : regions) {
-    if (reads >= max_reads) return;
+  for (const int index : order) {
+    const cv::Rect& region = regions[index];
+    if (reads >= max_reads) break;
     if (RegionIsOneReadCode(region, *found)) continue;
     if (!work->Allow()) continue;
-    const std::vector<QrCandidate> candidates =
-        GroupQrFinders(FindQrFinderPatterns(gray, region), gray.size());
+    const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(gray, region);
+    finders_found[index] = static_cast<int>(finders.size());
+    const std::vector<QrCandidate> candidates = GroupQrFinders(finders, gray.size());
     for (const QrCandidate& candidate : candidates) {
-      if (reads >= max_reads) return;
+      if (reads >= max_reads) break;
       if (CandidateIsRead(candidate, *found)) continue;
       if (!work->Allow()) continue;
       ++reads;
       AppendUnique(ReadRectifiedQr(gray, candidate), found);
     }
   }
+  return finders_found;
 }
 
 // The bounding box of `corners` grown on every side by pad(its longer side) pixels, inside
@@ -170,12 +177,19 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
 // Pass 2a'': small codes (about 18-80 px) whose finders neither the candidate regions nor
 // the finder quads give: a dark quad that may be a whole code (SmallQrCodeQuads), not read
 // yet, is searched for finders in its own box (padded by a third of its side, upscaled up
-// to 4x) and the triple at its centre is read, or, for a quad of at most kMaxUnorientedSidePx
-// with no such triple, its module grid from the quad's corners (detect/qr_modules.h, at most
-// kMaxUnorientedReads per frame); at most `max_boxes` boxes per frame.
+// to 4x) and the triple at its centre is read; then the quads of at most
+// kMaxUnorientedSidePx with no such triple, ranked by the contrast of their known modules
+// (UnorientedKnownModuleContrast: clutter quads come before a code in the stage's order, and
+// took the reads from it), are read as module grids from their own corners
+// (detect/qr_modules.h), at most kMaxUnorientedReads per frame; at most `max_boxes` boxes
+// per frame.
 void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
                         std::vector<MarkerObservation>* found) {
-  int unoriented_reads = 0;
+  struct Unoriented {
+    Quad2d corners_px;
+    double contrast;
+  };
+  std::vector<Unoriented> unoriented;
   for (const DarkQuad& quad : SmallQrCodeQuads(FindDarkQuads(gray, min_side_px), max_boxes)) {
     QrCandidate as_code;
     as_code.corners_px = quad.corners_px;
@@ -186,13 +200,22 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
     const std::vector<MarkerObservation> r =
         ReadFinderTripleNear(gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side);
     AppendUnique(r, found);
-    const bool read = !r.empty();
     // No finders (an oblique code's finders are foreshortened to a module or so of light
-    // ring): the module grid read from the quad's own corners, in any orientation.
-    if (!read && side <= kMaxUnorientedSidePx && unoriented_reads < kMaxUnorientedReads) {
-      ++unoriented_reads;
-      AppendUnique(ReadUnorientedQrModuleGrid(gray, quad.corners_px), found);
+    // ring): the module grid read from the quad's own corners, in any orientation, below.
+    if (r.empty() && side <= kMaxUnorientedSidePx) {
+      unoriented.push_back({quad.corners_px, UnorientedKnownModuleContrast(gray, quad.corners_px)});
     }
+  }
+  std::stable_sort(unoriented.begin(), unoriented.end(),
+                   [](const Unoriented& a, const Unoriented& b) { return a.contrast > b.contrast; });
+  int unoriented_reads = 0;
+  for (const Unoriented& u : unoriented) {
+    if (unoriented_reads >= kMaxUnorientedReads) break;
+    QrCandidate as_code;
+    as_code.corners_px = u.corners_px;
+    if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+    ++unoriented_reads;
+    AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
   }
 }
 
@@ -255,10 +278,17 @@ class QrDetector : public MarkerDetector {
         },
     };
     const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-    ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, work, found);
+    const std::vector<int> finders_found =
+        ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, work, found);
     ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, work, found);
     ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, work, found);
-    RunSecondPass(gray, regions, attempts, work, found);
+    // A region searched for finders with none found holds no dark-on-light code that zxing
+    // would find either (it needs three finders): only the inverted crop (a light-on-dark
+    // code has light finders) and WeChat are tried there.
+    const std::vector<CropAttempt> without_finders = {attempts[0], attempts[3]};
+    for (size_t i = 0; i < regions.size(); ++i) {
+      RunSecondPass(gray, {regions[i]}, finders_found[i] == 0 ? without_finders : attempts, work, found);
+    }
   }
 
   // The corners refined (the quality is the refinement's inlier fraction, 0 if it failed).

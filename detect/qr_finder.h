@@ -5,7 +5,9 @@
 // for finder patterns on its own, the code's quadrilateral is built from them, and the
 // code is resampled upright at kRectifiedModulePx pixels per module for zxing:
 //   1. finder patterns (FindQrFinderPatterns): the region, upscaled to at least
-//      ~kFinderWorkSidePx, binarized with a local mean threshold; a finder is a dark
+//      ~kFinderWorkSidePx, binarized with a local mean threshold, then kept only in windows
+//      around rows and columns whose runs cross a finder's middle (dark, light, dark centre,
+//      light, dark; the light runs lighter than the centre in gray); a finder is a dark
 //      contour whose hole holds one dark blob (the 7x7 ring, the 5x5 light ring and the
 //      3x3 centre: areas 49 : 25 : 9), checked by area ratios, concentricity and
 //      convexity; its outer contour is reduced to a quadrilateral;

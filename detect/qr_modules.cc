@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 
 #include "detect/qr_grid.h"
@@ -413,6 +414,19 @@ std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2
   std::stable_sort(grids.begin(), grids.end(),
                    [](const QrModuleGrid& a, const QrModuleGrid& b) { return a.contrast > b.contrast; });
   return DecodeGrids(gray, grids);
+}
+
+double UnorientedKnownModuleContrast(const cv::Mat& gray, const Quad2d& corners_px) {
+  double best = -std::numeric_limits<double>::infinity();
+  if (gray.empty() || gray.type() != CV_8UC1) return best;
+  for (int rotation = 0; rotation < 4; ++rotation) {
+    const Quad2d corners = RotateCorners(corners_px, rotation);
+    for (int n = kMinGridModules; n <= kMaxUnorientedModules; n += 4) {
+      const double contrast = KnownContrast(gray, corners, n, KnownModules(n));
+      if (std::isfinite(contrast)) best = std::max(best, contrast);
+    }
+  }
+  return best;
 }
 
 std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px) {

@@ -66,4 +66,9 @@ std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2
 // fitted (step 1) and read in order of fitted contrast.
 std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px);
 
+// The known modules' contrast of the best of those hypotheses before any fit (mean light
+// minus mean dark, gray levels; -infinity when none can be sampled): ReadUnorientedQrModuleGrid
+// fits nothing under kMinUnorientedRawContrast. Cheap (no fit): used to rank such quads.
+double UnorientedKnownModuleContrast(const cv::Mat& gray, const Quad2d& corners_px);
+
 }  // namespace waymark

@@ -198,6 +198,53 @@ TEST(DetectQrFinder, SmallTiltedCodeAmongBoxesIsACandidateFromDarkQuads) {
   EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.3);
 }
 
+// The contours are traced only in windows around rows and columns that cross a finder's
+// middle (KeepFinderWindows in qr_finder.cc): the finders of a small, blurred code in every
+// rotation, head on and foreshortened to 0.55, on a noisy, shaded background (a field of
+// noise specks that the windows leave out) are all found where the symbol puts them.
+// A square of side `side` foreshortened to `squeeze` across (a code turned away about its
+// vertical axis), then rotated by `angle` on screen.
+Quad2d ForeshortenedQuad(const Eigen::Vector2d& centre, double side, double angle, double squeeze) {
+  const double h = 0.5 * side, c = std::cos(angle), s = std::sin(angle);
+  const Eigen::Vector2d local[4] = {
+      {-h * squeeze, -h}, {h * squeeze, -h}, {h * squeeze, h}, {-h * squeeze, h}};
+  Quad2d quad;
+  for (int i = 0; i < 4; ++i) {
+    quad[i] =
+        centre + Eigen::Vector2d(c * local[i].x() - s * local[i].y(), s * local[i].x() + c * local[i].y());
+  }
+  return quad;
+}
+
+TEST(DetectQrFinder, FindersFoundInEveryRotationOnNoise) {
+  const SymbolImage symbol = QrSymbol("r/42/12.5");
+  const int n = symbol.symbol.width;
+  for (const double squeeze : {1.0, 0.55}) {
+    for (int step = 0; step < 12; ++step) {
+      cv::Mat image = Canvas();
+      for (int y = 0; y < image.rows; ++y) image.row(y).setTo(cv::Scalar(120 + y / 8));
+      const Quad2d truth = ForeshortenedQuad({321.3, 238.6}, 84.0, step * M_PI / 12 + 0.05, squeeze);
+      DrawSymbol(symbol, truth, &image);
+      cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+      cv::Mat noise(image.size(), CV_16S);
+      cv::RNG rng(step + 1);
+      rng.fill(noise, cv::RNG::NORMAL, 0, 5);
+      image.convertTo(image, CV_16S);
+      image += noise;
+      image.convertTo(image, CV_8U);
+      const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(image, kWhole);
+      const Eigen::Vector2d expected[3] = {SymbolPoint(truth, n, 3.5, 3.5),
+                                           SymbolPoint(truth, n, n - 3.5, 3.5),
+                                           SymbolPoint(truth, n, 3.5, n - 3.5)};
+      for (const Eigen::Vector2d& e : expected) {
+        double nearest = 1e9;
+        for (const QrFinderPattern& f : finders) nearest = std::min(nearest, (f.centre_px - e).norm());
+        EXPECT_LT(nearest, 1.0) << "squeeze " << squeeze << " angle step " << step;
+      }
+    }
+  }
+}
+
 TEST(DetectQrFinder, NoCandidateWithoutThreeFinders) {
   // Blank, noise, and two finder-like squares (a code needs three).
   EXPECT_TRUE(FindQrFinderPatterns(Canvas(), kWhole).empty());

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <tuple>
 
@@ -171,6 +172,33 @@ TEST(DetectQrModules, UnorientedReadNeedsKnownModuleContrast) {
       EXPECT_EQ(read[0].key.id, "r/91/12.5");
     }
   }
+}
+
+// The unoriented quads are ranked by their known modules' contrast before any fit (a frame's
+// clutter quads came first in the stage's order and took the grid reads from a code): a code's
+// own quad, a module off and in any rotation, scores well above a quad over random blocks or
+// an empty patch; nothing to sample gives -infinity.
+TEST(DetectQrModules, KnownModuleContrastRanksCodesAboveClutter) {
+  const SymbolImage symbol = QrSymbol("r/91/12.5");
+  const double module_px = 1.7;
+  const Quad2d truth = MakeQuad({80.4, 80.1}, module_px * symbol.symbol.width, 0.3, 1.1);
+  const cv::Mat image = SmallCode(symbol, truth, 0.8, 3.0);
+  cv::Mat clutter(160, 160, CV_8U, cv::Scalar(200));
+  cv::RNG rng(11);
+  for (int k = 0; k < 60; ++k) {
+    const int x = rng.uniform(40, 116), y = rng.uniform(40, 116);
+    cv::rectangle(clutter, cv::Rect(x, y, rng.uniform(2, 8), rng.uniform(2, 8)), cv::Scalar(40), cv::FILLED);
+  }
+  cv::GaussianBlur(clutter, clutter, cv::Size(0, 0), 0.8);
+  for (int rotation = 0; rotation < 4; ++rotation) {
+    Quad2d start = RotateCorners(truth, rotation);
+    for (Eigen::Vector2d& c : start) c += Eigen::Vector2d(0.5 * module_px, -0.4 * module_px);
+    const double code = UnorientedKnownModuleContrast(image, start);
+    EXPECT_GT(code, 15.0) << rotation;
+    EXPECT_LT(UnorientedKnownModuleContrast(clutter, start), 0.5 * code) << rotation;
+    EXPECT_LT(UnorientedKnownModuleContrast(cv::Mat(160, 160, CV_8U, cv::Scalar(128)), start), 1.0);
+  }
+  EXPECT_EQ(UnorientedKnownModuleContrast(cv::Mat(), truth), -std::numeric_limits<double>::infinity());
 }
 
 // Small codes on a light card in a larger frame with some clutter: the dark-quad stage gives
