@@ -45,6 +45,10 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       the sightings), consider (Schmidt: kept correlated with the state, not
                       estimated), in-noise (added to each sighting's noise as if independent) or
                       ignore (the map taken as exact); range-bearing datasets only
+  --depth-share-sigma S  the EKF also estimates the sensor's depth share c_depth (ranges read
+                      (1 - c) distance + c depth along the sensor's axis: a camera that ranges a
+                      code by its apparent size reads its depth), from 0 with this sigma (default
+                      0: ranges taken as distances; 1: weak); range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -122,7 +126,8 @@ const std::set<std::string> kValues = {"map",
                                        "detect-budget-ms",
                                        "full-frame-every",
                                        "start-pose",
-                                       "map-uncertainty"};
+                                       "map-uncertainty",
+                                       "depth-share-sigma"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -258,6 +263,12 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
           "--map-uncertainty: expected estimate, consider, in-noise or ignore, got '" + name + "'");
     options.map_uncertainty = *mode;
   }
+  if (args.Has("depth-share-sigma")) {
+    options.depth_share_sigma = *args.GetDouble("depth-share-sigma");
+    if (!(options.depth_share_sigma >= 0.0) || !std::isfinite(options.depth_share_sigma))
+      throw std::invalid_argument("--depth-share-sigma: expected a number >= 0, got " +
+                                  *args.Get("depth-share-sigma"));
+  }
   if (map.range_bearing_noise) {
     options.noise = *map.range_bearing_noise;
   } else {
@@ -305,8 +316,9 @@ int RunDataset(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
-  if (args.Has("map-uncertainty"))
-    throw std::invalid_argument("--map-uncertainty is for range-bearing datasets (range_bearing.jsonl)");
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma"))
+    throw std::invalid_argument(
+        "--map-uncertainty and --depth-share-sigma are for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -319,8 +331,9 @@ int RunDataset(const Args& args) {
 // ---- Live mode ----
 
 int RunLive(const Args& args) {
-  if (args.Has("map-uncertainty"))
-    throw std::invalid_argument("--map-uncertainty is for range-bearing datasets, not --live");
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma"))
+    throw std::invalid_argument(
+        "--map-uncertainty and --depth-share-sigma are for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");

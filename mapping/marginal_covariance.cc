@@ -131,6 +131,19 @@ SparseMatrix LowerGram(const ceres::CRSMatrix& J) {
 
 }  // namespace
 
+bool ResidualJacobian(ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& residual_blocks,
+                      int num_threads, std::vector<double>* residuals, ceres::CRSMatrix* J) {
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.num_threads = num_threads;
+  evaluate.residual_blocks = residual_blocks;
+  for (double* block : all) {
+    if (!problem->IsParameterBlockConstant(block)) evaluate.parameter_blocks.push_back(block);
+  }
+  return problem->Evaluate(evaluate, nullptr, residuals, nullptr, J);
+}
+
 bool EvaluateInformation(ceres::Problem* problem, int num_threads, ProblemInformation* information) {
   std::vector<double*> all;
   problem->GetParameterBlocks(&all);
@@ -199,6 +212,25 @@ std::vector<Eigen::MatrixXd> InformationFactor::Marginals() const {
     covariance.push_back(block);
   }
   return covariance;
+}
+
+std::vector<double> InformationFactor::Leverages(const ceres::CRSMatrix& J) const {
+  if (!positive_definite_) throw std::logic_error("marginal covariance: H is not positive definite");
+  if (J.num_cols != size())
+    throw std::logic_error("marginal covariance: Leverages with a wrong number of columns");
+  const SelectedInverse Z(L_, d_);
+  std::vector<double> leverage(static_cast<size_t>(J.num_rows), 0.0);
+  for (int r = 0; r < J.num_rows; ++r) {
+    double h = 0.0;
+    for (int p = J.rows[r]; p < J.rows[r + 1]; ++p) {
+      const int a = permuted_of_[J.cols[p]];
+      h += J.values[p] * J.values[p] * Z.At(a, a);
+      for (int q = J.rows[r]; q < p; ++q)
+        h += 2.0 * J.values[p] * J.values[q] * Z.At(a, permuted_of_[J.cols[q]]);
+    }
+    leverage[static_cast<size_t>(r)] = h;
+  }
+  return leverage;
 }
 
 Eigen::MatrixXd InformationFactor::Solve(const Eigen::MatrixXd& B) const {

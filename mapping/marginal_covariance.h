@@ -18,6 +18,7 @@
 // The result equals ceres::Covariance's GetCovarianceBlockInTangentSpace (to round-off).
 #pragma once
 
+#include <ceres/crs_matrix.h>
 #include <ceres/problem.h>
 
 #include <Eigen/Core>
@@ -72,6 +73,15 @@ class InformationFactor {
   std::vector<Eigen::MatrixXd> Marginals() const;
   // H^-1 B for B with size() rows (positive_definite() only).
   Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
+  // The leverage of every row r of a whitened Jacobian J whose columns are H's (the problem's
+  // non-constant blocks in GetParameterBlocks order, as ResidualJacobian gives them):
+  //   h_r = J_r H^-1 J_r^T = sum_{p, q in row r} J_rp J_rq Z_pq,
+  // read from the selected inverse Z (every pair of columns of one residual block is in the
+  // pattern of H, hence of L). For the rows of H's own J, 0 <= h_r <= 1, sum_r h_r = size()
+  // (the problem's parameters), and 1 - h_r is the row's redundancy: the share of its noise
+  // that its residual shows (variance component estimation, mapping/range_bearing_map.h).
+  // positive_definite() only; throws std::logic_error for a column outside H.
+  std::vector<double> Leverages(const ceres::CRSMatrix& J) const;
 
  private:
   using Columns = std::pair<int, int>;  // first column, tangent size
@@ -84,6 +94,12 @@ class InformationFactor {
   Eigen::VectorXi permuted_of_;  // column a of H is column permuted_of_[a] of L
   bool positive_definite_ = false;
 };
+
+// The whitened residuals and Jacobian of `residual_blocks` (in that order; the loss applied as
+// ceres::Problem::Evaluate applies it) with the columns of InformationFactor's H: the problem's
+// non-constant blocks in GetParameterBlocks order. False when they cannot be evaluated.
+bool ResidualJacobian(ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& residual_blocks,
+                      int num_threads, std::vector<double>* residuals, ceres::CRSMatrix* J);
 
 // Fills (*covariance)[i] with the tangent-space covariance of blocks[i] (a non-constant
 // parameter block of `problem`). Returns false when H is singular or not positive definite

@@ -155,6 +155,10 @@ Eigen::Vector2d Error(const Observation& obs, const std::vector<DatasetState>& s
 bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors,
                          std::vector<double> bearing_errors, RangeBearingNoise* noise);
 
+// The range sigma line a + b r by least squares through (range, sigma) points (a bin each), its
+// intercept kept >= 1 cm and its slope >= 0.
+void FitSigmaLine(const std::vector<double>& x, const std::vector<double>& y, RangeBearingNoise* noise);
+
 // Rigid 2-D fit dst ~ R src + t (Kabsch); needs >= 2 points.
 SE2d FitRigid2D(const std::vector<Eigen::Vector2d>& src, const std::vector<Eigen::Vector2d>& dst) {
   Eigen::Vector2d mean_src = Eigen::Vector2d::Zero(), mean_dst = Eigen::Vector2d::Zero();
@@ -194,10 +198,19 @@ class Builder {
   bool TryPlace(DatasetState* state, double end_s);
   void PlaceLandmarks();
   // With `covariance`: also the mapped landmarks' covariance (stage 3b) at the solution.
+  struct ProblemBlocks {
+    std::vector<std::vector<ceres::ResidualBlockId>> per_dataset;  // each dataset's residuals
+    std::vector<ceres::ResidualBlockId> observation;  // per observation (nullptr: not in the problem)
+  };
+  // The problem over the active nodes (Cauchy loss on the observations when `robust`).
+  void BuildProblem(bool robust, ceres::Problem* problem, ProblemBlocks* blocks);
   double Solve(bool robust, bool covariance = false);
   void LandmarkCovariance(ceres::Problem* problem);
   size_t MarkOutliers();
-  void EstimateNoise();
+  // The odometry's q always; the measurement sigmas (robust spreads) when `measurement_sigmas`.
+  void EstimateNoise(bool measurement_sigmas);
+  // False (nothing changed) when H is singular.
+  bool EstimateNoiseByRedundancy();
   void SetDelay(DatasetState* state, double delay_s);
   void EstimateDelays();
   void EstimateRangeScale();
@@ -341,66 +354,75 @@ void Builder::PlaceLandmarks() {
   }
 }
 
-double Builder::Solve(bool robust, bool covariance) {
-  ceres::Problem::Options problem_options;
-  problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
+void Builder::BuildProblem(bool robust, ceres::Problem* problem, ProblemBlocks* blocks) {
   bool any_prior = false;
-  std::vector<std::vector<ceres::ResidualBlockId>> blocks(states_.size());
+  blocks->per_dataset.assign(states_.size(), {});
+  blocks->observation.assign(observations_.size(), nullptr);
   for (size_t k = 0; k < states_.size(); ++k) {
     DatasetState& state = states_[k];
     if (state.active == 0) continue;
-    for (size_t i = 0; i < state.active; ++i) problem.AddParameterBlock(state.nodes[i].block, 3);
+    for (size_t i = 0; i < state.active; ++i) problem->AddParameterBlock(state.nodes[i].block, 3);
     bool links = false;
     for (size_t i = 1; i < state.active; ++i) {
       const Node& a = state.nodes[i - 1];
       const Node& b = state.nodes[i];
       const SE2d M = a.T_odom_robot.inverse() * b.T_odom_robot;
-      blocks[k].push_back(problem.AddResidualBlock(
+      blocks->per_dataset[k].push_back(problem->AddResidualBlock(
           CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)),
           nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration));
       links = true;
     }
     if (links) {
-      blocks[k].push_back(problem.AddResidualBlock(
+      blocks->per_dataset[k].push_back(problem->AddResidualBlock(
           OdometryCalibrationPrior::Create(Eigen::Vector3d::Constant(options_.calibration_sigma)), nullptr,
           state.calibration));
     }
     const auto& prior = state.dataset->config.start_prior;
     if (options_.use_start_priors && prior) {
       const Eigen::Vector3d sigma(prior->sigma_m, prior->sigma_m, prior->sigma_rad);
-      problem.AddResidualBlock(PosePriorSE2Factor::Create(SE2d::FromSE3(prior->T_world_robot),
-                                                          Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal())),
-                               nullptr, state.nodes.front().block);
+      problem->AddResidualBlock(PosePriorSE2Factor::Create(SE2d::FromSE3(prior->T_world_robot),
+                                                           Eigen::Matrix3d(sigma.cwiseAbs2().asDiagonal())),
+                                nullptr, state.nodes.front().block);
       any_prior = true;
     }
   }
-  if (!any_prior) problem.SetParameterBlockConstant(states_.front().nodes.front().block);
-  for (const Observation& obs : observations_) {
+  if (!any_prior) problem->SetParameterBlockConstant(states_.front().nodes.front().block);
+  for (size_t o = 0; o < observations_.size(); ++o) {
+    const Observation& obs = observations_[o];
     if (obs.outlier || obs.node >= states_[obs.dataset].active) continue;
     Landmark& l = landmarks_.at(obs.key);
     DatasetState& state = states_[obs.dataset];
     ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options_.cauchy_scale) : nullptr;
     if (obs.range_outlier) {
-      blocks[obs.dataset].push_back(problem.AddResidualBlock(
+      blocks->observation[o] = problem->AddResidualBlock(
           BiasedBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
                                       SigmaBearing(obs, state.noise)),
-          loss, state.nodes[obs.node].block, l.block, state.sensor));
-      continue;
+          loss, state.nodes[obs.node].block, l.block, state.sensor);
+    } else {
+      blocks->observation[o] = problem->AddResidualBlock(
+          BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
+                                           SigmaBearing(obs, state.noise)),
+          loss, state.nodes[obs.node].block, l.block, state.sensor);
     }
-    blocks[obs.dataset].push_back(problem.AddResidualBlock(
-        BiasedRangeBearingFactor::Create(obs.range_m, obs.bearing_rad, SigmaRange(obs, state.noise),
-                                         SigmaBearing(obs, state.noise)),
-        loss, state.nodes[obs.node].block, l.block, state.sensor));
+    blocks->per_dataset[obs.dataset].push_back(blocks->observation[o]);
   }
   for (DatasetState& state : states_) {
-    if (problem.HasParameterBlock(state.sensor)) {
-      problem.AddResidualBlock(
+    if (problem->HasParameterBlock(state.sensor)) {
+      problem->AddResidualBlock(
           SensorBiasPrior::Create(options_.sensor_bias_sigma_m, options_.sensor_bias_sigma_rad,
                                   options_.sensor_bearing_scale_sigma),
           nullptr, state.sensor);
     }
   }
+}
+
+double Builder::Solve(bool robust, bool covariance) {
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  ProblemBlocks problem_blocks;
+  BuildProblem(robust, &problem, &problem_blocks);
+  const std::vector<std::vector<ceres::ResidualBlockId>>& blocks = problem_blocks.per_dataset;
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.max_num_iterations = options_.max_iterations;
@@ -520,6 +542,14 @@ bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors,
     x.push_back(Median(ranges));
     y.push_back(1.4826 * Median(errors));
   }
+  FitSigmaLine(x, y, noise);
+  const double median = Median(bearing_errors);
+  for (double& e : bearing_errors) e = std::abs(e - median);
+  noise->bearing_rad = std::max(1e-3, 1.4826 * Median(bearing_errors));
+  return true;
+}
+
+void FitSigmaLine(const std::vector<double>& x, const std::vector<double>& y, RangeBearingNoise* noise) {
   const double n = static_cast<double>(x.size());
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   for (size_t i = 0; i < x.size(); ++i) {
@@ -537,16 +567,12 @@ bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors,
   }
   noise->range_a_m = a;
   noise->range_b = b;
-  const double median = Median(bearing_errors);
-  for (double& e : bearing_errors) e = std::abs(e - median);
-  noise->bearing_rad = std::max(1e-3, 1.4826 * Median(bearing_errors));
-  return true;
 }
 
 // The header's stage (2), per dataset (a dataset with too few residuals takes the pooled
 // figures): measurement sigmas from the robust spread of every observation's residuals, the
 // odometry's q from its disagreement with the solved trajectory over noise_window_s.
-void Builder::EstimateNoise() {
+void Builder::EstimateNoise(bool measurement_sigmas) {
   std::vector<std::vector<std::pair<double, double>>> range_errors(states_.size());
   std::vector<std::vector<double>> bearing_errors(states_.size());
   std::vector<std::pair<double, double>> all_range;
@@ -561,7 +587,7 @@ void Builder::EstimateNoise() {
     all_range.emplace_back(obs.range_m, e[0]);
     all_bearing.push_back(e[1]);
   }
-  FitMeasurementNoise(all_range, all_bearing, &noise_);
+  if (measurement_sigmas) FitMeasurementNoise(all_range, all_bearing, &noise_);
   // Odometry: over windows of noise_window_s, the solved increment against the calibrated
   // odometry increment; the mean normalized squared error per axis scales q_t and q_r.
   std::vector<double> sum_t(states_.size(), 0.0), sum_r(states_.size(), 0.0);
@@ -594,7 +620,7 @@ void Builder::EstimateNoise() {
   }
   for (size_t k = 0; k < states_.size(); ++k) {
     DatasetState& state = states_[k];
-    if (!FitMeasurementNoise(range_errors[k], bearing_errors[k], &state.noise)) {
+    if (measurement_sigmas && !FitMeasurementNoise(range_errors[k], bearing_errors[k], &state.noise)) {
       state.noise.range_a_m = noise_.range_a_m;
       state.noise.range_b = noise_.range_b;
       state.noise.bearing_rad = noise_.bearing_rad;
@@ -614,8 +640,117 @@ void Builder::EstimateNoise() {
   noise_.odometry_q_r = Median(q_r);
 }
 
+// The header's stage (2), measurement sigmas, from the second round on (redundancy_noise):
+// variance components. At the solution of the problem with the squared loss, every observation's
+// residual row r (whitened, r_w) has a leverage h_r = J_r H^-1 J_r^T (mapping/marginal_covariance.h,
+// exact, from the selected inverse) and a redundancy u_r = 1 - h_r: the poses, landmarks and
+// sensor offsets fitted to the data absorb the share h_r of that row's noise, so E[r_w^2] = u_r
+// when the row's sigma is right. The robust spreads of EstimateNoise ignore this and come out too
+// small (a node seen once has its heading fitted to that very bearing). Each group's variance is
+// re-estimated as
+//   sigma^2 = sum_r (r_w sigma_r)^2 / sum_r u_r           (Helmert's estimate; a step of REML)
+// per dataset: the bearing sigma; the range sigma in up to 8 equal-count range bins (the line
+// a + b r through them, as in EstimateNoise). The inliers only (outliers are not in the problem;
+// a range outlier's bearing row counts). A group whose redundancy sums to less than 10 keeps its
+// figure; a dataset with too few range rows takes the pooled line. The odometry's q stays with
+// EstimateNoise's windows (its variance components, tried, made q_t six times larger and every
+// trajectory worse: docs/accuracy.md, MRCLAM).
+bool Builder::EstimateNoiseByRedundancy() {
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  ProblemBlocks blocks;
+  BuildProblem(false, &problem, &blocks);
+  MarginalCovarianceOptions covariance_options;
+  covariance_options.num_threads = options_.num_threads;
+  const ScopedSerialLinearAlgebra serial;
+  const InformationFactor information(&problem, {}, covariance_options);
+  if (!information.positive_definite()) return false;
+  std::vector<ceres::ResidualBlockId> ids;
+  for (const ceres::ResidualBlockId id : blocks.observation) {
+    if (id != nullptr) ids.push_back(id);
+  }
+  std::vector<double> residuals;
+  ceres::CRSMatrix J;
+  if (!ResidualJacobian(&problem, ids, options_.num_threads, &residuals, &J)) return false;
+  const std::vector<double> leverage = information.Leverages(J);
+  struct Sums {
+    double squares = 0.0, redundancy = 0.0;
+    void Add(double square, double h) {
+      squares += square;
+      redundancy += 1.0 - h;
+    }
+  };
+  struct Row {
+    double range, square, h;
+  };
+  const size_t n = states_.size();
+  std::vector<std::vector<Row>> range_rows(n);
+  std::vector<Row> all_range_rows;
+  std::vector<Sums> bearing(n);
+  Sums all_bearing;
+  size_t row = 0;
+  for (size_t o = 0; o < observations_.size(); ++o) {
+    if (blocks.observation[o] == nullptr) continue;
+    const Observation& obs = observations_[o];
+    const RangeBearingNoise& noise = states_[obs.dataset].noise;
+    if (!obs.range_outlier) {
+      const double e = residuals[row] * SigmaRange(obs, noise);
+      range_rows[obs.dataset].push_back({obs.range_m, e * e, leverage[row]});
+      all_range_rows.push_back(range_rows[obs.dataset].back());
+      ++row;
+    }
+    const double e = residuals[row] * SigmaBearing(obs, noise);
+    bearing[obs.dataset].Add(e * e, leverage[row]);
+    all_bearing.Add(e * e, leverage[row]);
+    ++row;
+  }
+  constexpr double kMinRedundancy = 10.0;
+  // The range line through bins of equal count: each bin's sigma from its rows.
+  const auto fit_range = [&](std::vector<Row> rows, RangeBearingNoise* noise) {
+    if (rows.size() < 2 * kMinRangeBinCount) return false;
+    std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.range < b.range; });
+    const size_t bins = std::min<size_t>(8, rows.size() / kMinRangeBinCount);
+    std::vector<double> x, y;
+    for (size_t b = 0; b < bins; ++b) {
+      const size_t begin = b * rows.size() / bins, end = (b + 1) * rows.size() / bins;
+      Sums sums;
+      std::vector<double> ranges;
+      for (size_t i = begin; i < end; ++i) {
+        sums.Add(rows[i].square, rows[i].h);
+        ranges.push_back(rows[i].range);
+      }
+      if (sums.redundancy < 0.1 * static_cast<double>(end - begin)) continue;
+      x.push_back(Median(ranges));
+      y.push_back(std::sqrt(sums.squares / sums.redundancy));
+    }
+    if (x.size() < 2) return false;
+    FitSigmaLine(x, y, noise);
+    return true;
+  };
+  const auto sigma = [&](const Sums& sums, double* value) {
+    if (sums.redundancy >= kMinRedundancy) *value = std::max(1e-4, std::sqrt(sums.squares / sums.redundancy));
+  };
+  fit_range(all_range_rows, &noise_);
+  sigma(all_bearing, &noise_.bearing_rad);
+  for (size_t k = 0; k < n; ++k) {
+    DatasetState& state = states_[k];
+    if (!fit_range(range_rows[k], &state.noise)) {
+      state.noise.range_a_m = noise_.range_a_m;
+      state.noise.range_b = noise_.range_b;
+    }
+    if (bearing[k].redundancy >= kMinRedundancy)
+      sigma(bearing[k], &state.noise.bearing_rad);
+    else
+      state.noise.bearing_rad = noise_.bearing_rad;
+  }
+  return true;
+}
+
 void Builder::NoiseRound(int round) {
-  EstimateNoise();
+  // Round 0 starts from the incremental solve's state, outliers not yet marked: the robust spreads.
+  const bool by_redundancy = round > 0 && options_.redundancy_noise && EstimateNoiseByRedundancy();
+  EstimateNoise(!by_redundancy);
   const size_t outliers = MarkOutliers();
   Solve(true);
   Progress("noise round " + std::to_string(round + 1) + ": sigma_range " +

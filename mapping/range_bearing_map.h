@@ -26,7 +26,11 @@
 // observation in range bins, the bearing sigma to that of the bearing residuals; observations
 // whose whitened squared bearing residual exceeds outlier_chi2_1dof are set aside as outliers, and
 // of the others those whose whitened squared range residual exceeds it keep their bearing alone
-// (BiasedBearingFactor; separate_range_outliers, else one 2-dof test against outlier_chi2); q_t, q_r are
+// (BiasedBearingFactor; separate_range_outliers, else one 2-dof test against outlier_chi2); from
+// the second round on (redundancy_noise) the measurement sigmas come instead from each residual
+// group's sum of squares over its redundancy (variance components: sum (1 - h_r) with h_r each
+// row's leverage, mapping/marginal_covariance.h), since the fitted poses absorb part of every
+// residual and the plain spreads come out too small; q_t, q_r are
 // scaled so that the odometry's disagreement with the solved trajectory over windows of noise_window_s
 // matches the model; solve again. (2b) the odometry's delay behind the measurements (commanded velocities
 // lead the motion; RangeBearingNoise::odometry_delay_s), per dataset: nodes take the odometry at stamp -
@@ -68,6 +72,10 @@ struct RangeBearingBuildOptions {
   double outlier_chi2_1dof = 10.83;
   int min_observations = 3;
   int noise_rounds = 3;
+  // Stage (2) from the second round on: each noise group's variance from its residuals and their
+  // redundancy (variance components, range_bearing_map.cc EstimateNoiseByRedundancy), not from
+  // their robust spread alone (which the fitted poses shrink).
+  bool redundancy_noise = true;
   double noise_window_s = 5.0;
   bool use_start_priors = true;
   double calibration_sigma = 0.2;
@@ -78,6 +86,7 @@ struct RangeBearingBuildOptions {
   // The sensor's bearing scale error (BiasedRangeBearingFactor), one per dataset, held near 0 by a
   // prior of this sigma.
   double sensor_bearing_scale_sigma = 0.1;
+
   // Stage (2b): the odometry delay's search range and grid step; 0 = no delay estimated.
   double max_odometry_delay_s = 0.5;
   double odometry_delay_step_s = 0.1;

@@ -55,6 +55,7 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(sensor_bias_sigma.allFinite() && (sensor_bias_sigma.array() > 0.0).all(),
                        "sensor_bias_sigma must be finite and > 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(bearing_scale_sigma), "bearing_scale_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(depth_share_sigma, 0.0), "depth_share_sigma must be >= 0");
   WAYMARK_CHECK_OPTION(max_landmark_states >= 1, "max_landmark_states must be >= 1");
   return true;
 }
@@ -104,6 +105,7 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   P_.block<2, 2>(6, 6) = options.sensor_bias_sigma.cwiseAbs2().asDiagonal();
   P_(8, 8) = options.noise.range_scale_sigma * options.noise.range_scale_sigma;
   P_(9, 9) = options.bearing_scale_sigma * options.bearing_scale_sigma;
+  P_(10, 10) = options.depth_share_sigma * options.depth_share_sigma;
   P_.bottomRightCorner(k_, k_).setIdentity();
 }
 
@@ -183,19 +185,28 @@ RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vect
 
 Eigen::Vector2d RangeBearingLocalizer::MeasureState(const Vector6& x, const Eigen::Vector2d& l_world) {
   const Eigen::Vector2d h = Measure(x.head<3>(), l_world);
-  return Eigen::Vector2d((1.0 + x[8]) * h[0] + x[6], WrapAngle((1.0 + x[9]) * h[1] + x[7]));
+  const Eigen::Vector2d d = l_world - x.head<2>();
+  const double depth = std::cos(x[2]) * d.x() + std::sin(x[2]) * d.y();  // p_x
+  const double read = h[0] + x[10] * (depth - h[0]);                     // (1 - c) r + c p_x
+  return Eigen::Vector2d((1.0 + x[8]) * read + x[6], WrapAngle((1.0 + x[9]) * h[1] + x[7]));
 }
 
 Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalizer::MeasureStateJacobian(
     const Vector6& x, const Eigen::Vector2d& l_world) {
   Eigen::Matrix<double, 2, kStateSize> H = Eigen::Matrix<double, 2, kStateSize>::Zero();
   H.leftCols<3>() = MeasureJacobian(x.head<3>(), l_world);
-  H.block<1, 3>(0, 0) *= 1.0 + x[8];
+  const Eigen::Vector2d d = l_world - x.head<2>();
+  const double c = std::cos(x[2]), s = std::sin(x[2]);
+  const double r = d.norm(), depth = c * d.x() + s * d.y(), lateral = -s * d.x() + c * d.y();
+  // d p_x / d [x, y, theta] = [-cos theta, -sin theta, p_y].
+  const Eigen::RowVector3d d_depth(-c, -s, lateral);
+  H.block<1, 3>(0, 0) = (1.0 + x[8]) * ((1.0 - x[10]) * H.block<1, 3>(0, 0) + x[10] * d_depth);
   H.block<1, 3>(1, 0) *= 1.0 + x[9];
   H(0, 6) = 1.0;
   H(1, 7) = 1.0;
-  H(0, 8) = (l_world - x.head<2>()).norm();
+  H(0, 8) = r + x[10] * (depth - r);
   H(1, 9) = Measure(x.head<3>(), l_world)[1];
+  H(0, 10) = (1.0 + x[8]) * (depth - r);
   return H;
 }
 

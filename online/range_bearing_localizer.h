@@ -1,16 +1,19 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing]: T_world_robot, the
-// odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth]: T_world_robot,
+// the odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
 // factors/calibrated_odometry_factor.h, to first order), the sensor's constant range and
 // bearing offsets (as BiasedRangeBearingFactor) and the range scale error common to a frame's
 // landmarks (noise.range_scale_sigma, a first-order Gauss-Markov process of correlation time
 // tau = noise.range_scale_time_s) and the sensor's bearing scale error k_bearing (as
-// BiasedRangeBearingFactor), covariance P (10 x 10, the same order); the calibration, the offsets
-// and k_bearing start at 0 with calibration_sigma, sensor_bias_sigma and bearing_scale_sigma and
-// have no process noise; s_range starts at 0 with variance range_scale_sigma^2.
-// Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
+// BiasedRangeBearingFactor) and c_depth, the share of a range that is the landmark's depth along
+// the sensor's axis p_x = r cos(beta) rather than its distance r (a camera that ranges a code from
+// its apparent size measures its depth: c_depth = 1 reads a landmark at 0.5 rad 12 % short),
+// covariance P (11 x 11, the same order); the calibration, the offsets, k_bearing and c_depth start
+// at 0 with calibration_sigma, sensor_bias_sigma, bearing_scale_sigma and depth_share_sigma (0 by
+// default: c_depth held at 0) and have no process noise; s_range starts at 0 with variance
+// range_scale_sigma^2. Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
 //   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
 //   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range, k_bearing]
 //   F  = d x'/d x = I10 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
@@ -21,10 +24,13 @@
 //   q_s = range_scale_sigma^2 (1 - phi^2) on s_range.
 // Update with a landmark l (2-D; the map's position, or as the augmented state holds it, below):
 //   d = l - t, q = |d|^2, r = sqrt(q), beta = wrap(atan2(d_y, d_x) - theta),
-//   h(x) = [(1 + s_range) r + b_range, wrap((1 + k_bearing) beta + b_bearing)]
-//   H = [[-(1 + s_range) d_x/r, -(1 + s_range) d_y/r, 0, 0 0 0, 1, 0, r, 0],
-//        [(1 + k_bearing) [d_y/q, -d_x/q, -1], 0 0 0, 0, 1, 0, beta]], H_l = -H[:, 0:2],  y = [range - h_0,
-//        wrap(bearing - h_1)],  S = H P H^T + R (the augmented form below),
+//   p_x = cos(theta) d_x + sin(theta) d_y, p_y = -sin(theta) d_x + cos(theta) d_y (the landmark in
+//   the robot frame), rho = (1 - c_depth) r + c_depth p_x,
+//   h(x) = [(1 + s_range) rho + b_range, wrap((1 + k_bearing) beta + b_bearing)]
+//   H = [[(1 + s_range) ((1 - c_depth) [-d_x/r, -d_y/r, 0] + c_depth [-cos(theta), -sin(theta), p_y]),
+//         0 0 0, 1, 0, rho, 0, (1 + s_range) (p_x - r)],
+//        [(1 + k_bearing) [d_y/q, -d_x/q, -1], 0 0 0, 0, 1, 0, beta, 0]], H_l = -H[:, 0:2],  y = [range -
+//        h_0, wrap(bearing - h_1)],  S = H P H^T + R (the augmented form below),
 //   R = diag(sigma_w^2, sigma_bearing^2), sigma_w^2 = max(sigma_range(range)^2 - (range_scale_sigma
 //   range)^2, range_a_m^2) (the range variance less its common part; an observation's own sigma as given)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
@@ -89,6 +95,9 @@ struct RangeBearingLocalizerOptions {
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
   // Sigma of the sensor's bearing scale error at the start (0).
   double bearing_scale_sigma = 0.1;
+  // Sigma of the sensor's depth share c_depth at its start (0); 0 (default) holds c_depth at 0
+  // (ranges taken as distances); 1 is weak (a camera that ranges codes by their apparent size).
+  double depth_share_sigma = 0.0;
   RangeBearingMapUncertainty map_uncertainty = RangeBearingMapUncertainty::kEstimate;
   int max_landmark_states = 64;  // eta_l blocks kept (kEstimate, kConsider)
   bool Check(std::string* why) const;
@@ -112,6 +121,7 @@ class RangeBearingLocalizer {
   Eigen::Vector2d sensor_bias() const { return x_.segment<2>(6); }
   double range_scale() const { return x_[8]; }
   double bearing_scale() const { return x_[9]; }
+  double depth_share() const { return x_[10]; }
   // The augmented state: k (xi) and the landmarks' eta blocks held now.
   int map_modes() const { return k_; }
   int landmark_states() const { return static_cast<int>(slots_.size()); }
@@ -123,7 +133,7 @@ class RangeBearingLocalizer {
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static constexpr int kStateSize = 10;
+  static constexpr int kStateSize = 11;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
   static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);

@@ -10,7 +10,8 @@
 #      (ATE in the map's frame, NEES): the map's landmark errors as states of the EKF (default),
 #      considered (Schmidt), in each sighting's noise, ignored (the map taken as exact: the
 #      filter before the map had a covariance), and a control against the true landmark
-#      positions; the map's covariance against its error (scripts/map-covariance-check.py)
+#      positions; the map's covariance against its error (scripts/map-covariance-check.py); and
+#      the EKF with the sensor's depth share estimated (--depth-share-sigma 1), also on the truth map
 # Usage: scripts/accuracy-mrclam.sh [RUN_DIR] [OUT_DIR]   (OUT_DIR default: out/mrclam; needs
 # build/waymark: scripts/build.sh --target waymark)
 set -euo pipefail
@@ -76,5 +77,11 @@ EOF
     done
     echo "== $robot: online against the true landmark positions (control)"
     "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --out "$out/$robot-online-truth-map.tum"
+    echo "== $robot: online, the sensor's depth share estimated (--depth-share-sigma 1)"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --depth-share-sigma 1 \
+      --out "$out/$robot-online-depth.tum"
+    echo "== $robot: online, depth share, against the true landmark positions (control)"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --depth-share-sigma 1 \
+      --out "$out/$robot-online-depth-truth-map.tum"
   done
 fi

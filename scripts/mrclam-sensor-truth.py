@@ -9,7 +9,9 @@ here feeds the estimator). For each robot:
     tracked centre by c metres;
   - the robust spread (1.4826 MAD) of e, and the range error fitted as (k range + b);
 then the median relative range error (measured - true) / true per landmark over all robots and
-per robot-landmark pair (pairs with at least 10 sightings).
+per robot-landmark pair (pairs with at least 10 sightings), and per robot in bins of |true bearing|
+(a camera that ranges a code by its apparent size reads its depth, range cos(bearing)).
+The robots' tables are printed first, the per-bearing table last.
 Usage: scripts/mrclam-sensor-truth.py [RUN_DIR]   (default ../shared/data/mrclam/MRCLAM_Dataset6)
 Pure Python 3, no packages."""
 import bisect
@@ -63,6 +65,7 @@ def main():
     landmarks = {int(r[0]): (r[1], r[2]) for r in rows(os.path.join(run, 'Landmark_Groundtruth.dat'))}
     print('robot  vicon_yaw_rad  bearing: a_rad  kappa  c_m  spread_rad  n | range: k  b_m')
     relative = {}  # (landmark, robot) -> relative range errors
+    bearing_rows = []
     robot = 1
     while os.path.exists(os.path.join(run, 'Robot%d_Groundtruth.dat' % robot)):
         gt = rows(os.path.join(run, 'Robot%d_Groundtruth.dat' % robot))
@@ -83,6 +86,7 @@ def main():
         errors = []
         R = [[0.0] * 2 for _ in range(2)]
         rr = [0.0] * 2
+        by_bearing = {}
         for t, code, rng, bearing in rows(os.path.join(run, 'Robot%d_Measurement.dat' % robot)):
             subject = subject_of.get(int(code))
             if subject not in landmarks:
@@ -108,6 +112,8 @@ def main():
                 er = rng - true_range
                 if abs(er) < 1.0:
                     relative.setdefault((subject, robot), []).append(er / true_range)
+                    edge = min(int(abs(true_bearing) / 0.1), 5)  # 0.5-0.7 rad share the last bin
+                    by_bearing.setdefault(edge, []).append(er / true_range)
                     g = [true_range, 1.0]
                     for p in range(2):
                         rr[p] += g[p] * er
@@ -117,6 +123,8 @@ def main():
         k, b = solve(R, rr)
         print('robot%d  %+.4f  %+.4f  %+.4f  %+.3f  %.4f  %d | %+.3f  %+.3f' %
               (robot, median(yaw), offset, kappa, ahead, mad(errors), len(errors), k, b))
+        bearing_rows.append('robot%d ' % robot + ' '.join(
+            '%+5.1f%%' % (100 * median(by_bearing[e])) if e in by_bearing else '    - ' for e in range(6)))
         robot += 1
     per_landmark = {}
     for (subject, _), v in relative.items():
@@ -126,6 +134,9 @@ def main():
     print('median relative range error per landmark (all robots): %+.3f .. %+.3f; per robot-landmark '
           'pair: %+.3f .. %+.3f (%d pairs)' % (min(landmark_medians), max(landmark_medians), min(pairs),
                                                max(pairs), len(pairs)))
+    print('median relative range error per |bearing| bin (rad): 0-0.1 0.1-0.2 0.2-0.3 0.3-0.4 0.4-0.5 0.5-')
+    for line in bearing_rows:
+        print(line)
 
 
 if __name__ == '__main__':

@@ -120,7 +120,21 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   const RunResult live = Run("localize " + (dir_ / "robot2").string() + " --map " +
                              (dir_ / "map.json").string() + " --live --map-uncertainty consider");
   EXPECT_NE(live.exit_code, 0);
-  EXPECT_THAT(live.err, HasSubstr("--map-uncertainty is for range-bearing datasets, not --live"));
+  EXPECT_THAT(
+      live.err,
+      HasSubstr("--map-uncertainty and --depth-share-sigma are for range-bearing datasets, not --live"));
+  // The sensor's depth share estimated by the EKF; a negative sigma refused.
+  const RunResult depth =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-depth.tum").string() + " --depth-share-sigma 1");
+  ASSERT_EQ(depth.exit_code, 0) << depth.err;
+  EXPECT_THAT(depth.out, HasSubstr("NEES: mean "));
+  const RunResult negative =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "y.tum").string() + " --depth-share-sigma -1");
+  EXPECT_NE(negative.exit_code, 0);
+  EXPECT_THAT(negative.err, HasSubstr("--depth-share-sigma: expected a number >= 0, got -1"));
+  EXPECT_FALSE(fs::exists(dir_ / "y.tum"));
 }
 
 TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
@@ -157,7 +171,10 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
       Run("localize " + (dir_ / "survey5").string() + " --map " + (dir_ / "map.json").string() + " --out " +
           (dir_ / "run.tum").string() + " --map-uncertainty consider");
   EXPECT_NE(camera.exit_code, 0);
-  EXPECT_THAT(camera.err, HasSubstr("--map-uncertainty is for range-bearing datasets (range_bearing.jsonl)"));
+  EXPECT_THAT(
+      camera.err,
+      HasSubstr(
+          "--map-uncertainty and --depth-share-sigma are for range-bearing datasets (range_bearing.jsonl)"));
 }
 
 }  // namespace

@@ -179,6 +179,40 @@ TEST(MarginalCovarianceTest, FactorSolvesAndMarginalsMatchTheDenseInverse) {
   EXPECT_THROW(factor.FirstColumn(chain.values[5].data()), std::runtime_error);  // constant
 }
 
+// The leverages of every residual row are the diagonal of the dense hat matrix J H^-1 J^T; they
+// sum to the number of free parameters (quaternion blocks count 3), and a constant block's columns
+// are conditioned on.
+TEST(MarginalCovarianceTest, LeveragesMatchTheDenseHatMatrix) {
+  ChainProblem chain(25, 10, false, 5);
+  chain.problem.SetParameterBlockConstant(chain.values[4].data());
+  const InformationFactor factor(&chain.problem, {});
+  ASSERT_TRUE(factor.positive_definite());
+  std::vector<double> residuals;
+  ceres::CRSMatrix crs;
+  ASSERT_TRUE(ResidualJacobian(&chain.problem, {}, 1, &residuals, &crs));
+  ASSERT_EQ(crs.num_cols, factor.size());
+  ASSERT_EQ(static_cast<int>(residuals.size()), crs.num_rows);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int p = crs.rows[r]; p < crs.rows[r + 1]; ++p) J(r, crs.cols[p]) = crs.values[p];
+  }
+  const Eigen::MatrixXd H = J.transpose() * J;
+  const Eigen::MatrixXd hat = J * H.ldlt().solve(J.transpose());
+  const std::vector<double> leverage = factor.Leverages(crs);
+  ASSERT_EQ(static_cast<int>(leverage.size()), crs.num_rows);
+  double sum = 0.0;
+  for (int r = 0; r < crs.num_rows; ++r) {
+    EXPECT_NEAR(leverage[r], hat(r, r), 1e-9) << "row " << r;
+    EXPECT_GE(leverage[r], -1e-12);
+    EXPECT_LE(leverage[r], 1.0 + 1e-12);
+    sum += leverage[r];
+  }
+  EXPECT_NEAR(sum, static_cast<double>(factor.size()), 1e-8);
+  ceres::CRSMatrix wrong = crs;
+  wrong.num_cols += 1;
+  EXPECT_THROW(factor.Leverages(wrong), std::logic_error);
+}
+
 TEST(MarginalCovarianceTest, FreeGaugeIsReportedNotInverted) {
   // Pure differences: r = x_b - x_a - c leaves a common shift of every block free.
   std::vector<std::array<double, 3>> x(8, {0.0, 0.0, 0.0});

@@ -43,7 +43,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
     x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng),
-        0.01 * u(rng), 0.02 * u(rng);
+        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const double phi = 0.5 + 0.1 * u(rng);  // the range scale's decay over the increment
@@ -89,15 +89,16 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     EXPECT_LT((testing::NumericJacobian(measure_landmark, l, 1e-6, wrap) - H_l).cwiseAbs().maxCoeff(), 1e-6);
     Eigen::Matrix<double, 2, 3> F_l;
     F_l << 0.03 * u(rng), 0.01 * u(rng), 0.02 * u(rng), 0.01 * u(rng), 0.03 * u(rng), 0.02 * u(rng);
-    Eigen::VectorXd augmented(RangeBearingLocalizer::kStateSize + 5);
+    constexpr int n = RangeBearingLocalizer::kStateSize;
+    Eigen::VectorXd augmented(n + 5);
     augmented << x6, 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng), 0.01 * u(rng), 0.01 * u(rng);
     const auto measure_augmented = [&](const Eigen::VectorXd& z) -> Eigen::VectorXd {
-      const Eigen::Vector2d p = l + F_l * z.segment<3>(10) + z.segment<2>(13);
-      return RangeBearingLocalizer::MeasureState(z.head<10>(), p);
+      const Eigen::Vector2d p = l + F_l * z.segment<3>(n) + z.segment<2>(n + 3);
+      return RangeBearingLocalizer::MeasureState(z.head<n>(), p);
     };
-    const Eigen::Vector2d l_now = l + F_l * augmented.segment<3>(10) + augmented.segment<2>(13);
-    const RangeBearingLocalizer::Vector6 x_now = augmented.head<10>();
-    Eigen::Matrix<double, 2, 15> H_augmented;
+    const Eigen::Vector2d l_now = l + F_l * augmented.segment<3>(n) + augmented.segment<2>(n + 3);
+    const RangeBearingLocalizer::Vector6 x_now = augmented.head<n>();
+    Eigen::Matrix<double, 2, n + 5> H_augmented;
     const Eigen::Matrix2d H_l_now = RangeBearingLocalizer::MeasureLandmarkJacobian(x_now, l_now);
     H_augmented << RangeBearingLocalizer::MeasureStateJacobian(x_now, l_now), H_l_now * F_l, H_l_now;
     EXPECT_LT((testing::NumericJacobian(measure_augmented, augmented, 1e-6, wrap) - H_augmented)
@@ -106,7 +107,9 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
               1e-6);
     const Eigen::Vector2d h = RangeBearingLocalizer::MeasureState(x6, l),
                           h_pose = RangeBearingLocalizer::Measure(x, l);
-    EXPECT_NEAR(h[0], (1.0 + x6[8]) * h_pose[0] + x6[6], 1e-12);
+    // The range read (1 - c_depth) r + c_depth p_x, p_x = r cos(beta): the depth along the axis.
+    EXPECT_NEAR(h[0], (1.0 + x6[8]) * (1.0 - x6[10] + x6[10] * std::cos(h_pose[1])) * h_pose[0] + x6[6],
+                1e-9);
     EXPECT_NEAR(WrapAngle(h[1] - ((1.0 + x6[9]) * h_pose[1] + x6[7])), 0.0, 1e-12);
   }
 }
@@ -138,8 +141,9 @@ TEST(RangeBearingLocalizer, UnknownCodesAndGrossOutliersAreRejectedAndCounted) {
 TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
   RangeBearingLocalizerOptions options;
   options.lost_rejections = 3;
-  // Two landmarks cannot tell a bearing scale error from the pose: none here.
+  // Two landmarks cannot tell a bearing scale error or a depth share from the pose: none here.
   options.bearing_scale_sigma = 1e-6;
+  options.depth_share_sigma = 1e-6;
   // The filter believes it is at the origin; the robot is at (1, 0.5) heading 0.
   RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(),
                                Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal());
@@ -388,6 +392,57 @@ TEST(RangeBearingLocalizer, LandmarkStatesAreCappedAndTheMapRefinedOnlyWhenEstim
     EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(P).info(), Eigen::Success);
     EXPECT_FALSE(filter.LandmarkPosition({kFamilyBarcode, "99"}));
   }
+}
+
+// A camera that ranges a code from its apparent size reads its depth p_x = r cos(bearing), not
+// its distance: the filter's c_depth converges to 1, and the pose is better than with c_depth held
+// at 0 (a true range assumed).
+TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
+  MarkerMap map;
+  for (int i = 0; i < 6; ++i) {
+    MapMarker m;
+    m.is_point = true;
+    m.key = {kFamilyBarcode, std::to_string(i)};
+    m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(),
+                            Eigen::Vector3d(4.0 * std::cos(i * M_PI / 3), 4.0 * std::sin(i * M_PI / 3), 0.0));
+    map.markers.push_back(m);
+  }
+  const auto run = [&](double depth_share_sigma, double* error_rms) {
+    std::mt19937 rng(23);
+    std::normal_distribution<double> n(0.0, 1.0);
+    RangeBearingLocalizerOptions options;
+    options.noise.range_a_m = 0.02;
+    options.noise.range_b = 0.0;
+    options.noise.range_scale_sigma = 0.0;
+    options.noise.bearing_rad = 0.005;
+    options.noise.odometry_q_t = 1e-4;
+    options.noise.odometry_q_r = 1e-4;
+    options.depth_share_sigma = depth_share_sigma;
+    SE2d truth(2.0, 0.0, M_PI / 2);
+    RangeBearingLocalizer filter(map, options, truth,
+                                 Eigen::Vector3d(0.01, 0.01, 0.01).cwiseAbs2().asDiagonal());
+    double sum = 0.0;
+    for (int step = 0; step < 600; ++step) {
+      const SE2d M(0.05, 0.0, 0.025);
+      truth = truth * M;
+      filter.Predict(M, 0.1);
+      const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+      for (const MapMarker& m : map.markers) {
+        Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
+        if (std::abs(z[1]) > 0.6) continue;
+        z[0] = z[0] * std::cos(z[1]) + 0.02 * n(rng);
+        z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
+        filter.Update(Sighting(m.key.id, z));
+      }
+      sum += (filter.pose().translation() - truth.translation()).squaredNorm();
+    }
+    *error_rms = std::sqrt(sum / 600);
+    return filter.depth_share();
+  };
+  double estimated_rms = 0.0, held_rms = 0.0;
+  EXPECT_NEAR(run(1.0, &estimated_rms), 1.0, 0.1);
+  EXPECT_EQ(run(0.0, &held_rms), 0.0);  // the default: held at 0
+  EXPECT_LT(estimated_rms, 0.5 * held_rms);
 }
 
 TEST(RangeBearingLocalizer, TheBearingScaleIsEstimated) {
