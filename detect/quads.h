@@ -1,6 +1,6 @@
 // Dark quadrilaterals: the candidate stage Waymark runs itself for DataMatrix (the solid L
-// finder and the dashed timing pattern) and for AprilTags too small for libapriltag's
-// decimated quad search (a solid dark border around mixed bits).
+// finder and the dashed timing pattern) and for AprilTag (a solid dark border around mixed
+// bits: libapriltag searches a crop of each, detect/apriltag.cc).
 //
 // The frame is binarized against its local mean (dark = at least 7 gray levels below the
 // mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
