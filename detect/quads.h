@@ -76,6 +76,16 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
 // Implemented in detect/datamatrix.cc.
 bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* timing_runs = nullptr);
 
+// The quiet zone outside the L's two legs on a candidate's rectified patch (as for
+// DataMatrixPatchPlausible): at 16 places along each leg (15-85 % of it), the leg's outer edge
+// is the strongest light-to-dark step of a profile across it (from 15 % of the side outside to
+// 10 % inside: the candidate's legs may be a few pixels off), and the place counts as dark
+// when the step is under a quarter of the patch's contrast or the gray level a module's width
+// (4 % of the side, at least 1.5 px) outside the edge is under halfway between the L and the
+// light modules. Returns the larger of the two legs' dark fractions (1 when the patch has no
+// contrast).
+double DataMatrixQuietZoneDark(const cv::Mat& patch, int margin, int side);
+
 // A candidate rectified onto a small upright patch (side 48-140 px and a 30 % quiet zone, through
 // the homography of its corners).
 struct DataMatrixPatch {
@@ -84,6 +94,9 @@ struct DataMatrixPatch {
   int side = 0;
   int margin = 0;
   int timing_runs = 0;  // DataMatrixPatchPlausible's
+  // DataMatrixQuietZoneDark's: the larger over the two legs of the fraction of places along
+  // the leg with no light quiet zone just outside its outer edge.
+  double quiet_zone_dark = 0.0;
   DataMatrixCandidate candidate;
 };
 
