@@ -20,7 +20,7 @@ constexpr int kBoxPx = 15;
 constexpr int kDarkerBy = 7;
 // Pyramid levels (scale of the work image) and the largest hull side each one keeps (work
 // pixels; larger codes are found at the next level, where the box spans more modules).
-constexpr double kLevelScales[] = {1.0, 0.5, 0.25};
+constexpr double kLevelScales[] = {1.0, 0.5, 0.25, 0.125};
 constexpr double kLevelMaxSidePx = 130.0;
 // The L test: samples just inside each side (the first module row or column), from 8 % to
 // 92 % of the side.

@@ -3,9 +3,10 @@
 // bits: libapriltag searches a crop of each, detect/apriltag.cc).
 //
 // The frame is binarized against its local mean (dark = at least 7 gray levels below the
-// mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
-// few modules of codes from about 10 to 400 px (levels above the last keep components up
-// to 130 work pixels; larger ones are the next level's). Every dark component (8-connected,
+// mean of a 15x15 box) at 1, 1/2, 1/4 and 1/8 resolution, so that at some level the box spans
+// a few modules of codes from about 10 to 400 px (levels above the last keep components up
+// to 130 work pixels; larger ones are the next level's; at 1/8 a symbol of 130-170 px with
+// 13-17 px modules is one component, where at 1/4 it broke at clusters of dark modules). Every dark component (8-connected,
 // from the binary image's runs: detect/components.h) gives a convex hull reduced to four corners
 // (approxPolyDP; a fifth corner, where the hull cuts off a light corner module as at a DataMatrix symbol's
 // top-right, is replaced by the intersection of its neighbouring sides). Each side is sampled just inside
