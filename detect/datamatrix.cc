@@ -100,9 +100,11 @@ class DataMatrixDetector : public MarkerDetector {
     // max_datamatrix_candidates decoded per frame. The cheap patch test runs on at most
     // kPatchTestsPerDecode times as many candidates (clutter that fails it costs a warp).
     std::vector<DataMatrixPatch> patches;
+    std::vector<DarkQuad> quads = FindDarkQuads(gray, options_.min_side_px);
+    const std::vector<DarkQuad> coarse = FindCoarseDarkQuads(gray, options_.min_side_px);
+    quads.insert(quads.end(), coarse.begin(), coarse.end());
     for (const DataMatrixCandidate& candidate :
-         DataMatrixCandidates(FindDarkQuads(gray, options_.min_side_px),
-                              kPatchTestsPerDecode * options_.max_datamatrix_candidates)) {
+         DataMatrixCandidates(quads, kPatchTestsPerDecode * options_.max_datamatrix_candidates)) {
       if (std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate)) {
         // No quiet zone along most of a leg: an L-shaped part of something larger.
         if (patch->quiet_zone_dark > kQuietMaxDark) continue;

@@ -3,10 +3,11 @@
 // bits: libapriltag searches a crop of each, detect/apriltag.cc).
 //
 // The frame is binarized against its local mean (dark = at least 7 gray levels below the
-// mean of a 15x15 box) at 1, 1/2, 1/4 and 1/8 resolution, so that at some level the box spans
-// a few modules of codes from about 10 to 400 px (levels above the last keep components up
-// to 130 work pixels; larger ones are the next level's; at 1/8 a symbol of 130-170 px with
-// 13-17 px modules is one component, where at 1/4 it broke at clusters of dark modules). Every dark component (8-connected,
+// mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
+// few modules of codes from about 10 to 400 px (levels above the last keep components up
+// to 130 work pixels; larger ones are the next level's). FindCoarseDarkQuads does the same at
+// 1/8, for DataMatrix only: there a symbol of 80-170 px with large modules is one component,
+// where at 1/4 it broke at clusters of dark modules. Every dark component (8-connected,
 // from the binary image's runs: detect/components.h) gives a convex hull reduced to four corners
 // (approxPolyDP; a fifth corner, where the hull cuts off a light corner module as at a DataMatrix symbol's
 // top-right, is replaced by the intersection of its neighbouring sides). Each side is sampled just inside
@@ -44,6 +45,11 @@ struct DarkQuad {
 // min_side_px and a 64-bit hash of its pixels (about 0.2 ms for 1280x960), and returns it for
 // the same pixels again.
 std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px = 10.0);
+
+// The same at 1/8 resolution alone (every component size kept), shared the same way; the
+// DataMatrix detector's candidates come from both (large symbols with 13-17 px modules are
+// whole only here). The other families do not use it.
+std::vector<DarkQuad> FindCoarseDarkQuads(const cv::Mat& gray, double min_side_px = 10.0);
 
 struct DataMatrixCandidate {
   // Outer corners in frame pixels in docs/design.md order of the symbol as the L finder puts it

@@ -64,7 +64,7 @@ TEST(DetectDataMatrix, LargeModulesAreCandidates) {
     DrawSymbol(DataMatrixSymbol(text), truth, &image, 40, 225);
     cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
     // The symbol whole at the 1/8 level.
-    for (const DarkQuad& q : FindDarkQuads(image)) {
+    for (const DarkQuad& q : FindCoarseDarkQuads(image)) {
       if (q.scale == 0.125 && (QuadCenter(q.corners_px) - centre).norm() < 0.1 * side &&
           std::abs(QuadMeanSide(q.corners_px) / side - 1.0) < 0.15) {
         ++coarse;
