@@ -47,7 +47,7 @@ namespace fs = std::filesystem;
 constexpr const char* kUsage = R"(Usage:
   waymark detect INPUT --out detections.jsonl [--camera cam.yaml]
                  [--families qr,datamatrix,apriltag-36h11] [--annotate DIR]
-                 [--max-candidates 8] [--apriltag-decimate 4] [--threads N]
+                 [--max-candidates 8] [--apriltag-decimate 8] [--threads N]
 
 Detects printed codes and writes one JSON line per image or video frame (docs/design.md
 detections.jsonl; frames without codes get a line too). INPUT is
@@ -76,7 +76,8 @@ Options:
   --max-candidates N  candidate regions per frame the QR/DataMatrix second passes try (8);
                       work is bounded by counts, never by time: the same images give the
                       same detections on any machine and at any load
-  --apriltag-decimate F   libapriltag quad_decimate (4; 2 finds smaller tags, slower)
+  --apriltag-decimate F   libapriltag quad_decimate of the whole frame (8), at most
+                      that of the crops around candidate tag borders
   --threads N         threads per frame: the families run at the same time (default: the
                       machine's cores); the detections do not depend on N
 

@@ -12,6 +12,7 @@
 #include <apriltag/tagStandard52h13.h>
 
 #include <algorithm>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -22,16 +23,20 @@ namespace waymark {
 namespace {
 
 constexpr int kMinImageSidePx = 32;
-// Pass 2 looks at solid-bordered quads up to this many times the decimation wide (tags
-// above it are found by the decimated pass), each cropped with half a side of margin.
-constexpr double kSecondPassMaxSidePerDecimate = 40.0;
-constexpr double kCropMarginFraction = 0.5;
-constexpr int kMaxSecondPassQuads = 16;
-// The decimated whole-frame pass ignores tiles whose gray levels span less than this
-// (libapriltag's min_white_black_diff, default 5): on cluttered, noisy frames most of its
-// time went into clusters of such faint edges (6.4 -> 3.5 ms per 1280x960 frame of the
-// recall bench, the same tags found). A tag's border against its white ring spans far more,
-// even at a fifth of full exposure; pass 2 keeps the default on its crops.
+// libapriltag looks for quads in crops of the solid-bordered quads of the shared candidate
+// stage (detect/quads.h: where a black border around mixed bits is), each at the decimation
+// that leaves the quad's shortest side about this many pixels (at least 1, at most
+// apriltag_decimate): the whole frame at decimation 4 lost tags 44-94 px wide (11-23
+// decimated pixels), and decimation 1 everywhere costs several times as much.
+constexpr double kCropDecimatedSidePx = 32.0;
+constexpr double kCropMarginFraction = 0.3;  // of the quad's box, each side
+constexpr int kMaxQuadCrops = 24;
+// Then the whole frame at apriltag_decimate (8 by default), for tags at no such quad (a
+// broken border, a tag larger than the candidate stage's coarsest level sees whole); it
+// ignores tiles whose gray levels span less than this (libapriltag's min_white_black_diff,
+// default 5): on cluttered, noisy frames most of its time went into clusters of such faint
+// edges. A tag's border against its white ring spans far more, even at a fifth of full
+// exposure; the crops keep the default.
 constexpr int kWholeFrameMinContrast = 15;
 
 struct FamilyEntry {
@@ -67,23 +72,23 @@ class AprilTagDetector : public MarkerDetector {
   AprilTagDetector(const std::string& family, const FamilyEntry& entry, const DetectorOptions& options)
       : family_(family), entry_(entry), options_(options) {
     tag_family_ = entry_.create();
-    detector_ = apriltag_detector_create();
-    apriltag_detector_add_family_bits(detector_, tag_family_, options.apriltag_max_bits_corrected);
-    detector_->quad_decimate = static_cast<float>(options.apriltag_decimate);
-    detector_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
-    detector_->nthreads = 1;  // threads: the multi-family detector's (detect/detector.h)
-    detector_->refine_edges = true;
-    detector_->qtp.min_white_black_diff = kWholeFrameMinContrast;
-    full_resolution_ = apriltag_detector_create();
-    apriltag_detector_add_family_bits(full_resolution_, tag_family_, options.apriltag_max_bits_corrected);
-    full_resolution_->quad_decimate = 1.0f;
-    full_resolution_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
-    full_resolution_->nthreads = 1;
-    full_resolution_->refine_edges = true;
+    whole_frame_ = apriltag_detector_create();
+    apriltag_detector_add_family_bits(whole_frame_, tag_family_, options.apriltag_max_bits_corrected);
+    whole_frame_->quad_decimate = static_cast<float>(options.apriltag_decimate);
+    whole_frame_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
+    whole_frame_->nthreads = 1;  // threads: the multi-family detector's (detect/detector.h)
+    whole_frame_->refine_edges = true;
+    whole_frame_->qtp.min_white_black_diff = kWholeFrameMinContrast;
+    crops_ = apriltag_detector_create();
+    apriltag_detector_add_family_bits(crops_, tag_family_, options.apriltag_max_bits_corrected);
+    crops_->quad_decimate = 1.0f;  // set per crop
+    crops_->quad_sigma = static_cast<float>(options.apriltag_blur_sigma);
+    crops_->nthreads = 1;
+    crops_->refine_edges = true;
   }
   ~AprilTagDetector() override {
-    apriltag_detector_destroy(full_resolution_);
-    apriltag_detector_destroy(detector_);
+    apriltag_detector_destroy(crops_);
+    apriltag_detector_destroy(whole_frame_);
     entry_.destroy(tag_family_);
   }
   AprilTagDetector(const AprilTagDetector&) = delete;
@@ -94,74 +99,78 @@ class AprilTagDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    if (TooSmall(gray)) return {};
-    std::vector<MarkerObservation> raw = Run(detector_, gray, cv::Point(0, 0));
-    FrameWork work(options_.live_budget_ms);
-    if (options_.second_pass) SecondPasses(gray, &work, &raw);
-    skipped_ = work.skipped();
+    const std::vector<MarkerObservation> raw = FirstPass(gray);
+    skipped_ = 0;
     return Finish(gray, RefineObservations(gray, raw, Refines()));
   }
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_.gray = ToGray8(image);
-    staged_.raw.clear();
-    if (!TooSmall(staged_.gray)) staged_.raw = Run(detector_, staged_.gray, cv::Point(0, 0));
+    staged_.raw = FirstPass(staged_.gray);
     staged_.refined = RefineObservations(staged_.gray, staged_.raw, Refines());
     staged_.started = true;
     skipped_ = 0;
     return Finish(staged_.gray, staged_.refined);
   }
 
+  // Every pass runs in the first stage (the quad crops and the whole frame at a coarse
+  // decimation are both cheaper than the full-resolution second pass they replace): the
+  // second stage has nothing left to add.
   std::vector<MarkerObservation> DetectSecondPasses() override {
     staged_.CheckStarted();
-    const cv::Mat& gray = staged_.gray;
-    if (TooSmall(gray)) return {};
-    FrameWork work(options_.live_budget_ms);
-    std::vector<MarkerObservation> raw = staged_.raw;
-    if (options_.second_pass) SecondPasses(gray, &work, &raw);
-    skipped_ = work.skipped();
-    const bool refine = Refines();
-    return Finish(gray, staged_.RefinedWith(raw, [&gray, refine](MarkerObservation* obs) {
-      *obs = RefineObservations(gray, {*obs}, refine).front();
-    }));
+    skipped_ = 0;
+    return Finish(staged_.gray, staged_.refined);
   }
 
  private:
-  // libapriltag 3.3 crashes on images only a few pixels across once decimated (e.g.
-  // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
-  bool TooSmall(const cv::Mat& gray) const {
-    const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * options_.apriltag_decimate);
-    return gray.cols < min_side_px || gray.rows < min_side_px;
-  }
-
   bool Refines() const { return options_.refine_corners && !tag_family_->reversed_border; }
 
-  void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* raw) {
-    if (options_.apriltag_decimate <= 1.0) return;
-    // Pass 2: tags too small for the decimated quad search, at full resolution but only
-    // where a solid dark border is (detect/quads.h), each crop holding no tag yet.
-    const double max_side = kSecondPassMaxSidePerDecimate * options_.apriltag_decimate;
-    for (const Quad2d& quad :
-         SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px), max_side, kMaxSecondPassQuads)) {
-      const Eigen::Vector2d centre = QuadCenter(quad);
-      const bool known = std::any_of(raw->begin(), raw->end(), [&centre](const MarkerObservation& o) {
+  // libapriltag 3.3 crashes on images only a few pixels across once decimated (e.g.
+  // 2000x3 at decimate 2, 8x8 at 4); no tag fits in them anyway.
+  static bool TooSmall(const cv::Size& size, double decimate) {
+    const double min_side_px = std::max<double>(kMinImageSidePx, 8.0 * decimate);
+    return size.width < min_side_px || size.height < min_side_px;
+  }
+
+  // Unrefined reads: crops of the solid-bordered quads (best first, at most kMaxQuadCrops), each
+  // at a decimation chosen by its size, then the whole frame at apriltag_decimate; a tag is
+  // kept once (a whole-frame read at a tag already read is dropped: at decimation 8 a 67 px tag
+  // was read with one bit corrected and its corners 2-3 px off, which the refinement rejects).
+  std::vector<MarkerObservation> FirstPass(const cv::Mat& gray) {
+    std::vector<MarkerObservation> raw;
+    const auto at_known_tag = [&raw](const Eigen::Vector2d& centre) {
+      return std::any_of(raw.begin(), raw.end(), [&centre](const MarkerObservation& o) {
         return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
       });
-      if (known || !work->Allow()) continue;
+    };
+    const cv::Rect frame(0, 0, gray.cols, gray.rows);
+    for (const Quad2d& quad : SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px),
+                                               std::numeric_limits<double>::infinity(), kMaxQuadCrops)) {
+      if (at_known_tag(QuadCenter(quad))) continue;
+      double shortest = std::numeric_limits<double>::infinity();
+      for (int j = 0; j < 4; ++j) shortest = std::min(shortest, (quad[(j + 1) % 4] - quad[j]).norm());
+      const int decimate = std::clamp(static_cast<int>(shortest / kCropDecimatedSidePx), 1,
+                                      std::max(1, static_cast<int>(options_.apriltag_decimate)));
       std::vector<cv::Point2f> points;
       for (const Eigen::Vector2d& c : quad) points.emplace_back(float(c.x()), float(c.y()));
       cv::Rect box = cv::boundingRect(points);
       const int margin =
           static_cast<int>(std::ceil(kCropMarginFraction * std::max(box.width, box.height))) + 2;
-      box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
-            cv::Rect(0, 0, gray.cols, gray.rows);
-      if (box.width < kMinImageSidePx || box.height < kMinImageSidePx) continue;
-      for (const MarkerObservation& obs : Run(full_resolution_, gray(box), box.tl())) {
-        const bool seen = std::any_of(raw->begin(), raw->end(),
+      box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) & frame;
+      if (TooSmall(box.size(), decimate)) continue;
+      crops_->quad_decimate = static_cast<float>(decimate);
+      for (const MarkerObservation& obs : Run(crops_, gray(box), box.tl())) {
+        const bool seen = std::any_of(raw.begin(), raw.end(),
                                       [&obs](const MarkerObservation& o) { return SameDetection(o, obs); });
-        if (!seen) raw->push_back(obs);
+        if (!seen) raw.push_back(obs);
       }
     }
+    if (!TooSmall(gray.size(), options_.apriltag_decimate)) {
+      for (const MarkerObservation& obs : Run(whole_frame_, gray, cv::Point(0, 0))) {
+        if (!at_known_tag(QuadCenter(obs.corners_px))) raw.push_back(obs);
+      }
+    }
+    return raw;
   }
 
   // The refined reads (RefineObservations) checked and, when refined, those whose border the
@@ -209,8 +218,8 @@ class AprilTagDetector : public MarkerDetector {
   FamilyEntry entry_;
   DetectorOptions options_;
   apriltag_family_t* tag_family_ = nullptr;
-  apriltag_detector_t* detector_ = nullptr;
-  apriltag_detector_t* full_resolution_ = nullptr;  // quad_decimate 1, for pass 2's crops
+  apriltag_detector_t* whole_frame_ = nullptr;  // quad_decimate apriltag_decimate
+  apriltag_detector_t* crops_ = nullptr;        // quad_decimate set per crop
   int skipped_ = 0;
   StagedDetection staged_;
 };

@@ -61,10 +61,11 @@ struct DetectorOptions {
   double live_budget_ms = 0.0;
 
   // AprilTag (libapriltag's apriltag_detector_t fields).
-  // quad_decimate: quads are found at 1/decimate resolution (corners are refined at full
-  // resolution). 4 keeps the benchmark's cluttered 1280x960 frame near 10 ms of CPU on one
-  // core (bench/detection_bench.cc); smaller, farther tags need 2, several times slower.
-  double apriltag_decimate = 4.0;
+  // quad_decimate, the coarsest: libapriltag searches a crop of each solid-bordered quad of the
+  // candidate stage (detect/quads.h) at the decimation that leaves the quad's shortest side
+  // about 32 px (at most this one), then the whole frame at this one for tags at no such quad
+  // (corners are refined at full resolution).
+  double apriltag_decimate = 8.0;
   double apriltag_blur_sigma = 0.0;  // quad_sigma
   int apriltag_max_bits_corrected = 1;
   // Worker threads of one Detect() call of a multi-family detector (CreateMultiDetector): its

@@ -21,6 +21,8 @@ constexpr int kDarkerBy = 7;
 // Pyramid levels (scale of the work image) and the largest hull side each one keeps (work
 // pixels; larger codes are found at the next level, where the box spans more modules).
 constexpr double kLevelScales[] = {1.0, 0.5, 0.25};
+// FindCoarseDarkQuads' one level.
+constexpr double kCoarseLevelScale = 0.125;
 constexpr double kLevelMaxSidePx = 130.0;
 // The L test: samples just inside each side (the first module row or column), from 8 % to
 // 92 % of the side.
@@ -233,7 +235,8 @@ std::vector<T> Deduplicate(const std::vector<T>& sorted, int max_count, QuadOf q
   return kept;
 }
 
-std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px);
+std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
+                                       const std::vector<double>& scales);
 
 }  // namespace
 
@@ -242,14 +245,25 @@ std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px) {
   // The families of one frame (DataMatrix, AprilTag) share one run, also on different
   // threads (PerImageCache: keyed by the pixels, so it is the result a new run would give).
   static PerImageCache<std::vector<DarkQuad>> cache;
-  return cache.Get(gray, min_side_px, [&gray, min_side_px] { return ComputeDarkQuads(gray, min_side_px); });
+  return cache.Get(gray, min_side_px, [&gray, min_side_px] {
+    return ComputeDarkQuads(gray, min_side_px,
+                            std::vector<double>(std::begin(kLevelScales), std::end(kLevelScales)));
+  });
+}
+
+std::vector<DarkQuad> FindCoarseDarkQuads(const cv::Mat& gray, double min_side_px) {
+  CV_Assert(gray.type() == CV_8UC1);
+  static PerImageCache<std::vector<DarkQuad>> cache;
+  return cache.Get(gray, min_side_px,
+                   [&gray, min_side_px] { return ComputeDarkQuads(gray, min_side_px, {kCoarseLevelScale}); });
 }
 
 namespace {
 
-std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) {
+std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
+                                       const std::vector<double>& scales) {
   std::vector<DarkQuad> all;
-  for (const double scale : kLevelScales) {
+  for (const double scale : scales) {
     const int width = static_cast<int>(std::lround(gray.cols * scale));
     const int height = static_cast<int>(std::lround(gray.rows * scale));
     if (std::min(width, height) < 2 * kBoxPx) break;
@@ -261,7 +275,7 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px) 
     }
     const cv::Mat dark = DarkerThanLocalMean(small, kBoxPx, kDarkerBy);
     const double min_side = std::max(8.0, min_side_px * scale);
-    const bool last_level = scale == kLevelScales[std::size(kLevelScales) - 1];
+    const bool last_level = scale == scales.back();
     // Dark components from runs (detect/components.h), sized by their boxes before any hull:
     // sensor noise and text make thousands of small components, each one run or a few.
     std::vector<RunComponent> components = RunComponents(dark, [&](const cv::Rect& box) {

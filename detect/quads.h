@@ -1,11 +1,13 @@
 // Dark quadrilaterals: the candidate stage Waymark runs itself for DataMatrix (the solid L
-// finder and the dashed timing pattern) and for AprilTags too small for libapriltag's
-// decimated quad search (a solid dark border around mixed bits).
+// finder and the dashed timing pattern) and for AprilTag (a solid dark border around mixed
+// bits: libapriltag searches a crop of each, detect/apriltag.cc).
 //
 // The frame is binarized against its local mean (dark = at least 7 gray levels below the
 // mean of a 15x15 box) at 1, 1/2 and 1/4 resolution, so that at some level the box spans a
 // few modules of codes from about 10 to 400 px (levels above the last keep components up
-// to 130 work pixels; larger ones are the next level's). Every dark component (8-connected,
+// to 130 work pixels; larger ones are the next level's). FindCoarseDarkQuads does the same at
+// 1/8, for DataMatrix only: there a symbol of 80-170 px with large modules is one component,
+// where at 1/4 it broke at clusters of dark modules. Every dark component (8-connected,
 // from the binary image's runs: detect/components.h) gives a convex hull reduced to four corners
 // (approxPolyDP; a fifth corner, where the hull cuts off a light corner module as at a DataMatrix symbol's
 // top-right, is replaced by the intersection of its neighbouring sides). Each side is sampled just inside
@@ -44,6 +46,11 @@ struct DarkQuad {
 // the same pixels again.
 std::vector<DarkQuad> FindDarkQuads(const cv::Mat& gray, double min_side_px = 10.0);
 
+// The same at 1/8 resolution alone (every component size kept), shared the same way; the
+// DataMatrix detector's candidates come from both (large symbols with 13-17 px modules are
+// whole only here). The other families do not use it.
+std::vector<DarkQuad> FindCoarseDarkQuads(const cv::Mat& gray, double min_side_px = 10.0);
+
 struct DataMatrixCandidate {
   // Outer corners in frame pixels in docs/design.md order of the symbol as the L finder puts it
   // upright: top-left, top-right, bottom-right, bottom-left (the L's corner is bottom-left;
@@ -76,6 +83,16 @@ std::vector<DataMatrixCandidate> DataMatrixCandidates(const std::vector<DarkQuad
 // Implemented in detect/datamatrix.cc.
 bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* timing_runs = nullptr);
 
+// The quiet zone outside the L's two legs on a candidate's rectified patch (as for
+// DataMatrixPatchPlausible): at 16 places along each leg (15-85 % of it), the leg's outer edge
+// is the strongest light-to-dark step of a profile across it (from 15 % of the side outside to
+// 10 % inside: the candidate's legs may be a few pixels off), and the place counts as dark
+// when the step is under a quarter of the patch's contrast or the gray level a module's width
+// (4 % of the side, at least 1.5 px) outside the edge is under halfway between the L and the
+// light modules. Returns the larger of the two legs' dark fractions (1 when the patch has no
+// contrast).
+double DataMatrixQuietZoneDark(const cv::Mat& patch, int margin, int side);
+
 // A candidate rectified onto a small upright patch (side 48-140 px and a 30 % quiet zone, through
 // the homography of its corners).
 struct DataMatrixPatch {
@@ -84,6 +101,9 @@ struct DataMatrixPatch {
   int side = 0;
   int margin = 0;
   int timing_runs = 0;  // DataMatrixPatchPlausible's
+  // DataMatrixQuietZoneDark's: the larger over the two legs of the fraction of places along
+  // the leg with no light quiet zone just outside its outer edge.
+  double quiet_zone_dark = 0.0;
   DataMatrixCandidate candidate;
 };
 
@@ -93,7 +113,8 @@ std::optional<DataMatrixPatch> RectifyDataMatrixCandidate(const cv::Mat& gray,
                                                           const DataMatrixCandidate& candidate);
 
 // Decodes a rectified candidate: libdmtx started only at seed pixels on the L's two outer
-// edges (dmtxRegionScanPixel: never a scan of the frame or of the patch), and zxing-cpp's
+// edges (dmtxRegionScanPixel: never a scan of the frame or of the patch; at the middle of the
+// legs, and at 0.3 and 0.7 of them too when timing_runs >= 3), and zxing-cpp's
 // DataMatrix reader on the same patch as the fallback (the symbol at its centre, where
 // zxing 1.4 starts its search). When zxing reads the same text as libdmtx on the patch, its
 // corners are returned (a better start for the refinement), and its text replaces a libdmtx

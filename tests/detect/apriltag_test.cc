@@ -112,6 +112,36 @@ TEST(DetectAprilTag, DarkBarAcrossTheBorderGivesNoBadCorners) {
   std::printf("%d of 16 tags with a bar across the border reported\n", reported);
 }
 
+// Tags from 24 to 420 px in one cluttered frame at the default options: the small ones are read
+// from crops of the candidate stage's quads (the whole frame at decimation 4 lost tags of
+// 44-94 px), the large ones too (or from the whole frame at decimation 8).
+TEST(DetectAprilTag, SmallAndLargeTagsAtTheDefaultDecimation) {
+  cv::Mat image = Canvas(1280, 960);
+  cv::RNG rng(11);
+  for (int k = 0; k < 60; ++k) {  // clutter: boxes and frames
+    const cv::Point p(rng.uniform(0, 1280), rng.uniform(0, 960));
+    cv::rectangle(image, cv::Rect(p, cv::Size(rng.uniform(5, 60), rng.uniform(5, 60))),
+                  cv::Scalar(rng.uniform(20, 120)), k % 2 == 0 ? cv::FILLED : 2);
+  }
+  const double sides[] = {24.0, 32.0, 44.0, 60.0, 94.0, 150.0, 420.0};
+  const Eigen::Vector2d centres[] = {{80, 80},   {200, 80},  {330, 90}, {480, 100},
+                                     {660, 120}, {900, 140}, {640, 600}};
+  std::vector<Quad2d> truth;
+  for (int i = 0; i < 7; ++i) {
+    truth.push_back(MakeQuad(centres[i], sides[i], 0.3 * i, 0.85));
+    DrawSymbol(AprilTagSymbol("apriltag-36h11", 10 + i), truth.back(), &image);
+  }
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+  const auto found = CreateDetector("apriltag-36h11")->Detect(image);
+  ASSERT_EQ(found.size(), 7u);
+  for (const MarkerObservation& obs : found) {
+    const int i = std::stoi(obs.key.id) - 10;
+    ASSERT_GE(i, 0);
+    ASSERT_LT(i, 7);
+    EXPECT_LT(MaxCornerError(obs.corners_px, truth[i]), 0.3) << sides[i] << " px";
+  }
+}
+
 TEST(DetectAprilTag, BlankNoiseAndBadInput) {
   auto detector = CreateDetector("apriltag-36h11");
   EXPECT_TRUE(detector->Detect(Canvas()).empty());

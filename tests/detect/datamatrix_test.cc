@@ -8,8 +8,11 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
 
 #include "detect/detector.h"
+#include "detect/quads.h"
 #include "detect/synthetic.h"
 
 namespace waymark {
@@ -36,6 +39,46 @@ TEST(DetectDataMatrix, FourRotationsGiveDesignOrderCorners) {
     EXPECT_EQ(found[0].key.id, "A01");
     EXPECT_LT(MaxCornerError(found[0].corners_px, truth), 0.15) << "rotation " << r;
   }
+}
+
+// Large modules (10 x 10 symbols of 130-170 px: 13-17 px per module) on a light card: at full
+// resolution the candidate stage's 15 px box spans about one module and the legs' insides are
+// not darker than their local mean, at 1/4 the components break at clusters of dark modules;
+// the 1/8 level sees each symbol whole. Read by the first pass alone (Waymark's candidates).
+TEST(DetectDataMatrix, LargeModulesAreCandidates) {
+  DetectorOptions options;
+  options.second_pass = false;
+  auto detector = CreateDetector("datamatrix", options);
+  int read = 0, coarse = 0;
+  for (int k = 0; k < 8; ++k) {
+    cv::Mat image = Canvas(1280, 960);
+    cv::rectangle(image, cv::Rect(0, 0, 1280, 960), cv::Scalar(120), cv::FILLED);
+    const double side = 130.0 + 6.0 * k;
+    const Eigen::Vector2d centre(400.0 + 40.0 * k, 300.0 + 30.0 * k);
+    const Quad2d card = MakeQuad(centre, side * 1.6, 0.15 * k - 0.5);
+    std::vector<cv::Point> polygon;
+    for (const Eigen::Vector2d& c : card) polygon.emplace_back(int(c.x()), int(c.y()));
+    cv::fillConvexPoly(image, polygon, cv::Scalar(225));
+    const std::string text = "D" + std::to_string(17 + 50 * k);
+    const Quad2d truth = MakeQuad(centre, side, 0.15 * k - 0.5);
+    DrawSymbol(DataMatrixSymbol(text), truth, &image, 40, 225);
+    cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+    // The symbol whole at the 1/8 level.
+    for (const DarkQuad& q : FindCoarseDarkQuads(image)) {
+      if (q.scale == 0.125 && (QuadCenter(q.corners_px) - centre).norm() < 0.1 * side &&
+          std::abs(QuadMeanSide(q.corners_px) / side - 1.0) < 0.15) {
+        ++coarse;
+        break;
+      }
+    }
+    for (const MarkerObservation& obs : detector->Detect(image)) {
+      if (obs.key.id != text) continue;
+      ++read;
+      EXPECT_LT(MaxCornerError(obs.corners_px, truth), 0.3) << text;
+    }
+  }
+  EXPECT_GE(read, 7);
+  EXPECT_GE(coarse, 5);  // 6 of 8 here; the others are read from another level's quad
 }
 
 TEST(DetectDataMatrix, LibdmtxCornersAreInImageOrientation) {

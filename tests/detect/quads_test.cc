@@ -100,6 +100,32 @@ TEST(DetectQuads, DataMatrixPatchPlausibleTurnsAwayClutter) {
   EXPECT_TRUE(DataMatrixPatchPlausible(turned, margin, side));
 }
 
+TEST(DetectQuads, QuietZoneOutsideTheLegs) {
+  const int side = 60, margin = 18, size = side + 2 * margin;
+  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
+                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
+  cv::Mat patch(size, size, CV_8U, cv::Scalar(235));
+  DrawSymbol(DataMatrixSymbol("P1"), square, &patch, 20, 235);
+  cv::GaussianBlur(patch, patch, cv::Size(0, 0), 0.8);
+  EXPECT_LE(DataMatrixQuietZoneDark(patch, margin, side), 0.1);
+  // The candidate's legs 3 px inside the symbol's (its corners a few pixels off): the leg's edge
+  // is found on the profile, the quiet zone is still there.
+  EXPECT_LE(DataMatrixQuietZoneDark(patch, margin + 3, side - 3), 0.1);
+  // A dark area joined to the left leg (an L-shaped part of a larger dark thing).
+  cv::Mat joined = patch.clone();
+  cv::rectangle(joined, cv::Rect(0, 0, margin, size), cv::Scalar(20), cv::FILLED);
+  EXPECT_GT(DataMatrixQuietZoneDark(joined, margin, side), 0.9);
+  // A dark area a pixel below the bottom leg, wider than the profile reaches (an L-shaped
+  // corner of a picture on a dark band). A bar within the profile's reach counts as the leg
+  // (the candidate's legs may be a few pixels off).
+  cv::Mat barred = patch.clone();
+  cv::rectangle(barred, cv::Rect(0, margin + side + 1, size, size), cv::Scalar(20), cv::FILLED);
+  EXPECT_GT(DataMatrixQuietZoneDark(barred, margin, side), 0.9);
+  EXPECT_EQ(DataMatrixQuietZoneDark(cv::Mat(size, size, CV_8U, cv::Scalar(128)), margin, side), 1.0);
+}
+
 TEST(DetectQuads, SmallAndLargeSymbolsAreCandidates) {
   for (const double side : {22.0, 40.0, 380.0}) {
     cv::Mat image = Canvas(1280, 960);
