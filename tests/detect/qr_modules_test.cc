@@ -298,6 +298,34 @@ TEST(DetectQrModules, ObliqueCodesReadAfterPerspectiveSearch) {
   EXPECT_GE(read_count, 38);
 }
 
+// A whole small code's quad with one side only 40 % dark (its outer data modules mostly light;
+// the recall bench's issue seed 2 frame 133, 34 px at 49 deg) is no SmallQrCodeQuads quad but a
+// thin-side one; a quad near one SmallQrCodeQuads gave, or with a side under 35 % dark, is not.
+TEST(DetectQrModules, ThinSideQuadsComeSecond) {
+  DarkQuad code;
+  code.corners_px = MakeQuad({788.0, 347.0}, 33.3, 0.8, 0.7);
+  code.side_dark = {0.56, 0.67, 0.76, 0.40};
+  code.interior_spread = 0.47;
+  code.scale = 0.5;
+  DarkQuad other = code;
+  other.corners_px = MakeQuad({300.0, 200.0}, 30.0, 0.2);
+  other.side_dark = {0.6, 0.7, 0.8, 0.5};
+  DarkQuad faint = code;
+  faint.corners_px = MakeQuad({500.0, 600.0}, 30.0, 0.2);
+  faint.side_dark = {0.6, 0.7, 0.8, 0.3};
+  const std::vector<DarkQuad> quads = {code, other, faint};
+  const std::vector<DarkQuad> small = SmallQrCodeQuads(quads, 16);
+  ASSERT_EQ(small.size(), 1u);
+  EXPECT_NEAR(QuadCenter(small[0].corners_px).x(), 300.0, 1e-9);
+  const std::vector<DarkQuad> thin = ThinSideSmallQrCodeQuads(quads, small, 2);
+  ASSERT_EQ(thin.size(), 1u);
+  EXPECT_NEAR(QuadCenter(thin[0].corners_px).x(), 788.0, 1e-9);
+  DarkQuad strict_near = other;
+  strict_near.corners_px = MakeQuad({790.0, 348.0}, 33.0, 0.8);
+  EXPECT_TRUE(ThinSideSmallQrCodeQuads(quads, {strict_near}, 2).empty());
+  EXPECT_TRUE(ThinSideSmallQrCodeQuads(quads, small, 0).empty());
+}
+
 TEST(DetectQrModules, NothingFromNoCodeOrBadInput) {
   cv::Mat flat(120, 120, CV_8U, cv::Scalar(128));
   const Quad2d quad = MakeQuad({60.0, 60.0}, 40.0, 0.0);
