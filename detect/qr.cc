@@ -32,6 +32,10 @@ constexpr double kMaxUnorientedSidePx = 50.0;
 // ... at most this many per frame (each is up to eight contrast evaluations, two grid fits
 // and their decodes; most such quads of a cluttered frame are no code).
 constexpr int kMaxUnorientedReads = 4;
+// Thin-side small-code quads (ThinSideSmallQrCodeQuads): boxes and grid reads per frame, after
+// and beside the ones above.
+constexpr int kMaxThinSideBoxes = 2;
+constexpr int kMaxThinSideReads = 1;
 
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
 // modules), less in larger versions.
@@ -182,41 +186,56 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
 // (UnorientedKnownModuleContrast: clutter quads come before a code in the stage's order, and
 // took the reads from it), are read as module grids from their own corners
 // (detect/qr_modules.h), at most kMaxUnorientedReads per frame; at most `max_boxes` boxes
-// per frame.
+// per frame. Then the same for the quads with one mostly light side (ThinSideSmallQrCodeQuads),
+// within their own bounds (kMaxThinSideBoxes, kMaxThinSideReads).
 void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
                         std::vector<MarkerObservation>* found) {
   struct Unoriented {
     Quad2d corners_px;
     double contrast;
   };
-  std::vector<Unoriented> unoriented;
-  for (const DarkQuad& quad : SmallQrCodeQuads(FindDarkQuads(gray, min_side_px), max_boxes)) {
-    QrCandidate as_code;
-    as_code.corners_px = quad.corners_px;
-    if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
-    const cv::Rect box = PaddedBox(
-        quad.corners_px, [](int side) { return static_cast<int>(std::ceil(side / 3.0)); }, gray.size());
-    const double side = QuadMeanSide(quad.corners_px);
-    const std::vector<MarkerObservation> r =
-        ReadFinderTripleNear(gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side);
-    AppendUnique(r, found);
-    // No finders (an oblique code's finders are foreshortened to a module or so of light
-    // ring): the module grid read from the quad's own corners, in any orientation, below.
-    if (r.empty() && side <= kMaxUnorientedSidePx) {
-      unoriented.push_back({quad.corners_px, UnorientedKnownModuleContrast(gray, quad.corners_px)});
+  // Each quad's box searched for a finder triple; the quads with none kept for grid reads.
+  const auto search_boxes = [&](const std::vector<DarkQuad>& quads, std::vector<Unoriented>* unoriented) {
+    for (const DarkQuad& quad : quads) {
+      QrCandidate as_code;
+      as_code.corners_px = quad.corners_px;
+      if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+      const cv::Rect box = PaddedBox(
+          quad.corners_px, [](int side) { return static_cast<int>(std::ceil(side / 3.0)); }, gray.size());
+      const double side = QuadMeanSide(quad.corners_px);
+      const std::vector<MarkerObservation> r =
+          ReadFinderTripleNear(gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side);
+      AppendUnique(r, found);
+      // No finders (an oblique code's finders are foreshortened to a module or so of light
+      // ring): the module grid read from the quad's own corners, in any orientation, below.
+      if (r.empty() && side <= kMaxUnorientedSidePx) {
+        unoriented->push_back({quad.corners_px, UnorientedKnownModuleContrast(gray, quad.corners_px)});
+      }
     }
-  }
-  std::stable_sort(unoriented.begin(), unoriented.end(),
-                   [](const Unoriented& a, const Unoriented& b) { return a.contrast > b.contrast; });
-  int unoriented_reads = 0;
-  for (const Unoriented& u : unoriented) {
-    if (unoriented_reads >= kMaxUnorientedReads) break;
-    QrCandidate as_code;
-    as_code.corners_px = u.corners_px;
-    if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
-    ++unoriented_reads;
-    AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
-  }
+  };
+  // The best `max_reads` by known-module contrast read as module grids.
+  const auto read_grids = [&](std::vector<Unoriented>* unoriented, int max_reads) {
+    std::stable_sort(unoriented->begin(), unoriented->end(),
+                     [](const Unoriented& a, const Unoriented& b) { return a.contrast > b.contrast; });
+    int reads = 0;
+    for (const Unoriented& u : *unoriented) {
+      if (reads >= max_reads) break;
+      QrCandidate as_code;
+      as_code.corners_px = u.corners_px;
+      if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+      ++reads;
+      AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
+    }
+  };
+  const std::vector<DarkQuad>& quads = FindDarkQuads(gray, min_side_px);
+  const std::vector<DarkQuad> small = SmallQrCodeQuads(quads, max_boxes);
+  std::vector<Unoriented> unoriented;
+  search_boxes(small, &unoriented);
+  read_grids(&unoriented, kMaxUnorientedReads);
+  // Codes with a mostly light side, after the others and within their own bounds.
+  std::vector<Unoriented> thin_unoriented;
+  search_boxes(ThinSideSmallQrCodeQuads(quads, small, kMaxThinSideBoxes), &thin_unoriented);
+  read_grids(&thin_unoriented, kMaxThinSideReads);
 }
 
 class QrDetector : public MarkerDetector {

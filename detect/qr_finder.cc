@@ -670,7 +670,13 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
   return GroupQrFinders(finders, image_size);
 }
 
-std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int max_quads) {
+namespace {
+
+// SmallQrCodeQuads with the least dark side in [min_side_dark, max_side_dark), none near a
+// quad of `taken`.
+std::vector<DarkQuad> SmallCodeQuadsWithSides(const std::vector<DarkQuad>& quads, double min_side_dark,
+                                              double max_side_dark, const std::vector<DarkQuad>& taken,
+                                              int max_quads) {
   std::vector<DarkQuad> out;
   for (const DarkQuad& q : quads) {
     if (static_cast<int>(out.size()) >= max_quads) break;
@@ -678,16 +684,30 @@ std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int m
     const double side = QuadMeanSide(q.corners_px);
     if (q.scale > kSmallCodeMaxScale || side < kMinSmallCodeSidePx || side > kMaxSmallCodeSidePx) continue;
     const double lo = *std::min_element(q.side_dark.begin(), q.side_dark.end());
-    if (lo < kSmallCodeMinSideDark || lo > kSmallCodeMaxSideDark) continue;
+    if (lo < min_side_dark || lo > max_side_dark) continue;
     if (q.interior_spread < kSmallCodeMinSpread || q.interior_spread > kSmallCodeMaxSpread) continue;
     // The same code found at two levels counts once.
     const Eigen::Vector2d centre = QuadCenter(q.corners_px);
-    const bool seen = std::any_of(out.begin(), out.end(), [&](const DarkQuad& o) {
+    const auto near = [&](const DarkQuad& o) {
       return (QuadCenter(o.corners_px) - centre).norm() < 0.3 * QuadMeanSide(o.corners_px);
-    });
-    if (!seen) out.push_back(q);
+    };
+    if (std::none_of(out.begin(), out.end(), near) && std::none_of(taken.begin(), taken.end(), near))
+      out.push_back(q);
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int max_quads) {
+  return SmallCodeQuadsWithSides(quads, kSmallCodeMinSideDark, kSmallCodeMaxSideDark, {}, max_quads);
+}
+
+std::vector<DarkQuad> ThinSideSmallQrCodeQuads(const std::vector<DarkQuad>& quads,
+                                               const std::vector<DarkQuad>& taken, int max_quads) {
+  // The upper bound is exclusive in effect: a quad at exactly kSmallCodeMinSideDark is
+  // SmallQrCodeQuads' (and near one of `taken`).
+  return SmallCodeQuadsWithSides(quads, kSmallCodeMinThinSideDark, kSmallCodeMinSideDark, taken, max_quads);
 }
 
 std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate) {

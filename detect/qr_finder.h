@@ -88,6 +88,15 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
 inline constexpr double kMinSmallCodeSidePx = 18.0, kMaxSmallCodeSidePx = 80.0;
 std::vector<DarkQuad> SmallQrCodeQuads(const std::vector<DarkQuad>& quads, int max_quads);
 
+// The same with the least dark side at kSmallCodeMinThinSideDark up to 45 % dark, none near a
+// quad of `taken` (SmallQrCodeQuads' own): the side of a version-1 code opposite a finder
+// pair holds 7 finder modules of 21 and 14 data modules, which can be mostly light (recall
+// bench issue seed 2 frame 133: 40 %). Read after SmallQrCodeQuads' quads, within their own
+// bounds, so that they take nothing from those.
+inline constexpr double kSmallCodeMinThinSideDark = 0.35;
+std::vector<DarkQuad> ThinSideSmallQrCodeQuads(const std::vector<DarkQuad>& quads,
+                                               const std::vector<DarkQuad>& taken, int max_quads);
+
 // The bottom-right corner from the symbol's own edges: the intersection of the outer edge
 // of the top-right finder (right side, next to the top-right corner) and of the
 // bottom-left finder (bottom side, next to the bottom-left corner), found in `gray` within

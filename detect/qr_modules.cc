@@ -38,6 +38,13 @@ constexpr size_t kUnorientedFits = 2;
 // threshold is about half the weakest code's.
 constexpr double kMinUnorientedRawContrast = 5.0;
 constexpr double kMinUnorientedFitContrast = 20.0;
+// Perspective search (ReadUnorientedQrModuleGrid, after the fitted grids fail to decode): the
+// best grid's corners moved again, in smaller steps (fractions of a module, rounds per step),
+// to maximize the known-module contrast plus the spread of the data modules' samples
+// (kDataSpreadWeight standard deviations), then decoded once more.
+constexpr double kSearchSteps[] = {0.3, 0.15, 0.075};
+constexpr int kSearchRounds = 3;
+constexpr double kDataSpreadWeight = 2.0;
 
 // The blur model's neighbourhood: offsets (dr, dc) and their weight class (0 the module
 // itself, 1 edge neighbours, 2 diagonal, 3 two modules along an axis).
@@ -139,6 +146,35 @@ double KnownContrast(const cv::Mat& gray, const Quad2d& corners_px, int n, const
     }
   }
   return light / light_count - dark / dark_count;
+}
+
+// Known-module contrast plus kDataSpreadWeight standard deviations of the unknown modules'
+// samples: on a blurred code the data modules' samples spread most when taken at the module
+// centres, and the data area (half the symbol, most of it away from the finders) pins the
+// perspective that the known modules, three blocks at three corners, leave loose. NaN if a
+// sample leaves the image.
+double GridSharpness(const cv::Mat& gray, const Quad2d& corners_px, int n, const std::vector<int8_t>& known) {
+  const cv::Matx33d H = ImageFromModules(corners_px, n);
+  double light = 0.0, dark = 0.0, sum = 0.0, sum_sq = 0.0;
+  int light_count = 0, dark_count = 0, data_count = 0;
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      const int8_t k = known[static_cast<size_t>(r * n + c)];
+      double g = 0.0;
+      if (!ModuleSample(gray, H, r, c, &g)) return NAN;
+      if (k < 0) {
+        sum += g;
+        sum_sq += g * g;
+        ++data_count;
+      } else {
+        (k ? dark : light) += g;
+        ++(k ? dark_count : light_count);
+      }
+    }
+  }
+  const double mean = sum / data_count;
+  const double spread = std::sqrt(std::max(0.0, sum_sq / data_count - mean * mean));
+  return light / light_count - dark / dark_count + kDataSpreadWeight * spread;
 }
 
 // Darkness of module (r, c) in the current estimate; outside the symbol: light.
@@ -383,6 +419,40 @@ cv::Mat RenderQrModules(const std::vector<uint8_t>& dark, int modules) {
 
 namespace {
 
+// The grid's corners moved to maximize GridSharpness (coordinate ascent, kSearchSteps).
+QrModuleGrid SearchGridPerspective(const cv::Mat& gray, const QrModuleGrid& start) {
+  const int n = start.modules;
+  const std::vector<int8_t> known = KnownModules(n);
+  QrModuleGrid grid = start;
+  double score = GridSharpness(gray, grid.corners_px, n, known);
+  if (!std::isfinite(score)) return start;
+  const double module_px = QuadMeanSide(grid.corners_px) / n;
+  for (const double step_modules : kSearchSteps) {
+    const double step = step_modules * module_px;
+    for (int round = 0; round < kSearchRounds; ++round) {
+      bool moved = false;
+      for (int corner = 0; corner < 4; ++corner) {
+        for (int axis = 0; axis < 2; ++axis) {
+          for (const double sign : {1.0, -1.0}) {
+            Quad2d trial = grid.corners_px;
+            trial[static_cast<size_t>(corner)][axis] += sign * step;
+            const double s = GridSharpness(gray, trial, n, known);
+            if (std::isfinite(s) && s > score) {
+              grid.corners_px = trial;
+              score = s;
+              moved = true;
+              break;
+            }
+          }
+        }
+      }
+      if (!moved) break;
+    }
+  }
+  grid.contrast = KnownContrast(gray, grid.corners_px, n, known);
+  return grid;
+}
+
 // The grids decoded in turn (steps 2-4); the first read.
 std::vector<MarkerObservation> DecodeGrids(const cv::Mat& gray, const std::vector<QrModuleGrid>& grids) {
   for (const QrModuleGrid& grid : grids) {
@@ -456,7 +526,10 @@ std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, c
   std::stable_sort(grids.begin(), grids.end(),
                    [](const QrModuleGrid& a, const QrModuleGrid& b) { return a.contrast > b.contrast; });
   if (grids.empty() || !(grids[0].contrast >= kMinUnorientedFitContrast)) return {};
-  return DecodeGrids(gray, grids);
+  std::vector<MarkerObservation> read = DecodeGrids(gray, grids);
+  // The finder-less corner is held by few known modules: the perspective search, once.
+  if (read.empty()) read = DecodeGrids(gray, {SearchGridPerspective(gray, grids[0])});
+  return read;
 }
 
 }  // namespace waymark

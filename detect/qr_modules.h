@@ -63,7 +63,10 @@ std::vector<MarkerObservation> ReadQrModuleGrid(const cv::Mat& gray, const Quad2
 // The same from a quad of unknown orientation (a whole code's outline, e.g. a dark quad of
 // the candidate stage, a module or so off): the four rotations and 21 or 25 modules are
 // ranked by the known modules' contrast at the quad's corners, the best kUnorientedFits
-// fitted (step 1) and read in order of fitted contrast.
+// fitted (step 1) and read in order of fitted contrast; if none reads, the best fitted grid's
+// corners are searched again (perspective search: smaller steps, maximizing the known-module
+// contrast plus twice the standard deviation of the data modules' samples; the known modules
+// leave the finder-less corner loose) and that grid read once more.
 std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px);
 
 // The known modules' contrast of the best of those hypotheses before any fit (mean light
