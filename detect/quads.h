@@ -29,11 +29,11 @@
 namespace waymark {
 
 struct DarkQuad {
-  Quad2d corners_px;                // frame pixels, clockwise on screen
-  std::array<double, 4> side_dark;  // side j runs from corner j to corner j+1
-  std::array<int, 4> side_runs;
-  double interior_spread = 0.0;  // gray-level spread inside / the border's contrast
-  double scale = 1.0;            // the level it was found at
+  Quad2d corners_px;                  // frame pixels, clockwise on screen
+  std::array<double, 4> side_dark{};  // side j runs from corner j to corner j+1
+  std::array<int, 4> side_runs{};     // dark runs along side j (DataMatrix timing)
+  double interior_spread = 0.0;       // gray-level spread inside / the border's contrast
+  double scale = 1.0;                 // the level it was found at
   // An L's parallelogram completion rather than the hull's quad (a hull of five or six corners
   // whose two longest adjacent sides are the legs): for DataMatrix candidates only.
   bool l_completion = false;
