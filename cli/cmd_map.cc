@@ -88,6 +88,9 @@ Options (build, merge):
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
   --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
   --no-calibration    do not estimate the odometry's systematic errors
+  --depth-ranges      range-bearing datasets: each sensor's range read as (1 + s)((1 - c) distance
+                      + c depth) + b, its depth share c and range scale s estimated, the
+                      odometry's error whitened in its own units (docs/mapping.md)
   --odometry-calibration K,TURN,DIST[,SK,ST,SD]
                       the odometry's systematic errors known from an earlier build of this
                       robot (its summary's "odometry calibration" line prints this argument):
@@ -147,7 +150,8 @@ const std::set<std::string> kBuildValues = {"out",           "trajectory",     "
                                             "threads",       "min-frames",     "outlier-chi2",
                                             "max-gap",       "families",       "odometry-calibration",
                                             "payload-sigma", "trajectory-dir", "cameras-out"};
-const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images"};
+const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images",
+                                           "depth-ranges"};
 
 // The detections the build uses (cli/dataset_detect.h).
 void PrepareSurvey(const Args& args, Dataset* dataset) {
@@ -413,6 +417,11 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
   if (const auto n = args.GetInt("threads")) options.num_threads = static_cast<int>(*n);
   if (const auto n = args.GetInt("min-frames")) options.min_observations = static_cast<int>(*n);
   if (const auto x = args.GetDouble("outlier-chi2")) options.outlier_chi2 = *x;
+  if (args.Flag("depth-ranges")) {
+    options.sensor_depth_share_sigma = 1.0;
+    options.sensor_range_scale_sigma = 0.1;
+    options.odometry_measurement_space = true;
+  }
   const std::function<void(const std::string&)> terminal = TerminalProgress();
   options.progress = terminal;
   std::vector<const Dataset*> pointers;
@@ -454,6 +463,8 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
            {"gauge", d.gauge},
            {"sensor_bias", {d.sensor_bias[0], d.sensor_bias[1]}},
            {"bearing_scale", d.bearing_scale},
+           {"depth_share", d.depth_share},
+           {"range_scale", d.range_scale},
            {"sigma_range", {d.noise.range_a_m, d.noise.range_b}},
            {"sigma_bearing_rad", d.noise.bearing_rad},
            {"odometry_q", {d.noise.odometry_q_t, d.noise.odometry_q_r}},
@@ -486,10 +497,12 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
               << FormatSignificant(d.odometry_calibration[1], 3) << ","
               << FormatSignificant(d.odometry_calibration[2], 3) << ", sensor offsets "
               << FormatFixed(d.sensor_bias[0], 3) << " m, " << FormatFixed(d.sensor_bias[1], 4)
-              << " rad, bearing scale " << FormatFixed(d.bearing_scale, 4) << ", sigma_range "
-              << FormatSignificant(d.noise.range_a_m, 3) << " m + " << FormatSignificant(d.noise.range_b, 3)
-              << " x range, sigma_bearing " << FormatSignificant(d.noise.bearing_rad, 3)
-              << " rad, odometry delay " << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
+              << " rad, bearing scale " << FormatFixed(d.bearing_scale, 4) << ", depth share "
+              << FormatFixed(d.depth_share, 3) << ", range scale " << FormatFixed(d.range_scale, 4)
+              << ", sigma_range " << FormatSignificant(d.noise.range_a_m, 3) << " m + "
+              << FormatSignificant(d.noise.range_b, 3) << " x range, sigma_bearing "
+              << FormatSignificant(d.noise.bearing_rad, 3) << " rad, odometry delay "
+              << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
   }
   for (const auto& [key, reason] : result.unmapped)
     std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";
@@ -516,6 +529,8 @@ int RunBuild(const std::vector<std::string>& argv) {
     std::vector<const Dataset*> pointers;
     for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
     if (HasRangeBearing(pointers)) return RunRangeBearingBuild(args, datasets);
+    if (args.Flag("depth-ranges"))
+      throw std::invalid_argument("--depth-ranges is for range-bearing datasets");
     return RunMultiBuild(args, &datasets);
   }
   Dataset dataset = LoadDataset(args.positionals()[0]);
@@ -524,6 +539,7 @@ int RunBuild(const std::vector<std::string>& argv) {
     throw std::invalid_argument(
         "--cameras-out is for camera surveys (range-bearing datasets have no camera mount)");
   if (HasRangeBearing(one)) return RunRangeBearingBuild(args, {dataset});
+  if (args.Flag("depth-ranges")) throw std::invalid_argument("--depth-ranges is for range-bearing datasets");
   const MapBuildOptions options = ParseBuildOptions(args);
   PrepareSurvey(args, &dataset);
   return Finish(args, BuildMap(dataset, options), dataset.cameras);

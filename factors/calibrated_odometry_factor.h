@@ -46,10 +46,18 @@ inline bool OdometryCalibrationSigmaValid(const Eigen::Vector3d& sigma) {
 
 class CalibratedOdometrySE2Factor {
  public:
-  CalibratedOdometrySE2Factor(const SE2d& T_a_b_measured, const Eigen::Matrix3d& covariance)
+  // measurement_space: the translation error scaled back into the measurement's units, delta_t
+  // (1 + distance_scale) (the noise is the measurement's: t_M = the true translation times
+  // 1 + distance_scale, plus noise of `covariance`). Without it the translation error
+  // is whitened in the corrected increment's units, so shrinking the whole map while the distance
+  // scale grows lowers the cost: a free metric scale (e.g. a range sensor's scale estimated too)
+  // is pulled short.
+  CalibratedOdometrySE2Factor(const SE2d& T_a_b_measured, const Eigen::Matrix3d& covariance,
+                              bool measurement_space = false)
       : M_(T_a_b_measured),
         distance_m_(T_a_b_measured.translation().norm()),
-        sqrt_information_(SqrtInformation<3>(covariance, "calibrated odometry SE(2) factor")) {}
+        sqrt_information_(SqrtInformation<3>(covariance, "calibrated odometry SE(2) factor")),
+        measurement_space_(measurement_space) {}
 
   template <typename T>
   bool operator()(const T* const T_world_robot_a, const T* const T_world_robot_b, const T* const c,
@@ -71,21 +79,27 @@ class CalibratedOdometrySE2Factor {
     Eigen::Matrix<T, 3, 1> delta;
     delta << cos_c * dx_a + sin_c * dy_a, -sin_c * dx_a + cos_c * dy_a,
         WrapAngleT(T_world_robot_b[2] - T_world_robot_a[2] - theta_c);
+    if (measurement_space_) {
+      delta[0] *= T(1) + c[2];
+      delta[1] *= T(1) + c[2];
+    }
     Eigen::Map<Eigen::Matrix<T, 3, 1>> whitened(residuals);
     whitened = sqrt_information_.template cast<T>() * delta;
     return true;
   }
 
-  static ceres::CostFunction* Create(const SE2d& T_a_b_measured, const Eigen::Matrix3d& covariance) {
+  static ceres::CostFunction* Create(const SE2d& T_a_b_measured, const Eigen::Matrix3d& covariance,
+                                     bool measurement_space = false) {
     return new ceres::AutoDiffCostFunction<CalibratedOdometrySE2Factor, 3, kSE2BlockSize, kSE2BlockSize,
                                            kOdometryCalibrationSize>(
-        new CalibratedOdometrySE2Factor(T_a_b_measured, covariance));
+        new CalibratedOdometrySE2Factor(T_a_b_measured, covariance, measurement_space));
   }
 
  private:
   const SE2d M_;
   const double distance_m_;
   const Eigen::Matrix3d sqrt_information_;
+  const bool measurement_space_;
 };
 
 class CalibratedOdometrySE3Factor {

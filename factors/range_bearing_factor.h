@@ -79,19 +79,24 @@ class RangeBearingFactor {
 };
 
 // The same with the sensor's constant errors estimated (one block per robot):
-//   r = [(range + b_range - range_measured) / sigma_range,
+//   r = [((1 + s_range) ((1 - c_depth) range + c_depth p_x) + b_range - range_measured) / sigma_range,
 //        wrap((1 + k_bearing) bearing + b_bearing - bearing_measured) / sigma_bearing]
 // b_range: a range offset (e.g. ranges to a cylinder's face, truth at its axis); b_bearing: the
 // sensor's yaw on the robot; k_bearing: a bearing scale error (a camera whose focal length is
-// off by a factor 1 / (1 + k) reads every bearing k times too large). Blocks: T_world_robot
-// [x y theta], l_world [x y], sensor [b_range b_bearing k_bearing] (Euclidean; give it a weak
-// prior, SensorBiasPrior).
-inline constexpr int kRangeBearingSensorSize = 3;
+// off by a factor 1 / (1 + k) reads every bearing k times too large); c_depth: the share of the
+// landmark's depth along the sensor's axis, p_x = range cos(bearing), in what the sensor reads as
+// its range (a camera that ranges a code by its apparent size reads its depth: c_depth = 1);
+// s_range: the range scale error at zero bearing. Blocks: T_world_robot [x y theta], l_world
+// [x y], sensor [b_range b_bearing k_bearing c_depth s_range] (Euclidean; give it a weak prior,
+// SensorBiasPrior, and hold the entries the caller does not estimate constant). With c_depth =
+// s_range = 0 it is the distance model of the earlier 3-entry block.
+inline constexpr int kRangeBearingSensorSize = 5;
 
 class BiasedRangeBearingFactor {
  public:
   BiasedRangeBearingFactor(double range_m, double bearing_rad, double sigma_range_m, double sigma_bearing_rad)
       : plain_(range_m, bearing_rad, sigma_range_m, sigma_bearing_rad),
+        range_m_(range_m),
         bearing_rad_(bearing_rad),
         inv_sigma_range_(1.0 / sigma_range_m),
         inv_sigma_bearing_(1.0 / sigma_bearing_rad) {}
@@ -100,10 +105,14 @@ class BiasedRangeBearingFactor {
   bool operator()(const T* const T_world_robot, const T* const l_world, const T* const sensor,
                   T* residuals) const {
     if (!plain_(T_world_robot, l_world, residuals)) return false;
-    residuals[0] += sensor[0] * T(inv_sigma_range_);
+    // residuals[0] = (range - range_measured) / sigma; p_x / range = cos(bearing).
+    const T range = residuals[0] / T(inv_sigma_range_) + T(range_m_);
     // residuals[1] = wrap(bearing - bearing_measured) / sigma: the bearing is
     // bearing_measured + that (wrapped to (-pi, pi] by the caller's atan2 and the wrap).
     const T bearing = WrapAngleT(residuals[1] / T(inv_sigma_bearing_) + T(bearing_rad_));
+    using std::cos;
+    const T sensed = (T(1.0) + sensor[4]) * range * (T(1.0) - sensor[3] + sensor[3] * cos(bearing));
+    residuals[0] = (sensed + sensor[0] - T(range_m_)) * T(inv_sigma_range_);
     residuals[1] =
         WrapAngleT((T(1.0) + sensor[2]) * bearing + sensor[1] - T(bearing_rad_)) * T(inv_sigma_bearing_);
     return true;
@@ -118,6 +127,7 @@ class BiasedRangeBearingFactor {
 
  private:
   const RangeBearingFactor plain_;
+  const double range_m_;
   const double bearing_rad_;
   const double inv_sigma_range_;
   const double inv_sigma_bearing_;
@@ -150,23 +160,25 @@ class BiasedBearingFactor {
   const BiasedRangeBearingFactor biased_;
 };
 
-// r = [b_range / sigma_range_m, b_bearing / sigma_bearing_rad, k_bearing / sigma_scale]: the weak prior
-// that keeps an unexcited sensor offset at 0.
+// r = [b_range / sigma_range_m, b_bearing / sigma_bearing_rad, k_bearing / sigma_scale,
+//      c_depth / sigma_depth, s_range / sigma_range_scale]: the weak prior that keeps an unexcited
+// sensor error at 0 (an entry held constant by the caller gets any positive sigma).
 struct SensorBiasPrior {
-  SensorBiasPrior(double sigma_range_m, double sigma_bearing_rad, double sigma_scale)
-      : inv_range_(1.0 / sigma_range_m), inv_bearing_(1.0 / sigma_bearing_rad), inv_x_(1.0 / sigma_scale) {}
+  SensorBiasPrior(double sigma_range_m, double sigma_bearing_rad, double sigma_scale,
+                  double sigma_depth = 1.0, double sigma_range_scale = 1.0)
+      : inv_{1.0 / sigma_range_m, 1.0 / sigma_bearing_rad, 1.0 / sigma_scale, 1.0 / sigma_depth,
+             1.0 / sigma_range_scale} {}
   template <typename T>
   bool operator()(const T* const sensor, T* residuals) const {
-    residuals[0] = sensor[0] * T(inv_range_);
-    residuals[1] = sensor[1] * T(inv_bearing_);
-    residuals[2] = sensor[2] * T(inv_x_);
+    for (int i = 0; i < kRangeBearingSensorSize; ++i) residuals[i] = sensor[i] * T(inv_[i]);
     return true;
   }
-  static ceres::CostFunction* Create(double sigma_range_m, double sigma_bearing_rad, double sigma_scale) {
-    return new ceres::AutoDiffCostFunction<SensorBiasPrior, 3, kRangeBearingSensorSize>(
-        new SensorBiasPrior(sigma_range_m, sigma_bearing_rad, sigma_scale));
+  static ceres::CostFunction* Create(double sigma_range_m, double sigma_bearing_rad, double sigma_scale,
+                                     double sigma_depth = 1.0, double sigma_range_scale = 1.0) {
+    return new ceres::AutoDiffCostFunction<SensorBiasPrior, kRangeBearingSensorSize, kRangeBearingSensorSize>(
+        new SensorBiasPrior(sigma_range_m, sigma_bearing_rad, sigma_scale, sigma_depth, sigma_range_scale));
   }
-  const double inv_range_, inv_bearing_, inv_x_;
+  const double inv_[kRangeBearingSensorSize];
 };
 
 }  // namespace waymark

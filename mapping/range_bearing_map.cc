@@ -33,6 +33,10 @@ bool RangeBearingBuildOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(noise_rounds >= 0, "noise_rounds must be >= 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(noise_window_s), "noise_window_s must be > 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_sigma), "calibration_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sensor_depth_share_sigma, 0.0),
+                       "sensor_depth_share_sigma must be >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(sensor_range_scale_sigma, 0.0),
+                       "sensor_range_scale_sigma must be >= 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_odometry_delay_s, 0.0) && max_odometry_delay_s <= 10.0,
                        "max_odometry_delay_s must be in [0, 10]");
   WAYMARK_CHECK_OPTION(IsFinitePositive(odometry_delay_step_s), "odometry_delay_step_s must be > 0");
@@ -91,8 +95,9 @@ struct DatasetState {
   const Dataset* dataset = nullptr;
   std::vector<Node> nodes;
   double calibration[3] = {0.0, 0.0, 0.0};
-  // Range offset, bearing offset, bearing scale (factors/range_bearing_factor.h).
-  double sensor[3] = {0.0, 0.0, 0.0};
+  // Range offset, bearing offset, bearing scale, depth share, range scale
+  // (factors/range_bearing_factor.h).
+  double sensor[kRangeBearingSensorSize] = {0.0, 0.0, 0.0, 0.0, 0.0};
   RangeBearingNoise noise;  // this dataset's own, estimated in stage (2)
   double delay_s = 0.0;     // the odometry's lag (stage 2b); nodes' T_odom_robot use it
   bool placed = false;      // nodes have world poses
@@ -145,8 +150,11 @@ Eigen::Vector2d Error(const Observation& obs, const std::vector<DatasetState>& s
   const DatasetState& state = states[obs.dataset];
   const Eigen::Vector2d predicted =
       Predict(state.nodes[obs.node].Pose(), Eigen::Vector2d(l.block[0], l.block[1]));
+  const double* sensor = state.sensor;
+  const double sensed =
+      (1.0 + sensor[4]) * predicted[0] * (1.0 - sensor[3] + sensor[3] * std::cos(predicted[1]));
   return Eigen::Vector2d(
-      predicted[0] + state.sensor[0] - obs.range_m,
+      sensed + state.sensor[0] - obs.range_m,
       WrapAngle((1.0 + state.sensor[2]) * predicted[1] + state.sensor[1] - obs.bearing_rad));
 }
 
@@ -368,7 +376,8 @@ void Builder::BuildProblem(bool robust, ceres::Problem* problem, ProblemBlocks* 
       const Node& b = state.nodes[i];
       const SE2d M = a.T_odom_robot.inverse() * b.T_odom_robot;
       blocks->per_dataset[k].push_back(problem->AddResidualBlock(
-          CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise)),
+          CalibratedOdometrySE2Factor::Create(M, LinkCovariance(M, b.stamp_s - a.stamp_s, state.noise),
+                                              options_.odometry_measurement_space),
           nullptr, state.nodes[i - 1].block, state.nodes[i].block, state.calibration));
       links = true;
     }
@@ -409,9 +418,17 @@ void Builder::BuildProblem(bool robust, ceres::Problem* problem, ProblemBlocks* 
   for (DatasetState& state : states_) {
     if (problem->HasParameterBlock(state.sensor)) {
       problem->AddResidualBlock(
-          SensorBiasPrior::Create(options_.sensor_bias_sigma_m, options_.sensor_bias_sigma_rad,
-                                  options_.sensor_bearing_scale_sigma),
+          SensorBiasPrior::Create(
+              options_.sensor_bias_sigma_m, options_.sensor_bias_sigma_rad,
+              options_.sensor_bearing_scale_sigma,
+              options_.sensor_depth_share_sigma > 0.0 ? options_.sensor_depth_share_sigma : 1.0,
+              options_.sensor_range_scale_sigma > 0.0 ? options_.sensor_range_scale_sigma : 1.0),
           nullptr, state.sensor);
+      std::vector<int> held;
+      if (!(options_.sensor_depth_share_sigma > 0.0)) held.push_back(3);
+      if (!(options_.sensor_range_scale_sigma > 0.0)) held.push_back(4);
+      if (!held.empty())
+        problem->SetManifold(state.sensor, new ceres::SubsetManifold(kRangeBearingSensorSize, held));
     }
   }
 }
@@ -977,6 +994,8 @@ RangeBearingBuildResult Builder::Collect() {
         Eigen::Vector3d(state.calibration[0], state.calibration[1], state.calibration[2]);
     state.summary.sensor_bias = Eigen::Vector2d(state.sensor[0], state.sensor[1]);
     state.summary.bearing_scale = state.sensor[2];
+    state.summary.depth_share = state.sensor[3];
+    state.summary.range_scale = state.sensor[4];
     state.summary.noise = state.noise;
     state.summary.noise.odometry_delay_s = state.delay_s;
     result.trajectories[state.summary.name] = std::move(trajectory);

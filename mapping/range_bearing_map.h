@@ -86,6 +86,18 @@ struct RangeBearingBuildOptions {
   // The sensor's bearing scale error (BiasedRangeBearingFactor), one per dataset, held near 0 by a
   // prior of this sigma.
   double sensor_bearing_scale_sigma = 0.1;
+  // The sensor's depth share c_depth and range scale error s_range (BiasedRangeBearingFactor:
+  // range read as (1 + s_range) ((1 - c_depth) distance + c_depth depth), depth = distance
+  // cos(bearing)), one each per dataset, held near 0 by weak priors of these sigmas; 0 = held at
+  // 0 (both 0, the default: the distance model). `waymark map build --depth-ranges`: 1 and 0.1,
+  // with odometry_measurement_space.
+  double sensor_depth_share_sigma = 0.0;
+  double sensor_range_scale_sigma = 0.0;
+  // The odometry's translation error whitened in the measurement's units (times 1 +
+  // distance_scale; factors/calibrated_odometry_factor.h): the cost is then the same for the
+  // whole map scaled with the range and distance scales, and a free range scale is not pulled
+  // short. False (default): in the corrected increment's units.
+  bool odometry_measurement_space = false;
 
   // Stage (2b): the odometry delay's search range and grid step; 0 = no delay estimated.
   double max_odometry_delay_s = 0.5;
@@ -112,6 +124,8 @@ struct RangeBearingDatasetSummary {
   Eigen::Vector3d odometry_calibration = Eigen::Vector3d::Zero();
   Eigen::Vector2d sensor_bias = Eigen::Vector2d::Zero();  // range offset (m), bearing offset (rad)
   double bearing_scale = 0.0;  // the sensor's bearing scale error (bearings read 1 + this times too large)
+  double depth_share = 0.0;    // c_depth (0 unless estimated)
+  double range_scale = 0.0;    // s_range (0 unless estimated)
   RangeBearingNoise noise;     // this dataset's, as estimated (odometry_delay_s: its own)
   std::string gauge;           // "start prior", "held", "placed at t=..."
 };

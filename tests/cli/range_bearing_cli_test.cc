@@ -21,6 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 class RangeBearingCliTest : public CliTest {
  protected:
@@ -92,9 +93,17 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_THAT(build.out, HasSubstr("landmarks: 10"));
   EXPECT_TRUE(fs::exists(dir_ / "smoothed" / "robot0.tum"));
   EXPECT_TRUE(fs::exists(dir_ / "smoothed" / "robot1.tum"));
+  EXPECT_THAT(build.out, HasSubstr("depth share 0.000, range scale 0.0000"));
   const MarkerMap map = ReadMap(dir_ / "map.json");
   ASSERT_TRUE(map.range_bearing_noise);
   EXPECT_TRUE(map.markers.front().is_point);
+  // With the depth model (these sensors read distances: a depth share near 0 is found).
+  const RunResult depth_build =
+      Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
+          (dir_ / "map-depth.json").string() + " --depth-ranges");
+  ASSERT_EQ(depth_build.exit_code, 0) << depth_build.err;
+  EXPECT_THAT(depth_build.out, HasSubstr("landmarks: 10"));
+  EXPECT_THAT(depth_build.out, Not(HasSubstr("depth share 0.000, range scale 0.0000")));
   const RunResult localize = Run("localize " + (dir_ / "robot2").string() + " --map " +
                                  (dir_ / "map.json").string() + " --out " + (dir_ / "robot2.tum").string());
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
@@ -167,6 +176,12 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
           (dir_ / "m2.json").string() + " --trajectory " + (dir_ / "t.tum").string());
   EXPECT_EQ(one_file.exit_code, 1);
   EXPECT_THAT(one_file.err, HasSubstr("--trajectory is for one dataset"));
+  const RunResult depth =
+      Run("map build " + (dir_ / "survey5").string() + " " + (dir_ / "survey6").string() + " --out " +
+          (dir_ / "m3.json").string() + " --trajectory-dir " + (dir_ / "s3").string() + " --depth-ranges");
+  EXPECT_EQ(depth.exit_code, 1);
+  EXPECT_THAT(depth.err, HasSubstr("--depth-ranges is for range-bearing datasets"));
+  EXPECT_FALSE(fs::exists(dir_ / "m3.json"));
   const RunResult camera =
       Run("localize " + (dir_ / "survey5").string() + " --map " + (dir_ / "map.json").string() + " --out " +
           (dir_ / "run.tum").string() + " --map-uncertainty consider");

@@ -8,6 +8,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "factors/calibrated_odometry_factor.h"
 #include "factors/odometry_covariance.h"
 #include "factors/odometry_se2_factor.h"
 #include "factors/odometry_se3_factor.h"
@@ -183,5 +184,43 @@ TEST(OdometryCovariance, RejectsBadSigmas) {
   EXPECT_THROW(OdometrySE2Factor(SE2d(), -Eigen::Matrix3d::Identity()), std::invalid_argument);
 }
 
+// The calibrated factor in the measurement's units: the translation error times 1 + distance_scale,
+// so that the map scaled by lambda with 1 + distance_scale divided by lambda costs the same (a
+// free metric scale is not pulled short), with its gradients.
+TEST(CalibratedOdometrySE2Factor, MeasurementSpaceIsScaleInvariantAndGradientCheck) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Matrix3d covariance = Eigen::Vector3d(0.01, 0.02, 0.005).asDiagonal();
+  for (int trial = 0; trial < 10; ++trial) {
+    const SE2d M(0.5 + 0.3 * u(rng), 0.1 * u(rng), 0.3 * u(rng));
+    double a[3] = {u(rng), u(rng), u(rng)};
+    double b[3] = {a[0] + 0.5 + 0.1 * u(rng), a[1] + 0.1 * u(rng), a[2] + 0.3 * u(rng)};
+    double c[3] = {0.05 * u(rng), 0.05 * u(rng), 0.1 * u(rng)};
+    const std::unique_ptr<ceres::CostFunction> plain(CalibratedOdometrySE2Factor::Create(M, covariance));
+    const std::unique_ptr<ceres::CostFunction> measured(
+        CalibratedOdometrySE2Factor::Create(M, covariance, true));
+    const double* parameters[3] = {a, b, c};
+    double r_plain[3], r_measured[3];
+    ASSERT_TRUE(plain->Evaluate(parameters, r_plain, nullptr));
+    ASSERT_TRUE(measured->Evaluate(parameters, r_measured, nullptr));
+    // Diagonal covariance: each row is the plain one times its factor.
+    EXPECT_NEAR(r_measured[0], (1.0 + c[2]) * r_plain[0], 1e-12);
+    EXPECT_NEAR(r_measured[1], (1.0 + c[2]) * r_plain[1], 1e-12);
+    EXPECT_NEAR(r_measured[2], r_plain[2], 1e-12);
+    // Scale the poses' positions by lambda and 1 + distance_scale by 1 / lambda.
+    const double lambda = 1.07;
+    double a_s[3] = {lambda * a[0], lambda * a[1], a[2]}, b_s[3] = {lambda * b[0], lambda * b[1], b[2]};
+    double c_s[3] = {c[0], c[1], (1.0 + c[2]) / lambda - 1.0};
+    const double* scaled[3] = {a_s, b_s, c_s};
+    double r_scaled[3], r_plain_scaled[3];
+    ASSERT_TRUE(measured->Evaluate(scaled, r_scaled, nullptr));
+    ASSERT_TRUE(plain->Evaluate(scaled, r_plain_scaled, nullptr));
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(r_scaled[i], r_measured[i], 1e-12) << i;
+    // The plain factor's translation error grows with the map.
+    EXPECT_NEAR(r_plain_scaled[0], lambda * r_plain[0], 1e-12);
+    testing::ExpectGradientsMatch(*measured, {nullptr, nullptr, nullptr}, {a, b, c}, 1e-6,
+                                  "calibrated SE(2), measurement space");
+  }
+}
 }  // namespace
 }  // namespace waymark

@@ -56,7 +56,7 @@ TEST(RangeBearingFactor, GradientCheckTenRandomStates) {
 TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
   double robot[3] = {1.0, 2.0, M_PI / 2};
   double landmark[2] = {1.0, 5.0};
-  double sensor[3] = {0.1, 0.02, 0.0};  // ranges read 10 cm long, bearings 0.02 rad to the left
+  double sensor[5] = {0.1, 0.02, 0.0, 0.0, 0.0};  // ranges read 10 cm long, bearings 0.02 rad to the left
   const double* parameters[3] = {robot, landmark, sensor};
   double residuals[2] = {testing::kNaN, testing::kNaN};
   const std::unique_ptr<ceres::CostFunction> exact(BiasedRangeBearingFactor::Create(3.1, 0.02, 0.1, 0.01));
@@ -65,7 +65,7 @@ TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
   EXPECT_NEAR(residuals[1], 0.0, 1e-12);
   // A bearing scale error of 5 %: the landmark at (0, 5) from the robot at (1, 2) facing +y is
   // atan2(1, 3) = 0.32175 rad to the left, read as 1.05 * 0.32175 + 0.02 rad.
-  double scaled_sensor[3] = {0.1, 0.02, 0.05};
+  double scaled_sensor[5] = {0.1, 0.02, 0.05, 0.0, 0.0};
   double left[2] = {0.0, 5.0};
   const double* scaled_parameters[3] = {robot, left, scaled_sensor};
   const double bearing = std::atan2(1.0, 3.0), range = std::sqrt(10.0);
@@ -86,21 +86,49 @@ TEST(RangeBearingFactor, BiasedHandComputedAndGradientCheck) {
     // Facing the landmark within 0.5 rad: a camera's bearings stay far from +-pi, where the
     // scaled bearing jumps.
     r[2] = std::atan2(l[1] - r[1], l[0] - r[0]) + u(rng) / 6.0;
-    double b[3] = {0.05 * u(rng), 0.01 * u(rng), 0.02 * u(rng)};
+    double b[5] = {0.05 * u(rng), 0.01 * u(rng), 0.02 * u(rng), 0.5 + 0.1 * u(rng), 0.01 * u(rng)};
     const std::unique_ptr<ceres::CostFunction> cost(
         BiasedRangeBearingFactor::Create(2.5, 0.1 * u(rng), 0.05, 0.02));
     testing::ExpectGradientsMatch(*cost, {nullptr, nullptr, nullptr}, {r, l, b}, 1e-6,
                                   "biased range-bearing");
   }
-  // The prior: [b_range / 0.2, b_bearing / 0.05, k_bearing / 0.1].
-  const std::unique_ptr<ceres::CostFunction> prior(SensorBiasPrior::Create(0.2, 0.05, 0.1));
-  double offsets[3] = {0.1, 0.01, 0.05};
+  // The prior: [b_range / 0.2, b_bearing / 0.05, k_bearing / 0.1, c_depth / 1, s_range / 0.5].
+  const std::unique_ptr<ceres::CostFunction> prior(SensorBiasPrior::Create(0.2, 0.05, 0.1, 1.0, 0.5));
+  double offsets[5] = {0.1, 0.01, 0.05, 0.9, 0.02};
   const double* prior_parameters[1] = {offsets};
-  double prior_residuals[3];
+  double prior_residuals[5];
   ASSERT_TRUE(prior->Evaluate(prior_parameters, prior_residuals, nullptr));
   EXPECT_NEAR(prior_residuals[0], 0.5, 1e-12);
   EXPECT_NEAR(prior_residuals[1], 0.2, 1e-12);
   EXPECT_NEAR(prior_residuals[2], 0.5, 1e-12);
+  EXPECT_NEAR(prior_residuals[3], 0.9, 1e-12);
+  EXPECT_NEAR(prior_residuals[4], 0.04, 1e-12);
+}
+
+TEST(RangeBearingFactor, DepthShareAndRangeScaleHandComputed) {
+  // The landmark at (0, 5) from the robot at (1, 2) facing +y: distance sqrt(10), bearing
+  // atan2(1, 3), depth along the axis 3 m. A sensor reading (1 + s) ((1 - c) d + c depth) + b.
+  double robot[3] = {1.0, 2.0, M_PI / 2};
+  double landmark[2] = {0.0, 5.0};
+  const double d = std::sqrt(10.0), bearing = std::atan2(1.0, 3.0);
+  for (const double c : {0.0, 0.5, 1.0}) {
+    for (const double scale : {0.0, 0.03}) {
+      double sensor[5] = {0.05, 0.0, 0.0, c, scale};
+      const double read = (1.0 + scale) * ((1.0 - c) * d + c * 3.0) + 0.05;
+      const std::unique_ptr<ceres::CostFunction> cost(
+          BiasedRangeBearingFactor::Create(read, bearing, 0.1, 0.01));
+      const double* parameters[3] = {robot, landmark, sensor};
+      double residuals[2] = {testing::kNaN, testing::kNaN};
+      ASSERT_TRUE(cost->Evaluate(parameters, residuals, nullptr));
+      EXPECT_NEAR(residuals[0], 0.0, 1e-12) << c << " " << scale;
+      EXPECT_NEAR(residuals[1], 0.0, 1e-12);
+      // The same reading taken as a distance (c = 0, s = 0): (d - read) / sigma.
+      double plain[5] = {0.05, 0.0, 0.0, 0.0, 0.0};
+      const double* plain_parameters[3] = {robot, landmark, plain};
+      ASSERT_TRUE(cost->Evaluate(plain_parameters, residuals, nullptr));
+      EXPECT_NEAR(residuals[0], (d + 0.05 - read) / 0.1, 1e-9);
+    }
+  }
 }
 
 TEST(RangeBearingFactor, BearingAloneIsTheBiasedFactorsBearingRowWithItsGradients) {
@@ -110,7 +138,7 @@ TEST(RangeBearingFactor, BearingAloneIsTheBiasedFactorsBearingRowWithItsGradient
     double r[3] = {u(rng), u(rng), 0.0};
     double l[2] = {r[0] + 2.0 + std::abs(u(rng)), r[1] + u(rng)};
     r[2] = std::atan2(l[1] - r[1], l[0] - r[0]) + u(rng) / 6.0;
-    double b[3] = {0.05 * u(rng), 0.01 * u(rng), 0.02 * u(rng)};
+    double b[5] = {0.05 * u(rng), 0.01 * u(rng), 0.02 * u(rng), 0.5 + 0.1 * u(rng), 0.01 * u(rng)};
     const double range = 2.5 + 0.5 * u(rng), bearing = 0.1 * u(rng);
     const std::unique_ptr<ceres::CostFunction> both(
         BiasedRangeBearingFactor::Create(range, bearing, 0.05, 0.02));

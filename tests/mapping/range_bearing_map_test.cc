@@ -165,6 +165,9 @@ TEST(RangeBearingMap, TheOdometryDelayIsEstimatedPerDataset) {
   // weighting as well. With them on: 0.071 m estimated against 0.066 m held.)
   RangeBearingBuildOptions with_delay, no_delay;
   with_delay.sensor_bearing_scale_sigma = no_delay.sensor_bearing_scale_sigma = 1e-6;
+  // (So are the depth share and the range scale, for the same reason; this sensor reads distances.)
+  with_delay.sensor_depth_share_sigma = no_delay.sensor_depth_share_sigma = 0.0;
+  with_delay.sensor_range_scale_sigma = no_delay.sensor_range_scale_sigma = 0.0;
   with_delay.redundancy_noise = no_delay.redundancy_noise = false;
   no_delay.max_odometry_delay_s = 0.0;
   const RangeBearingBuildResult estimated = BuildRangeBearingMap({&a, &b}, with_delay);
@@ -214,6 +217,38 @@ TEST(RangeBearingMap, TheSensorsBearingScaleIsEstimatedPerDataset) {
   // None simulated: (nearly) none found.
   const Dataset c = testing::RangeBearingRobot(0, 14, {});
   EXPECT_NEAR(BuildRangeBearingMap({&c}).datasets[0].bearing_scale, 0.0, 0.015);
+}
+
+// Sensors that read the depth along their axis (a camera ranging a code by its apparent size),
+// robot0's 3 % long, robot1's 1 % short at zero bearing: the depth share and each range scale are
+// found, and the map keeps its metric scale (held by the start priors: the odometry's error is
+// whitened in its own units, so a free range scale does not pull the map short).
+TEST(RangeBearingMap, TheSensorsDepthShareAndRangeScaleAreRecovered) {
+  testing::RangeBearingWorldOptions world;
+  world.depth_share = 1.0;
+  world.depth_range_scale = 0.03;
+  const Dataset a = testing::RangeBearingRobot(0, 15, world);
+  world.depth_range_scale = -0.01;
+  const Dataset b = testing::RangeBearingRobot(1, 16, world);
+  RangeBearingBuildOptions depth;
+  depth.sensor_depth_share_sigma = 1.0;
+  depth.sensor_range_scale_sigma = 0.1;
+  depth.odometry_measurement_space = true;
+  const RangeBearingBuildResult result = BuildRangeBearingMap({&a, &b}, depth);
+  ASSERT_EQ(result.datasets.size(), 2u);
+  EXPECT_NEAR(result.datasets[0].depth_share, 1.0, 0.1);
+  EXPECT_NEAR(result.datasets[1].depth_share, 1.0, 0.1);
+  EXPECT_NEAR(result.datasets[0].range_scale, 0.03, 0.015);
+  EXPECT_NEAR(result.datasets[1].range_scale, -0.01, 0.015);
+  const double rms = LandmarkRms(result.map, *a.groundtruth_markers);
+  EXPECT_LT(rms, 0.03);
+  // The distance model on the same data is worse.
+  const RangeBearingBuildResult plain = BuildRangeBearingMap({&a, &b});
+  EXPECT_LT(rms, LandmarkRms(plain.map, *a.groundtruth_markers));
+  EXPECT_EQ(plain.datasets[0].depth_share, 0.0);
+  // A distance-reading sensor: the depth share found is (nearly) 0.
+  const Dataset c = testing::RangeBearingRobot(0, 17, {});
+  EXPECT_NEAR(BuildRangeBearingMap({&c}, depth).datasets[0].depth_share, 0.0, 0.15);
 }
 
 TEST(RangeBearingMap, WithoutPriorsTheSecondRobotIsPlacedByTheLandmarks) {

@@ -29,6 +29,10 @@ struct RangeBearingWorldOptions {
   double range_scale_time_s = 1.0;
   // The sensor reads every bearing (1 + bearing_scale) times too large.
   double bearing_scale = 0.0;
+  // The sensor reads (1 + depth_range_scale) ((1 - depth_share) range + depth_share range cos(bearing))
+  // as the range (a camera ranging a code by its apparent size reads its depth: depth_share 1).
+  double depth_share = 0.0;
+  double depth_range_scale = 0.0;
 };
 
 inline MarkerMap RangeBearingLandmarks() {
@@ -94,7 +98,9 @@ inline Dataset RangeBearingRobot(int index, unsigned seed, const RangeBearingWor
           obs.range_m = 0.5 + 4.0 * uniform(rng);
           obs.bearing_rad = -0.5 + uniform(rng);
         } else {
-          obs.range_m = (1.0 + range_scale) * range +
+          const double sensed = (1.0 + options.depth_range_scale) *
+                                ((1.0 - options.depth_share) * range + options.depth_share * p.x());
+          obs.range_m = (1.0 + range_scale) * sensed +
                         (options.sigma_range_a_m + options.sigma_range_b * range) * normal(rng);
           obs.bearing_rad =
               WrapAngle((1.0 + options.bearing_scale) * bearing + options.sigma_bearing_rad * normal(rng));
