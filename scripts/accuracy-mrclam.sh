@@ -5,7 +5,8 @@
 #   1. waymark import mrclam RUN --known-start   (dead reckoning per robot, misreads counted)
 #   2. waymark map build robot1 ... robot5        (one map of all five robots, smoothed trajectories)
 #   3. waymark eval: landmark RMSE after SE(2) alignment; per robot ATE and RPE (1 m) of the
-#      smoothed trajectory and of dead reckoning after SE(2) alignment; a top-view SVG per robot
+#      smoothed trajectory and of dead reckoning after SE(2) alignment; a top-view SVG per robot;
+#      the same map and trajectories built with --depth-ranges (each range read as a depth)
 #   4. waymark map build robot1 robot2 robot3; waymark localize robot4 and robot5 against it
 #      (ATE in the map's frame, NEES): the map's landmark errors as states of the EKF (default),
 #      considered (Schmidt), in each sighting's noise, ignored (the map taken as exact: the
@@ -46,6 +47,16 @@ for robot in "${robots[@]}"; do
   echo "== $robot: dead reckoning"
   "$waymark" eval --est "$out/data/$robot/odometry.tum" --gt "$gt" --align se2 --max-dt 0.02 \
     --rpe-delta 1 --rpe-unit m --json "$out/$robot-dead-reckoning-eval.json"
+done
+
+echo "== one map of all robots, each range read as a depth (--depth-ranges)"
+"$waymark" map build "${robots[@]/#/$out/data/}" --depth-ranges --out "$out/map-all-depth.json" \
+  --trajectory-dir "$out/smoothed-all-depth" --report "$out/map-all-depth-report.json"
+"$waymark" eval --map "$out/map-all-depth.json" --gt-map "$gt_map" --json "$out/map-all-depth-eval.json"
+for robot in "${robots[@]}"; do
+  echo "== $robot: smoothed (all robots' map, --depth-ranges)"
+  "$waymark" eval --est "$out/smoothed-all-depth/$robot.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
+    --align se2 --max-dt 0.02 --rpe-delta 1 --rpe-unit m --json "$out/$robot-smoothed-depth-eval.json"
 done
 
 if [[ ${#robots[@]} -ge 5 ]]; then
