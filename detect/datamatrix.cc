@@ -100,22 +100,33 @@ class DataMatrixDetector : public MarkerDetector {
     // max_datamatrix_candidates decoded per frame. The cheap patch test runs on at most
     // kPatchTestsPerDecode times as many candidates (clutter that fails it costs a warp).
     std::vector<DataMatrixPatch> patches;
+    std::vector<int> patch_index;
     std::vector<DarkQuad> quads = FindDarkQuads(gray, options_.min_side_px);
     const std::vector<DarkQuad> coarse = FindCoarseDarkQuads(gray, options_.min_side_px);
     quads.insert(quads.end(), coarse.begin(), coarse.end());
-    for (const DataMatrixCandidate& candidate :
-         DataMatrixCandidates(quads, kPatchTestsPerDecode * options_.max_datamatrix_candidates)) {
-      if (std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate)) {
+    const std::vector<DataMatrixCandidate> candidates =
+        DataMatrixCandidates(quads, kPatchTestsPerDecode * options_.max_datamatrix_candidates);
+    std::vector<char> failed(candidates.size(), 0);
+    for (size_t ci = 0; ci < candidates.size(); ++ci) {
+      const DataMatrixCandidate& candidate = candidates[ci];
+      std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
+      if (patch) {
         // No quiet zone along most of a leg: an L-shaped part of something larger.
         if (patch->quiet_zone_dark > kQuietMaxDark) continue;
         patches.push_back(std::move(*patch));
+        patch_index.push_back(static_cast<int>(ci));
+      } else {
+        failed[ci] = 1;
       }
     }
-    std::stable_sort(patches.begin(), patches.end(), [](const DataMatrixPatch& a, const DataMatrixPatch& b) {
-      return (a.timing_runs >= kTimingFirstRuns) > (b.timing_runs >= kTimingFirstRuns);
+    std::vector<size_t> order(patches.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&patches](size_t a, size_t b) {
+      return (patches[a].timing_runs >= kTimingFirstRuns) > (patches[b].timing_runs >= kTimingFirstRuns);
     });
     int decoded = 0;
-    for (const DataMatrixPatch& patch : patches) {
+    for (const size_t pi : order) {
+      const DataMatrixPatch& patch = patches[pi];
       if (decoded >= options_.max_datamatrix_candidates) break;
       const Eigen::Vector2d centre = QuadCenter(patch.candidate.corners_px);
       const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
@@ -123,7 +134,31 @@ class DataMatrixDetector : public MarkerDetector {
       });
       if (known || !work->Allow()) continue;
       ++decoded;
-      AppendUnique(DecodeDataMatrixPatch(patch), &found);
+      const std::vector<MarkerObservation> read = DecodeDataMatrixPatch(patch);
+      if (read.empty()) failed[patch_index[pi]] = 2;
+      AppendUnique(read, &found);
+    }
+    // Candidates whose patch failed the test or the decoders, best first: their sides refitted
+    // to the symbol's outer module rows in the patch (RefitDataMatrixCandidate: a hull's quad
+    // that took in the quiet zone or stopped a module short), tested and read again, within
+    // the same decode bound.
+    int refits = 0;
+    for (size_t ci = 0; ci < candidates.size() && refits < options_.max_datamatrix_candidates &&
+                        decoded < options_.max_datamatrix_candidates;
+         ++ci) {
+      if (!failed[ci]) continue;
+      const Eigen::Vector2d centre = QuadCenter(candidates[ci].corners_px);
+      const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
+        return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
+      });
+      if (known) continue;
+      ++refits;
+      const std::optional<DataMatrixCandidate> refit = RefitDataMatrixCandidate(gray, candidates[ci]);
+      if (!refit) continue;
+      std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, *refit);
+      if (!patch || patch->quiet_zone_dark > kQuietMaxDark || !work->Allow()) continue;
+      ++decoded;
+      AppendUnique(DecodeDataMatrixPatch(*patch), &found);
     }
     return found;
   }
@@ -241,6 +276,15 @@ constexpr int kQuietPlaces = 16;
 constexpr double kQuietProfileOutside = 0.15, kQuietProfileInside = 0.10;  // fractions of the side
 constexpr double kQuietModuleFraction = 0.04;
 constexpr double kQuietMinStep = 0.25;
+
+// RefitDataMatrixCandidate: lines parallel to each side over its middle (kRefitSpan of the
+// side off each end), searched from kRefitInside of the side inside to kRefitOutside outside;
+// a line crosses the symbol when at least kRefitMinDark of it is dark.
+constexpr double kRefitSpan = 0.15;
+constexpr double kRefitInside = 0.25, kRefitOutside = 0.25;
+constexpr double kRefitMinDark = 0.05;
+constexpr double kRefitMinSize = 0.6;
+constexpr double kRefitMinMovePx = 1.0;
 
 // True if `text` holds a control character other than tab, line feed or carriage return.
 bool HasControlBytes(const std::string& text) {
@@ -374,8 +418,10 @@ double DataMatrixQuietZoneDark(const cv::Mat& patch, int margin, int side) {
   return worst;
 }
 
-std::optional<DataMatrixPatch> RectifyDataMatrixCandidate(const cv::Mat& gray,
-                                                          const DataMatrixCandidate& candidate) {
+namespace {
+
+// The candidate's patch, untested.
+DataMatrixPatch WarpDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCandidate& candidate) {
   CV_Assert(gray.type() == CV_8UC1);
   DataMatrixPatch out;
   out.candidate = candidate;
@@ -392,9 +438,76 @@ std::optional<DataMatrixPatch> RectifyDataMatrixCandidate(const cv::Mat& gray,
   out.patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
   cv::warpPerspective(gray, out.patch, cv::Mat(out.patch_to_frame), cv::Size(size, size),
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  return out;
+}
+
+}  // namespace
+
+std::optional<DataMatrixPatch> RectifyDataMatrixCandidate(const cv::Mat& gray,
+                                                          const DataMatrixCandidate& candidate) {
+  DataMatrixPatch out = WarpDataMatrixCandidate(gray, candidate);
   // Text, frames and other L-shaped clutter: no decoder is started on them.
   if (!DataMatrixPatchPlausible(out.patch, out.margin, out.side, &out.timing_runs)) return std::nullopt;
   out.quiet_zone_dark = DataMatrixQuietZoneDark(out.patch, out.margin, out.side);
+  return out;
+}
+
+std::optional<DataMatrixCandidate> RefitDataMatrixCandidate(const cv::Mat& gray,
+                                                            const DataMatrixCandidate& candidate) {
+  const DataMatrixPatch warped = WarpDataMatrixCandidate(gray, candidate);
+  const cv::Mat& patch = warped.patch;
+  const int m = warped.margin, s = warped.side;
+  // The threshold: halfway between the darkest and lightest tenth of the middle of the patch.
+  std::vector<uint8_t> middle;
+  for (int y = m + s / 5; y < m + s - s / 5; ++y) {
+    for (int x = m + s / 5; x < m + s - s / 5; ++x) middle.push_back(patch.at<uint8_t>(y, x));
+  }
+  if (middle.empty()) return std::nullopt;
+  std::nth_element(middle.begin(), middle.begin() + middle.size() / 10, middle.end());
+  const double low = middle[middle.size() / 10];
+  std::nth_element(middle.begin(), middle.begin() + middle.size() * 9 / 10, middle.end());
+  const double high = middle[middle.size() * 9 / 10];
+  if (high - low < kPlausibleMinContrast) return std::nullopt;
+  const double threshold = 0.5 * (low + high);
+  // Dark fraction of the line `depth` px inside side `which` (0 top, 1 right, 2 bottom,
+  // 3 left), over the middle of the side.
+  const auto dark_fraction = [&](int which, int depth) {
+    int dark = 0, total = 0;
+    for (int a = m + static_cast<int>(kRefitSpan * s); a < m + s - static_cast<int>(kRefitSpan * s); ++a) {
+      const int x = which == 0 || which == 2 ? a : which == 1 ? m + s - 1 - depth : m + depth;
+      const int y = which == 1 || which == 3 ? a : which == 0 ? m + depth : m + s - 1 - depth;
+      if (x < 0 || y < 0 || x >= patch.cols || y >= patch.rows) continue;
+      dark += patch.at<uint8_t>(y, x) < threshold;
+      ++total;
+    }
+    return total > 0 ? dark / static_cast<double>(total) : 0.0;
+  };
+  // Each side's edge: from inside (kRefitInside of the side) outwards while the lines cross
+  // the symbol's modules; the outermost such line is its first module row or column.
+  double edge[4];
+  const int inside = static_cast<int>(std::lround(kRefitInside * s));
+  const int outside = std::min(m, static_cast<int>(std::lround(kRefitOutside * s)));
+  for (int which = 0; which < 4; ++which) {
+    int depth = inside;
+    while (depth > -outside && dark_fraction(which, depth) < kRefitMinDark) --depth;  // the symbol's inside
+    if (depth <= -outside) return std::nullopt;
+    while (depth - 1 > -outside && dark_fraction(which, depth - 1) >= kRefitMinDark) --depth;
+    if (depth - 1 <= -outside) return std::nullopt;  // no light quiet zone
+    edge[which] = depth - 0.5;                       // the outer edge of that line
+  }
+  // The refitted sides, in patch coordinates (outer edges, pixel-centre coordinates).
+  const double top = m + edge[0], right = m + s - 1 - edge[1];
+  const double bottom = m + s - 1 - edge[2], left = m + edge[3];
+  if (right - left < kRefitMinSize * s || bottom - top < kRefitMinSize * s) return std::nullopt;
+  const Eigen::Vector2d corners[4] = {{left, top}, {right, top}, {right, bottom}, {left, bottom}};
+  DataMatrixCandidate out = candidate;
+  double moved = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    out.corners_px[i] = Apply(warped.patch_to_frame, corners[i]);
+    moved = std::max(moved, (out.corners_px[i] - candidate.corners_px[i]).norm());
+  }
+  // Nothing new to read where no corner moved.
+  if (moved < kRefitMinMovePx) return std::nullopt;
   return out;
 }
 

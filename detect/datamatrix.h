@@ -24,6 +24,7 @@
 #include <memory>
 
 #include "detect/detector.h"
+#include "detect/quads.h"
 
 namespace waymark {
 
@@ -35,5 +36,17 @@ std::unique_ptr<MarkerDetector> CreateDataMatrixDetector(const DetectorOptions& 
 // loops): libdmtx's wall-clock timeout, nothing under 1 ms. Exposed for tests and the
 // benchmark.
 std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeout_ms, int max_symbols = 1);
+
+// The candidate with its four sides moved onto the symbol's outermost module rows and columns,
+// found in its rectified patch: from a quarter of the side inside, outwards while a line
+// parallel to the side (over its middle 70 %) is at least 20 % dark (halfway between the
+// patch's darkest and lightest tenth); the first line with less is the quiet zone. Each side
+// moves on its own (a hull's quad that took in part of the quiet zone or of the card, or
+// stopped a module short: its patch fails the timing test or the decoders). Nothing when a
+// side finds no symbol or no quiet zone within a quarter of the side, the refitted symbol is
+// under 0.6 of the candidate, or no corner moved a pixel. Used by the detector for candidates
+// whose patch failed, within the same decode bound.
+std::optional<DataMatrixCandidate> RefitDataMatrixCandidate(const cv::Mat& gray,
+                                                            const DataMatrixCandidate& candidate);
 
 }  // namespace waymark

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -136,6 +137,49 @@ TEST(DetectDataMatrix, CandidateStageReadsWhatZxingMisses) {
   no_candidates.max_datamatrix_candidates = 0;
   no_candidates.second_pass = false;
   EXPECT_TRUE(CreateDetector("datamatrix", no_candidates)->Detect(image).empty());
+}
+
+// A candidate whose far sides took in part of the quiet zone (a hull joined to the card's
+// edge) or whose sides stop short of the symbol: its patch fails the timing test or the
+// decoders (on the recall bench; libdmtx reads these clean synthetic ones from either).
+// RefitDataMatrixCandidate moves each side onto the symbol's outermost modules,
+// and the refitted candidate reads.
+TEST(DetectDataMatrix, RefitMovesCandidateSidesOntoTheSymbol) {
+  // A light card a little larger than the symbol on a darker background.
+  cv::Mat image = Canvas(320, 320);
+  image.setTo(cv::Scalar(70));
+  const Quad2d truth = MakeQuad({160.0, 158.0}, 84.0, 0.12);
+  std::vector<cv::Point> card;
+  for (const Eigen::Vector2d& c : MakeQuad({160.0, 158.0}, 84.0 * 1.8, 0.12))
+    card.emplace_back(int(c.x()), int(c.y()));
+  cv::fillConvexPoly(image, card, cv::Scalar(225));
+  DrawSymbol(DataMatrixSymbol("REFIT-14"), truth, &image);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+  // Symbol-frame offsets of each corner (fractions of the side, x right and y down in the
+  // upright symbol: TL, TR, BR, BL), the L's corner bottom-left.
+  const Eigen::Vector2d u = (truth[1] - truth[0]) / 84.0, v = (truth[3] - truth[0]) / 84.0;
+  const double too_large[4][2] = {{-0.02, -0.3}, {0.3, -0.3}, {0.3, 0.02}, {-0.02, 0.02}};
+  const double too_small[4][2] = {{0.1, 0.1}, {-0.1, 0.1}, {-0.1, -0.1}, {0.1, -0.1}};
+  for (const auto* offsets : {too_large, too_small}) {
+    DataMatrixCandidate candidate;
+    for (int i = 0; i < 4; ++i) {
+      candidate.corners_px[i] = truth[i] + 84.0 * (offsets[i][0] * u + offsets[i][1] * v);
+    }
+    const std::optional<DataMatrixCandidate> refit = RefitDataMatrixCandidate(image, candidate);
+    ASSERT_TRUE(refit.has_value());
+    EXPECT_LT(MaxCornerError(refit->corners_px, truth), 2.0);
+    const auto read = ReadDataMatrixCandidate(image, *refit);
+    ASSERT_EQ(read.size(), 1u);
+    EXPECT_EQ(read[0].key.id, "REFIT-14");
+  }
+  // Exact corners: no side moves, nothing to read again.
+  DataMatrixCandidate exact;
+  exact.corners_px = truth;
+  EXPECT_FALSE(RefitDataMatrixCandidate(image, exact).has_value());
+  // No symbol: nothing.
+  DataMatrixCandidate blank;
+  blank.corners_px = MakeQuad({60.0, 60.0}, 40.0, 0.0);
+  EXPECT_FALSE(RefitDataMatrixCandidate(Canvas(320, 320), blank).has_value());
 }
 
 TEST(DetectDataMatrix, BlankNoiseAndBadInput) {
