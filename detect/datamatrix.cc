@@ -7,6 +7,8 @@
 #include <iterator>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <utility>
+#include <vector>
 
 #include "detect/common.h"
 #include "detect/quads.h"
@@ -299,36 +301,50 @@ Eigen::Vector2d Apply(const cv::Matx33d& h, const Eigen::Vector2d& p) {
   return Eigen::Vector2d(q[0] / q[2], q[1] / q[2]);
 }
 
+// A patch's gray level at (x, y), nearest pixel, clamped to the patch.
+double PatchAt(const cv::Mat& patch, double x, double y) {
+  const int c = std::clamp(static_cast<int>(std::lround(x)), 0, patch.cols - 1);
+  const int r = std::clamp(static_cast<int>(std::lround(y)), 0, patch.rows - 1);
+  return static_cast<double>(patch.at<uint8_t>(r, c));
+}
+
+// The L's gray level: the median just inside its two legs (3 % of the side in); the light
+// modules': the upper decile of a 9 x 9 grid over the middle 70 % of the symbol.
+struct PatchLevels {
+  double dark = 0.0;
+  double light = 0.0;
+  std::vector<double> inside;  // the 9 x 9 grid's samples (partially sorted)
+};
+PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
+  std::vector<double> leg, inside;
+  for (int k = 0; k < kPlausibleSamples; ++k) {
+    const double t = 0.08 + 0.84 * k / (kPlausibleSamples - 1);
+    leg.push_back(PatchAt(patch, m + 0.03 * s, m + t * s));
+    leg.push_back(PatchAt(patch, m + t * s, m + s - 1 - 0.03 * s));
+  }
+  for (int i = 0; i < 9; ++i) {
+    for (int j = 0; j < 9; ++j)
+      inside.push_back(PatchAt(patch, m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
+  }
+  std::nth_element(leg.begin(), leg.begin() + leg.size() / 2, leg.end());
+  std::nth_element(inside.begin(), inside.begin() + inside.size() * 9 / 10, inside.end());
+  const double dark = leg[leg.size() / 2], light = inside[inside.size() * 9 / 10];
+  return {dark, light, std::move(inside)};
+}
+
 }  // namespace
 
 bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* timing_runs) {
   if (timing_runs != nullptr) *timing_runs = 0;
   CV_Assert(patch.type() == CV_8UC1);
-  const auto at = [&patch](double x, double y) {
-    const int c = std::clamp(static_cast<int>(std::lround(x)), 0, patch.cols - 1);
-    const int r = std::clamp(static_cast<int>(std::lround(y)), 0, patch.rows - 1);
-    return static_cast<double>(patch.at<uint8_t>(r, c));
-  };
+  const auto at = [&patch](double x, double y) { return PatchAt(patch, x, y); };
   const double m = margin, s = side;
-  // The L's gray level: the median just inside its two legs (3 % of the side in); the light
-  // modules': the upper decile of a 9 x 9 grid over the middle 70 % of the symbol.
-  std::vector<double> leg, inside;
-  for (int k = 0; k < kPlausibleSamples; ++k) {
-    const double t = 0.08 + 0.84 * k / (kPlausibleSamples - 1);
-    leg.push_back(at(m + 0.03 * s, m + t * s));
-    leg.push_back(at(m + t * s, m + s - 1 - 0.03 * s));
-  }
-  for (int i = 0; i < 9; ++i) {
-    for (int j = 0; j < 9; ++j)
-      inside.push_back(at(m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
-  }
-  std::nth_element(leg.begin(), leg.begin() + leg.size() / 2, leg.end());
-  std::nth_element(inside.begin(), inside.begin() + inside.size() * 9 / 10, inside.end());
-  const double dark = leg[leg.size() / 2], light = inside[inside.size() * 9 / 10];
-  const double contrast = light - dark;
+  const PatchLevels levels = LegAndLightLevels(patch, m, s);
+  const double contrast = levels.light - levels.dark;
   if (contrast < kPlausibleMinContrast) return false;
-  const double threshold = dark + 0.5 * contrast;
+  const double threshold = levels.dark + 0.5 * contrast;
   // The data modules mix dark and light.
+  const std::vector<double>& inside = levels.inside;
   const double inside_dark =
       std::count_if(inside.begin(), inside.end(), [threshold](double g) { return g < threshold; }) /
       static_cast<double>(inside.size());
@@ -367,29 +383,12 @@ bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* t
 
 double DataMatrixQuietZoneDark(const cv::Mat& patch, int margin, int side) {
   CV_Assert(patch.type() == CV_8UC1);
-  const auto at = [&patch](double x, double y) {
-    const int c = std::clamp(static_cast<int>(std::lround(x)), 0, patch.cols - 1);
-    const int r = std::clamp(static_cast<int>(std::lround(y)), 0, patch.rows - 1);
-    return static_cast<double>(patch.at<uint8_t>(r, c));
-  };
+  const auto at = [&patch](double x, double y) { return PatchAt(patch, x, y); };
   const double m = margin, s = side;
-  // The L's and the light modules' gray levels, as DataMatrixPatchPlausible takes them.
-  std::vector<double> leg, inside;
-  for (int k = 0; k < kPlausibleSamples; ++k) {
-    const double t = 0.08 + 0.84 * k / (kPlausibleSamples - 1);
-    leg.push_back(at(m + 0.03 * s, m + t * s));
-    leg.push_back(at(m + t * s, m + s - 1 - 0.03 * s));
-  }
-  for (int i = 0; i < 9; ++i) {
-    for (int j = 0; j < 9; ++j)
-      inside.push_back(at(m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
-  }
-  std::nth_element(leg.begin(), leg.begin() + leg.size() / 2, leg.end());
-  std::nth_element(inside.begin(), inside.begin() + inside.size() * 9 / 10, inside.end());
-  const double dark = leg[leg.size() / 2], light = inside[inside.size() * 9 / 10];
-  const double contrast = light - dark;
+  const PatchLevels levels = LegAndLightLevels(patch, m, s);
+  const double contrast = levels.light - levels.dark;
   if (contrast <= 0.0) return 1.0;
-  const double threshold = dark + 0.5 * contrast;
+  const double threshold = levels.dark + 0.5 * contrast;
   const double module = std::max(1.5, kQuietModuleFraction * s);
   const int from = static_cast<int>(std::floor(-kQuietProfileOutside * s));
   const int to = static_cast<int>(std::ceil(kQuietProfileInside * s));

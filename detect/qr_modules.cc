@@ -339,6 +339,37 @@ std::optional<Deconvolved> Deconvolve(const cv::Mat& gray, const QrModuleGrid& g
   return out;
 }
 
+// Coordinate ascent of a quad's corners on `score` (higher is better; a non-finite value is
+// never taken): for each step (in modules of module_px) at most `rounds` rounds, each moving
+// every corner along x and y by one step where that scores higher (the first such move per
+// corner and axis), until a round moves nothing. *corners and *best are updated in place.
+template <typename Steps, typename Score>
+void ClimbCorners(double module_px, const Steps& steps, int rounds, const Score& score, Quad2d* corners,
+                  double* best) {
+  for (const double step_modules : steps) {
+    const double step = step_modules * module_px;
+    for (int round = 0; round < rounds; ++round) {
+      bool moved = false;
+      for (int corner = 0; corner < 4; ++corner) {
+        for (int axis = 0; axis < 2; ++axis) {
+          for (const double sign : {1.0, -1.0}) {
+            Quad2d trial = *corners;
+            trial[static_cast<size_t>(corner)][axis] += sign * step;
+            const double value = score(trial);
+            if (std::isfinite(value) && value > *best) {
+              *corners = trial;
+              *best = value;
+              moved = true;
+              break;
+            }
+          }
+        }
+      }
+      if (!moved) break;
+    }
+  }
+}
+
 // zxing on the rendered matrix; corners mapped back through the grid.
 std::vector<MarkerObservation> DecodeMatrix(const std::vector<uint8_t>& dark, const QrModuleGrid& grid) {
   const int n = grid.modules;
@@ -367,29 +398,10 @@ std::optional<QrModuleGrid> FitQrModuleGrid(const cv::Mat& gray, const Quad2d& c
   grid.corners_px = corners_px;
   grid.contrast = KnownContrast(gray, corners_px, modules, known);
   if (!std::isfinite(grid.contrast)) return std::nullopt;
-  const double module_px = QuadMeanSide(corners_px) / modules;
-  for (const double step_modules : kGridSteps) {
-    const double step = step_modules * module_px;
-    for (int round = 0; round < kGridRounds; ++round) {
-      bool moved = false;
-      for (int corner = 0; corner < 4; ++corner) {
-        for (int axis = 0; axis < 2; ++axis) {
-          for (const double sign : {1.0, -1.0}) {
-            Quad2d trial = grid.corners_px;
-            trial[static_cast<size_t>(corner)][axis] += sign * step;
-            const double contrast = KnownContrast(gray, trial, modules, known);
-            if (std::isfinite(contrast) && contrast > grid.contrast) {
-              grid.corners_px = trial;
-              grid.contrast = contrast;
-              moved = true;
-              break;
-            }
-          }
-        }
-      }
-      if (!moved) break;
-    }
-  }
+  ClimbCorners(
+      QuadMeanSide(corners_px) / modules, kGridSteps, kGridRounds,
+      [&](const Quad2d& trial) { return KnownContrast(gray, trial, modules, known); }, &grid.corners_px,
+      &grid.contrast);
   if (!(grid.contrast > 0.0)) return std::nullopt;
   return grid;
 }
@@ -426,29 +438,9 @@ QrModuleGrid SearchGridPerspective(const cv::Mat& gray, const QrModuleGrid& star
   QrModuleGrid grid = start;
   double score = GridSharpness(gray, grid.corners_px, n, known);
   if (!std::isfinite(score)) return start;
-  const double module_px = QuadMeanSide(grid.corners_px) / n;
-  for (const double step_modules : kSearchSteps) {
-    const double step = step_modules * module_px;
-    for (int round = 0; round < kSearchRounds; ++round) {
-      bool moved = false;
-      for (int corner = 0; corner < 4; ++corner) {
-        for (int axis = 0; axis < 2; ++axis) {
-          for (const double sign : {1.0, -1.0}) {
-            Quad2d trial = grid.corners_px;
-            trial[static_cast<size_t>(corner)][axis] += sign * step;
-            const double s = GridSharpness(gray, trial, n, known);
-            if (std::isfinite(s) && s > score) {
-              grid.corners_px = trial;
-              score = s;
-              moved = true;
-              break;
-            }
-          }
-        }
-      }
-      if (!moved) break;
-    }
-  }
+  ClimbCorners(
+      QuadMeanSide(grid.corners_px) / n, kSearchSteps, kSearchRounds,
+      [&](const Quad2d& trial) { return GridSharpness(gray, trial, n, known); }, &grid.corners_px, &score);
   grid.contrast = KnownContrast(gray, grid.corners_px, n, known);
   return grid;
 }
