@@ -249,6 +249,20 @@ TEST(RangeBearingLocalizer, MonteCarloNeesInsideBoundsWithARangeScaleCommonToThe
 
 // Four landmarks whose map errors are correlated: Sigma = F F^T + blockdiag(D), F (8 x 3) with a
 // common shift of the whole map and two random modes, D = (1 cm)^2 I.
+// Six point landmarks on a circle of 4 m about the origin, 60 degrees apart.
+MarkerMap SixLandmarksOnACircle() {
+  MarkerMap map;
+  for (int i = 0; i < 6; ++i) {
+    MapMarker m;
+    m.is_point = true;
+    m.key = {kFamilyBarcode, std::to_string(i)};
+    m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(),
+                            Eigen::Vector3d(4.0 * std::cos(i * M_PI / 3), 4.0 * std::sin(i * M_PI / 3), 0.0));
+    map.markers.push_back(m);
+  }
+  return map;
+}
+
 MarkerMap FourLandmarksWithCovariance(Eigen::MatrixXd* sigma_out) {
   const double positions[4][2] = {{3.0, 1.0}, {2.0, -2.0}, {-1.0, 2.5}, {-2.0, -1.5}};
   std::mt19937 rng(5);
@@ -398,15 +412,7 @@ TEST(RangeBearingLocalizer, LandmarkStatesAreCappedAndTheMapRefinedOnlyWhenEstim
 // its distance: the filter's c_depth converges to 1, and the pose is better than with c_depth held
 // at 0 (a true range assumed).
 TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
-  MarkerMap map;
-  for (int i = 0; i < 6; ++i) {
-    MapMarker m;
-    m.is_point = true;
-    m.key = {kFamilyBarcode, std::to_string(i)};
-    m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(),
-                            Eigen::Vector3d(4.0 * std::cos(i * M_PI / 3), 4.0 * std::sin(i * M_PI / 3), 0.0));
-    map.markers.push_back(m);
-  }
+  const MarkerMap map = SixLandmarksOnACircle();
   const auto run = [&](double depth_share_sigma, double* error_rms) {
     std::mt19937 rng(23);
     std::normal_distribution<double> n(0.0, 1.0);
@@ -448,15 +454,7 @@ TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
 TEST(RangeBearingLocalizer, TheBearingScaleIsEstimated) {
   // The sensor reads every bearing 6 % too large; the robot drives a circle among six
   // landmarks seeing each at bearings up to 0.6 rad; the filter's k_bearing converges to it.
-  MarkerMap map;
-  for (int i = 0; i < 6; ++i) {
-    MapMarker m;
-    m.is_point = true;
-    m.key = {kFamilyBarcode, std::to_string(i)};
-    m.T_world_marker = SE3d(Eigen::Quaterniond::Identity(),
-                            Eigen::Vector3d(4.0 * std::cos(i * M_PI / 3), 4.0 * std::sin(i * M_PI / 3), 0.0));
-    map.markers.push_back(m);
-  }
+  const MarkerMap map = SixLandmarksOnACircle();
   std::mt19937 rng(21);
   std::normal_distribution<double> n(0.0, 1.0);
   RangeBearingLocalizerOptions options;
