@@ -92,6 +92,14 @@ class RangeBearingFactor {
 // s_range = 0 it is the distance model of the earlier 3-entry block.
 inline constexpr int kRangeBearingSensorSize = 5;
 
+// What the sensor reads as the range of a landmark at `range` and `bearing`, before its offset:
+// (1 + s_range) ((1 - c_depth) range + c_depth range cos(bearing)); `sensor` is the block above.
+template <typename T>
+T SensedRange(const T& range, const T& bearing, const T* sensor) {
+  using std::cos;
+  return (T(1.0) + sensor[4]) * range * (T(1.0) - sensor[3] + sensor[3] * cos(bearing));
+}
+
 class BiasedRangeBearingFactor {
  public:
   BiasedRangeBearingFactor(double range_m, double bearing_rad, double sigma_range_m, double sigma_bearing_rad)
@@ -110,9 +118,7 @@ class BiasedRangeBearingFactor {
     // residuals[1] = wrap(bearing - bearing_measured) / sigma: the bearing is
     // bearing_measured + that (wrapped to (-pi, pi] by the caller's atan2 and the wrap).
     const T bearing = WrapAngleT(residuals[1] / T(inv_sigma_bearing_) + T(bearing_rad_));
-    using std::cos;
-    const T sensed = (T(1.0) + sensor[4]) * range * (T(1.0) - sensor[3] + sensor[3] * cos(bearing));
-    residuals[0] = (sensed + sensor[0] - T(range_m_)) * T(inv_sigma_range_);
+    residuals[0] = (SensedRange(range, bearing, sensor) + sensor[0] - T(range_m_)) * T(inv_sigma_range_);
     residuals[1] =
         WrapAngleT((T(1.0) + sensor[2]) * bearing + sensor[1] - T(bearing_rad_)) * T(inv_sigma_bearing_);
     return true;

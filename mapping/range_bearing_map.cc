@@ -150,11 +150,8 @@ Eigen::Vector2d Error(const Observation& obs, const std::vector<DatasetState>& s
   const DatasetState& state = states[obs.dataset];
   const Eigen::Vector2d predicted =
       Predict(state.nodes[obs.node].Pose(), Eigen::Vector2d(l.block[0], l.block[1]));
-  const double* sensor = state.sensor;
-  const double sensed =
-      (1.0 + sensor[4]) * predicted[0] * (1.0 - sensor[3] + sensor[3] * std::cos(predicted[1]));
   return Eigen::Vector2d(
-      sensed + state.sensor[0] - obs.range_m,
+      SensedRange(predicted[0], predicted[1], state.sensor) + state.sensor[0] - obs.range_m,
       WrapAngle((1.0 + state.sensor[2]) * predicted[1] + state.sensor[1] - obs.bearing_rad));
 }
 
