@@ -143,6 +143,12 @@ struct StagedDetection {
     }
     return out;
   }
+  // The second stage's result: RefinedWith(raw_after, refine) as KeepValidObservations keeps it.
+  template <typename Refine>
+  std::vector<MarkerObservation> KeptRefinedWith(const std::vector<MarkerObservation>& raw_after,
+                                                 Refine refine, double min_side_px) const {
+    return KeepValidObservations(gray, RefinedWith(raw_after, refine), min_side_px);
+  }
   // Throws std::logic_error unless DetectFirstPass ran.
   void CheckStarted() const;
 };

@@ -84,13 +84,10 @@ class DataMatrixDetector : public MarkerDetector {
     skipped_ = work.skipped();
     const cv::Mat& gray = staged_.gray;
     const bool refine = options_.refine_corners;
-    return KeepValidObservations(gray,
-                                 staged_.RefinedWith(found,
-                                                     [&gray, refine](MarkerObservation* obs) {
-                                                       *obs =
-                                                           RefineObservations(gray, {*obs}, refine).front();
-                                                     }),
-                                 options_.min_side_px);
+    return staged_.KeptRefinedWith(
+        found,
+        [&gray, refine](MarkerObservation* obs) { *obs = RefineObservations(gray, {*obs}, refine).front(); },
+        options_.min_side_px);
   }
 
  private:

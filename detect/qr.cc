@@ -271,12 +271,12 @@ class QrDetector : public MarkerDetector {
     skipped_ = work.skipped();
     const cv::Mat& gray = staged_.gray;
     const bool refine = options_.refine_corners;
-    return KeepValidObservations(gray,
-                                 staged_.RefinedWith(found,
-                                                     [&gray, refine](MarkerObservation* obs) {
-                                                       if (refine) RefineQrCorners(gray, obs);
-                                                     }),
-                                 options_.min_side_px);
+    return staged_.KeptRefinedWith(
+        found,
+        [&gray, refine](MarkerObservation* obs) {
+          if (refine) RefineQrCorners(gray, obs);
+        },
+        options_.min_side_px);
   }
 
  private:
