@@ -64,10 +64,12 @@ constexpr double kLinkFloorRad = 1e-3;  // th0
 constexpr int kMinRangeBinCount = 30;
 constexpr double kDelayTestChi2 = 3.841;  // chi-square, 1 dof, 95 %
 
+// The parameter blocks (`block`, `calibration`, `sensor`) point into the Builder's one buffer
+// (Builder::AllocateBlocks).
 struct Node {
   double stamp_s = 0.0;
   SE2d T_odom_robot;
-  double block[3] = {0.0, 0.0, 0.0};
+  double* block = nullptr;  // x, y, theta
   SE2d Pose() const { return SE2d(block[0], block[1], block[2]); }
   void Set(const SE2d& T) {
     block[0] = T.x();
@@ -86,7 +88,7 @@ struct Observation {
 };
 
 struct Landmark {
-  double block[2] = {0.0, 0.0};
+  double* block = nullptr;  // x, y
   bool placed = false;
   int count = 0;
 };
@@ -94,10 +96,10 @@ struct Landmark {
 struct DatasetState {
   const Dataset* dataset = nullptr;
   std::vector<Node> nodes;
-  double calibration[3] = {0.0, 0.0, 0.0};
+  double* calibration = nullptr;  // 3 (factors/calibrated_odometry_factor.h)
   // Range offset, bearing offset, bearing scale, depth share, range scale
   // (factors/range_bearing_factor.h).
-  double sensor[kRangeBearingSensorSize] = {0.0, 0.0, 0.0, 0.0, 0.0};
+  double* sensor = nullptr;
   RangeBearingNoise noise;  // this dataset's own, estimated in stage (2)
   double delay_s = 0.0;     // the odometry's lag (stage 2b); nodes' T_odom_robot use it
   bool placed = false;      // nodes have world poses
@@ -189,12 +191,20 @@ class Builder {
   Builder(const std::vector<const Dataset*>& datasets, const RangeBearingBuildOptions& options)
       : options_(options), noise_(options.initial_noise) {
     for (size_t k = 0; k < datasets.size(); ++k) Ingest(k, *datasets[k]);
+    AllocateBlocks();
+    for (DatasetState& state : states_) PlaceByStartPrior(&state);
   }
 
   RangeBearingBuildResult Run();
 
  private:
   void Ingest(size_t k, const Dataset& dataset);
+  // Every parameter block in `parameters_`, zeroed, in a fixed order: per dataset its odometry
+  // calibration, sensor and nodes, then the landmarks by key. Ceres starts its fill-reducing
+  // ordering from the blocks' address order, so blocks placed by the allocator (per-dataset
+  // vectors, map nodes) made the solve's rounding, and the map's last digits, vary from run to run.
+  void AllocateBlocks();
+  void PlaceByStartPrior(DatasetState* state);
   void Progress(const std::string& line) const {
     if (options_.progress) options_.progress(line);
   }
@@ -227,6 +237,7 @@ class Builder {
   std::vector<DatasetState> states_;
   std::vector<Observation> observations_;
   std::map<MarkerKey, Landmark> landmarks_;
+  std::vector<double> parameters_;  // never resized after AllocateBlocks: the blocks' addresses are fixed
   double solver_time_s_ = 0.0;
   std::vector<std::string> notes_;
   std::vector<double> dataset_cost_;  // each dataset's share of the last Solve's cost
@@ -278,14 +289,35 @@ void Builder::Ingest(size_t k, const Dataset& dataset) {
       ++landmarks_[rb.key].count;
     }
   }
-  if (options_.use_start_priors && dataset.config.start_prior) {
-    const SE2d T_world_start = SE2d::FromSE3(dataset.config.start_prior->T_world_robot);
-    const SE2d T_world_odom = T_world_start * state.nodes.front().T_odom_robot.inverse();
-    state.nodes.front().Set(T_world_odom * state.nodes.front().T_odom_robot);
-    state.placed = true;
-    state.summary.gauge = "start prior";
-  }
   states_.push_back(std::move(state));
+}
+
+void Builder::AllocateBlocks() {
+  size_t size = 2 * landmarks_.size();
+  for (const DatasetState& state : states_) size += 3 + kRangeBearingSensorSize + 3 * state.nodes.size();
+  parameters_.assign(size, 0.0);
+  double* next = parameters_.data();
+  const auto take = [&next](size_t count) {
+    double* block = next;
+    next += count;
+    return block;
+  };
+  for (DatasetState& state : states_) {
+    state.calibration = take(3);
+    state.sensor = take(kRangeBearingSensorSize);
+    for (Node& node : state.nodes) node.block = take(3);
+  }
+  for (auto& [key, landmark] : landmarks_) landmark.block = take(2);
+}
+
+void Builder::PlaceByStartPrior(DatasetState* state) {
+  const auto& prior = state->dataset->config.start_prior;
+  if (!options_.use_start_priors || !prior) return;
+  const SE2d T_world_start = SE2d::FromSE3(prior->T_world_robot);
+  const SE2d T_world_odom = T_world_start * state->nodes.front().T_odom_robot.inverse();
+  state->nodes.front().Set(T_world_odom * state->nodes.front().T_odom_robot);
+  state->placed = true;
+  state->summary.gauge = "start prior";
 }
 
 bool Builder::TryPlace(DatasetState* state, double end_s) {

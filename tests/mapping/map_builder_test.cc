@@ -4,18 +4,19 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdlib>
-#include <cstring>
-#include <random>
 #include <set>
 
 #include "eval/map_metrics.h"
 #include "eval/trajectory_eval.h"
 #include "mapping/build_report.h"
 #include "sim/simulator.h"
+#include "tests/heap_shuffle.h"
 
 namespace waymark {
 namespace {
+
+using testing::BitIdentical;
+using testing::ShuffleTheHeap;
 
 sim::SimResult Simulate(const std::string& scenario, std::uint64_t seed,
                         const std::vector<std::string>& settings = {}) {
@@ -49,22 +50,6 @@ TEST(MapBuilderTest, CorridorReachesCentimetreTargets) {
   EXPECT_LE(result.iterations, 12);
   std::cerr << "marker RMS " << map_error.position_rmse_m << " m, ATE " << TrajectoryAte(result, sim.dataset)
             << " m\n";
-}
-
-// Leaves the heap's free lists in a shuffled order: blocks of the sizes of small containers'
-// nodes, allocated, then freed in a random order, so that what is allocated next lands at
-// addresses in no particular order.
-void ShuffleTheHeap(std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<void*> blocks(4000);
-  for (void*& b : blocks) b = std::malloc(16 + rng() % 512);
-  std::shuffle(blocks.begin(), blocks.end(), rng);
-  for (void* b : blocks) std::free(b);
-}
-
-bool BitIdentical(const SE3d& a, const SE3d& b) {
-  return std::memcmp(a.rotation().coeffs().data(), b.rotation().coeffs().data(), 4 * sizeof(double)) == 0 &&
-         std::memcmp(a.translation().data(), b.translation().data(), 3 * sizeof(double)) == 0;
 }
 
 // The Schur solves (no odometry; a camera's per-frame wiggle) eliminate the parameter blocks in
