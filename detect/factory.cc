@@ -70,6 +70,7 @@ class MultiDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_gray_ = ToGray8(image);  // convert once for every family, kept for DetectSecondPasses()
+    const PixelHashScope hash_once(staged_gray_);  // the shared whole-frame work's cache key
     const std::vector<std::vector<MarkerObservation>> first =
         EachFamily([this](MarkerDetector& d) { return d.DetectFirstPass(staged_gray_); });
     // Each family gets the others' first-pass codes, in the order of the family list.
@@ -88,6 +89,7 @@ class MultiDetector : public MarkerDetector {
   std::vector<MarkerObservation> DetectSecondPasses() override {
     if (staged_gray_.empty())
       throw std::logic_error("detector: DetectSecondPasses() without DetectFirstPass()");
+    const PixelHashScope hash_once(staged_gray_);
     return Merged(EachFamily([](MarkerDetector& d) { return d.DetectSecondPasses(); }));
   }
 
