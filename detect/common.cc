@@ -204,22 +204,6 @@ bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect) {
   return c.x() >= rect.x && c.y() >= rect.y && c.x() < rect.x + rect.width && c.y() < rect.y + rect.height;
 }
 
-bool RegionIsOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes) {
-  return std::any_of(codes.begin(), codes.end(), [&](const MarkerObservation& obs) {
-    if (!ObservationInside(obs, region)) return false;
-    std::vector<cv::Point2f> corners;
-    for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
-    return cv::boundingRect(corners).area() >= kOneCodeFraction * region.area();
-  });
-}
-
-bool QuadIsOneOf(const Quad2d& corners_px, const std::vector<MarkerObservation>& codes) {
-  const Eigen::Vector2d centre = QuadCenter(corners_px);
-  return std::any_of(codes.begin(), codes.end(), [&](const MarkerObservation& obs) {
-    return (QuadCenter(obs.corners_px) - centre).norm() < 0.5 * QuadMeanSide(obs.corners_px);
-  });
-}
-
 void MapFromCrop(const cv::Point& offset, double scale, std::vector<MarkerObservation>* observations) {
   for (MarkerObservation& obs : *observations) {
     for (Eigen::Vector2d& c : obs.corners_px) {

@@ -66,32 +66,6 @@ std::vector<CandidateRegion> FindCodeCandidates(const cv::Mat& gray, const Candi
 // True if the centre of `obs` lies inside `rect`.
 bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect);
 
-// True if `region` is mostly one code of `codes`: a code's centre inside it, and the code's
-// bounding box at least kOneCodeFraction of the region (a candidate region pads its blob by a
-// quarter side, so a lone code covers about 0.44 of it).
-inline constexpr double kOneCodeFraction = 0.3;
-bool RegionIsOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes);
-
-// True if a candidate with these corners is a code of `codes`: its centre within half the
-// code's mean side of the code's.
-bool QuadIsOneOf(const Quad2d& corners_px, const std::vector<MarkerObservation>& codes);
-
-// A family detector whose second passes can skip what other families already read. The
-// multi-family detector (CreateMultiDetector) runs every family's first pass, hands each
-// family the codes the *other* families' first passes read (refined and valid, merged in the
-// order of the family list, so the same for any thread count), then runs the second passes:
-// a candidate region or candidate that is one such code holds no code of this family (a
-// place is one code), and its second-pass attempts are not made. DetectFirstPass and Detect
-// forget the codes handed over before.
-class SkipsOtherFamilies {
- public:
-  virtual ~SkipsOtherFamilies() = default;
-  void SetOtherFamiliesCodes(std::vector<MarkerObservation> codes) { other_families_ = std::move(codes); }
-
- protected:
-  std::vector<MarkerObservation> other_families_;
-};
-
 // Maps the corners of observations found in a crop (at `scale` times the crop's
 // resolution) back to full-image pixels: p = p_crop / scale + offset, with the pixel-centre
 // convention kept (scaling is about pixel edges: (p + 0.5) / scale - 0.5).

@@ -49,7 +49,7 @@ Quad2d DmtxCorners(const DmtxRegion& region, int height, int shrink) {
   return corners;
 }
 
-class DataMatrixDetector : public MarkerDetector, public SkipsOtherFamilies {
+class DataMatrixDetector : public MarkerDetector {
  public:
   explicit DataMatrixDetector(const DetectorOptions& options) : options_(options) {}
 
@@ -59,7 +59,6 @@ class DataMatrixDetector : public MarkerDetector, public SkipsOtherFamilies {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    other_families_.clear();
     FrameWork work(options_.live_budget_ms);
     std::vector<MarkerObservation> found = FirstPass(gray, &work);
     if (options_.second_pass) SecondPasses(gray, &work, &found);
@@ -69,7 +68,6 @@ class DataMatrixDetector : public MarkerDetector, public SkipsOtherFamilies {
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_.gray = ToGray8(image);
-    other_families_.clear();
     FrameWork work(options_.live_budget_ms);
     staged_.raw = FirstPass(staged_.gray, &work);
     staged_.refined = RefineObservations(staged_.gray, staged_.raw, options_.refine_corners);
@@ -167,12 +165,8 @@ class DataMatrixDetector : public MarkerDetector, public SkipsOtherFamilies {
   void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* found) const {
     // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
     // a symbol touching other dark things): zxing on the candidate regions holding no
-    // symbol yet, then on small ones upscaled. A region that is one code of another family
-    // holds no symbol.
-    std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-    regions.erase(std::remove_if(regions.begin(), regions.end(),
-                                 [this](const cv::Rect& r) { return RegionIsOneCode(r, other_families_); }),
-                  regions.end());
+    // symbol yet, then on small ones upscaled.
+    const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
     RunSecondPass(
         gray, regions,
         {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },

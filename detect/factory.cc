@@ -57,58 +57,33 @@ class MultiDetector : public MarkerDetector {
     return families;
   }
 
-  // Every family's first pass, then every family's second passes, each family's second passes
-  // knowing the codes the other families' first passes read (SkipsOtherFamilies,
-  // detect/common.h): a place read by one family is not searched again by the others.
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
-    DetectFirstPass(image);
-    const int first_skipped = skipped_;
-    std::vector<MarkerObservation> all = DetectSecondPasses();
-    skipped_ += first_skipped;
-    return all;
+    const cv::Mat gray = ToGray8(image);   // convert once for every family
+    const PixelHashScope hash_once(gray);  // the shared whole-frame work's cache key
+    return EachFamily([&gray](MarkerDetector& d) { return d.Detect(gray); });
   }
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
-    staged_gray_ = ToGray8(image);  // convert once for every family, kept for DetectSecondPasses()
-    const PixelHashScope hash_once(staged_gray_);  // the shared whole-frame work's cache key
-    const std::vector<std::vector<MarkerObservation>> first =
-        EachFamily([this](MarkerDetector& d) { return d.DetectFirstPass(staged_gray_); });
-    // Each family gets the others' first-pass codes, in the order of the family list.
-    for (size_t i = 0; i < detectors_.size(); ++i) {
-      auto* skips = dynamic_cast<SkipsOtherFamilies*>(detectors_[i].get());
-      if (!skips) continue;
-      std::vector<MarkerObservation> others;
-      for (size_t j = 0; j < first.size(); ++j) {
-        if (j != i) others.insert(others.end(), first[j].begin(), first[j].end());
-      }
-      skips->SetOtherFamiliesCodes(std::move(others));
-    }
-    return Merged(first);
+    staged_gray_ = ToGray8(image);  // kept for the families' DetectSecondPasses()
+    const PixelHashScope hash_once(staged_gray_);
+    return EachFamily([this](MarkerDetector& d) { return d.DetectFirstPass(staged_gray_); });
   }
 
   std::vector<MarkerObservation> DetectSecondPasses() override {
     if (staged_gray_.empty())
       throw std::logic_error("detector: DetectSecondPasses() without DetectFirstPass()");
     const PixelHashScope hash_once(staged_gray_);
-    return Merged(EachFamily([](MarkerDetector& d) { return d.DetectSecondPasses(); }));
+    return EachFamily([](MarkerDetector& d) { return d.DetectSecondPasses(); });
   }
 
   int SkippedAttempts() const override { return skipped_; }
 
  private:
-  // The families' results merged in the families' order (duplicates dropped), so the output
-  // does not depend on the thread count or on which thread finished first.
-  static std::vector<MarkerObservation> Merged(const std::vector<std::vector<MarkerObservation>>& found) {
-    std::vector<MarkerObservation> all;
-    for (const std::vector<MarkerObservation>& f : found) AppendUnique(f, &all);
-    return all;
-  }
-
   // `run` on each family's detector, each family on whichever worker takes it next (one
-  // detector is never used by two threads at once); each family's result, in the families'
-  // order. SkippedAttempts() is the sum of the families'.
+  // detector is never used by two threads at once); the results are merged in the families'
+  // order, so the output does not depend on the thread count or on which thread finished first.
   template <typename Run>
-  std::vector<std::vector<MarkerObservation>> EachFamily(Run run) {
+  std::vector<MarkerObservation> EachFamily(Run run) {
     const size_t n = detectors_.size();
     std::vector<std::vector<MarkerObservation>> found(n);
     std::vector<int> skipped(n, 0);
@@ -128,12 +103,14 @@ class MultiDetector : public MarkerDetector {
     for (size_t t = 1; t < std::min<size_t>(threads_, n); ++t) helpers.emplace_back(work);
     work();
     for (std::thread& t : helpers) t.join();
+    std::vector<MarkerObservation> all;
     skipped_ = 0;
     for (size_t i = 0; i < n; ++i) {
       if (errors[i]) std::rethrow_exception(errors[i]);
+      AppendUnique(found[i], &all);
       skipped_ += skipped[i];
     }
-    return found;
+    return all;
   }
 
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;

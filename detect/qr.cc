@@ -69,22 +69,34 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   }
 }
 
-// True if the candidate is a code already read (by this family: `found`, or by another
-// family of a multi-family detector: `others`; QuadIsOneOf).
-bool CandidateIsRead(const Quad2d& corners_px, const std::vector<MarkerObservation>& found,
-                     const std::vector<MarkerObservation>& others) {
-  return QuadIsOneOf(corners_px, found) || QuadIsOneOf(corners_px, others);
+// True if `region` is mostly one code of `found`: a code's centre inside it, and the code's
+// bounding box at least kCoveredFraction of the region (a candidate region pads its blob by
+// a quarter side, so a lone code covers about 0.44 of it).
+constexpr double kCoveredFraction = 0.3;
+bool RegionIsOneReadCode(const cv::Rect& region, const std::vector<MarkerObservation>& found) {
+  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
+    if (!ObservationInside(obs, region)) return false;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
+    return cv::boundingRect(corners).area() >= kCoveredFraction * region.area();
+  });
+}
+
+// True if the candidate's centre lies within half a side of a code already read.
+bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObservation>& found) {
+  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
+    return (QuadCenter(obs.corners_px) - QuadCenter(candidate.corners_px)).norm() <
+           0.5 * QuadMeanSide(obs.corners_px);
+  });
 }
 
 // Pass 2a: QR candidates from finder patterns (detect/qr_finder.h) in each region
-// (smallest first) that is not one code already read (by QR, or by another family: `others`,
-// SkipsOtherFamilies), each candidate not read yet resampled
+// (smallest first) that is not one code already read, each candidate not read yet resampled
 // upright and read: at most `max_reads` candidates per frame (and none once a live frame's
 // time is up). Returns, for each region (in the order given), the number of finder patterns
 // found in it, or -1 where it was not searched.
 std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                                      int max_reads, const std::vector<MarkerObservation>& others,
-                                      FrameWork* work, std::vector<MarkerObservation>* found) {
+                                      int max_reads, FrameWork* work, std::vector<MarkerObservation>* found) {
   // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
   // many blobs) and small codes are the ones zxing misses on the whole frame.
   std::vector<int> order(regions.size());
@@ -96,14 +108,14 @@ std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv:
   for (const int index : order) {
     const cv::Rect& region = regions[index];
     if (reads >= max_reads) break;
-    if (RegionIsOneCode(region, *found) || RegionIsOneCode(region, others)) continue;
+    if (RegionIsOneReadCode(region, *found)) continue;
     if (!work->Allow()) continue;
     const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(gray, region);
     finders_found[index] = static_cast<int>(finders.size());
     const std::vector<QrCandidate> candidates = GroupQrFinders(finders, gray.size());
     for (const QrCandidate& candidate : candidates) {
       if (reads >= max_reads) break;
-      if (CandidateIsRead(candidate.corners_px, *found, others)) continue;
+      if (CandidateIsRead(candidate, *found)) continue;
       if (!work->Allow()) continue;
       ++reads;
       AppendUnique(ReadRectifiedQr(gray, candidate), found);
@@ -143,13 +155,12 @@ std::vector<MarkerObservation> ReadFinderTripleNear(const cv::Mat& gray, const c
 // at most `max_reads` per frame (one larger than kFinderWorkSidePx is read from the quads'
 // corners only).
 constexpr double kMaxSearchedSidePx = kFinderWorkSidePx;
-void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads,
-                        const std::vector<MarkerObservation>& others, FrameWork* work,
+void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, FrameWork* work,
                         std::vector<MarkerObservation>* found) {
   int reads = 0;
   for (const QrCandidate& candidate : QrCandidatesFromQuads(gray, FindDarkQuads(gray, min_side_px))) {
     if (reads >= max_reads) return;
-    if (CandidateIsRead(candidate.corners_px, *found, others)) continue;
+    if (CandidateIsRead(candidate, *found)) continue;
     if (!work->Allow()) continue;
     ++reads;
     const cv::Rect box = PaddedBox(
@@ -177,8 +188,7 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads,
 // (detect/qr_modules.h), at most kMaxUnorientedReads per frame; at most `max_boxes` boxes
 // per frame. Then the same for the quads with one mostly light side (ThinSideSmallQrCodeQuads),
 // within their own bounds (kMaxThinSideBoxes, kMaxThinSideReads).
-void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes,
-                        const std::vector<MarkerObservation>& others, FrameWork* work,
+void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
                         std::vector<MarkerObservation>* found) {
   struct Unoriented {
     Quad2d corners_px;
@@ -187,7 +197,9 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes,
   // Each quad's box searched for a finder triple; the quads with none kept for grid reads.
   const auto search_boxes = [&](const std::vector<DarkQuad>& quads, std::vector<Unoriented>* unoriented) {
     for (const DarkQuad& quad : quads) {
-      if (CandidateIsRead(quad.corners_px, *found, others) || !work->Allow()) continue;
+      QrCandidate as_code;
+      as_code.corners_px = quad.corners_px;
+      if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
       const cv::Rect box = PaddedBox(
           quad.corners_px, [](int side) { return static_cast<int>(std::ceil(side / 3.0)); }, gray.size());
       const double side = QuadMeanSide(quad.corners_px);
@@ -208,7 +220,9 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes,
     int reads = 0;
     for (const Unoriented& u : *unoriented) {
       if (reads >= max_reads) break;
-      if (CandidateIsRead(u.corners_px, *found, others) || !work->Allow()) continue;
+      QrCandidate as_code;
+      as_code.corners_px = u.corners_px;
+      if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
       ++reads;
       AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
     }
@@ -224,7 +238,7 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes,
   read_grids(&thin_unoriented, kMaxThinSideReads);
 }
 
-class QrDetector : public MarkerDetector, public SkipsOtherFamilies {
+class QrDetector : public MarkerDetector {
  public:
   explicit QrDetector(const DetectorOptions& options) : options_(options) {}
 
@@ -233,7 +247,6 @@ class QrDetector : public MarkerDetector, public SkipsOtherFamilies {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    other_families_.clear();
     FrameWork work(options_.live_budget_ms);
     std::vector<MarkerObservation> found = FirstPass(gray);
     if (options_.second_pass) SecondPasses(gray, &work, &found);
@@ -243,7 +256,6 @@ class QrDetector : public MarkerDetector, public SkipsOtherFamilies {
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_.gray = ToGray8(image);
-    other_families_.clear();
     staged_.raw = FirstPass(staged_.gray);
     staged_.refined = Refine(staged_.gray, staged_.raw);
     staged_.started = true;
@@ -285,18 +297,15 @@ class QrDetector : public MarkerDetector, public SkipsOtherFamilies {
         },
     };
     const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-    const std::vector<MarkerObservation>& others = other_families_;
     const std::vector<int> finders_found =
-        ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, others, work, found);
-    ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, others, work, found);
-    ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, others, work, found);
+        ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, work, found);
+    ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, work, found);
+    ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, work, found);
     // A region searched for finders with none found holds no dark-on-light code that zxing
     // would find either (it needs three finders): only the inverted crop (a light-on-dark
     // code has light finders) and WeChat are tried there.
     const std::vector<CropAttempt> without_finders = {attempts[0], attempts[3]};
-    // A region that is one code of another family holds no QR code.
     for (size_t i = 0; i < regions.size(); ++i) {
-      if (RegionIsOneCode(regions[i], others)) continue;
       RunSecondPass(gray, {regions[i]}, finders_found[i] == 0 ? without_finders : attempts, work, found);
     }
   }
