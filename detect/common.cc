@@ -3,10 +3,12 @@
 #include <time.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -20,8 +22,67 @@ double FrameClock::ThreadCpuMs() {
   return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
+namespace {
+
+uint64_t ComputePixelHash(const cv::Mat& gray);
+
+// The images of the live PixelHashScopes and their hashes.
+struct ScopedHash {
+  size_t id;
+  const uchar* data;
+  cv::Size size;
+  int type;
+  size_t step;
+  uint64_t hash;
+};
+std::mutex scoped_mutex;
+std::vector<ScopedHash> scoped_hashes;
+std::atomic<int> scoped_count{0};
+size_t next_scope_id = 0;
+
+bool ScopedHashOf(const cv::Mat& gray, uint64_t* hash) {
+  if (scoped_count.load(std::memory_order_acquire) == 0) return false;
+  std::lock_guard<std::mutex> lock(scoped_mutex);
+  for (const ScopedHash& s : scoped_hashes) {
+    if (s.data == gray.data && s.size == gray.size() && s.type == gray.type() && s.step == gray.step[0]) {
+      *hash = s.hash;
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+PixelHashScope::PixelHashScope(const cv::Mat& gray) {
+  const uint64_t hash = PixelHash(gray);
+  std::lock_guard<std::mutex> lock(scoped_mutex);
+  id_ = next_scope_id++;
+  scoped_hashes.push_back({id_, gray.data, gray.size(), gray.type(), gray.step[0], hash});
+  scoped_count.fetch_add(1, std::memory_order_release);
+}
+
+PixelHashScope::~PixelHashScope() {
+  std::lock_guard<std::mutex> lock(scoped_mutex);
+  for (size_t i = 0; i < scoped_hashes.size(); ++i) {
+    if (scoped_hashes[i].id == id_) {
+      scoped_hashes.erase(scoped_hashes.begin() + static_cast<std::ptrdiff_t>(i));
+      break;
+    }
+  }
+  scoped_count.fetch_sub(1, std::memory_order_release);
+}
+
 uint64_t PixelHash(const cv::Mat& gray) {
   CV_Assert(gray.depth() == CV_8U);
+  uint64_t hash = 0;
+  if (ScopedHashOf(gray, &hash)) return hash;
+  return ComputePixelHash(gray);
+}
+
+namespace {
+
+uint64_t ComputePixelHash(const cv::Mat& gray) {
   const uint64_t kMul = 0x9E3779B97F4A7C15ull;
   uint64_t lane[4] = {1469598103934665603ull ^ (static_cast<uint64_t>(gray.cols) << 32) ^ uint64_t(gray.rows),
                       0x243F6A8885A308D3ull, 0x13198A2E03707344ull, 0xA4093822299F31D0ull};
@@ -46,6 +107,8 @@ uint64_t PixelHash(const cv::Mat& gray) {
   }
   return h;
 }
+
+}  // namespace
 
 double FrameClock::ProcessCpuMs() {
   timespec ts{};

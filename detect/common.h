@@ -157,6 +157,22 @@ struct StagedDetection {
 // multiply-xor lanes over 8-byte words, then the tail; about 0.05 ms for 1280x960).
 uint64_t PixelHash(const cv::Mat& gray);
 
+// While a scope is alive, PixelHash of its image (the same pixel buffer, size, type and row
+// step) returns the hash the scope computed once: the families of a multi-family detector share
+// one image whose pixels do not change during a call, and each PerImageCache lookup hashed the
+// whole frame again (about 8 per frame). Scopes may nest and live on several threads at once.
+// The caller must not change the image's pixels while its scope is alive.
+class PixelHashScope {
+ public:
+  explicit PixelHashScope(const cv::Mat& gray);
+  ~PixelHashScope();
+  PixelHashScope(const PixelHashScope&) = delete;
+  PixelHashScope& operator=(const PixelHashScope&) = delete;
+
+ private:
+  size_t id_;
+};
+
 // Whole-frame work shared by the families of one frame (the candidate stage, the candidate
 // regions), also when a multi-family detector runs them on several threads at once: the
 // first call for an image's pixels (and `key`, a parameter of the computation) computes the

@@ -58,18 +58,21 @@ class MultiDetector : public MarkerDetector {
   }
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
-    const cv::Mat gray = ToGray8(image);  // convert once for every family
+    const cv::Mat gray = ToGray8(image);   // convert once for every family
+    const PixelHashScope hash_once(gray);  // the shared whole-frame work's cache key
     return EachFamily([&gray](MarkerDetector& d) { return d.Detect(gray); });
   }
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_gray_ = ToGray8(image);  // kept for the families' DetectSecondPasses()
+    const PixelHashScope hash_once(staged_gray_);
     return EachFamily([this](MarkerDetector& d) { return d.DetectFirstPass(staged_gray_); });
   }
 
   std::vector<MarkerObservation> DetectSecondPasses() override {
     if (staged_gray_.empty())
       throw std::logic_error("detector: DetectSecondPasses() without DetectFirstPass()");
+    const PixelHashScope hash_once(staged_gray_);
     return EachFamily([](MarkerDetector& d) { return d.DetectSecondPasses(); });
   }
 

@@ -178,6 +178,30 @@ TEST(DetectCommon, PerImageCacheComputesOncePerImage) {
   EXPECT_THROW(cache.Get(other, 1.0, []() -> int { throw std::runtime_error("boom"); }), std::runtime_error);
 }
 
+// PixelHashScope: within it PixelHash of its image is the hash computed once (the same value),
+// of another view of other pixels its own; after it the pixels are hashed anew.
+TEST(DetectCommon, PixelHashScopeKeepsTheImagesHash) {
+  cv::Mat image(48, 64, CV_8U);
+  cv::randu(image, 0, 256);
+  const uint64_t before = PixelHash(image);
+  const cv::Mat roi = image(cv::Rect(8, 8, 32, 32));
+  const uint64_t roi_hash = PixelHash(roi);
+  {
+    const PixelHashScope scope(image);
+    EXPECT_EQ(PixelHash(image), before);
+    EXPECT_EQ(PixelHash(roi), roi_hash);  // another view: not the scope's image
+    {
+      const PixelHashScope nested(roi);
+      EXPECT_EQ(PixelHash(roi), roi_hash);
+      EXPECT_EQ(PixelHash(image), before);
+    }
+    std::thread other([&] { EXPECT_EQ(PixelHash(image), before); });
+    other.join();
+  }
+  image.at<uint8_t>(0, 0) ^= 1;  // after the scope, a change is seen
+  EXPECT_NE(PixelHash(image), before);
+}
+
 // A close-up (at most 640x480) is itself the first second-pass region unless close_up is off
 // (a crop of a larger frame: the live loop's predicted regions).
 TEST(DetectCommon, CloseUpRegionOnlyForCloseUps) {
