@@ -57,6 +57,10 @@ constexpr int kRunsForFullScore = 5;
 // side of the L's parallelogram completion.
 constexpr double kCompletionTolerance = 0.08;
 constexpr double kMaxAspect = 3.5;  // longest / shortest side (tilted up to ~70 degrees)
+// SolidBorderQuads: at most this many quads with three solid sides (after every four-sided
+// one). Each is a libapriltag crop; frame corners and U shapes make many on cluttered frames
+// (all of them: +51 % AprilTag instructions on the recall bench's issue frames).
+constexpr int kMaxThreeSidedBorders = 4;
 // A tag's interior: gray-level spread of its middle half over the border's contrast.
 constexpr double kInteriorMinSpread = 0.2;
 // A DataMatrix symbol's data region mixes dark and light modules about evenly (its
@@ -483,15 +487,23 @@ std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double 
   std::vector<std::pair<double, Quad2d>> all;
   for (const DarkQuad& q : quads) {
     if (q.l_completion || QuadMeanSide(q.corners_px) > max_side_px) continue;
-    const double solid = std::min({q.side_dark[0], q.side_dark[1], q.side_dark[2], q.side_dark[3]});
-    if (solid < kSolidMin) continue;
+    // Its sides' dark fractions, least dark first: four solid sides, or three (a dark bar
+    // across the border joins the component, whose hull then bulges where the bar leaves and
+    // puts one side of the quad partly outside the border), ranked after every four-sided one.
+    std::array<double, 4> dark = q.side_dark;
+    std::sort(dark.begin(), dark.end());
+    if (dark[1] < kSolidMin) continue;
     // A tag's inside mixes dark and light bits (a filled box or an empty frame is even).
     if (q.interior_spread < kInteriorMinSpread) continue;
-    all.push_back({solid, q.corners_px});
+    all.push_back({dark[0] >= kSolidMin ? dark[0] : dark[0] - 1.0, q.corners_px});
   }
   std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<Quad2d> sorted;
-  for (const auto& a : all) sorted.push_back(a.second);
+  int three_sided = 0;
+  for (const auto& a : all) {
+    if (a.first < 0.0 && ++three_sided > kMaxThreeSidedBorders) break;
+    sorted.push_back(a.second);
+  }
   return Deduplicate(sorted, max_candidates, [](const Quad2d& q) -> const Quad2d& { return q; });
 }
 

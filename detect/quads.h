@@ -135,7 +135,9 @@ std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray,
 
 // The quads with four solid sides and a varied interior (spread >= 0.2) whose mean side is at
 // most `max_side_px`: where an AprilTag (black border) may be. Best first, at most
-// `max_candidates`, duplicates dropped.
+// `max_candidates`, duplicates dropped. After every such quad, the quads with three solid sides
+// (a dark bar across a tag's border joins its component, and the hull's quad then runs partly
+// outside the border on one side), by their fourth side's dark fraction.
 std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px,
                                      int max_candidates);
 
