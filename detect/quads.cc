@@ -42,11 +42,25 @@ constexpr double kLAloneScale = 0.5;
 // completion first kept libdmtx's corners, 0.92 px off; ranked at 0.9 of a hull's it was).
 constexpr double kLCompletionScale = 0.5;
 constexpr int kDashedMinRuns = 2;
+// The L found by its dark legs (LQuadFromDarkLegs): each leg at least this long in work pixels
+// (an L whose modules join nothing has modules of at least a third of the 15 px box, so a
+// 10 x 10 symbol's legs are 40+ px at that level; text, the commonest such hull, is 10-30 px),
+// at most this ratio of the other (a square seen at up to 65 degrees of tilt: 2.4), and the
+// line between their ends with at least this many dark runs. On issue-scenario seeds 1-3
+// (DataMatrix only) these bounds took the quads made per frame from about 20 to 4 and the
+// candidates from 11 more than before to 1 more, with the same symbols read.
+constexpr double kLegsMinPx = 20.0;
+constexpr double kLegsMaxRatio = 2.5;
+constexpr int kAcrossMinRuns = 2;
 constexpr int kRunsForFullScore = 5;
 // DataMatrix: the hull's top-right corner is kept when within this fraction of the mean
 // side of the L's parallelogram completion.
 constexpr double kCompletionTolerance = 0.08;
 constexpr double kMaxAspect = 3.5;  // longest / shortest side (tilted up to ~70 degrees)
+// SolidBorderQuads: at most this many quads with three solid sides (after every four-sided
+// one). Each is a libapriltag crop; frame corners and U shapes make many on cluttered frames
+// (all of them: +51 % AprilTag instructions on the recall bench's issue frames).
+constexpr int kMaxThreeSidedBorders = 4;
 // A tag's interior: gray-level spread of its middle half over the border's contrast.
 constexpr double kInteriorMinSpread = 0.2;
 // A DataMatrix symbol's data region mixes dark and light modules about evenly (its
@@ -139,6 +153,24 @@ std::optional<Quad2d> LQuadFromHull(const std::vector<cv::Point>& hull) {
   return quad;
 }
 
+struct SideSamples;
+SideSamples SampleSide(const cv::Mat& dark, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+
+// The quad of an L found by its dark legs, for a hull that gave no quad: a DataMatrix symbol
+// whose data and timing modules join its L finder only near it (large sharp symbols, where the
+// box of the local mean spans a few modules and the lone timing modules are components of
+// their own). Its hull's polygon (3 % of the perimeter) is then the L's triangle, or that
+// triangle with a short cut where modules join a leg's end, which the side-ratio bound
+// turns away. Every corner of a polygon of three to six corners is tried as the L's corner,
+// its two sides as the legs: each at least kLegsMinPx long and at most kLegsMaxRatio times the
+// other, both at least kLSolidMin dark just inside, and the line between their ends with at
+// least kAcrossMinRuns dark runs and not solid (it crosses the data modules; a filled shape's
+// is solid, a letter's or a frame corner's light). Of those, the corner whose legs span the
+// largest parallelogram (the L's legs are its hull's longest dark sides; an outline has two
+// dark sides at every corner) gives the quad, its far corner the parallelogram completion;
+// clockwise on screen.
+std::optional<Quad2d> LQuadFromDarkLegs(const std::vector<cv::Point>& hull, const cv::Mat& dark);
+
 struct SideSamples {
   double dark_fraction = 0.0;
   int runs = 0;  // dark runs along the side
@@ -167,6 +199,47 @@ SideSamples SampleSide(const cv::Mat& dark, const Eigen::Vector2d& a, const Eige
   }
   out.dark_fraction = counted > 0 ? static_cast<double>(dark_count) / counted : 0.0;
   return out;
+}
+
+std::optional<Quad2d> LQuadFromDarkLegs(const std::vector<cv::Point>& hull, const cv::Mat& dark) {
+  const double perimeter = cv::arcLength(hull, true);
+  if (perimeter < 2.0 * kLegsMinPx) return std::nullopt;  // most hulls: text, noise
+  std::vector<cv::Point> poly;
+  cv::approxPolyDP(hull, poly, 0.03 * perimeter, true);
+  const size_t n = poly.size();
+  if (n < 3 || n > 6) return std::nullopt;
+  std::vector<Eigen::Vector2d> p;
+  for (const cv::Point& q : poly) p.emplace_back(q.x, q.y);
+  // Clockwise on screen (y down), so that every side's inside is on the same hand.
+  double area2 = 0.0;
+  for (size_t i = 0; i < n; ++i) area2 += Cross(p[i], p[(i + 1) % n]);
+  if (area2 < 0.0) std::reverse(p.begin(), p.end());
+  // Side i runs p[i] -> p[i+1]; its dark fraction is sampled when first needed (-1: not yet).
+  std::vector<double> side_dark(n, -1.0);
+  const auto dark_of = [&](size_t i) {
+    if (side_dark[i] < 0.0) side_dark[i] = SampleSide(dark, p[i], p[(i + 1) % n]).dark_fraction;
+    return side_dark[i];
+  };
+  std::optional<Quad2d> best;
+  double best_area = 0.0;
+  for (size_t k = 0; k < n; ++k) {
+    // Corner k's legs: side k-1 (into it) and side k (out of it).
+    const Eigen::Vector2d& corner = p[k];
+    const Eigen::Vector2d& a = p[(k + 1) % n];
+    const Eigen::Vector2d& b = p[(k + n - 1) % n];
+    const double la = (a - corner).norm(), lb = (b - corner).norm();
+    if (std::min(la, lb) < kLegsMinPx || std::max(la, lb) > kLegsMaxRatio * std::min(la, lb)) continue;
+    if (dark_of((k + n - 1) % n) < kLSolidMin || dark_of(k) < kLSolidMin) continue;
+    const double area = std::abs(Cross(a - corner, b - corner));
+    if (area <= best_area) continue;
+    // An L's triangle holds the data modules: the line between the legs' ends crosses dark and
+    // light ones (a filled shape's is solid, a letter's or a frame corner's light).
+    const SideSamples across = SampleSide(dark, a, b);
+    if (across.dark_fraction >= kSolidMin || across.runs < kAcrossMinRuns) continue;
+    best_area = area;
+    best = Quad2d{corner, a, a + b - corner, b};
+  }
+  return best;
 }
 
 // How much the quad's inside varies, relative to the contrast of its border: the standard
@@ -301,7 +374,7 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
           shortest = std::min(shortest, side);
           longest = std::max(longest, side);
         }
-        if (shortest < min_side || longest > kMaxAspect * shortest) return;
+        if (shortest < min_side || longest > kMaxAspect * shortest) return false;
         DarkQuad q;
         for (int j = 0; j < 4; ++j) {
           const SideSamples side = SampleSide(dark, quad[j], quad[(j + 1) % 4]);
@@ -319,22 +392,27 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
         q.scale = scale;
         q.l_completion = l_completion;
         all.push_back(q);
+        return true;
       };
       const std::optional<Quad2d> quad = QuadFromHull(hull);
-      if (quad) add(*quad, false);
+      const bool hull_quad_kept = quad && add(*quad, false);
+      // Corners of `a` each within kCompletionTolerance of the mean side of `b` of a corner of `b`.
+      const auto same_quad = [](const Quad2d& a, const Quad2d& b) {
+        for (int j = 0; j < 4; ++j) {
+          const double d = std::min(
+              {(a[j] - b[0]).norm(), (a[j] - b[1]).norm(), (a[j] - b[2]).norm(), (a[j] - b[3]).norm()});
+          if (d > kCompletionTolerance * QuadMeanSide(b)) return false;
+        }
+        return true;
+      };
       // The L's own quad when the hull has five or six corners and its two longest adjacent
       // sides complete to another quad (DataMatrixCandidates only).
-      if (const std::optional<Quad2d> l_quad = LQuadFromHull(hull)) {
-        const bool same = quad && [&] {
-          for (int j = 0; j < 4; ++j) {
-            const double d =
-                std::min({((*l_quad)[j] - (*quad)[0]).norm(), ((*l_quad)[j] - (*quad)[1]).norm(),
-                          ((*l_quad)[j] - (*quad)[2]).norm(), ((*l_quad)[j] - (*quad)[3]).norm()});
-            if (d > kCompletionTolerance * QuadMeanSide(*quad)) return false;
-          }
-          return true;
-        }();
-        if (!same) add(*l_quad, true);
+      const std::optional<Quad2d> l_quad = LQuadFromHull(hull);
+      if (l_quad && !(quad && same_quad(*l_quad, *quad))) add(*l_quad, true);
+      // No quad kept from the hull: an L whose other modules join it only near it.
+      if (!hull_quad_kept) {
+        const std::optional<Quad2d> leg_quad = LQuadFromDarkLegs(hull, dark);
+        if (leg_quad && !(l_quad && same_quad(*leg_quad, *l_quad))) add(*leg_quad, true);
       }
     }
   }
@@ -409,15 +487,23 @@ std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double 
   std::vector<std::pair<double, Quad2d>> all;
   for (const DarkQuad& q : quads) {
     if (q.l_completion || QuadMeanSide(q.corners_px) > max_side_px) continue;
-    const double solid = std::min({q.side_dark[0], q.side_dark[1], q.side_dark[2], q.side_dark[3]});
-    if (solid < kSolidMin) continue;
+    // Its sides' dark fractions, least dark first: four solid sides, or three (a dark bar
+    // across the border joins the component, whose hull then bulges where the bar leaves and
+    // puts one side of the quad partly outside the border), ranked after every four-sided one.
+    std::array<double, 4> dark = q.side_dark;
+    std::sort(dark.begin(), dark.end());
+    if (dark[1] < kSolidMin) continue;
     // A tag's inside mixes dark and light bits (a filled box or an empty frame is even).
     if (q.interior_spread < kInteriorMinSpread) continue;
-    all.push_back({solid, q.corners_px});
+    all.push_back({dark[0] >= kSolidMin ? dark[0] : dark[0] - 1.0, q.corners_px});
   }
   std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<Quad2d> sorted;
-  for (const auto& a : all) sorted.push_back(a.second);
+  int three_sided = 0;
+  for (const auto& a : all) {
+    if (a.first < 0.0 && ++three_sided > kMaxThreeSidedBorders) break;
+    sorted.push_back(a.second);
+  }
   return Deduplicate(sorted, max_candidates, [](const Quad2d& q) -> const Quad2d& { return q; });
 }
 

@@ -16,7 +16,11 @@
 // outside minus just inside the sides). A hull whose polygon (3 % of its perimeter) has five or six
 // corners also gives the quad of an L (its longest side and the longer neighbour as the legs, the
 // far corner their parallelogram completion; DarkQuad::l_completion), when that differs from the
-// hull's quad: for DataMatrix candidates only. The work is a fixed function of the image (no clock).
+// hull's quad: for DataMatrix candidates only. A hull that gives no quad (its polygon a triangle,
+// or a triangle with a short cut that the side-ratio bound turns away: an L finder whose other
+// modules join it only near it) gives the quad of the L found by its two dark legs (the corner
+// of the polygon whose two sides are dark and span the most, the line between their ends not
+// solid), marked the same way. The work is a fixed function of the image (no clock).
 #pragma once
 
 #include <array>
@@ -35,7 +39,8 @@ struct DarkQuad {
   double interior_spread = 0.0;       // gray-level spread inside / the border's contrast
   double scale = 1.0;                 // the level it was found at
   // An L's parallelogram completion rather than the hull's quad (a hull of five or six corners
-  // whose two longest adjacent sides are the legs): for DataMatrix candidates only.
+  // whose two longest adjacent sides are the legs, or a hull that gave no quad, by its two dark
+  // legs): for DataMatrix candidates only.
   bool l_completion = false;
 };
 
@@ -130,7 +135,9 @@ std::vector<MarkerObservation> ReadDataMatrixCandidate(const cv::Mat& gray,
 
 // The quads with four solid sides and a varied interior (spread >= 0.2) whose mean side is at
 // most `max_side_px`: where an AprilTag (black border) may be. Best first, at most
-// `max_candidates`, duplicates dropped.
+// `max_candidates`, duplicates dropped. After every such quad, the quads with three solid sides
+// (a dark bar across a tag's border joins its component, and the hull's quad then runs partly
+// outside the border on one side), by their fourth side's dark fraction.
 std::vector<Quad2d> SolidBorderQuads(const std::vector<DarkQuad>& quads, double max_side_px,
                                      int max_candidates);
 

@@ -245,6 +245,51 @@ TEST(DetectQuads, LCompletionQuadWhenTheHullIsCutDeep) {
   for (const DarkQuad& q : FindDarkQuads(image)) EXPECT_FALSE(q.l_completion);
 }
 
+// An L whose hull gives no quad: the L with lone dark modules inside (its hull's polygon a
+// triangle), and with a block joined inside one leg's end too (a triangle with a short cut,
+// turned away by the side-ratio bound). The L found by its two dark legs is a marked quad
+// (DataMatrix only), the far corner the legs' parallelogram completion.
+TEST(DetectQuads, LQuadFromDarkLegsWhenTheHullIsATriangle) {
+  for (const int shape : {0, 1}) {  // 0: lone modules, 1: and a joined block
+    const bool block = shape == 1;
+    for (int r = 0; r < 8; ++r) {
+      cv::Mat image = Canvas();
+      const Eigen::Vector2d centre(320, 240);
+      const double angle = r * M_PI / 4 + 0.1;
+      const auto turn = [&](double x, double y) -> cv::Point {  // square coordinates -> image
+        const double c = std::cos(angle), s = std::sin(angle);
+        return cv::Point(static_cast<int>(std::lround(centre.x() + c * x - s * y)),
+                         static_cast<int>(std::lround(centre.y() + s * x + c * y)));
+      };
+      // The square (-60, -60)..(60, 60); the L's corner bottom-left, its legs 12 px wide.
+      const auto fill = [&](double x0, double y0, double x1, double y1) {
+        const std::vector<cv::Point> poly = {turn(x0, y0), turn(x1, y0), turn(x1, y1), turn(x0, y1)};
+        cv::fillConvexPoly(image, poly, cv::Scalar(30));
+      };
+      fill(-60, -60, -48, 60);
+      fill(-60, 48, 60, 60);
+      if (block) fill(-48, -60, -24, -36);
+      for (const double c : {-22.0, 4.0, 28.0}) fill(c - 6, c - 6, c + 6, c + 6);  // across the triangle
+      const std::vector<DarkQuad> quads = FindDarkQuads(image);
+      double best = 1e9;
+      for (const DarkQuad& q : quads) {
+        if (!q.l_completion) continue;
+        for (int k = 0; k < 4; ++k) {
+          double e = 0.0;
+          const double xs[4] = {-60, 60, 60, -60}, ys[4] = {-60, -60, 60, 60};
+          for (int i = 0; i < 4; ++i) {
+            const cv::Point p = turn(xs[i], ys[i]);
+            e = std::max(e, (q.corners_px[(i + k) % 4] - Eigen::Vector2d(p.x, p.y)).norm());
+          }
+          best = std::min(best, e);
+        }
+      }
+      EXPECT_LT(best, 5.0) << "angle " << r << " shape " << shape;  // a pixel or two of its level
+      EXPECT_TRUE(SolidBorderQuads(quads, 400.0, 16).empty()) << "angle " << r << " shape " << shape;
+    }
+  }
+}
+
 // A symbol inside a larger L-shaped quad at the same place (the dark background around its
 // card, ranked first) keeps its own candidate; the same symbol found at two levels (about one
 // size) is one candidate.
