@@ -510,6 +510,21 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
               << FormatSignificant(d.noise.bearing_rad, 3) << " rad, odometry delay "
               << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
   }
+  if (const auto& sensor = result.map.range_bearing_sensor) {
+    const RangeBearingSensorValues &m = sensor->prior_mean, &sd = sensor->prior_sigma;
+    const auto pm = [](double mean, double sigma) {
+      return FormatSignificant(mean, 3) + " +- " + FormatSignificant(sigma, 3);
+    };
+    std::cout << "sensor prior for another robot (map.json range_bearing_sensor, range model "
+              << (sensor->depth_ranges ? "depth" : "distance") << "): range offset "
+              << pm(m.range_offset_m, sd.range_offset_m) << " m, bearing offset "
+              << pm(m.bearing_offset_rad, sd.bearing_offset_rad) << " rad, bearing scale "
+              << pm(m.bearing_scale, sd.bearing_scale) << ", depth share "
+              << pm(m.depth_share, sd.depth_share) << ", range scale " << pm(m.range_scale, sd.range_scale)
+              << ", odometry calibration " << pm(m.odometry_calibration[0], sd.odometry_calibration[0])
+              << ", " << pm(m.odometry_calibration[1], sd.odometry_calibration[1]) << ", "
+              << pm(m.odometry_calibration[2], sd.odometry_calibration[2]) << "\n";
+  }
   for (const auto& [key, reason] : result.unmapped)
     std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";
   std::cout << "solver time: " << FormatFixed(result.solver_time_s, 2) << " s\n";
