@@ -90,9 +90,9 @@ Options (build, merge):
   --no-calibration    do not estimate the odometry's systematic errors
   --depth-ranges      range-bearing datasets: each sensor's range read as (1 + s)((1 - c) distance
                       + c depth) + b, its depth share c and range scale s estimated, the
-                      odometry's error whitened in its own units (docs/mapping.md); for
-                      the map and the smoothed trajectories: waymark localize does not read
-                      the depth model yet, localize against a map built without it
+                      odometry's error whitened in its own units (docs/mapping.md); the
+                      map's range_bearing_sensor records the model, and waymark localize
+                      reads it
   --odometry-calibration K,TURN,DIST[,SK,ST,SD]
                       the odometry's systematic errors known from an earlier build of this
                       robot (its summary's "odometry calibration" line prints this argument):
@@ -430,10 +430,6 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
   for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
   const RangeBearingBuildResult result = BuildRangeBearingMap(pointers, options);
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
-  if (args.Flag("depth-ranges")) {
-    std::cerr << "note: --depth-ranges: the map's range noise is the depth model's; waymark localize reads "
-                 "ranges as distances, so localize against a map built without --depth-ranges\n";
-  }
   std::vector<std::pair<std::string, std::string>> files;
   files.emplace_back(args.Require("out"), FormatMap(result.map));
   if (const auto dir = args.Get("trajectory-dir")) {

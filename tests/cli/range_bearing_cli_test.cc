@@ -110,6 +110,29 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
   EXPECT_THAT(localize.out, HasSubstr("NEES: mean "));
   EXPECT_GT(ReadTum(dir_ / "robot2.tum").size(), 1000u);
+  // The map's sensor model: one entry per robot, the prior for another robot; the EKF reads it.
+  ASSERT_TRUE(map.range_bearing_sensor);
+  EXPECT_EQ(map.range_bearing_sensor->datasets.size(), 2u);
+  EXPECT_EQ(map.range_bearing_sensor->datasets[0].name, "robot0");
+  EXPECT_THAT(localize.out, HasSubstr("sensor prior: the map's (2 robots, range model distance)"));
+  const RunResult no_prior =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-no-prior.tum").string() + " --sensor-prior none");
+  ASSERT_EQ(no_prior.exit_code, 0) << no_prior.err;
+  EXPECT_THAT(no_prior.out, HasSubstr("sensor prior: none"));
+  const RunResult depth_map =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map-depth.json").string() +
+          " --out " + (dir_ / "robot2-depth-map.tum").string());
+  ASSERT_EQ(depth_map.exit_code, 0) << depth_map.err;
+  EXPECT_THAT(depth_map.out, HasSubstr("range model depth"));
+  EXPECT_THAT(depth_map.out, HasSubstr("NEES: mean "));
+  const RunResult bad_prior =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "z.tum").string() + " --sensor-prior truth");
+  EXPECT_NE(bad_prior.exit_code, 0);
+  EXPECT_THAT(bad_prior.err, HasSubstr("--sensor-prior: expected map or none, got 'truth'"));
+  EXPECT_EQ(std::count(bad_prior.err.begin(), bad_prior.err.end(), '\n'), 1) << bad_prior.err;
+  EXPECT_FALSE(fs::exists(dir_ / "z.tum"));
   // The map carries each landmark's covariance and its rows of the joint factor.
   ASSERT_TRUE(map.markers.front().position_covariance);
   ASSERT_TRUE(map.markers.front().covariance_factor);
@@ -131,7 +154,8 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_NE(live.exit_code, 0);
   EXPECT_THAT(
       live.err,
-      HasSubstr("--map-uncertainty and --depth-share-sigma are for range-bearing datasets, not --live"));
+      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, "
+                "not --live"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
   const RunResult depth =
       Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
@@ -188,8 +212,8 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
   EXPECT_NE(camera.exit_code, 0);
   EXPECT_THAT(
       camera.err,
-      HasSubstr(
-          "--map-uncertainty and --depth-share-sigma are for range-bearing datasets (range_bearing.jsonl)"));
+      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
+                "(range_bearing.jsonl)"));
 }
 
 }  // namespace
