@@ -45,10 +45,18 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       the sightings), consider (Schmidt: kept correlated with the state, not
                       estimated), in-noise (added to each sighting's noise as if independent) or
                       ignore (the map taken as exact); range-bearing datasets only
-  --depth-share-sigma S  the EKF also estimates the sensor's depth share c_depth (ranges read
+  --sensor-prior P    map (default) or none. map: when MAP.json has a range_bearing_sensor (written
+                      by `waymark map build`), the EKF reads ranges with the map's range model
+                      (depth or distance) and starts the robot's odometry calibration, sensor
+                      offsets, bearing scale, depth share and range scale at the mapped robots'
+                      mean with their spread as sigma (docs/online.md); none: as with a map
+                      without it (ranges as distances, the calibration and offsets from 0 with
+                      fixed weak sigmas); range-bearing datasets only
+  --depth-share-sigma S  the sigma of the sensor's depth share c_depth in the EKF (ranges read
                       (1 - c) distance + c depth along the sensor's axis: a camera that ranges a
-                      code by its apparent size reads its depth), from 0 with this sigma (default
-                      0: ranges taken as distances; 1: weak); range-bearing datasets only
+                      code by its apparent size reads its depth), from the map's mean (or 0) with
+                      this sigma (default: the map's spread, or 0 without a sensor prior: ranges
+                      taken as distances; 1: weak); range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -127,6 +135,7 @@ const std::set<std::string> kValues = {"map",
                                        "full-frame-every",
                                        "start-pose",
                                        "map-uncertainty",
+                                       "sensor-prior",
                                        "depth-share-sigma"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
@@ -263,6 +272,17 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
           "--map-uncertainty: expected estimate, consider, in-noise or ignore, got '" + name + "'");
     options.map_uncertainty = *mode;
   }
+  const std::string sensor_prior = args.GetOr("sensor-prior", "map");
+  if (sensor_prior != "map" && sensor_prior != "none")
+    throw std::invalid_argument("--sensor-prior: expected map or none, got '" + sensor_prior + "'");
+  if (sensor_prior == "map" && map.range_bearing_sensor) {
+    SensorPriorFromMap(*map.range_bearing_sensor, &options);
+    std::cout << "sensor prior: the map's (" << map.range_bearing_sensor->datasets.size()
+              << " robots, range model " << (map.range_bearing_sensor->depth_ranges ? "depth" : "distance")
+              << ")\n";
+  } else {
+    std::cout << "sensor prior: none (ranges as distances, fixed weak sigmas)\n";
+  }
   if (args.Has("depth-share-sigma")) {
     options.depth_share_sigma = *args.GetDouble("depth-share-sigma");
     if (!(options.depth_share_sigma >= 0.0) || !std::isfinite(options.depth_share_sigma))
@@ -279,8 +299,17 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
       args.Require("out"),
       FormatTum(run.poses, "waymark localize: T_world_robot of the range-bearing EKF while not lost"));
   std::cout << "odometry delay: " << FormatFixed(options.noise.odometry_delay_s, 3) << " s (the map's)\n";
+  const RangeBearingSensorValues& found = run.final_sensor;
+  std::cout << "at the end: odometry calibration [" << FormatSignificant(found.odometry_calibration[0], 3)
+            << ", " << FormatSignificant(found.odometry_calibration[1], 3) << ", "
+            << FormatSignificant(found.odometry_calibration[2], 3) << "], range offset "
+            << FormatSignificant(found.range_offset_m, 3) << " m, bearing offset "
+            << FormatSignificant(found.bearing_offset_rad, 3) << " rad, bearing scale "
+            << FormatSignificant(found.bearing_scale, 3) << ", depth share "
+            << FormatSignificant(found.depth_share, 3) << ", range scale "
+            << FormatSignificant(found.range_scale, 3) << "\n";
   std::cout << "poses: " << run.poses.size() << " written, " << run.outputs_withheld
-            << " withheld while lost\n";
+            << " withheld while lost, " << run.outputs_while_lost << " written while lost\n";
   std::cout << "observations:";
   for (const auto& [reason, count] : run.counts) std::cout << " " << reason << " " << count << ",";
   std::cout << "\n";
@@ -304,6 +333,12 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
               << FormatFixed(100.0 * nees.share_inside, 1)
               << " % of poses inside the per-pose 95 % interval [" << FormatFixed(nees.sample_lower, 3)
               << ", " << FormatFixed(nees.sample_upper, 3) << "]\n";
+    std::cout << "NEES by part: position mean " << FormatFixed(nees.mean_position, 2) << " (2 dof), "
+              << FormatFixed(100.0 * nees.share_inside_position, 1)
+              << " % inside its 95 % interval; heading mean " << FormatFixed(nees.mean_heading, 2)
+              << " (1 dof), " << FormatFixed(100.0 * nees.share_inside_heading, 1)
+              << " % inside; innovations: mean NIS " << FormatFixed(run.mean_nis, 2)
+              << " over the accepted updates (2 dof)\n";
   }
   return 0;
 }
@@ -316,9 +351,10 @@ int RunDataset(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma"))
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior"))
     throw std::invalid_argument(
-        "--map-uncertainty and --depth-share-sigma are for range-bearing datasets (range_bearing.jsonl)");
+        "--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
+        "(range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -331,9 +367,10 @@ int RunDataset(const Args& args) {
 // ---- Live mode ----
 
 int RunLive(const Args& args) {
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma"))
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior"))
     throw std::invalid_argument(
-        "--map-uncertainty and --depth-share-sigma are for range-bearing datasets, not --live");
+        "--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, not "
+        "--live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");

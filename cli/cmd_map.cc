@@ -88,11 +88,14 @@ Options (build, merge):
   --min-frames N      codes seen in fewer frames are reported, not mapped (default 2)
   --outlier-chi2 X    gate on an observation's 8 whitened residuals (default 40)
   --no-calibration    do not estimate the odometry's systematic errors
-  --depth-ranges      range-bearing datasets: each sensor's range read as (1 + s)((1 - c) distance
-                      + c depth) + b, its depth share c and range scale s estimated, the
-                      odometry's error whitened in its own units (docs/mapping.md); for
-                      the map and the smoothed trajectories: waymark localize does not read
-                      the depth model yet, localize against a map built without it
+  --range-model M     range-bearing datasets: depth (default) reads each sensor's range as
+                      (1 + s)((1 - c) distance + c depth) + b, its depth share c and range scale
+                      s estimated per dataset, the odometry's error whitened in its own units
+                      (docs/mapping.md; a camera that ranges codes by their apparent size reads
+                      their depth); distance reads it as distance + b (the build before
+                      2026-11-26). The map's range_bearing_sensor records the model and waymark
+                      localize reads it
+  --depth-ranges      the same as --range-model depth (kept for older scripts)
   --odometry-calibration K,TURN,DIST[,SK,ST,SD]
                       the odometry's systematic errors known from an earlier build of this
                       robot (its summary's "odometry calibration" line prints this argument):
@@ -151,7 +154,8 @@ MapBuildOptions ParseBuildOptions(const Args& args) {
 const std::set<std::string> kBuildValues = {"out",           "trajectory",     "report",
                                             "threads",       "min-frames",     "outlier-chi2",
                                             "max-gap",       "families",       "odometry-calibration",
-                                            "payload-sigma", "trajectory-dir", "cameras-out"};
+                                            "payload-sigma", "trajectory-dir", "cameras-out",
+                                            "range-model"};
 const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images",
                                            "depth-ranges"};
 
@@ -419,7 +423,13 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
   if (const auto n = args.GetInt("threads")) options.num_threads = static_cast<int>(*n);
   if (const auto n = args.GetInt("min-frames")) options.min_observations = static_cast<int>(*n);
   if (const auto x = args.GetDouble("outlier-chi2")) options.outlier_chi2 = *x;
-  if (args.Flag("depth-ranges")) {
+  const std::string range_model = args.GetOr("range-model", "depth");
+  if (range_model != "depth" && range_model != "distance")
+    throw std::invalid_argument("--range-model: expected depth or distance, got '" + range_model + "'");
+  if (args.Flag("depth-ranges") && range_model != "depth")
+    throw std::invalid_argument("--depth-ranges means --range-model depth: not with --range-model " +
+                                range_model);
+  if (range_model == "depth") {
     options.sensor_depth_share_sigma = 1.0;
     options.sensor_range_scale_sigma = 0.1;
     options.odometry_measurement_space = true;
@@ -430,10 +440,6 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
   for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
   const RangeBearingBuildResult result = BuildRangeBearingMap(pointers, options);
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
-  if (args.Flag("depth-ranges")) {
-    std::cerr << "note: --depth-ranges: the map's range noise is the depth model's; waymark localize reads "
-                 "ranges as distances, so localize against a map built without --depth-ranges\n";
-  }
   std::vector<std::pair<std::string, std::string>> files;
   files.emplace_back(args.Require("out"), FormatMap(result.map));
   if (const auto dir = args.Get("trajectory-dir")) {
@@ -510,6 +516,21 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
               << FormatSignificant(d.noise.bearing_rad, 3) << " rad, odometry delay "
               << FormatFixed(d.noise.odometry_delay_s, 3) << " s\n";
   }
+  if (const auto& sensor = result.map.range_bearing_sensor) {
+    const RangeBearingSensorValues &m = sensor->prior_mean, &sd = sensor->prior_sigma;
+    const auto pm = [](double mean, double sigma) {
+      return FormatSignificant(mean, 3) + " +- " + FormatSignificant(sigma, 3);
+    };
+    std::cout << "sensor prior for another robot (map.json range_bearing_sensor, range model "
+              << (sensor->depth_ranges ? "depth" : "distance") << "): range offset "
+              << pm(m.range_offset_m, sd.range_offset_m) << " m, bearing offset "
+              << pm(m.bearing_offset_rad, sd.bearing_offset_rad) << " rad, bearing scale "
+              << pm(m.bearing_scale, sd.bearing_scale) << ", depth share "
+              << pm(m.depth_share, sd.depth_share) << ", range scale " << pm(m.range_scale, sd.range_scale)
+              << ", odometry calibration " << pm(m.odometry_calibration[0], sd.odometry_calibration[0])
+              << ", " << pm(m.odometry_calibration[1], sd.odometry_calibration[1]) << ", "
+              << pm(m.odometry_calibration[2], sd.odometry_calibration[2]) << "\n";
+  }
   for (const auto& [key, reason] : result.unmapped)
     std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";
   std::cout << "solver time: " << FormatFixed(result.solver_time_s, 2) << " s\n";
@@ -535,8 +556,8 @@ int RunBuild(const std::vector<std::string>& argv) {
     std::vector<const Dataset*> pointers;
     for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
     if (HasRangeBearing(pointers)) return RunRangeBearingBuild(args, datasets);
-    if (args.Flag("depth-ranges"))
-      throw std::invalid_argument("--depth-ranges is for range-bearing datasets");
+    if (args.Flag("depth-ranges") || args.Has("range-model"))
+      throw std::invalid_argument("--range-model and --depth-ranges are for range-bearing datasets");
     return RunMultiBuild(args, &datasets);
   }
   Dataset dataset = LoadDataset(args.positionals()[0]);
@@ -545,7 +566,8 @@ int RunBuild(const std::vector<std::string>& argv) {
     throw std::invalid_argument(
         "--cameras-out is for camera surveys (range-bearing datasets have no camera mount)");
   if (HasRangeBearing(one)) return RunRangeBearingBuild(args, {dataset});
-  if (args.Flag("depth-ranges")) throw std::invalid_argument("--depth-ranges is for range-bearing datasets");
+  if (args.Flag("depth-ranges") || args.Has("range-model"))
+    throw std::invalid_argument("--range-model and --depth-ranges are for range-bearing datasets");
   const MapBuildOptions options = ParseBuildOptions(args);
   PrepareSurvey(args, &dataset);
   return Finish(args, BuildMap(dataset, options), dataset.cameras);

@@ -119,6 +119,33 @@ struct RangeBearingNoise {
   double range_scale_time_s = 1.0;
 };
 
+// What a range-bearing map build learnt about each dataset's sensor and odometry (map.json
+// `range_bearing_sensor`, docs/formats.md): the systematic errors of BiasedRangeBearingFactor
+// (factors/range_bearing_factor.h) and of the odometry (factors/calibrated_odometry_factor.h).
+struct RangeBearingSensorValues {
+  double range_offset_m = 0.0;      // b_range
+  double bearing_offset_rad = 0.0;  // b_bearing
+  double bearing_scale = 0.0;       // k_bearing
+  double depth_share = 0.0;         // c_depth
+  double range_scale = 0.0;         // s_range
+  Eigen::Vector3d odometry_calibration =
+      Eigen::Vector3d::Zero();  // heading drift, turn scale, distance scale
+};
+struct RangeBearingSensorModel {
+  // true: the build read each range as (1 + s) ((1 - c) distance + c depth) + b (c, s estimated);
+  // false: as the distance plus b (c = s = 0).
+  bool depth_ranges = false;
+  struct Dataset {
+    std::string name;
+    RangeBearingSensorValues values;
+    RangeBearingNoise noise;  // the dataset's own noise as the build estimated it
+  };
+  std::vector<Dataset> datasets;
+  // For a robot that is not in the map: the mean and the spread of the datasets' values
+  // (mapping/range_bearing_map.h, SensorPrior); a sigma of 0 holds the entry at its mean.
+  RangeBearingSensorValues prior_mean, prior_sigma;
+};
+
 // A marker in a map (map.json; also ground-truth and known markers).
 struct MapMarker {
   MarkerKey key;
@@ -161,8 +188,9 @@ struct MapBoard {
 
 struct MarkerMap {
   std::vector<MapMarker> markers;
-  std::optional<RangeBearingNoise> range_bearing_noise;  // map.json `range_bearing_noise`, optional
-  std::vector<MapBoard> boards;                          // map.json `boards`, optional
+  std::optional<RangeBearingNoise> range_bearing_noise;         // map.json `range_bearing_noise`, optional
+  std::optional<RangeBearingSensorModel> range_bearing_sensor;  // map.json `range_bearing_sensor`, optional
+  std::vector<MapBoard> boards;                                 // map.json `boards`, optional
 
   // nullptr when absent.
   const MapMarker* Find(const MarkerKey& key) const;

@@ -251,8 +251,8 @@ MapMarker ParseMarker(const JsonSource& source, const nlohmann::json& value, con
 // required: sigmas and q > 0, range_b and odometry_c_d >= 0; "odometry_delay_s" optional (0 when
 // absent), a finite number of at most 10 s either way.
 RangeBearingNoise ParseRangeBearingNoise(const JsonSource& source, const nlohmann::json& value,
-                                         ReadWarnings* warnings) {
-  const std::string field = "range_bearing_noise";
+                                         ReadWarnings* warnings,
+                                         const std::string& field = "range_bearing_noise") {
   if (!value.is_object()) ThrowJsonError(source, field, "expected an object");
   RangeBearingNoise noise;
   const std::pair<const char*, double*> positive[] = {{"range_a_m", &noise.range_a_m},
@@ -295,6 +295,96 @@ RangeBearingNoise ParseRangeBearingNoise(const JsonSource& source, const nlohman
                        "odometry_delay_s", "range_scale_sigma", "range_scale_time_s"},
                       warnings);
   return noise;
+}
+
+// The sensor values of a `range_bearing_sensor` dataset entry or of its prior (all optional, 0
+// when absent): finite numbers, the scales > -1 (a sigma: >= 0 when `sigmas`).
+RangeBearingSensorValues ParseSensorValues(const JsonSource& source, const nlohmann::json& value,
+                                           const std::string& field, bool sigmas,
+                                           const std::vector<std::string>& other_keys,
+                                           ReadWarnings* warnings) {
+  if (!value.is_object()) ThrowJsonError(source, field, "expected an object");
+  RangeBearingSensorValues values;
+  const std::pair<const char*, double*> entries[] = {{"range_offset_m", &values.range_offset_m},
+                                                     {"bearing_offset_rad", &values.bearing_offset_rad},
+                                                     {"bearing_scale", &values.bearing_scale},
+                                                     {"depth_share", &values.depth_share},
+                                                     {"range_scale", &values.range_scale}};
+  const auto check = [&](double v, const std::string& key, bool scale) {
+    if (sigmas && !(v >= 0.0 && std::isfinite(v)))
+      ThrowJsonError(source, JsonField(field, key), "expected a sigma >= 0, got " + FormatDouble(v));
+    if (!sigmas && scale && !(v > -1.0 && v < 1.0))
+      ThrowJsonError(source, JsonField(field, key),
+                     "expected a scale error in (-1, 1), got " + FormatDouble(v));
+  };
+  for (const auto& [key, out] : entries) {
+    if (const nlohmann::json* v = JsonMember(source, value, field, key, false)) {
+      *out = JsonNumber(source, *v, JsonField(field, key));
+      const std::string name = key;
+      check(*out, name, name == "bearing_scale" || name == "range_scale");
+    }
+  }
+  if (const nlohmann::json* c = JsonMember(source, value, field, "odometry_calibration", false)) {
+    const std::string key = JsonField(field, "odometry_calibration");
+    if (!c->is_array() || c->size() != 3)
+      ThrowJsonError(source, key, "expected 3 numbers [heading drift, turn scale, distance scale]");
+    for (int i = 0; i < 3; ++i) {
+      values.odometry_calibration[i] = JsonNumber(source, (*c)[i], JsonField(key, i));
+      check(values.odometry_calibration[i], JsonField("odometry_calibration", i), i > 0);
+    }
+  }
+  std::set<std::string> keys = {"range_offset_m", "bearing_offset_rad", "bearing_scale",
+                                "depth_share",    "range_scale",        "odometry_calibration"};
+  keys.insert(other_keys.begin(), other_keys.end());
+  JsonWarnUnknownKeys(source, value, field, keys, warnings);
+  return values;
+}
+
+// {"range_model": "depth" | "distance", "datasets": [{"name", values..., "noise"}], "prior_mean",
+// "prior_sigma"}: docs/formats.md.
+RangeBearingSensorModel ParseRangeBearingSensor(const JsonSource& source, const nlohmann::json& value,
+                                                ReadWarnings* warnings) {
+  const std::string field = "range_bearing_sensor";
+  if (!value.is_object()) ThrowJsonError(source, field, "expected an object");
+  RangeBearingSensorModel model;
+  const std::string range_model = JsonString(source, *JsonMember(source, value, field, "range_model", true),
+                                             JsonField(field, "range_model"));
+  if (range_model != "depth" && range_model != "distance")
+    ThrowJsonError(source, JsonField(field, "range_model"),
+                   "expected \"depth\" or \"distance\", got \"" + range_model + "\"");
+  model.depth_ranges = range_model == "depth";
+  const std::string datasets_field = JsonField(field, "datasets");
+  const nlohmann::json& datasets = *JsonMember(source, value, field, "datasets", true);
+  if (!datasets.is_array()) ThrowJsonError(source, datasets_field, "expected an array of datasets");
+  std::set<std::string> names;
+  for (size_t i = 0; i < datasets.size(); ++i) {
+    const std::string entry = JsonField(datasets_field, i);
+    RangeBearingSensorModel::Dataset dataset;
+    dataset.values = ParseSensorValues(source, datasets[i], entry, false, {"name", "noise"}, warnings);
+    dataset.name =
+        JsonString(source, *JsonMember(source, datasets[i], entry, "name", true), JsonField(entry, "name"));
+    if (!names.insert(dataset.name).second)
+      ThrowJsonError(source, JsonField(entry, "name"), "duplicate dataset " + dataset.name);
+    dataset.noise = ParseRangeBearingNoise(source, *JsonMember(source, datasets[i], entry, "noise", true),
+                                           warnings, JsonField(entry, "noise"));
+    model.datasets.push_back(dataset);
+  }
+  model.prior_mean = ParseSensorValues(source, *JsonMember(source, value, field, "prior_mean", true),
+                                       JsonField(field, "prior_mean"), false, {}, warnings);
+  model.prior_sigma = ParseSensorValues(source, *JsonMember(source, value, field, "prior_sigma", true),
+                                        JsonField(field, "prior_sigma"), true, {}, warnings);
+  if (!model.depth_ranges) {
+    for (const char* key : {"depth_share", "range_scale"}) {
+      const bool mean = std::string(key) == "depth_share" ? model.prior_mean.depth_share != 0.0
+                                                          : model.prior_mean.range_scale != 0.0;
+      if (mean)
+        ThrowJsonError(source, JsonField(JsonField(field, "prior_mean"), key),
+                       "expected 0 with range_model \"distance\"");
+    }
+  }
+  JsonWarnUnknownKeys(source, value, field, {"range_model", "datasets", "prior_mean", "prior_sigma"},
+                      warnings);
+  return model;
 }
 
 // One member of a board: {"family", "id", "T_board_marker"}.
@@ -363,12 +453,16 @@ MarkerMap ParseMap(const std::string& text, const std::filesystem::path& path, R
   CheckHeader(source, root);
   const nlohmann::json& markers = *JsonMember(source, root, "", "markers", true);
   if (!markers.is_array()) ThrowJsonError(source, "markers", "expected an array of markers");
-  JsonWarnUnknownKeys(source, root, "", {"format", "version", "markers", "range_bearing_noise", "boards"},
-                      warnings);
+  JsonWarnUnknownKeys(
+      source, root, "",
+      {"format", "version", "markers", "range_bearing_noise", "range_bearing_sensor", "boards"}, warnings);
 
   MarkerMap map;
   if (const nlohmann::json* noise = JsonMember(source, root, "", "range_bearing_noise", false)) {
     map.range_bearing_noise = ParseRangeBearingNoise(source, *noise, warnings);
+  }
+  if (const nlohmann::json* sensor = JsonMember(source, root, "", "range_bearing_sensor", false)) {
+    map.range_bearing_sensor = ParseRangeBearingSensor(source, *sensor, warnings);
   }
   std::set<MarkerKey> seen;
   std::optional<long> factor_columns;        // k, the same for every marker
@@ -571,6 +665,50 @@ void CheckWritable(const MapMarker& marker, std::set<MarkerKey>* seen) {
   if (!seen->insert(marker.key).second) throw std::invalid_argument(name + "duplicate");
 }
 
+// map.json `range_bearing_noise` (and a `range_bearing_sensor` dataset's `noise`).
+nlohmann::ordered_json NoiseJson(const RangeBearingNoise& noise) {
+  const double values[] = {noise.range_a_m,    noise.range_b,      noise.bearing_rad,
+                           noise.odometry_q_t, noise.odometry_q_r, noise.odometry_c_d};
+  for (const double v : values) {
+    if (!std::isfinite(v) || v < 0.0)
+      throw std::invalid_argument("map writer: range_bearing_noise not finite or negative");
+  }
+  if (!std::isfinite(noise.odometry_delay_s) || !(noise.range_scale_sigma >= 0.0) ||
+      !(noise.range_scale_time_s > 0.0) || !std::isfinite(noise.range_scale_time_s))
+    throw std::invalid_argument("map writer: range_bearing_noise odometry_delay_s or range scale not valid");
+  nlohmann::ordered_json json = {{"range_a_m", noise.range_a_m},       {"range_b", noise.range_b},
+                                 {"bearing_rad", noise.bearing_rad},   {"odometry_q_t", noise.odometry_q_t},
+                                 {"odometry_q_r", noise.odometry_q_r}, {"odometry_c_d", noise.odometry_c_d}};
+  if (noise.odometry_delay_s != 0.0) json["odometry_delay_s"] = noise.odometry_delay_s;
+  if (noise.range_scale_sigma > 0.0) {
+    json["range_scale_sigma"] = noise.range_scale_sigma;
+    json["range_scale_time_s"] = noise.range_scale_time_s;
+  }
+  return json;
+}
+
+nlohmann::ordered_json SensorValuesJson(const RangeBearingSensorValues& values, bool sigmas) {
+  const double all[] = {values.range_offset_m,
+                        values.bearing_offset_rad,
+                        values.bearing_scale,
+                        values.depth_share,
+                        values.range_scale,
+                        values.odometry_calibration[0],
+                        values.odometry_calibration[1],
+                        values.odometry_calibration[2]};
+  for (const double v : all) {
+    if (!std::isfinite(v) || (sigmas && v < 0.0))
+      throw std::invalid_argument("map writer: range_bearing_sensor value not finite (or a negative sigma)");
+  }
+  return {{"range_offset_m", values.range_offset_m},
+          {"bearing_offset_rad", values.bearing_offset_rad},
+          {"bearing_scale", values.bearing_scale},
+          {"depth_share", values.depth_share},
+          {"range_scale", values.range_scale},
+          {"odometry_calibration",
+           {values.odometry_calibration[0], values.odometry_calibration[1], values.odometry_calibration[2]}}};
+}
+
 }  // namespace
 
 std::string FormatMap(const MarkerMap& map) {
@@ -593,27 +731,22 @@ std::string FormatMap(const MarkerMap& map) {
       text += (b == 0 ? "\n  " : ",\n  ") + BoardJson(map.boards[b]);
     text += "\n ]";
   }
-  if (const auto& noise = map.range_bearing_noise) {
-    const double values[] = {noise->range_a_m,    noise->range_b,      noise->bearing_rad,
-                             noise->odometry_q_t, noise->odometry_q_r, noise->odometry_c_d};
-    for (const double v : values) {
-      if (!std::isfinite(v) || v < 0.0)
-        throw std::invalid_argument("map writer: range_bearing_noise not finite or negative");
+  if (const auto& noise = map.range_bearing_noise)
+    text += ",\n \"range_bearing_noise\": " + NoiseJson(*noise).dump();
+  if (const auto& sensor = map.range_bearing_sensor) {
+    nlohmann::ordered_json datasets = nlohmann::ordered_json::array();
+    for (const RangeBearingSensorModel::Dataset& dataset : sensor->datasets) {
+      nlohmann::ordered_json json = {{"name", dataset.name}};
+      const nlohmann::ordered_json values = SensorValuesJson(dataset.values, false);
+      for (const auto& item : values.items()) json[item.key()] = item.value();
+      json["noise"] = NoiseJson(dataset.noise);
+      datasets.push_back(json);
     }
-    if (!std::isfinite(noise->odometry_delay_s) || !(noise->range_scale_sigma >= 0.0) ||
-        !(noise->range_scale_time_s > 0.0) || !std::isfinite(noise->range_scale_time_s))
-      throw std::invalid_argument(
-          "map writer: range_bearing_noise odometry_delay_s or range scale not valid");
-    nlohmann::ordered_json json = {
-        {"range_a_m", noise->range_a_m},       {"range_b", noise->range_b},
-        {"bearing_rad", noise->bearing_rad},   {"odometry_q_t", noise->odometry_q_t},
-        {"odometry_q_r", noise->odometry_q_r}, {"odometry_c_d", noise->odometry_c_d}};
-    if (noise->odometry_delay_s != 0.0) json["odometry_delay_s"] = noise->odometry_delay_s;
-    if (noise->range_scale_sigma > 0.0) {
-      json["range_scale_sigma"] = noise->range_scale_sigma;
-      json["range_scale_time_s"] = noise->range_scale_time_s;
-    }
-    text += ",\n \"range_bearing_noise\": " + json.dump();
+    const nlohmann::ordered_json json = {{"range_model", sensor->depth_ranges ? "depth" : "distance"},
+                                         {"datasets", datasets},
+                                         {"prior_mean", SensorValuesJson(sensor->prior_mean, false)},
+                                         {"prior_sigma", SensorValuesJson(sensor->prior_sigma, true)}};
+    text += ",\n \"range_bearing_sensor\": " + json.dump();
   }
   return text + "}\n";
 }

@@ -166,6 +166,17 @@ bool FitMeasurementNoise(std::vector<std::pair<double, double>> range_errors,
 // intercept kept >= 1 cm and its slope >= 0.
 void FitSigmaLine(const std::vector<double>& x, const std::vector<double>& y, RangeBearingNoise* noise);
 
+// The 97.5 % quantile of Student's t with `dof` >= 1 degrees of freedom (a table to 30, then the
+// first two terms of its expansion about the normal quantile).
+double StudentT975(int dof) {
+  static const double kTable[] = {12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
+                                  2.201,  2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
+                                  2.080,  2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042};
+  if (dof <= 30) return kTable[std::max(dof, 1) - 1];
+  const double z = 1.959963984540054;
+  return z + (z * z * z + z) / (4.0 * dof);
+}
+
 // Rigid 2-D fit dst ~ R src + t (Kabsch); needs >= 2 points.
 SE2d FitRigid2D(const std::vector<Eigen::Vector2d>& src, const std::vector<Eigen::Vector2d>& dst) {
   Eigen::Vector2d mean_src = Eigen::Vector2d::Zero(), mean_dst = Eigen::Vector2d::Zero();
@@ -231,6 +242,7 @@ class Builder {
   void EstimateRangeScale();
   void NoiseRound(int round);
   RangeBearingBuildResult Collect();
+  RangeBearingSensorModel SensorModel(const std::vector<RangeBearingDatasetSummary>& datasets) const;
 
   RangeBearingBuildOptions options_;
   RangeBearingNoise noise_;
@@ -1030,8 +1042,69 @@ RangeBearingBuildResult Builder::Collect() {
     result.trajectories[state.summary.name] = std::move(trajectory);
     result.datasets.push_back(state.summary);
   }
+  result.map.range_bearing_sensor = SensorModel(result.datasets);
   result.notes = notes_;
   return result;
+}
+
+// map.json range_bearing_sensor (the header's "Sensor model"): each dataset's values and noise,
+// and the prior for a robot not in the map.
+RangeBearingSensorModel Builder::SensorModel(const std::vector<RangeBearingDatasetSummary>& datasets) const {
+  RangeBearingSensorModel model;
+  model.depth_ranges = options_.sensor_depth_share_sigma > 0.0 || options_.sensor_range_scale_sigma > 0.0;
+  std::vector<RangeBearingSensorValues> values;
+  for (const RangeBearingDatasetSummary& summary : datasets) {
+    RangeBearingSensorModel::Dataset dataset;
+    dataset.name = summary.name;
+    dataset.values.range_offset_m = summary.sensor_bias[0];
+    dataset.values.bearing_offset_rad = summary.sensor_bias[1];
+    dataset.values.bearing_scale = summary.bearing_scale;
+    dataset.values.depth_share = summary.depth_share;
+    dataset.values.range_scale = summary.range_scale;
+    dataset.values.odometry_calibration = summary.odometry_calibration;
+    dataset.noise = summary.noise;
+    model.datasets.push_back(dataset);
+    values.push_back(dataset.values);
+  }
+  // One entry: mean over the datasets; sigma the spread of a new draw from them (the Student-t
+  // predictive interval, header), at most the build's own prior sigma; the build's prior sigma
+  // with fewer than two datasets; 0 for an entry the build held (it is held in the EKF too).
+  const auto entry = [&](const std::function<double(const RangeBearingSensorValues&)>& get,
+                         double build_sigma, double* mean, double* sigma) {
+    const double n = static_cast<double>(values.size());
+    *mean = 0.0;
+    for (const RangeBearingSensorValues& v : values) *mean += get(v) / n;
+    if (!(build_sigma > 0.0)) {
+      *mean = 0.0;
+      *sigma = 0.0;
+      return;
+    }
+    if (values.size() < 2) {
+      *sigma = build_sigma;
+      return;
+    }
+    double squares = 0.0;
+    for (const RangeBearingSensorValues& v : values) squares += (get(v) - *mean) * (get(v) - *mean);
+    const double t = StudentT975(static_cast<int>(values.size()) - 1);
+    *sigma = std::min(build_sigma, std::sqrt(squares / (n - 1.0) * (1.0 + 1.0 / n)) * t / 1.959963984540054);
+  };
+  RangeBearingSensorValues& m = model.prior_mean;
+  RangeBearingSensorValues& sd = model.prior_sigma;
+  entry([](const auto& v) { return v.range_offset_m; }, options_.sensor_bias_sigma_m, &m.range_offset_m,
+        &sd.range_offset_m);
+  entry([](const auto& v) { return v.bearing_offset_rad; }, options_.sensor_bias_sigma_rad,
+        &m.bearing_offset_rad, &sd.bearing_offset_rad);
+  entry([](const auto& v) { return v.bearing_scale; }, options_.sensor_bearing_scale_sigma, &m.bearing_scale,
+        &sd.bearing_scale);
+  entry([](const auto& v) { return v.depth_share; }, options_.sensor_depth_share_sigma, &m.depth_share,
+        &sd.depth_share);
+  entry([](const auto& v) { return v.range_scale; }, options_.sensor_range_scale_sigma, &m.range_scale,
+        &sd.range_scale);
+  for (int i = 0; i < 3; ++i) {
+    entry([i](const auto& v) { return v.odometry_calibration[i]; }, options_.calibration_sigma,
+          &m.odometry_calibration[i], &sd.odometry_calibration[i]);
+  }
+  return model;
 }
 
 }  // namespace

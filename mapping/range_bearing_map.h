@@ -42,6 +42,16 @@
 // common to the landmarks of one frame (RangeBearingNoise::range_scale_sigma and range_scale_time_s, for the
 // EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale).
 //
+// Sensor model (map.json range_bearing_sensor, docs/formats.md): each dataset's sensor offsets and
+// scales (range offset, bearing offset, bearing scale, depth share, range scale), its odometry
+// calibration and its noise as estimated; and, for a robot that is not in the map (the online
+// localizer's prior, online/range_bearing_localizer.h), each entry's mean over the datasets and
+// the spread of a new draw from them: the normal sigma whose 95 % interval is the Student-t
+// predictive interval of a new draw, s sqrt(1 + 1/N) t_0.975(N - 1) / 1.96 (s the datasets' sample
+// standard deviation, N their number; three robots: 2.5 s), capped at the build's own prior sigma
+// for it (and that sigma with N < 2); an entry the build held (the depth share and range scale of
+// the distance model) has mean and sigma 0.
+//
 // Landmark covariance (3b): Sigma = the landmarks' block of H^-1, H = J^T J of the final problem
 // (squared loss) over every free block (nodes, landmarks, calibrations, sensor offsets and scales),
 // in the gauge of the start priors (else of the held first node); H^-1 B by the sparse LDL^T of

@@ -50,14 +50,44 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(IsFinitePositive(reacquire_sigma_m) && IsFinitePositive(reacquire_sigma_rad),
                        "reacquire sigmas must be > 0");
   WAYMARK_CHECK_OPTION(regain_updates >= 1, "regain_updates must be >= 1");
-  WAYMARK_CHECK_OPTION(calibration_sigma.allFinite() && (calibration_sigma.array() > 0.0).all(),
-                       "calibration_sigma must be finite and > 0");
-  WAYMARK_CHECK_OPTION(sensor_bias_sigma.allFinite() && (sensor_bias_sigma.array() > 0.0).all(),
-                       "sensor_bias_sigma must be finite and > 0");
-  WAYMARK_CHECK_OPTION(IsFinitePositive(bearing_scale_sigma), "bearing_scale_sigma must be > 0");
+  WAYMARK_CHECK_OPTION(calibration_sigma.allFinite() && (calibration_sigma.array() >= 0.0).all(),
+                       "calibration_sigma must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(sensor_bias_sigma.allFinite() && (sensor_bias_sigma.array() >= 0.0).all(),
+                       "sensor_bias_sigma must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(bearing_scale_sigma, 0.0), "bearing_scale_sigma must be >= 0");
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(depth_share_sigma, 0.0), "depth_share_sigma must be >= 0");
+  WAYMARK_CHECK_OPTION(IsFiniteAtLeast(range_scale_state_sigma, 0.0), "range_scale_state_sigma must be >= 0");
+  WAYMARK_CHECK_OPTION(calibration_mean.allFinite() && sensor_bias_mean.allFinite() &&
+                           std::isfinite(bearing_scale_mean) && std::isfinite(depth_share_mean) &&
+                           std::isfinite(range_scale_mean),
+                       "the calibration's and the sensor's means must be finite");
   WAYMARK_CHECK_OPTION(max_landmark_states >= 1, "max_landmark_states must be >= 1");
   return true;
+}
+
+Eigen::Vector3d ConvertOdometryCalibration(const Eigen::Vector3d& c) {
+  return Eigen::Vector3d(-c[0] / (1.0 + c[1]), -c[1] / (1.0 + c[1]), -c[2] / (1.0 + c[2]));
+}
+
+Eigen::Vector3d ConvertOdometryCalibrationSigma(const Eigen::Vector3d& c, const Eigen::Vector3d& sigma) {
+  return Eigen::Vector3d(sigma[0] / std::abs(1.0 + c[1]), sigma[1] / ((1.0 + c[1]) * (1.0 + c[1])),
+                         sigma[2] / ((1.0 + c[2]) * (1.0 + c[2])));
+}
+
+void SensorPriorFromMap(const RangeBearingSensorModel& model, RangeBearingLocalizerOptions* options) {
+  const RangeBearingSensorValues& mean = model.prior_mean;
+  const RangeBearingSensorValues& sigma = model.prior_sigma;
+  options->calibration_mean = ConvertOdometryCalibration(mean.odometry_calibration);
+  options->calibration_sigma =
+      ConvertOdometryCalibrationSigma(mean.odometry_calibration, sigma.odometry_calibration);
+  options->sensor_bias_mean = Eigen::Vector2d(mean.range_offset_m, mean.bearing_offset_rad);
+  options->sensor_bias_sigma = Eigen::Vector2d(sigma.range_offset_m, sigma.bearing_offset_rad);
+  options->bearing_scale_mean = mean.bearing_scale;
+  options->bearing_scale_sigma = sigma.bearing_scale;
+  options->depth_share_mean = model.depth_ranges ? mean.depth_share : 0.0;
+  options->depth_share_sigma = model.depth_ranges ? sigma.depth_share : 0.0;
+  options->range_scale_mean = model.depth_ranges ? mean.range_scale : 0.0;
+  options->range_scale_state_sigma = model.depth_ranges ? sigma.range_scale : 0.0;
 }
 
 RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
@@ -99,6 +129,11 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   }
   x_ = Eigen::VectorXd::Zero(kStateSize + k_);
   x_.head<3>() << T_world_start.x(), T_world_start.y(), T_world_start.theta();
+  x_.segment<3>(3) = options.calibration_mean;
+  x_.segment<2>(6) = options.sensor_bias_mean;
+  x_[9] = options.bearing_scale_mean;
+  x_[10] = options.depth_share_mean;
+  x_[11] = options.range_scale_mean;
   P_ = Eigen::MatrixXd::Zero(kStateSize + k_, kStateSize + k_);
   P_.topLeftCorner<3, 3>() = start_covariance;
   P_.block<3, 3>(3, 3) = options.calibration_sigma.cwiseAbs2().asDiagonal();
@@ -106,6 +141,7 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   P_(8, 8) = options.noise.range_scale_sigma * options.noise.range_scale_sigma;
   P_(9, 9) = options.bearing_scale_sigma * options.bearing_scale_sigma;
   P_(10, 10) = options.depth_share_sigma * options.depth_share_sigma;
+  P_(11, 11) = options.range_scale_state_sigma * options.range_scale_state_sigma;
   P_.bottomRightCorner(k_, k_).setIdentity();
 }
 
@@ -188,7 +224,7 @@ Eigen::Vector2d RangeBearingLocalizer::MeasureState(const Vector6& x, const Eige
   const Eigen::Vector2d d = l_world - x.head<2>();
   const double depth = std::cos(x[2]) * d.x() + std::sin(x[2]) * d.y();  // p_x
   const double read = h[0] + x[10] * (depth - h[0]);                     // (1 - c) r + c p_x
-  return Eigen::Vector2d((1.0 + x[8]) * read + x[6], WrapAngle((1.0 + x[9]) * h[1] + x[7]));
+  return Eigen::Vector2d((1.0 + x[8] + x[11]) * read + x[6], WrapAngle((1.0 + x[9]) * h[1] + x[7]));
 }
 
 Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalizer::MeasureStateJacobian(
@@ -200,13 +236,15 @@ Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> RangeBearingLocalize
   const double r = d.norm(), depth = c * d.x() + s * d.y(), lateral = -s * d.x() + c * d.y();
   // d p_x / d [x, y, theta] = [-cos theta, -sin theta, p_y].
   const Eigen::RowVector3d d_depth(-c, -s, lateral);
-  H.block<1, 3>(0, 0) = (1.0 + x[8]) * ((1.0 - x[10]) * H.block<1, 3>(0, 0) + x[10] * d_depth);
+  const double scale = 1.0 + x[8] + x[11];
+  H.block<1, 3>(0, 0) = scale * ((1.0 - x[10]) * H.block<1, 3>(0, 0) + x[10] * d_depth);
   H.block<1, 3>(1, 0) *= 1.0 + x[9];
   H(0, 6) = 1.0;
   H(1, 7) = 1.0;
   H(0, 8) = r + x[10] * (depth - r);
   H(1, 9) = Measure(x.head<3>(), l_world)[1];
-  H(0, 10) = (1.0 + x[8]) * (depth - r);
+  H(0, 10) = scale * (depth - r);
+  H(0, 11) = H(0, 8);
   return H;
 }
 
@@ -329,6 +367,8 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
   P_ += -KHP - KHP.transpose() + K * S * K.transpose();
   P_ = 0.5 * (P_ + P_.transpose()).eval();
   ++counts_["accepted"];
+  accepted_nis_sum_ += chi2;
+  ++accepted_nis_count_;
   rejections_in_row_ = 0;
   ++accepted_in_row_;
   CheckLost();

@@ -1,22 +1,28 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth]: T_world_robot,
-// the odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth, s_robot]:
+// T_world_robot, the odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
 // factors/calibrated_odometry_factor.h, to first order), the sensor's constant range and
 // bearing offsets (as BiasedRangeBearingFactor) and the range scale error common to a frame's
 // landmarks (noise.range_scale_sigma, a first-order Gauss-Markov process of correlation time
 // tau = noise.range_scale_time_s) and the sensor's bearing scale error k_bearing (as
 // BiasedRangeBearingFactor) and c_depth, the share of a range that is the landmark's depth along
 // the sensor's axis p_x = r cos(beta) rather than its distance r (a camera that ranges a code from
-// its apparent size measures its depth: c_depth = 1 reads a landmark at 0.5 rad 12 % short),
-// covariance P (11 x 11, the same order); the calibration, the offsets, k_bearing and c_depth start
-// at 0 with calibration_sigma, sensor_bias_sigma, bearing_scale_sigma and depth_share_sigma (0 by
-// default: c_depth held at 0) and have no process noise; s_range starts at 0 with variance
-// range_scale_sigma^2. Predict with an odometry increment M = (t_M, theta_M) in the robot frame, s = |t_M|:
+// its apparent size measures its depth: c_depth = 1 reads a landmark at 0.5 rad 12 % short) and
+// s_robot, the sensor's constant range scale error (the build's s_range per dataset), covariance P
+// (12 x 12, the same order); the calibration, the offsets, k_bearing, c_depth and s_robot start at
+// their *_mean with calibration_sigma, sensor_bias_sigma, bearing_scale_sigma, depth_share_sigma and
+// range_scale_state_sigma (the last two 0 by default: held at their mean, 0) and have no process
+// noise (a sigma of 0 holds its entry); s_range starts at 0 with variance range_scale_sigma^2.
+// SensorPriorFromMap sets the means and sigmas from the map's range_bearing_sensor (the spread of
+// the mapped robots' values: a robot of the same fleet), which bounds the odometry calibration to
+// what the fleet's robots showed instead of a weak constant prior. Predict with an odometry increment M =
+// (t_M, theta_M) in the robot frame, s = |t_M|:
 //   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
-//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range, k_bearing]
-//   F  = d x'/d x = I10 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
+//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range, k_bearing,
+//         c_depth, s_robot]
+//   F  = d x'/d x = I12 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
 //        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration)
 //   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
@@ -26,10 +32,11 @@
 //   d = l - t, q = |d|^2, r = sqrt(q), beta = wrap(atan2(d_y, d_x) - theta),
 //   p_x = cos(theta) d_x + sin(theta) d_y, p_y = -sin(theta) d_x + cos(theta) d_y (the landmark in
 //   the robot frame), rho = (1 - c_depth) r + c_depth p_x,
-//   h(x) = [(1 + s_range) rho + b_range, wrap((1 + k_bearing) beta + b_bearing)]
-//   H = [[(1 + s_range) ((1 - c_depth) [-d_x/r, -d_y/r, 0] + c_depth [-cos(theta), -sin(theta), p_y]),
-//         0 0 0, 1, 0, rho, 0, (1 + s_range) (p_x - r)],
-//        [(1 + k_bearing) [d_y/q, -d_x/q, -1], 0 0 0, 0, 1, 0, beta, 0]], H_l = -H[:, 0:2],  y = [range -
+//   h(x) = [(1 + s_range + s_robot) rho + b_range, wrap((1 + k_bearing) beta + b_bearing)]
+//   H = [[(1 + s_range + s_robot) ((1 - c_depth) [-d_x/r, -d_y/r, 0] + c_depth [-cos(theta), -sin(theta),
+//   p_y]),
+//         0 0 0, 1, 0, rho, 0, (1 + s_range + s_robot) (p_x - r), rho],
+//        [(1 + k_bearing) [d_y/q, -d_x/q, -1], 0 0 0, 0, 1, 0, beta, 0, 0]], H_l = -H[:, 0:2],  y = [range -
 //        h_0, wrap(bearing - h_1)],  S = H P H^T + R (the augmented form below),
 //   R = diag(sigma_w^2, sigma_bearing^2), sigma_w^2 = max(sigma_range(range)^2 - (range_scale_sigma
 //   range)^2, range_a_m^2) (the range variance less its common part; an observation's own sigma as given)
@@ -89,19 +96,40 @@ struct RangeBearingLocalizerOptions {
   double reacquire_sigma_m = 1.0;
   double reacquire_sigma_rad = 0.3;
   int regain_updates = 3;
-  // Sigmas of the calibration's start (0): k (rad/m), turn scale, distance scale.
+  // The calibration's start and its sigmas: k (rad/m), turn scale, distance scale.
+  Eigen::Vector3d calibration_mean = Eigen::Vector3d::Zero();
   Eigen::Vector3d calibration_sigma = Eigen::Vector3d(0.05, 0.2, 0.2);
-  // Sigmas of the sensor's range offset (m) and bearing offset (rad) at the start (0).
+  // The sensor's range offset (m) and bearing offset (rad) at the start, and their sigmas.
+  Eigen::Vector2d sensor_bias_mean = Eigen::Vector2d::Zero();
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
-  // Sigma of the sensor's bearing scale error at the start (0).
+  // The sensor's bearing scale error at the start, and its sigma.
+  double bearing_scale_mean = 0.0;
   double bearing_scale_sigma = 0.1;
-  // Sigma of the sensor's depth share c_depth at its start (0); 0 (default) holds c_depth at 0
-  // (ranges taken as distances); 1 is weak (a camera that ranges codes by their apparent size).
+  // The sensor's depth share c_depth at its start, and its sigma; 0 (default) holds c_depth at its
+  // mean (0: ranges taken as distances); 1 is weak (a camera that ranges codes by their apparent size).
+  double depth_share_mean = 0.0;
   double depth_share_sigma = 0.0;
+  // The sensor's constant range scale error s_robot at its start, and its sigma (0: held).
+  double range_scale_mean = 0.0;
+  double range_scale_state_sigma = 0.0;
   RangeBearingMapUncertainty map_uncertainty = RangeBearingMapUncertainty::kEstimate;
   int max_landmark_states = 64;  // eta_l blocks kept (kEstimate, kConsider)
   bool Check(std::string* why) const;
 };
+
+// The odometry calibration of factors/calibrated_odometry_factor.h (the map build's, map.json's:
+// theta_C = (theta_M - k s) / (1 + turn scale), t_C = t_M / (1 + distance scale)) in this filter's
+// form (theta_C = (1 + s_turn) theta_M + k s, t_C = (1 + s_dist) t_M) and back (the same map both
+// ways): s_turn = -turn / (1 + turn), k = -k_build / (1 + turn), s_dist = -dist / (1 + dist).
+Eigen::Vector3d ConvertOdometryCalibration(const Eigen::Vector3d& c);
+// Its derivative, for a sigma: |d converted / d c| per entry (k's from its own entry).
+Eigen::Vector3d ConvertOdometryCalibrationSigma(const Eigen::Vector3d& c, const Eigen::Vector3d& sigma);
+
+// The means and sigmas of the odometry calibration and of the sensor's offsets, scales and depth
+// share from a map's range_bearing_sensor prior (mapping/range_bearing_map.h: the mapped robots'
+// mean and spread; the calibration converted to this filter's form); the depth share and robot
+// range scale are held at 0 for a distance-model map.
+void SensorPriorFromMap(const RangeBearingSensorModel& model, RangeBearingLocalizerOptions* options);
 
 enum class RangeBearingUpdate { kAccepted, kUnknownLandmark, kGated, kDegenerate };
 
@@ -122,6 +150,7 @@ class RangeBearingLocalizer {
   double range_scale() const { return x_[8]; }
   double bearing_scale() const { return x_[9]; }
   double depth_share() const { return x_[10]; }
+  double robot_range_scale() const { return x_[11]; }
   // The augmented state: k (xi) and the landmarks' eta blocks held now.
   int map_modes() const { return k_; }
   int landmark_states() const { return static_cast<int>(slots_.size()); }
@@ -129,11 +158,13 @@ class RangeBearingLocalizer {
   // kConsider, kInNoise, kIgnore); nullopt for a landmark absent from the map.
   std::optional<Eigen::Vector2d> LandmarkPosition(const MarkerKey& key) const;
   bool lost() const { return lost_; }
+  // The mean of y^T S^-1 y over the accepted updates (0 before the first).
+  double mean_nis() const { return accepted_nis_count_ > 0 ? accepted_nis_sum_ / accepted_nis_count_ : 0.0; }
   // Counts: accepted, unknown, gated, degenerate, became lost, regained.
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static constexpr int kStateSize = 11;
+  static constexpr int kStateSize = 12;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
   static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
@@ -181,6 +212,8 @@ class RangeBearingLocalizer {
   int rejections_in_row_ = 0;
   int accepted_in_row_ = 0;
   std::map<std::string, long> counts_;
+  double accepted_nis_sum_ = 0.0;
+  long accepted_nis_count_ = 0;
 };
 
 }  // namespace waymark

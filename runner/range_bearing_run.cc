@@ -46,6 +46,7 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
       ++run.outputs_withheld;
       return;
     }
+    run.outputs_while_lost += filter.lost();  // never: the check above
     if (!run.poses.empty() && run.poses.back().stamp_s == stamp_s) {
       run.poses.back().T = filter.pose().ToSE3();
       run.covariances.back() = filter.covariance();
@@ -72,6 +73,13 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
   }
   run.counts["frames outside odometry"] += static_cast<long>(frames.size() - frame);
   for (const auto& [key, count] : filter.counts()) run.counts[key] += count;
+  run.mean_nis = filter.mean_nis();
+  run.final_sensor.odometry_calibration = ConvertOdometryCalibration(filter.calibration());  // the map's form
+  run.final_sensor.range_offset_m = filter.sensor_bias()[0];
+  run.final_sensor.bearing_offset_rad = filter.sensor_bias()[1];
+  run.final_sensor.bearing_scale = filter.bearing_scale();
+  run.final_sensor.depth_share = filter.depth_share();
+  run.final_sensor.range_scale = filter.robot_range_scale();
   return run;
 }
 
@@ -80,8 +88,10 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
   NeesResult result;
   result.sample_lower = ChiSquareQuantile(0.025, 3);
   result.sample_upper = ChiSquareQuantile(0.975, 3);
-  double sum = 0.0;
-  size_t inside = 0;
+  double sum = 0.0, sum_position = 0.0, sum_heading = 0.0;
+  size_t inside = 0, inside_position = 0, inside_heading = 0;
+  const double lower2 = ChiSquareQuantile(0.025, 2), upper2 = ChiSquareQuantile(0.975, 2);
+  const double lower1 = ChiSquareQuantile(0.025, 1), upper1 = ChiSquareQuantile(0.975, 1);
   for (size_t i = 0; i < poses.size(); ++i) {
     const std::optional<SE3d> truth = InterpolateTrajectory(groundtruth, poses[i].stamp_s, max_dt_s);
     if (!truth) continue;
@@ -92,12 +102,22 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
     const double nees = e.dot(llt.solve(e));
     sum += nees;
     inside += nees >= result.sample_lower && nees <= result.sample_upper;
+    const double position = e.head<2>().dot(covariances[i].topLeftCorner<2, 2>().ldlt().solve(e.head<2>()));
+    const double heading = e[2] * e[2] / covariances[i](2, 2);
+    sum_position += position;
+    sum_heading += heading;
+    inside_position += position >= lower2 && position <= upper2;
+    inside_heading += heading >= lower1 && heading <= upper1;
     ++result.samples;
   }
   if (result.samples == 0) throw std::runtime_error("NEES: no pose associates with the ground truth");
   const double n = static_cast<double>(result.samples);
   result.mean = sum / n;
   result.share_inside = inside / n;
+  result.mean_position = sum_position / n;
+  result.mean_heading = sum_heading / n;
+  result.share_inside_position = inside_position / n;
+  result.share_inside_heading = inside_heading / n;
   // chi2inv(p, 3N) / N by the Wilson-Hilferty approximation for large 3N (exact quantile below 3000 dof).
   const auto mean_bound = [&](double p, double z) {
     const double k = 3.0 * n;

@@ -32,6 +32,12 @@ struct RangeBearingRun {
   std::vector<Eigen::Matrix3d> covariances;  // of each pose, order [x y theta]
   std::map<std::string, long> counts;        // the localizer's counts and "frames outside odometry"
   long outputs_withheld = 0;                 // instants at which the filter was lost
+  long outputs_while_lost = 0;               // poses written while lost (0 by construction; checked)
+  // The normalized innovation squared y^T S^-1 y of the accepted updates (2 dof): its mean over
+  // them (2 when the innovations match their predicted covariance; the gate truncates it).
+  double mean_nis = 0.0;
+  // The filter's calibration (in the map's form, ConvertOdometryCalibration) and sensor states at the end.
+  RangeBearingSensorValues final_sensor;
 };
 
 // Throws std::runtime_error when the dataset has no odometry or no start_prior.
@@ -44,6 +50,10 @@ struct NeesResult {
   double share_inside = 0.0;  // of samples inside [sample_lower, sample_upper]
   double sample_lower = 0.0, sample_upper = 0.0;
   double mean_lower = 0.0, mean_upper = 0.0;
+  // The same split by part: the position's (2 dof) and the heading's (1 dof) NEES, each from its
+  // own marginal covariance, and the share of each inside its own per-pose 95 % interval.
+  double mean_position = 0.0, mean_heading = 0.0;
+  double share_inside_position = 0.0, share_inside_heading = 0.0;
 };
 
 // Throws std::runtime_error when no pose associates with the ground truth.

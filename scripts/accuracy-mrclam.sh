@@ -3,16 +3,18 @@
 # dataset (default: ../shared/data/mrclam/MRCLAM_Dataset6; any other run directory works the same,
 # nothing here is specific to run 6):
 #   1. waymark import mrclam RUN --known-start   (dead reckoning per robot, misreads counted)
-#   2. waymark map build robot1 ... robot5        (one map of all five robots, smoothed trajectories)
+#   2. waymark map build robot1 ... robot5        (one map of all five robots, smoothed trajectories;
+#      the default range model, depth: each range read as a depth with its scale estimated)
 #   3. waymark eval: landmark RMSE after SE(2) alignment; per robot ATE and RPE (1 m) of the
 #      smoothed trajectory and of dead reckoning after SE(2) alignment; a top-view SVG per robot;
-#      the same map and trajectories built with --depth-ranges (each range read as a depth)
+#      the same map and trajectories built with --range-model distance (the build before 2026-11-26)
 #   4. waymark map build robot1 robot2 robot3; waymark localize robot4 and robot5 against it
 #      (ATE in the map's frame, NEES): the map's landmark errors as states of the EKF (default),
 #      considered (Schmidt), in each sighting's noise, ignored (the map taken as exact: the
 #      filter before the map had a covariance), and a control against the true landmark
-#      positions; the map's covariance against its error (scripts/map-covariance-check.py); and
-#      the EKF with the sensor's depth share estimated (--depth-share-sigma 1), also on the truth map
+#      positions; the map's covariance against its error (scripts/map-covariance-check.py); the
+#      EKF without the map's sensor prior on the distance-model map of robots 1-3 (the filter before)
+#   5. leave-out splits: map of robots 3, 4, 5 localizing 1 and 2; map of 1, 2, 4 localizing 3 and 5
 # Usage: scripts/accuracy-mrclam.sh [RUN_DIR] [OUT_DIR]   (OUT_DIR default: out/mrclam; needs
 # build/waymark: scripts/build.sh --target waymark)
 set -euo pipefail
@@ -49,14 +51,14 @@ for robot in "${robots[@]}"; do
     --rpe-delta 1 --rpe-unit m --json "$out/$robot-dead-reckoning-eval.json"
 done
 
-echo "== one map of all robots, each range read as a depth (--depth-ranges)"
-"$waymark" map build "${robots[@]/#/$out/data/}" --depth-ranges --out "$out/map-all-depth.json" \
-  --trajectory-dir "$out/smoothed-all-depth" --report "$out/map-all-depth-report.json"
-"$waymark" eval --map "$out/map-all-depth.json" --gt-map "$gt_map" --json "$out/map-all-depth-eval.json"
+echo "== one map of all robots, each range read as a distance (--range-model distance)"
+"$waymark" map build "${robots[@]/#/$out/data/}" --range-model distance --out "$out/map-all-distance.json" \
+  --trajectory-dir "$out/smoothed-all-distance" --report "$out/map-all-distance-report.json"
+"$waymark" eval --map "$out/map-all-distance.json" --gt-map "$gt_map" --json "$out/map-all-distance-eval.json"
 for robot in "${robots[@]}"; do
-  echo "== $robot: smoothed (all robots' map, --depth-ranges)"
-  "$waymark" eval --est "$out/smoothed-all-depth/$robot.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
-    --align se2 --max-dt 0.02 --rpe-delta 1 --rpe-unit m --json "$out/$robot-smoothed-depth-eval.json"
+  echo "== $robot: smoothed (all robots' map, --range-model distance)"
+  "$waymark" eval --est "$out/smoothed-all-distance/$robot.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
+    --align se2 --max-dt 0.02 --rpe-delta 1 --rpe-unit m --json "$out/$robot-smoothed-distance-eval.json"
 done
 
 if [[ ${#robots[@]} -ge 5 ]]; then
@@ -71,6 +73,7 @@ if [[ ${#robots[@]} -ge 5 ]]; then
 import json, sys
 built, truth = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
 truth["range_bearing_noise"] = built["range_bearing_noise"]
+truth["range_bearing_sensor"] = built["range_bearing_sensor"]
 for marker in truth["markers"]:
     marker.pop("position_covariance", None)
 json.dump(truth, open(sys.argv[3], "w"))
@@ -88,11 +91,29 @@ EOF
     done
     echo "== $robot: online against the true landmark positions (control)"
     "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --out "$out/$robot-online-truth-map.tum"
-    echo "== $robot: online, the sensor's depth share estimated (--depth-share-sigma 1)"
-    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --depth-share-sigma 1 \
-      --out "$out/$robot-online-depth.tum"
-    echo "== $robot: online, depth share, against the true landmark positions (control)"
-    "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --depth-share-sigma 1 \
-      --out "$out/$robot-online-depth-truth-map.tum"
+  done
+  echo "== map of robots 1-3, distance model; robots 4 and 5 online without the map's sensor prior (before)"
+  "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" --range-model distance \
+    --out "$out/map-123-distance.json"
+  for robot in robot4 robot5; do
+    echo "== $robot: online against the distance-model map of robots 1-3, --sensor-prior none"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-123-distance.json" --sensor-prior none \
+      --out "$out/$robot-online-before.tum"
+  done
+fi
+if [[ ${#robots[@]} -ge 5 ]]; then
+  # Leave-out splits: the sensor prior and the map from some robots, the others localized.
+  for split in "345:1 2" "124:3 5"; do
+    mapped=${split%%:*}
+    located=${split#*:}
+    dirs=()
+    for (( i = 0; i < ${#mapped}; i++ )); do dirs+=("$out/data/robot${mapped:$i:1}"); done
+    echo "== map of robots ${mapped}"
+    "$waymark" map build "${dirs[@]}" --out "$out/map-$mapped.json"
+    "$waymark" eval --map "$out/map-$mapped.json" --gt-map "$gt_map"
+    for r in $located; do
+      echo "== robot$r: online against the map of robots ${mapped}"
+      "$waymark" localize "$out/data/robot$r" --map "$out/map-$mapped.json" --out "$out/robot$r-online-$mapped.tum"
+    done
   done
 fi

@@ -5,8 +5,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "eval/map_metrics.h"
@@ -20,6 +22,7 @@ namespace waymark {
 namespace {
 
 namespace fs = std::filesystem;
+
 using ::testing::HasSubstr;
 using ::testing::Not;
 
@@ -86,9 +89,9 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   world.outlier_share = 0.02;
   for (int i = 0; i < 3; ++i)
     WriteDataset(dir_ / ("robot" + std::to_string(i)), testing::RangeBearingRobot(i, 20 + i, world));
-  const RunResult build =
-      Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
-          (dir_ / "map.json").string() + " --trajectory-dir " + (dir_ / "smoothed").string());
+  const RunResult build = Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() +
+                              " --out " + (dir_ / "map.json").string() + " --trajectory-dir " +
+                              (dir_ / "smoothed").string() + " --range-model distance");
   ASSERT_EQ(build.exit_code, 0) << build.err;
   EXPECT_THAT(build.out, HasSubstr("landmarks: 10"));
   EXPECT_TRUE(fs::exists(dir_ / "smoothed" / "robot0.tum"));
@@ -97,19 +100,71 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   const MarkerMap map = ReadMap(dir_ / "map.json");
   ASSERT_TRUE(map.range_bearing_noise);
   EXPECT_TRUE(map.markers.front().is_point);
-  // With the depth model (these sensors read distances: a depth share near 0 is found).
+  // With the depth model, the default (these sensors read distances: a depth share near 0 is
+  // found); --depth-ranges is the same.
   const RunResult depth_build =
       Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
-          (dir_ / "map-depth.json").string() + " --depth-ranges");
+          (dir_ / "map-depth.json").string());
   ASSERT_EQ(depth_build.exit_code, 0) << depth_build.err;
   EXPECT_THAT(depth_build.out, HasSubstr("landmarks: 10"));
   EXPECT_THAT(depth_build.out, Not(HasSubstr("depth share 0.000, range scale 0.0000")));
+  EXPECT_THAT(depth_build.out, HasSubstr("range model depth"));
+  const RunResult flag_build =
+      Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
+          (dir_ / "map-flag.json").string() + " --depth-ranges");
+  ASSERT_EQ(flag_build.exit_code, 0) << flag_build.err;
+  // The same build (the range-bearing build differs in its last digits from run to run:
+  // docs/reliability.md), hence a tolerance.
+  const MarkerMap flag_map = ReadMap(dir_ / "map-flag.json"),
+                  depth_map_read = ReadMap(dir_ / "map-depth.json");
+  ASSERT_TRUE(flag_map.range_bearing_sensor);
+  EXPECT_TRUE(flag_map.range_bearing_sensor->depth_ranges);
+  ASSERT_EQ(flag_map.markers.size(), depth_map_read.markers.size());
+  for (size_t i = 0; i < flag_map.markers.size(); ++i)
+    EXPECT_LT((flag_map.markers[i].T_world_marker.translation() -
+               depth_map_read.markers[i].T_world_marker.translation())
+                  .norm(),
+              1e-6);
+  const RunResult bad_model = Run("map build " + (dir_ / "robot0").string() + " --out " +
+                                  (dir_ / "m-bad.json").string() + " --range-model size");
+  EXPECT_EQ(bad_model.exit_code, 1);
+  EXPECT_THAT(bad_model.err, HasSubstr("--range-model: expected depth or distance, got 'size'"));
+  EXPECT_EQ(std::count(bad_model.err.begin(), bad_model.err.end(), '\n'), 1) << bad_model.err;
+  EXPECT_FALSE(fs::exists(dir_ / "m-bad.json"));
+  const RunResult both = Run("map build " + (dir_ / "robot0").string() + " --out " +
+                             (dir_ / "m-both.json").string() + " --range-model distance --depth-ranges");
+  EXPECT_EQ(both.exit_code, 1);
+  EXPECT_THAT(both.err,
+              HasSubstr("--depth-ranges means --range-model depth: not with --range-model distance"));
   const RunResult localize = Run("localize " + (dir_ / "robot2").string() + " --map " +
                                  (dir_ / "map.json").string() + " --out " + (dir_ / "robot2.tum").string());
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
   EXPECT_THAT(localize.out, HasSubstr("NEES: mean "));
   EXPECT_GT(ReadTum(dir_ / "robot2.tum").size(), 1000u);
+  // The map's sensor model: one entry per robot, the prior for another robot; the EKF reads it.
+  ASSERT_TRUE(map.range_bearing_sensor);
+  EXPECT_EQ(map.range_bearing_sensor->datasets.size(), 2u);
+  EXPECT_EQ(map.range_bearing_sensor->datasets[0].name, "robot0");
+  EXPECT_THAT(localize.out, HasSubstr("sensor prior: the map's (2 robots, range model distance)"));
+  const RunResult no_prior =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-no-prior.tum").string() + " --sensor-prior none");
+  ASSERT_EQ(no_prior.exit_code, 0) << no_prior.err;
+  EXPECT_THAT(no_prior.out, HasSubstr("sensor prior: none"));
+  const RunResult depth_map =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map-depth.json").string() +
+          " --out " + (dir_ / "robot2-depth-map.tum").string());
+  ASSERT_EQ(depth_map.exit_code, 0) << depth_map.err;
+  EXPECT_THAT(depth_map.out, HasSubstr("range model depth"));
+  EXPECT_THAT(depth_map.out, HasSubstr("NEES: mean "));
+  const RunResult bad_prior =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "z.tum").string() + " --sensor-prior truth");
+  EXPECT_NE(bad_prior.exit_code, 0);
+  EXPECT_THAT(bad_prior.err, HasSubstr("--sensor-prior: expected map or none, got 'truth'"));
+  EXPECT_EQ(std::count(bad_prior.err.begin(), bad_prior.err.end(), '\n'), 1) << bad_prior.err;
+  EXPECT_FALSE(fs::exists(dir_ / "z.tum"));
   // The map carries each landmark's covariance and its rows of the joint factor.
   ASSERT_TRUE(map.markers.front().position_covariance);
   ASSERT_TRUE(map.markers.front().covariance_factor);
@@ -131,7 +186,8 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_NE(live.exit_code, 0);
   EXPECT_THAT(
       live.err,
-      HasSubstr("--map-uncertainty and --depth-share-sigma are for range-bearing datasets, not --live"));
+      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, "
+                "not --live"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
   const RunResult depth =
       Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
@@ -180,7 +236,7 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
       Run("map build " + (dir_ / "survey5").string() + " " + (dir_ / "survey6").string() + " --out " +
           (dir_ / "m3.json").string() + " --trajectory-dir " + (dir_ / "s3").string() + " --depth-ranges");
   EXPECT_EQ(depth.exit_code, 1);
-  EXPECT_THAT(depth.err, HasSubstr("--depth-ranges is for range-bearing datasets"));
+  EXPECT_THAT(depth.err, HasSubstr("--range-model and --depth-ranges are for range-bearing datasets"));
   EXPECT_FALSE(fs::exists(dir_ / "m3.json"));
   const RunResult camera =
       Run("localize " + (dir_ / "survey5").string() + " --map " + (dir_ / "map.json").string() + " --out " +
@@ -188,8 +244,8 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
   EXPECT_NE(camera.exit_code, 0);
   EXPECT_THAT(
       camera.err,
-      HasSubstr(
-          "--map-uncertainty and --depth-share-sigma are for range-bearing datasets (range_bearing.jsonl)"));
+      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
+                "(range_bearing.jsonl)"));
 }
 
 }  // namespace

@@ -404,5 +404,77 @@ TEST(MapIoTest, RangeBearingNoiseRoundTripWithOptionalOdometryDelay) {
           "range_bearing_noise.odometry_delay_s: expected a number of at most 10 s either way, got 11"));
 }
 
+// map.json range_bearing_sensor: written and read back to the last digit; a map without it (older
+// builds) reads as before (no sensor model); its errors name the field.
+TEST(MapIoTest, RangeBearingSensorRoundTripAndOldMapsWithout) {
+  const MarkerMap old = ParseMap(kGoodMap, "map.json");
+  EXPECT_FALSE(old.range_bearing_sensor);
+  EXPECT_EQ(FormatMap(old).find("range_bearing_sensor"), std::string::npos);
+  MarkerMap map = old;
+  RangeBearingSensorModel model;
+  model.depth_ranges = true;
+  for (const char* name : {"robot1", "robot2"}) {
+    RangeBearingSensorModel::Dataset dataset;
+    dataset.name = name;
+    dataset.values.range_offset_m = 0.0439;
+    dataset.values.bearing_offset_rad = -0.0002;
+    dataset.values.bearing_scale = -0.0203;
+    dataset.values.depth_share = 0.9987;
+    dataset.values.range_scale = 0.0208;
+    dataset.values.odometry_calibration = Eigen::Vector3d(0.0452, 0.0341, 0.0112);
+    dataset.noise.range_a_m = 0.01;
+    dataset.noise.range_b = 0.0046;
+    dataset.noise.odometry_delay_s = 0.173;
+    model.datasets.push_back(dataset);
+  }
+  model.prior_mean.depth_share = 0.98;
+  model.prior_sigma.depth_share = 0.017;
+  model.prior_mean.range_scale = 1.0 / 3.0;
+  model.prior_sigma.range_scale = 0.02;
+  model.prior_sigma.odometry_calibration = Eigen::Vector3d(0.01, 0.04, 0.02);
+  map.range_bearing_sensor = model;
+  const MarkerMap again = ParseMap(FormatMap(map), "again.json");
+  ASSERT_TRUE(again.range_bearing_sensor);
+  const RangeBearingSensorModel& read = *again.range_bearing_sensor;
+  EXPECT_TRUE(read.depth_ranges);
+  ASSERT_EQ(read.datasets.size(), 2u);
+  EXPECT_EQ(read.datasets[1].name, "robot2");
+  EXPECT_EQ(read.datasets[1].values.depth_share, 0.9987);
+  EXPECT_EQ(read.datasets[1].values.odometry_calibration[2], 0.0112);
+  EXPECT_EQ(read.datasets[0].noise.range_b, 0.0046);
+  EXPECT_EQ(read.datasets[0].noise.odometry_delay_s, 0.173);
+  EXPECT_EQ(read.prior_mean.range_scale, 1.0 / 3.0);
+  EXPECT_EQ(read.prior_sigma.odometry_calibration[1], 0.04);
+  EXPECT_EQ(FormatMap(again), FormatMap(map));
+  // Errors.
+  std::string text = FormatMap(map);
+  const auto with = [&](const std::string& from, const std::string& to) {
+    std::string t = text;
+    const size_t at = t.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return t.replace(at, from.size(), to);
+  };
+  EXPECT_THAT(
+      ParseError(with("\"range_model\":\"depth\"", "\"range_model\":\"size\"")),
+      HasSubstr("range_bearing_sensor.range_model: expected \"depth\" or \"distance\", got \"size\""));
+  EXPECT_THAT(
+      ParseError(with("\"range_model\":\"depth\"", "\"range_model\":\"distance\"")),
+      HasSubstr("range_bearing_sensor.prior_mean.depth_share: expected 0 with range_model \"distance\""));
+  EXPECT_THAT(ParseError(with("\"name\":\"robot2\"", "\"name\":\"robot1\"")),
+              HasSubstr("range_bearing_sensor.datasets[1].name: duplicate dataset robot1"));
+  EXPECT_THAT(
+      ParseError(with("\"prior_sigma\":{\"range_offset_m\":0.0", "\"prior_sigma\":{\"range_offset_m\":-1")),
+      HasSubstr("range_bearing_sensor.prior_sigma.range_offset_m: expected a sigma >= 0, got -1"));
+  EXPECT_THAT(
+      ParseError(with("\"range_scale\":0.0208", "\"range_scale\":-1.5")),
+      HasSubstr("range_bearing_sensor.datasets[0].range_scale: expected a scale error in (-1, 1), got -1.5"));
+  EXPECT_THAT(
+      ParseError(with("\"odometry_calibration\":[0.0452,0.0341,0.0112]", "\"odometry_calibration\":[1]")),
+      HasSubstr("range_bearing_sensor.datasets[0].odometry_calibration: expected 3 numbers"));
+  EXPECT_THAT(
+      ParseError(with("\"range_a_m\":0.01,\"range_b\":0.0046", "\"range_a_m\":0,\"range_b\":0.0046")),
+      HasSubstr("range_bearing_sensor.datasets[0].noise.range_a_m: expected a positive number, got 0"));
+}
+
 }  // namespace
 }  // namespace waymark

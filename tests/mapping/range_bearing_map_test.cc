@@ -243,10 +243,30 @@ TEST(RangeBearingMap, TheSensorsDepthShareAndRangeScaleAreRecovered) {
   EXPECT_NEAR(result.datasets[1].range_scale, -0.01, 0.015);
   const double rms = LandmarkRms(result.map, *a.groundtruth_markers);
   EXPECT_LT(rms, 0.03);
+  // The map carries the sensor model: each robot's values, and the prior for another robot:
+  // the mean, and the Student-t predictive spread of two robots (s sqrt(1.5) 12.706 / 1.96),
+  // capped at the build's own prior sigma.
+  ASSERT_TRUE(result.map.range_bearing_sensor);
+  const RangeBearingSensorModel& sensor = *result.map.range_bearing_sensor;
+  EXPECT_TRUE(sensor.depth_ranges);
+  ASSERT_EQ(sensor.datasets.size(), 2u);
+  EXPECT_EQ(sensor.datasets[1].name, "robot1");
+  EXPECT_EQ(sensor.datasets[1].values.range_scale, result.datasets[1].range_scale);
+  EXPECT_EQ(sensor.datasets[0].values.odometry_calibration, result.datasets[0].odometry_calibration);
+  const double s0 = result.datasets[0].range_scale, s1 = result.datasets[1].range_scale;
+  EXPECT_NEAR(sensor.prior_mean.range_scale, 0.5 * (s0 + s1), 1e-12);
+  const double spread = std::abs(s0 - s1) / std::sqrt(2.0) * std::sqrt(1.5) * 12.706 / 1.959963984540054;
+  EXPECT_NEAR(sensor.prior_sigma.range_scale, std::min(0.1, spread), 1e-9);
+  EXPECT_LE(sensor.prior_sigma.depth_share, 1.0);
+  EXPECT_GT(sensor.prior_sigma.depth_share, 0.0);
   // The distance model on the same data is worse.
   const RangeBearingBuildResult plain = BuildRangeBearingMap({&a, &b});
   EXPECT_LT(rms, LandmarkRms(plain.map, *a.groundtruth_markers));
   EXPECT_EQ(plain.datasets[0].depth_share, 0.0);
+  ASSERT_TRUE(plain.map.range_bearing_sensor);
+  EXPECT_FALSE(plain.map.range_bearing_sensor->depth_ranges);  // held: mean and sigma 0
+  EXPECT_EQ(plain.map.range_bearing_sensor->prior_sigma.range_scale, 0.0);
+  EXPECT_EQ(plain.map.range_bearing_sensor->prior_mean.depth_share, 0.0);
   // A distance-reading sensor: the depth share found is (nearly) 0.
   const Dataset c = testing::RangeBearingRobot(0, 17, {});
   EXPECT_NEAR(BuildRangeBearingMap({&c}, depth).datasets[0].depth_share, 0.0, 0.15);

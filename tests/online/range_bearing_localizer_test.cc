@@ -43,7 +43,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
     x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng),
-        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng);
+        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng), 0.02 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const double phi = 0.5 + 0.1 * u(rng);  // the range scale's decay over the increment
@@ -108,7 +108,8 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     const Eigen::Vector2d h = RangeBearingLocalizer::MeasureState(x6, l),
                           h_pose = RangeBearingLocalizer::Measure(x, l);
     // The range read (1 - c_depth) r + c_depth p_x, p_x = r cos(beta): the depth along the axis.
-    EXPECT_NEAR(h[0], (1.0 + x6[8]) * (1.0 - x6[10] + x6[10] * std::cos(h_pose[1])) * h_pose[0] + x6[6],
+    EXPECT_NEAR(h[0],
+                (1.0 + x6[8] + x6[11]) * (1.0 - x6[10] + x6[10] * std::cos(h_pose[1])) * h_pose[0] + x6[6],
                 1e-9);
     EXPECT_NEAR(WrapAngle(h[1] - ((1.0 + x6[9]) * h_pose[1] + x6[7])), 0.0, 1e-12);
   }
@@ -451,6 +452,100 @@ TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
   EXPECT_LT(estimated_rms, 0.5 * held_rms);
 }
 
+// A sensor that reads every range 4 % long (its depth, c = 1): the robot's range scale s_robot is
+// recovered from a prior of the map's kind (mean 0.01, sigma 0.03), and the depth share starts
+// at its prior mean; held at the prior's mean, the pose is worse.
+TEST(RangeBearingLocalizer, TheRobotRangeScaleIsRecovered) {
+  const MarkerMap map = SixLandmarksOnACircle();
+  const auto run = [&](double range_scale_sigma, double* error_rms) {
+    std::mt19937 rng(29);
+    std::normal_distribution<double> n(0.0, 1.0);
+    RangeBearingLocalizerOptions options;
+    options.noise.range_a_m = 0.01;
+    options.noise.range_b = 0.0;
+    options.noise.range_scale_sigma = 0.0;
+    options.noise.bearing_rad = 0.005;
+    options.noise.odometry_q_t = 1e-4;
+    options.noise.odometry_q_r = 1e-4;
+    options.depth_share_mean = 0.98;
+    options.depth_share_sigma = 0.02;
+    options.range_scale_mean = 0.01;
+    options.range_scale_state_sigma = range_scale_sigma;
+    SE2d truth(2.0, 0.0, M_PI / 2);
+    RangeBearingLocalizer filter(map, options, truth,
+                                 Eigen::Vector3d(0.01, 0.01, 0.01).cwiseAbs2().asDiagonal());
+    EXPECT_EQ(filter.depth_share(), 0.98);
+    EXPECT_EQ(filter.robot_range_scale(), 0.01);
+    double sum = 0.0;
+    for (int step = 0; step < 600; ++step) {
+      const SE2d M(0.05, 0.0, 0.025);
+      truth = truth * M;
+      filter.Predict(M, 0.1);
+      const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+      for (const MapMarker& m : map.markers) {
+        Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
+        if (std::abs(z[1]) > 0.6) continue;
+        z[0] = 1.04 * z[0] * std::cos(z[1]) + 0.01 * n(rng);
+        z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
+        filter.Update(Sighting(m.key.id, z));
+      }
+      sum += (filter.pose().translation() - truth.translation()).squaredNorm();
+    }
+    *error_rms = std::sqrt(sum / 600);
+    return filter.robot_range_scale();
+  };
+  double estimated_rms = 0.0, held_rms = 0.0;
+  EXPECT_NEAR(run(0.03, &estimated_rms), 0.04, 0.005);
+  EXPECT_EQ(run(0.0, &held_rms), 0.01);  // sigma 0: held at its mean
+  EXPECT_LT(estimated_rms, 0.5 * held_rms);
+}
+
+// The prior for a robot not in the map comes from the map's range_bearing_sensor; a distance-model
+// map holds the depth share and the robot's range scale at 0.
+TEST(RangeBearingLocalizer, SensorPriorFromMap) {
+  RangeBearingSensorModel model;
+  model.depth_ranges = true;
+  model.prior_mean.depth_share = 0.97;
+  model.prior_sigma.depth_share = 0.02;
+  model.prior_mean.range_scale = 0.03;
+  model.prior_sigma.range_scale = 0.015;
+  model.prior_mean.odometry_calibration = Eigen::Vector3d(0.04, 0.08, 0.03);
+  model.prior_sigma.odometry_calibration = Eigen::Vector3d(0.01, 0.04, 0.02);
+  model.prior_mean.range_offset_m = 0.05;
+  model.prior_sigma.range_offset_m = 0.02;
+  RangeBearingLocalizerOptions options;
+  SensorPriorFromMap(model, &options);
+  std::string why;
+  EXPECT_TRUE(options.Check(&why)) << why;
+  EXPECT_EQ(options.depth_share_mean, 0.97);
+  EXPECT_EQ(options.range_scale_state_sigma, 0.015);
+  // The map's calibration (factors/calibrated_odometry_factor.h) in the filter's form: a turn read
+  // 8 % large is corrected by 1 / 1.08 there, by 1 + s_turn here.
+  EXPECT_NEAR(options.calibration_mean[1], -0.08 / 1.08, 1e-15);
+  EXPECT_NEAR(options.calibration_mean[0], -0.04 / 1.08, 1e-15);
+  EXPECT_NEAR(options.calibration_mean[2], -0.03 / 1.03, 1e-15);
+  EXPECT_NEAR(options.calibration_sigma[1], 0.04 / (1.08 * 1.08), 1e-15);
+  const Eigen::Vector3d c(0.04, 0.08, 0.03);
+  EXPECT_LT((ConvertOdometryCalibration(ConvertOdometryCalibration(c)) - c).norm(),
+            1e-15);  // its own inverse
+  RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(), Eigen::Matrix3d::Identity() * 1e-4);
+  EXPECT_EQ(filter.calibration()[1], options.calibration_mean[1]);
+  // Both forms correct a measured increment alike: (theta_M - k s) / (1 + turn) = (1 + s_turn) theta_M + k_f
+  // s.
+  const double theta_M = 0.7, s = 1.3;
+  const Eigen::Vector3d f = ConvertOdometryCalibration(c);
+  EXPECT_NEAR((theta_M - c[0] * s) / (1.0 + c[1]), (1.0 + f[1]) * theta_M + f[0] * s, 1e-15);
+  EXPECT_NEAR(s / (1.0 + c[2]), (1.0 + f[2]) * s, 1e-15);
+  EXPECT_EQ(filter.sensor_bias()[0], 0.05);
+  EXPECT_EQ(filter.robot_range_scale(), 0.03);
+  model.depth_ranges = false;
+  SensorPriorFromMap(model, &options);
+  EXPECT_EQ(options.depth_share_mean, 0.0);
+  EXPECT_EQ(options.depth_share_sigma, 0.0);
+  EXPECT_EQ(options.range_scale_mean, 0.0);
+  EXPECT_EQ(options.range_scale_state_sigma, 0.0);
+}
+
 TEST(RangeBearingLocalizer, TheBearingScaleIsEstimated) {
   // The sensor reads every bearing 6 % too large; the robot drives a circle among six
   // landmarks seeing each at bearings up to 0.6 rad; the filter's k_bearing converges to it.
@@ -492,6 +587,14 @@ TEST(RangeBearingLocalizer, RefusesBadInput) {
   RangeBearingLocalizerOptions no_states;
   no_states.max_landmark_states = 0;
   EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), no_states, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  RangeBearingLocalizerOptions bad_prior;
+  bad_prior.range_scale_state_sigma = -0.1;
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_prior, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  bad_prior.range_scale_state_sigma = 0.0;
+  bad_prior.depth_share_mean = std::nan("");
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_prior, SE2d(), Eigen::Matrix3d::Identity()),
                std::invalid_argument);
   EXPECT_EQ(ParseRangeBearingMapUncertainty("consider"), RangeBearingMapUncertainty::kConsider);
   EXPECT_FALSE(ParseRangeBearingMapUncertainty("schmidt"));
