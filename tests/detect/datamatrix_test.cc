@@ -42,6 +42,20 @@ TEST(DetectDataMatrix, FourRotationsGiveDesignOrderCorners) {
   }
 }
 
+// A 1280x960 frame of gray 120 with a light card (225) at `card` under the DataMatrix symbol of
+// `text` at `truth` (dark modules `dark`), blurred by `blur_px`.
+cv::Mat SymbolOnACard(const std::string& text, const Quad2d& truth, const Quad2d& card, int dark,
+                      double blur_px) {
+  cv::Mat image = Canvas(1280, 960);
+  cv::rectangle(image, cv::Rect(0, 0, 1280, 960), cv::Scalar(120), cv::FILLED);
+  std::vector<cv::Point> polygon;
+  for (const Eigen::Vector2d& c : card) polygon.emplace_back(int(c.x()), int(c.y()));
+  cv::fillConvexPoly(image, polygon, cv::Scalar(225));
+  DrawSymbol(DataMatrixSymbol(text), truth, &image, dark, 225);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), blur_px);
+  return image;
+}
+
 // Large modules (10 x 10 symbols of 130-170 px: 13-17 px per module) on a light card: at full
 // resolution the candidate stage's 15 px box spans about one module and the legs' insides are
 // not darker than their local mean, at 1/4 the components break at clusters of dark modules;
@@ -52,18 +66,11 @@ TEST(DetectDataMatrix, LargeModulesAreCandidates) {
   auto detector = CreateDetector("datamatrix", options);
   int read = 0, coarse = 0;
   for (int k = 0; k < 8; ++k) {
-    cv::Mat image = Canvas(1280, 960);
-    cv::rectangle(image, cv::Rect(0, 0, 1280, 960), cv::Scalar(120), cv::FILLED);
     const double side = 130.0 + 6.0 * k;
     const Eigen::Vector2d centre(400.0 + 40.0 * k, 300.0 + 30.0 * k);
-    const Quad2d card = MakeQuad(centre, side * 1.6, 0.15 * k - 0.5);
-    std::vector<cv::Point> polygon;
-    for (const Eigen::Vector2d& c : card) polygon.emplace_back(int(c.x()), int(c.y()));
-    cv::fillConvexPoly(image, polygon, cv::Scalar(225));
     const std::string text = "D" + std::to_string(17 + 50 * k);
     const Quad2d truth = MakeQuad(centre, side, 0.15 * k - 0.5);
-    DrawSymbol(DataMatrixSymbol(text), truth, &image, 40, 225);
-    cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+    const cv::Mat image = SymbolOnACard(text, truth, MakeQuad(centre, side * 1.6, 0.15 * k - 0.5), 40, 0.8);
     // The symbol whole at the 1/8 level.
     for (const DarkQuad& q : FindCoarseDarkQuads(image)) {
       if (q.scale == 0.125 && (QuadCenter(q.corners_px) - centre).norm() < 0.1 * side &&
@@ -93,19 +100,12 @@ TEST(DetectDataMatrix, LFoundByItsDarkLegsWhenTheHullGivesNoQuad) {
   auto detector = CreateDetector("datamatrix", options);
   int read = 0, tried = 0;
   for (int k = 0; k < 12; ++k) {
-    cv::Mat image = Canvas(1280, 960);
-    cv::rectangle(image, cv::Rect(0, 0, 1280, 960), cv::Scalar(120), cv::FILLED);
     const double side = 120.0 + 4.0 * k;
     const double angle = M_PI / 4 + 0.05 * (k % 3) + (k / 3) * M_PI / 2;
     const Eigen::Vector2d centre(400.0 + 40.0 * k, 300.0 + 30.0 * k);
-    const Quad2d card = MakeQuad(centre, side * 1.5, angle);
-    std::vector<cv::Point> polygon;
-    for (const Eigen::Vector2d& c : card) polygon.emplace_back(int(c.x()), int(c.y()));
-    cv::fillConvexPoly(image, polygon, cv::Scalar(225));
     const std::string text = "D" + std::to_string(77 + 37 * k);
     const Quad2d truth = MakeQuad(centre, side, angle);
-    DrawSymbol(DataMatrixSymbol(text), truth, &image, 35, 225);
-    cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+    const cv::Mat image = SymbolOnACard(text, truth, MakeQuad(centre, side * 1.5, angle), 35, 0.7);
     ++tried;
     for (const MarkerObservation& obs : detector->Detect(image)) {
       if (obs.key.id != text) continue;

@@ -409,14 +409,38 @@ TEST(RangeBearingLocalizer, LandmarkStatesAreCappedAndTheMapRefinedOnlyWhenEstim
   }
 }
 
+// Drives `truth` 600 steps around a circle (5 cm and 0.025 rad a step), the filter predicting with
+// the exact increments and updating with every landmark within 0.6 rad of the heading, read as
+// scale * depth (r cos(bearing)) + sigma_range noise; returns the filter's position RMS.
+double DriveACircleReadingDepths(const MarkerMap& map, double scale, double sigma_range_m,
+                                 double sigma_bearing_rad, unsigned seed, SE2d truth,
+                                 RangeBearingLocalizer* filter) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, 1.0);
+  double sum = 0.0;
+  for (int step = 0; step < 600; ++step) {
+    const SE2d M(0.05, 0.0, 0.025);
+    truth = truth * M;
+    filter->Predict(M, 0.1);
+    const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+    for (const MapMarker& m : map.markers) {
+      Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
+      if (std::abs(z[1]) > 0.6) continue;
+      z[0] = scale * z[0] * std::cos(z[1]) + sigma_range_m * n(rng);
+      z[1] = WrapAngle(z[1] + sigma_bearing_rad * n(rng));
+      filter->Update(Sighting(m.key.id, z));
+    }
+    sum += (filter->pose().translation() - truth.translation()).squaredNorm();
+  }
+  return std::sqrt(sum / 600);
+}
+
 // A camera that ranges a code from its apparent size reads its depth p_x = r cos(bearing), not
 // its distance: the filter's c_depth converges to 1, and the pose is better than with c_depth held
 // at 0 (a true range assumed).
 TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
   const MarkerMap map = SixLandmarksOnACircle();
   const auto run = [&](double depth_share_sigma, double* error_rms) {
-    std::mt19937 rng(23);
-    std::normal_distribution<double> n(0.0, 1.0);
     RangeBearingLocalizerOptions options;
     options.noise.range_a_m = 0.02;
     options.noise.range_b = 0.0;
@@ -428,22 +452,7 @@ TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
     SE2d truth(2.0, 0.0, M_PI / 2);
     RangeBearingLocalizer filter(map, options, truth,
                                  Eigen::Vector3d(0.01, 0.01, 0.01).cwiseAbs2().asDiagonal());
-    double sum = 0.0;
-    for (int step = 0; step < 600; ++step) {
-      const SE2d M(0.05, 0.0, 0.025);
-      truth = truth * M;
-      filter.Predict(M, 0.1);
-      const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
-      for (const MapMarker& m : map.markers) {
-        Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
-        if (std::abs(z[1]) > 0.6) continue;
-        z[0] = z[0] * std::cos(z[1]) + 0.02 * n(rng);
-        z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
-        filter.Update(Sighting(m.key.id, z));
-      }
-      sum += (filter.pose().translation() - truth.translation()).squaredNorm();
-    }
-    *error_rms = std::sqrt(sum / 600);
+    *error_rms = DriveACircleReadingDepths(map, 1.0, 0.02, options.noise.bearing_rad, 23, truth, &filter);
     return filter.depth_share();
   };
   double estimated_rms = 0.0, held_rms = 0.0;
@@ -458,8 +467,6 @@ TEST(RangeBearingLocalizer, TheDepthShareIsEstimated) {
 TEST(RangeBearingLocalizer, TheRobotRangeScaleIsRecovered) {
   const MarkerMap map = SixLandmarksOnACircle();
   const auto run = [&](double range_scale_sigma, double* error_rms) {
-    std::mt19937 rng(29);
-    std::normal_distribution<double> n(0.0, 1.0);
     RangeBearingLocalizerOptions options;
     options.noise.range_a_m = 0.01;
     options.noise.range_b = 0.0;
@@ -476,22 +483,7 @@ TEST(RangeBearingLocalizer, TheRobotRangeScaleIsRecovered) {
                                  Eigen::Vector3d(0.01, 0.01, 0.01).cwiseAbs2().asDiagonal());
     EXPECT_EQ(filter.depth_share(), 0.98);
     EXPECT_EQ(filter.robot_range_scale(), 0.01);
-    double sum = 0.0;
-    for (int step = 0; step < 600; ++step) {
-      const SE2d M(0.05, 0.0, 0.025);
-      truth = truth * M;
-      filter.Predict(M, 0.1);
-      const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
-      for (const MapMarker& m : map.markers) {
-        Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
-        if (std::abs(z[1]) > 0.6) continue;
-        z[0] = 1.04 * z[0] * std::cos(z[1]) + 0.01 * n(rng);
-        z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
-        filter.Update(Sighting(m.key.id, z));
-      }
-      sum += (filter.pose().translation() - truth.translation()).squaredNorm();
-    }
-    *error_rms = std::sqrt(sum / 600);
+    *error_rms = DriveACircleReadingDepths(map, 1.04, 0.01, options.noise.bearing_rad, 29, truth, &filter);
     return filter.robot_range_scale();
   };
   double estimated_rms = 0.0, held_rms = 0.0;
