@@ -580,6 +580,11 @@ int RunMerge(const std::vector<std::string>& argv) {
     return 0;
   }
   args.ExpectPositionals(2, 2, "MAP.json and dataset directory DATASET");
+  // Options of the several-dataset and range-bearing builds, which merge does not run.
+  for (const char* option : {"range-model", "depth-ranges", "trajectory-dir"}) {
+    if (args.Has(option) || args.Flag(option))
+      throw std::invalid_argument(std::string("--") + option + " is for map build, not map merge");
+  }
   args.Require("out");
   args.ExpectDistinctOutputs({"out", "trajectory", "report", "cameras-out"});
   const MapBuildOptions options = ParseBuildOptions(args);

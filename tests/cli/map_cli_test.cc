@@ -299,6 +299,14 @@ TEST_F(MapCliTest, MergeKeepsTheMapFrameAndUnseenCodes) {
   EXPECT_EQ(merged.Find(extra.key)->T_world_marker.translation(), extra.T_world_marker.translation());
   const eval::MapEvalResult error = eval::EvaluateMap(merged, ReadMap(survey / "groundtruth/markers.json"));
   EXPECT_LE(error.position_rmse_m, 0.01);
+  // The build's options that merge does not run are refused, not ignored.
+  for (const std::string option : {"--range-model distance", "--depth-ranges", "--trajectory-dir d"}) {
+    const RunResult refused = Run("map merge " + (dir_ / "map_plus.json").string() + " " + survey.string() +
+                                  " --out " + (dir_ / "refused.json").string() + " " + option);
+    EXPECT_EQ(refused.exit_code, 1) << option;
+    EXPECT_NE(refused.err.find("is for map build, not map merge"), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(dir_ / "refused.json"));
+  }
 }
 
 // The shipped demo survey has images only: map build reads no detections.jsonl there, says
