@@ -138,15 +138,10 @@ class AprilTagDetector : public MarkerDetector {
   // was read with one bit corrected and its corners 2-3 px off, which the refinement rejects).
   std::vector<MarkerObservation> FirstPass(const cv::Mat& gray) {
     std::vector<MarkerObservation> raw;
-    const auto at_known_tag = [&raw](const Eigen::Vector2d& centre) {
-      return std::any_of(raw.begin(), raw.end(), [&centre](const MarkerObservation& o) {
-        return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
-      });
-    };
     const cv::Rect frame(0, 0, gray.cols, gray.rows);
     for (const Quad2d& quad : SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px),
                                                std::numeric_limits<double>::infinity(), kMaxQuadCrops)) {
-      if (at_known_tag(QuadCenter(quad))) continue;
+      if (AnyObservationAt(raw, QuadCenter(quad))) continue;
       double shortest = std::numeric_limits<double>::infinity();
       for (int j = 0; j < 4; ++j) shortest = std::min(shortest, (quad[(j + 1) % 4] - quad[j]).norm());
       const int decimate = std::clamp(static_cast<int>(shortest / kCropDecimatedSidePx), 1,
@@ -167,7 +162,7 @@ class AprilTagDetector : public MarkerDetector {
     }
     if (!TooSmall(gray.size(), options_.apriltag_decimate)) {
       for (const MarkerObservation& obs : Run(whole_frame_, gray, cv::Point(0, 0))) {
-        if (!at_known_tag(QuadCenter(obs.corners_px))) raw.push_back(obs);
+        if (!AnyObservationAt(raw, QuadCenter(obs.corners_px))) raw.push_back(obs);
       }
     }
     return raw;

@@ -199,6 +199,12 @@ void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<Marke
   }
 }
 
+bool AnyObservationAt(const std::vector<MarkerObservation>& found, const Eigen::Vector2d& centre_px) {
+  return std::any_of(found.begin(), found.end(), [&centre_px](const MarkerObservation& o) {
+    return (QuadCenter(o.corners_px) - centre_px).norm() < 0.5 * QuadMeanSide(o.corners_px);
+  });
+}
+
 bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect) {
   const Eigen::Vector2d c = QuadCenter(obs.corners_px);
   return c.x() >= rect.x && c.y() >= rect.y && c.x() < rect.x + rect.width && c.y() < rect.y + rect.height;

@@ -44,6 +44,10 @@ bool SameDetection(const MarkerObservation& a, const MarkerObservation& b);
 // Appends the observations of `found` that are not already in `all` (SameDetection).
 void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<MarkerObservation>* all);
 
+// True if a code of `found` (any key) has its centre within half its own mean side of `centre_px`:
+// that place is already read.
+bool AnyObservationAt(const std::vector<MarkerObservation>& found, const Eigen::Vector2d& centre_px);
+
 // Candidate regions that may hold a 2-D code ([George]: Canny edges, dilation, the
 // bounding box of every blob contour, nested ones included, scored by size, aspect ratio,
 // fill, edge density, contrast and not touching the image border), best first, padded by a quiet-zone margin

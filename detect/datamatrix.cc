@@ -105,7 +105,7 @@ class DataMatrixDetector : public MarkerDetector {
     quads.insert(quads.end(), coarse.begin(), coarse.end());
     const std::vector<DataMatrixCandidate> candidates =
         DataMatrixCandidates(quads, kPatchTestsPerDecode * options_.max_datamatrix_candidates);
-    std::vector<char> failed(candidates.size(), 0);
+    std::vector<char> failed(candidates.size(), 0);  // its patch failed the test or the decoders
     for (size_t ci = 0; ci < candidates.size(); ++ci) {
       const DataMatrixCandidate& candidate = candidates[ci];
       std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
@@ -127,14 +127,10 @@ class DataMatrixDetector : public MarkerDetector {
     for (const size_t pi : order) {
       const DataMatrixPatch& patch = patches[pi];
       if (decoded >= options_.max_datamatrix_candidates) break;
-      const Eigen::Vector2d centre = QuadCenter(patch.candidate.corners_px);
-      const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
-        return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
-      });
-      if (known || !work->Allow()) continue;
+      if (AnyObservationAt(found, QuadCenter(patch.candidate.corners_px)) || !work->Allow()) continue;
       ++decoded;
       const std::vector<MarkerObservation> read = DecodeDataMatrixPatch(patch);
-      if (read.empty()) failed[patch_index[pi]] = 2;
+      if (read.empty()) failed[patch_index[pi]] = 1;
       AppendUnique(read, &found);
     }
     // Candidates whose patch failed the test or the decoders, best first: their sides refitted
@@ -146,11 +142,7 @@ class DataMatrixDetector : public MarkerDetector {
                         decoded < options_.max_datamatrix_candidates;
          ++ci) {
       if (!failed[ci]) continue;
-      const Eigen::Vector2d centre = QuadCenter(candidates[ci].corners_px);
-      const bool known = std::any_of(found.begin(), found.end(), [&centre](const MarkerObservation& o) {
-        return (QuadCenter(o.corners_px) - centre).norm() < 0.5 * QuadMeanSide(o.corners_px);
-      });
-      if (known) continue;
+      if (AnyObservationAt(found, QuadCenter(candidates[ci].corners_px))) continue;
       ++refits;
       const std::optional<DataMatrixCandidate> refit = RefitDataMatrixCandidate(gray, candidates[ci]);
       if (!refit) continue;
