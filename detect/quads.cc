@@ -153,24 +153,6 @@ std::optional<Quad2d> LQuadFromHull(const std::vector<cv::Point>& hull) {
   return quad;
 }
 
-struct SideSamples;
-SideSamples SampleSide(const cv::Mat& dark, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
-
-// The quad of an L found by its dark legs, for a hull that gave no quad: a DataMatrix symbol
-// whose data and timing modules join its L finder only near it (large sharp symbols, where the
-// box of the local mean spans a few modules and the lone timing modules are components of
-// their own). Its hull's polygon (3 % of the perimeter) is then the L's triangle, or that
-// triangle with a short cut where modules join a leg's end, which the side-ratio bound
-// turns away. Every corner of a polygon of three to six corners is tried as the L's corner,
-// its two sides as the legs: each at least kLegsMinPx long and at most kLegsMaxRatio times the
-// other, both at least kLSolidMin dark just inside, and the line between their ends with at
-// least kAcrossMinRuns dark runs and not solid (it crosses the data modules; a filled shape's
-// is solid, a letter's or a frame corner's light). Of those, the corner whose legs span the
-// largest parallelogram (the L's legs are its hull's longest dark sides; an outline has two
-// dark sides at every corner) gives the quad, its far corner the parallelogram completion;
-// clockwise on screen.
-std::optional<Quad2d> LQuadFromDarkLegs(const std::vector<cv::Point>& hull, const cv::Mat& dark);
-
 struct SideSamples {
   double dark_fraction = 0.0;
   int runs = 0;  // dark runs along the side
@@ -201,6 +183,19 @@ SideSamples SampleSide(const cv::Mat& dark, const Eigen::Vector2d& a, const Eige
   return out;
 }
 
+// The quad of an L found by its dark legs, for a hull that gave no quad: a DataMatrix symbol
+// whose data and timing modules join its L finder only near it (large sharp symbols, where the
+// box of the local mean spans a few modules and the lone timing modules are components of
+// their own). Its hull's polygon (3 % of the perimeter) is then the L's triangle, or that
+// triangle with a short cut where modules join a leg's end, which the side-ratio bound
+// turns away. Every corner of a polygon of three to six corners is tried as the L's corner,
+// its two sides as the legs: each at least kLegsMinPx long and at most kLegsMaxRatio times the
+// other, both at least kLSolidMin dark just inside, and the line between their ends with at
+// least kAcrossMinRuns dark runs and not solid (it crosses the data modules; a filled shape's
+// is solid, a letter's or a frame corner's light). Of those, the corner whose legs span the
+// largest parallelogram (the L's legs are its hull's longest dark sides; an outline has two
+// dark sides at every corner) gives the quad, its far corner the parallelogram completion;
+// clockwise on screen.
 std::optional<Quad2d> LQuadFromDarkLegs(const std::vector<cv::Point>& hull, const cv::Mat& dark) {
   const double perimeter = cv::arcLength(hull, true);
   if (perimeter < 2.0 * kLegsMinPx) return std::nullopt;  // most hulls: text, noise

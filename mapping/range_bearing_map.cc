@@ -62,7 +62,8 @@ namespace {
 constexpr double kLinkFloorM = 1e-3;    // d0 of the header
 constexpr double kLinkFloorRad = 1e-3;  // th0
 constexpr int kMinRangeBinCount = 30;
-constexpr double kDelayTestChi2 = 3.841;  // chi-square, 1 dof, 95 %
+constexpr double kDelayTestChi2 = 3.841;          // chi-square, 1 dof, 95 %
+constexpr double kNormal975 = 1.959963984540054;  // the standard normal's 97.5 % quantile
 
 // The parameter blocks (`block`, `calibration`, `sensor`) point into the Builder's one buffer
 // (Builder::AllocateBlocks).
@@ -173,7 +174,7 @@ double StudentT975(int dof) {
                                   2.201,  2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
                                   2.080,  2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042};
   if (dof <= 30) return kTable[std::max(dof, 1) - 1];
-  const double z = 1.959963984540054;
+  const double z = kNormal975;
   return z + (z * z * z + z) / (4.0 * dof);
 }
 
@@ -1086,7 +1087,7 @@ RangeBearingSensorModel Builder::SensorModel(const std::vector<RangeBearingDatas
     double squares = 0.0;
     for (const RangeBearingSensorValues& v : values) squares += (get(v) - *mean) * (get(v) - *mean);
     const double t = StudentT975(static_cast<int>(values.size()) - 1);
-    *sigma = std::min(build_sigma, std::sqrt(squares / (n - 1.0) * (1.0 + 1.0 / n)) * t / 1.959963984540054);
+    *sigma = std::min(build_sigma, std::sqrt(squares / (n - 1.0) * (1.0 + 1.0 / n)) * t / kNormal975);
   };
   RangeBearingSensorValues& m = model.prior_mean;
   RangeBearingSensorValues& sd = model.prior_sigma;
