@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "detect/common.h"
+#include "detect/module_fit.h"
 #include "detect/qr_finder.h"
 #include "detect/qr_grid.h"
 #include "detect/qr_modules.h"
@@ -40,14 +41,20 @@ constexpr int kMaxThinSideReads = 1;
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
 // modules), less in larger versions.
 constexpr double kRefineWindowFraction = 0.035;
+// Codes with modules under this many pixels get their corners from the photometric fit of
+// the whole module pattern (detect/module_fit.h).
+constexpr double kModuleFitMaxModulePx = 4.0;
 
 // The corners from the symbol's edges: the fourth corner from the finders
 // (QrCornerFromFinderEdges), then every side refined (detect/refine.h) with a first
 // window of at most a module: the outermost row and column of a QR code hold data modules,
 // and where one is light the next dark module inwards makes an edge one module inside,
 // which a wider window would take for the side (a line of them can outvote the true side).
-// Last, with the module grid read off those corners, every side re-fitted on its dark outer
-// modules only (detect/qr_grid.h), when the grid is found.
+// Last, with the module grid read off those corners: a code whose modules are under
+// kModuleFitMaxModulePx gets its corners from the photometric fit of its whole module pattern
+// (detect/module_fit.h; the one-sided side fits leave such codes 0.1-0.3 px too large along
+// their diagonals), and any other code, or one whose fit fails, has every side re-fitted on
+// its dark outer modules only (detect/qr_grid.h).
 void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   RefineOptions options;
   options.search_px = 1.25;
@@ -62,8 +69,21 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
     obs->corners_px = refined->corners_px;
     obs->quality = refined->inlier_fraction;
     if (const std::optional<QrGridEstimate> grid = EstimateQrGrid(gray, obs->corners_px)) {
-      if (const std::optional<Quad2d> fitted = FitQrSidesOnDarkModules(gray, obs->corners_px, *grid)) {
-        obs->corners_px = *fitted;
+      bool photometric = false;
+      if (QuadMeanSide(obs->corners_px) < kModuleFitMaxModulePx * grid->modules) {
+        const std::vector<uint8_t> dark = SampleQrModules(gray, obs->corners_px, *grid);
+        if (!dark.empty()) {
+          if (const std::optional<ModuleFit> fit =
+                  FitModuleGrid(gray, obs->corners_px, grid->modules, dark)) {
+            obs->corners_px = fit->corners_px;
+            photometric = true;
+          }
+        }
+      }
+      if (!photometric) {
+        if (const std::optional<Quad2d> fitted = FitQrSidesOnDarkModules(gray, obs->corners_px, *grid)) {
+          obs->corners_px = *fitted;
+        }
       }
     }
   }

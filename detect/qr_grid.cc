@@ -211,4 +211,21 @@ std::optional<Quad2d> FitQrSidesOnDarkModules(const cv::Mat& gray, const Quad2d&
   return out;
 }
 
+std::vector<uint8_t> SampleQrModules(const cv::Mat& gray, const Quad2d& corners_px,
+                                     const QrGridEstimate& grid) {
+  const int n = grid.modules;
+  if (gray.empty() || gray.type() != CV_8UC1 || n < 1) return {};
+  const cv::Matx33d H = ImageFromModules(corners_px, n);
+  const double threshold = 0.5 * (grid.dark_level + grid.light_level);
+  std::vector<uint8_t> dark(static_cast<size_t>(n) * n, 0);
+  for (int v = 0; v < n; ++v) {
+    for (int u = 0; u < n; ++u) {
+      const double level = Sample(gray, Apply(H, u + 0.5, v + 0.5));
+      if (std::isnan(level)) return {};
+      dark[static_cast<size_t>(v) * n + u] = level < threshold ? 1 : 0;
+    }
+  }
+  return dark;
+}
+
 }  // namespace waymark

@@ -24,8 +24,10 @@
 // Pixel convention: OpenCV pixel centres (detect/common.h).
 #pragma once
 
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <optional>
+#include <vector>
 
 #include "detect/common.h"
 
@@ -53,5 +55,11 @@ std::optional<QrGridEstimate> EstimateQrGrid(const cv::Mat& gray, const Quad2d& 
 // move more than max(1 px, half a module).
 std::optional<Quad2d> FitQrSidesOnDarkModules(const cv::Mat& gray, const Quad2d& corners_px,
                                               const QrGridEstimate& grid);
+
+// The module pattern of the code with corners `corners_px` and grid `grid`: n * n entries,
+// row-major (row v, column u of the upright code), 1 where the module's centre is darker
+// than the midpoint of the grid's finder rings; empty if a centre leaves the image.
+std::vector<uint8_t> SampleQrModules(const cv::Mat& gray, const Quad2d& corners_px,
+                                     const QrGridEstimate& grid);
 
 }  // namespace waymark
