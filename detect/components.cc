@@ -53,44 +53,46 @@ void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
   }
 }
 
-// DarkerThanLocalMean for boxes over 15 px (the QR finder search's, up to 101): 32-bit
-// column sums slid down the rows, each row's box sums from a running sum along it.
+// DarkerThanLocalMean for boxes over 15 px (the QR finder search's, up to 101): 16-bit column
+// sums (at most 255 x 101) slid down the rows, each row's box sums as differences of a 32-bit
+// running sum along it.
 cv::Mat DarkerThanLocalMeanWide(const cv::Mat& gray, int box, int darker_by) {
+  CV_Assert(box <= 257);  // a column sum fits 16 bits
   const int rows = gray.rows, cols = gray.cols, r = box / 2;
   cv::Mat dark(rows, cols, CV_8U);
   if (rows == 0 || cols == 0) return dark;
   // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
   // columns on each side with the border columns' sums.
   const int padded_cols = cols + 2 * r;
-  std::vector<int32_t> column(padded_cols, 0);
-  int32_t* const c = column.data() + r;
+  std::vector<uint16_t> column(padded_cols, 0);
+  uint16_t* const c = column.data() + r;
   for (int dy = -r; dy <= r; ++dy) {
     const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
-    for (int x = 0; x < cols; ++x) c[x] += in[x];
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
   }
   // As below: dark when sum >= area pixel + t, t = ceil(area (2 darker_by - 1) / 2).
   const int area = box * box;
   const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
-  std::vector<int32_t> sums(cols);
+  std::vector<int32_t> prefix(padded_cols + 1, 0);  // prefix[x]: sum of columns before x
   for (int y = 0; y < rows; ++y) {
     for (int x = 0; x < r; ++x) {
       column[x] = c[0];
       c[cols + x] = c[cols - 1];
     }
     int32_t running = 0;
-    for (int x = 0; x < box; ++x) running += column[x];
-    sums[0] = running;
-    for (int x = 1; x < cols; ++x) {
-      running += column[x + box - 1] - column[x - 1];
-      sums[x] = running;
+    for (int x = 0; x < padded_cols; ++x) {
+      running += column[x];
+      prefix[x + 1] = running;
     }
+    const int32_t* high = prefix.data() + box;
+    const int32_t* low = prefix.data();
     const uint8_t* in = gray.ptr<uint8_t>(y);
     uint8_t* out = dark.ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x) out[x] = sums[x] >= area * in[x] + t_exact ? 255 : 0;
+    for (int x = 0; x < cols; ++x) out[x] = high[x] - low[x] >= area * in[x] + t_exact ? 255 : 0;
     if (y + 1 == rows) break;
     const uint8_t* add = gray.ptr<uint8_t>(std::min(y + 1 + r, rows - 1));
     const uint8_t* drop = gray.ptr<uint8_t>(std::max(y - r, 0));
-    for (int x = 0; x < cols; ++x) c[x] += add[x] - drop[x];
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + add[x] - drop[x]);
   }
   return dark;
 }
@@ -258,6 +260,30 @@ bool HalfAndQuarterArea(const cv::Mat& gray, cv::Mat* half, cv::Mat* quarter) {
   }
   *half = h;
   *quarter = q;
+  return true;
+}
+
+bool EighthArea(const cv::Mat& gray, cv::Mat* eighth) {
+  if (gray.type() != CV_8UC1 || gray.empty() || gray.cols % 8 != 0 || gray.rows % 8 != 0) return false;
+  const int ew = gray.cols / 8, eh = gray.rows / 8;
+  cv::Mat e(eh, ew, CV_8U);
+  std::vector<uint16_t> column(gray.cols);  // sums of 8 rows (at most 8 * 255)
+  for (int y = 0; y < eh; ++y) {
+    std::fill(column.begin(), column.end(), uint16_t{0});
+    for (int dy = 0; dy < 8; ++dy) {
+      const uint8_t* in = gray.ptr<uint8_t>(8 * y + dy);
+      for (int x = 0; x < gray.cols; ++x) column[x] = static_cast<uint16_t>(column[x] + in[x]);
+    }
+    uint8_t* out = e.ptr<uint8_t>(y);
+    for (int x = 0; x < ew; ++x) {
+      const uint16_t* b = column.data() + 8 * x;
+      const int t = b[0] + b[1] + b[2] + b[3] + b[4] + b[5] + b[6] + b[7];
+      // t / 64 rounded half to even.
+      const int base = t >> 6, rest = t & 63;
+      out[x] = static_cast<uint8_t>(base + (rest > 32 || (rest == 32 && (base & 1) != 0) ? 1 : 0));
+    }
+  }
+  *eighth = e;
   return true;
 }
 

@@ -19,7 +19,7 @@ struct RunComponent {
 };
 
 // 255 where a pixel of `gray` (CV_8UC1) is at least `darker_by` gray levels below the mean of
-// the `box` x `box` square around it (`box` odd, at least 3; the mean rounded to an integer, the
+// the `box` x `box` square around it (`box` odd, 3 to 257; the mean rounded to an integer, the
 // image's border replicated), else 0: exactly cv::adaptiveThreshold(gray, dark, 255,
 // ADAPTIVE_THRESH_MEAN_C, THRESH_BINARY_INV, box, darker_by), in integers (no division): up to
 // 15 in 16 bits (column sums slid down the rows, box sums from sums of 2, 4 and 8 columns),
@@ -38,6 +38,11 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
 // (the quarter from the half's block sums). False, and nothing written, unless both sides are
 // multiples of 4.
 bool HalfAndQuarterArea(const cv::Mat& gray, cv::Mat* half, cv::Mat* quarter);
+
+// `gray` (CV_8UC1) at an eighth of its size, exactly as cv::resize(gray, ..., INTER_AREA) gives
+// it (the mean of each 8x8 block rounded half to even), in one pass. False, and nothing written,
+// unless both sides are multiples of 8.
+bool EighthArea(const cv::Mat& gray, cv::Mat* eighth);
 
 // The convex hull of a component's row ends (its own hull), as cv::convexHull(row_ends, hull)
 // gives it (the same vertices in the same cyclic order, collinear points and repeats dropped;

@@ -343,6 +343,8 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
     cv::Mat small;
     if (half_and_quarter && (scale == 0.5 || scale == 0.25)) {
       small = scale == 0.5 ? half : quarter;
+    } else if (scale == 0.125 && EighthArea(gray, &small)) {
+      // FindCoarseDarkQuads' level, the pixels of cv::resize's in one pass.
     } else if (scale < 1.0) {
       cv::resize(gray, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
     } else {

@@ -193,6 +193,32 @@ TEST(DetectComponents, HalfAndQuarterAreaIsOpenCvsResize) {
   EXPECT_TRUE(half.empty() && quarter.empty());
 }
 
+TEST(DetectComponents, EighthAreaIsOpenCvsResize) {
+  cv::RNG rng(29);
+  for (int trial = 0; trial < 8; ++trial) {
+    const int cols = 8 * (1 + rng.uniform(0, 60)), rows = 8 * (1 + rng.uniform(0, 50));
+    cv::Mat gray(rows, cols, CV_8U);
+    rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(5, 5), 1.5);
+    cv::Mat eighth, expected;
+    ASSERT_TRUE(EighthArea(gray, &eighth));
+    cv::resize(gray, expected, cv::Size(cols / 8, rows / 8), 0, 0, cv::INTER_AREA);
+    ASSERT_EQ(eighth.size(), expected.size());
+    EXPECT_EQ(cv::countNonZero(eighth != expected), 0) << cols << "x" << rows;
+  }
+  // A recall-bench-sized frame seen through a view (row padding).
+  cv::Mat big(970, 1290, CV_8U);
+  rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+  const cv::Mat frame = big(cv::Rect(5, 7, 1280, 960));
+  cv::Mat eighth, expected;
+  ASSERT_TRUE(EighthArea(frame, &eighth));
+  cv::resize(frame, expected, cv::Size(160, 120), 0, 0, cv::INTER_AREA);
+  EXPECT_EQ(cv::countNonZero(eighth != expected), 0);
+  cv::Mat untouched;
+  EXPECT_FALSE(EighthArea(cv::Mat(36, 40, CV_8U, cv::Scalar(3)), &untouched));
+  EXPECT_TRUE(untouched.empty());
+}
+
 TEST(DetectComponents, RowEndsHullIsOpenCvsConvexHull) {
   cv::RNG rng(17);
   int compared = 0;
