@@ -287,6 +287,38 @@ bool EighthArea(const cv::Mat& gray, cv::Mat* eighth) {
   return true;
 }
 
+void ClearIsolatedPixels(cv::Mat* binary) {
+  CV_Assert(binary->type() == CV_8UC1);
+  const int rows = binary->rows, cols = binary->cols;
+  for (int y = 0; y < rows; ++y) {
+    uint8_t* row = binary->ptr<uint8_t>(y);
+    const uint8_t* above = y > 0 ? binary->ptr<uint8_t>(y - 1) : nullptr;
+    const uint8_t* below = y + 1 < rows ? binary->ptr<uint8_t>(y + 1) : nullptr;
+    int x = 0;
+    while (x < cols) {
+      // Light stretches eight pixels at a time.
+      while (x + 8 <= cols) {
+        uint64_t word;
+        std::memcpy(&word, row + x, 8);
+        if (word != 0) break;
+        x += 8;
+      }
+      if (x >= cols) break;
+      if (row[x] == 0) {
+        ++x;
+        continue;
+      }
+      const int x0 = std::max(0, x - 1), x1 = std::min(cols - 1, x + 1);
+      bool neighbour = (x > 0 && row[x - 1] != 0) || (x + 1 < cols && row[x + 1] != 0);
+      for (int nx = x0; nx <= x1 && !neighbour; ++nx) {
+        neighbour = (above != nullptr && above[nx] != 0) || (below != nullptr && below[nx] != 0);
+      }
+      if (!neighbour) row[x] = 0;
+      ++x;
+    }
+  }
+}
+
 std::vector<cv::Point> RowEndsHull(const std::vector<cv::Point>& row_ends) {
   // Sorted by (y, x) with repeats (a one-pixel row's two ends) dropped.
   std::vector<cv::Point> p;

@@ -44,6 +44,12 @@ bool HalfAndQuarterArea(const cv::Mat& gray, cv::Mat* half, cv::Mat* quarter);
 // unless both sides are multiples of 8.
 bool EighthArea(const cv::Mat& gray, cv::Mat* eighth);
 
+// Sets to 0 every non-zero pixel of `binary` (CV_8UC1) whose eight neighbours are all 0 (outside
+// the image counts as 0). cv::findContours traces each such pixel as a one-point contour of its
+// own, with no children, touching no other contour; the others (their points, their nesting, their
+// order) are the same without it.
+void ClearIsolatedPixels(cv::Mat* binary);
+
 // The convex hull of a component's row ends (its own hull), as cv::convexHull(row_ends, hull)
 // gives it (the same vertices in the same cyclic order, collinear points and repeats dropped;
 // the first vertex may differ), in linear time: the row ends are already sorted by row, then

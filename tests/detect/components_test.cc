@@ -219,6 +219,57 @@ TEST(DetectComponents, EighthAreaIsOpenCvsResize) {
   EXPECT_TRUE(untouched.empty());
 }
 
+// cv::findContours after ClearIsolatedPixels: the same contours (points, order, nesting) but
+// the one-point ones, each of which was an isolated pixel with no children.
+TEST(DetectComponents, ClearIsolatedPixelsDropsOnlyOnePointContours) {
+  cv::RNG rng(31);
+  int dropped = 0, kept_total = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    cv::Mat noise(60 + trial * 7, 90 + trial * 5, CV_8U);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(noise, noise, cv::Size(3, 3), 0.6);
+    cv::Mat binary = noise > (trial % 4 == 0 ? 200 : 150);
+    // Rings with specks inside (a finder's hole holding noise), bars, and pixels on the border.
+    cv::rectangle(binary, cv::Rect(10, 10, 30, 30), cv::Scalar(255), 3);
+    cv::rectangle(binary, cv::Rect(16, 16, 18, 18), cv::Scalar(0), cv::FILLED);
+    binary.at<uint8_t>(25, 25) = 255;
+    binary.at<uint8_t>(0, 3) = 255;
+    const cv::Mat view = binary(cv::Rect(1, 2, binary.cols - 3, binary.rows - 4));
+    cv::Mat cleared = view.clone();
+    ClearIsolatedPixels(&cleared);
+    std::vector<std::vector<cv::Point>> before, after;
+    std::vector<cv::Vec4i> before_tree, after_tree;
+    cv::findContours(view.clone(), before, before_tree, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE);
+    cv::findContours(cleared, after, after_tree, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE);
+    // Index of each kept contour after clearing (-1: dropped).
+    std::vector<int> index(before.size(), -1);
+    int next = 0;
+    for (size_t i = 0; i < before.size(); ++i) {
+      if (before[i].size() == 1) {
+        EXPECT_LT(before_tree[i][2], 0) << "trial " << trial;  // no children
+        ++dropped;
+        continue;
+      }
+      index[i] = next++;
+    }
+    ASSERT_EQ(static_cast<int>(after.size()), next) << "trial " << trial;
+    kept_total += next;
+    const auto mapped = [&](int i) { return i < 0 ? -1 : index[i]; };
+    for (size_t i = 0; i < before.size(); ++i) {
+      if (index[i] < 0) continue;
+      EXPECT_EQ(after[index[i]], before[i]) << "trial " << trial;
+      // Parent and first child the same contours (the first child may have been a dropped one:
+      // then it is the next kept sibling).
+      EXPECT_EQ(after_tree[index[i]][3], mapped(before_tree[i][3])) << "trial " << trial;
+      int child = before_tree[i][2];
+      while (child >= 0 && index[child] < 0) child = before_tree[child][0];
+      EXPECT_EQ(after_tree[index[i]][2], mapped(child)) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(dropped, 100);
+  EXPECT_GT(kept_total, 500);
+}
+
 TEST(DetectComponents, RowEndsHullIsOpenCvsConvexHull) {
   cv::RNG rng(17);
   int compared = 0;
