@@ -53,11 +53,56 @@ void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
   }
 }
 
+// DarkerThanLocalMean for boxes over 15 px (the QR finder search's, up to 101): 16-bit column
+// sums (at most 255 x 101) slid down the rows, each row's box sums as differences of a 32-bit
+// running sum along it.
+cv::Mat DarkerThanLocalMeanWide(const cv::Mat& gray, int box, int darker_by) {
+  CV_Assert(box <= 257);  // a column sum fits 16 bits
+  const int rows = gray.rows, cols = gray.cols, r = box / 2;
+  cv::Mat dark(rows, cols, CV_8U);
+  if (rows == 0 || cols == 0) return dark;
+  // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
+  // columns on each side with the border columns' sums.
+  const int padded_cols = cols + 2 * r;
+  std::vector<uint16_t> column(padded_cols, 0);
+  uint16_t* const c = column.data() + r;
+  for (int dy = -r; dy <= r; ++dy) {
+    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
+  }
+  // As below: dark when sum >= area pixel + t, t = ceil(area (2 darker_by - 1) / 2).
+  const int area = box * box;
+  const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
+  std::vector<int32_t> prefix(padded_cols + 1, 0);  // prefix[x]: sum of columns before x
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < r; ++x) {
+      column[x] = c[0];
+      c[cols + x] = c[cols - 1];
+    }
+    int32_t running = 0;
+    for (int x = 0; x < padded_cols; ++x) {
+      running += column[x];
+      prefix[x + 1] = running;
+    }
+    const int32_t* high = prefix.data() + box;
+    const int32_t* low = prefix.data();
+    const uint8_t* in = gray.ptr<uint8_t>(y);
+    uint8_t* out = dark.ptr<uint8_t>(y);
+    for (int x = 0; x < cols; ++x) out[x] = high[x] - low[x] >= area * in[x] + t_exact ? 255 : 0;
+    if (y + 1 == rows) break;
+    const uint8_t* add = gray.ptr<uint8_t>(std::min(y + 1 + r, rows - 1));
+    const uint8_t* drop = gray.ptr<uint8_t>(std::max(y - r, 0));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + add[x] - drop[x]);
+  }
+  return dark;
+}
+
 }  // namespace
 
 cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
+  CV_Assert(gray.type() == CV_8UC1 && box >= 3 && box % 2 == 1);
+  if (box > 15) return DarkerThanLocalMeanWide(gray, box, darker_by);
   // Box sums in 16 bits: at most 255 * 15 * 15.
-  CV_Assert(gray.type() == CV_8UC1 && box >= 3 && box % 2 == 1 && box <= 15);
   const int rows = gray.rows, cols = gray.cols, r = box / 2;
   cv::Mat dark(rows, cols, CV_8U);
   if (rows == 0 || cols == 0) return dark;
@@ -187,6 +232,117 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
     }
   }
   return out;
+}
+
+bool HalfAndQuarterArea(const cv::Mat& gray, cv::Mat* half, cv::Mat* quarter) {
+  if (gray.type() != CV_8UC1 || gray.empty() || gray.cols % 4 != 0 || gray.rows % 4 != 0) return false;
+  const int hw = gray.cols / 2, hh = gray.rows / 2, qw = hw / 2;
+  cv::Mat h(hh, hw, CV_8U), q(hh / 2, qw, CV_8U);
+  // 2x2 block sums of two consecutive half-size rows (at most 4 * 255).
+  std::vector<uint16_t> even_row(hw), odd_row(hw);
+  for (int y = 0; y < hh; ++y) {
+    const uint8_t* a = gray.ptr<uint8_t>(2 * y);
+    const uint8_t* b = gray.ptr<uint8_t>(2 * y + 1);
+    uint16_t* s = (y % 2 == 0 ? even_row : odd_row).data();
+    uint8_t* out = h.ptr<uint8_t>(y);
+    for (int x = 0; x < hw; ++x) {
+      s[x] = static_cast<uint16_t>(a[2 * x] + a[2 * x + 1] + b[2 * x] + b[2 * x + 1]);
+      out[x] = static_cast<uint8_t>((s[x] + 2) >> 2);
+    }
+    if (y % 2 == 0) continue;
+    uint8_t* qout = q.ptr<uint8_t>(y / 2);
+    for (int x = 0; x < qw; ++x) {
+      const int t = even_row[2 * x] + even_row[2 * x + 1] + odd_row[2 * x] + odd_row[2 * x + 1];
+      // t / 16 rounded half to even.
+      const int base = t >> 4, rest = t & 15;
+      qout[x] = static_cast<uint8_t>(base + (rest > 8 || (rest == 8 && (base & 1) != 0) ? 1 : 0));
+    }
+  }
+  *half = h;
+  *quarter = q;
+  return true;
+}
+
+bool EighthArea(const cv::Mat& gray, cv::Mat* eighth) {
+  if (gray.type() != CV_8UC1 || gray.empty() || gray.cols % 8 != 0 || gray.rows % 8 != 0) return false;
+  const int ew = gray.cols / 8, eh = gray.rows / 8;
+  cv::Mat e(eh, ew, CV_8U);
+  std::vector<uint16_t> column(gray.cols);  // sums of 8 rows (at most 8 * 255)
+  for (int y = 0; y < eh; ++y) {
+    std::fill(column.begin(), column.end(), uint16_t{0});
+    for (int dy = 0; dy < 8; ++dy) {
+      const uint8_t* in = gray.ptr<uint8_t>(8 * y + dy);
+      for (int x = 0; x < gray.cols; ++x) column[x] = static_cast<uint16_t>(column[x] + in[x]);
+    }
+    uint8_t* out = e.ptr<uint8_t>(y);
+    for (int x = 0; x < ew; ++x) {
+      const uint16_t* b = column.data() + 8 * x;
+      const int t = b[0] + b[1] + b[2] + b[3] + b[4] + b[5] + b[6] + b[7];
+      // t / 64 rounded half to even.
+      const int base = t >> 6, rest = t & 63;
+      out[x] = static_cast<uint8_t>(base + (rest > 32 || (rest == 32 && (base & 1) != 0) ? 1 : 0));
+    }
+  }
+  *eighth = e;
+  return true;
+}
+
+void ClearIsolatedPixels(cv::Mat* binary) {
+  CV_Assert(binary->type() == CV_8UC1);
+  const int rows = binary->rows, cols = binary->cols;
+  for (int y = 0; y < rows; ++y) {
+    uint8_t* row = binary->ptr<uint8_t>(y);
+    const uint8_t* above = y > 0 ? binary->ptr<uint8_t>(y - 1) : nullptr;
+    const uint8_t* below = y + 1 < rows ? binary->ptr<uint8_t>(y + 1) : nullptr;
+    int x = 0;
+    while (x < cols) {
+      // Light stretches eight pixels at a time.
+      while (x + 8 <= cols) {
+        uint64_t word;
+        std::memcpy(&word, row + x, 8);
+        if (word != 0) break;
+        x += 8;
+      }
+      if (x >= cols) break;
+      if (row[x] == 0) {
+        ++x;
+        continue;
+      }
+      const int x0 = std::max(0, x - 1), x1 = std::min(cols - 1, x + 1);
+      bool neighbour = (x > 0 && row[x - 1] != 0) || (x + 1 < cols && row[x + 1] != 0);
+      for (int nx = x0; nx <= x1 && !neighbour; ++nx) {
+        neighbour = (above != nullptr && above[nx] != 0) || (below != nullptr && below[nx] != 0);
+      }
+      if (!neighbour) row[x] = 0;
+      ++x;
+    }
+  }
+}
+
+std::vector<cv::Point> RowEndsHull(const std::vector<cv::Point>& row_ends) {
+  // Sorted by (y, x) with repeats (a one-pixel row's two ends) dropped.
+  std::vector<cv::Point> p;
+  p.reserve(row_ends.size());
+  for (const cv::Point& q : row_ends) {
+    if (p.empty() || p.back() != q) p.push_back(q);
+  }
+  if (p.size() < 3) return p;
+  // Positive when o -> a -> b turns clockwise on screen (y down).
+  const auto turn = [](const cv::Point& o, const cv::Point& a, const cv::Point& b) {
+    return static_cast<int64_t>(a.x - o.x) * (b.y - o.y) - static_cast<int64_t>(a.y - o.y) * (b.x - o.x);
+  };
+  std::vector<cv::Point> hull(2 * p.size());
+  int k = 0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  for (int i = static_cast<int>(p.size()) - 2, lower = k + 1; i >= 0; --i) {
+    while (k >= lower && turn(hull[k - 2], hull[k - 1], p[i]) <= 0) --k;
+    hull[k++] = p[i];
+  }
+  hull.resize(static_cast<size_t>(std::max(1, k - 1)));
+  return hull;
 }
 
 }  // namespace waymark

@@ -19,10 +19,11 @@ struct RunComponent {
 };
 
 // 255 where a pixel of `gray` (CV_8UC1) is at least `darker_by` gray levels below the mean of
-// the `box` x `box` square around it (`box` odd, 3 to 15; the mean rounded to an integer, the image's
-// border replicated), else 0: exactly cv::adaptiveThreshold(gray, dark, 255,
-// ADAPTIVE_THRESH_MEAN_C, THRESH_BINARY_INV, box, darker_by), in 16-bit integers (column sums
-// slid down the rows, box sums from sums of 2, 4 and 8 columns; no division).
+// the `box` x `box` square around it (`box` odd, 3 to 257; the mean rounded to an integer, the
+// image's border replicated), else 0: exactly cv::adaptiveThreshold(gray, dark, 255,
+// ADAPTIVE_THRESH_MEAN_C, THRESH_BINARY_INV, box, darker_by), in integers (no division): up to
+// 15 in 16 bits (column sums slid down the rows, box sums from sums of 2, 4 and 8 columns),
+// larger boxes (the QR finder search's) in 32 bits (column sums, a running sum along the row).
 cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by);
 
 // The 8-connected components of the non-zero pixels of `binary` (CV_8UC1) whose bounding box
@@ -30,5 +31,29 @@ cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by);
 // then left to right).
 std::vector<RunComponent> RunComponents(const cv::Mat& binary,
                                         const std::function<bool(const cv::Rect&)>& keep = {});
+
+// `gray` (CV_8UC1) at half and a quarter of its size, exactly as cv::resize(gray, ...,
+// INTER_AREA) gives them (the mean of each 2x2 block rounded half up, of each 4x4 block rounded
+// half to even, as OpenCV 4.6's integer-scale area paths round), in one pass over the image
+// (the quarter from the half's block sums). False, and nothing written, unless both sides are
+// multiples of 4.
+bool HalfAndQuarterArea(const cv::Mat& gray, cv::Mat* half, cv::Mat* quarter);
+
+// `gray` (CV_8UC1) at an eighth of its size, exactly as cv::resize(gray, ..., INTER_AREA) gives
+// it (the mean of each 8x8 block rounded half to even), in one pass. False, and nothing written,
+// unless both sides are multiples of 8.
+bool EighthArea(const cv::Mat& gray, cv::Mat* eighth);
+
+// Sets to 0 every non-zero pixel of `binary` (CV_8UC1) whose eight neighbours are all 0 (outside
+// the image counts as 0). cv::findContours traces each such pixel as a one-point contour of its
+// own, with no children, touching no other contour; the others (their points, their nesting, their
+// order) are the same without it.
+void ClearIsolatedPixels(cv::Mat* binary);
+
+// The convex hull of a component's row ends (its own hull), as cv::convexHull(row_ends, hull)
+// gives it (the same vertices in the same cyclic order, collinear points and repeats dropped;
+// the first vertex may differ), in linear time: the row ends are already sorted by row, then
+// column (Andrew's monotone chain without its sort).
+std::vector<cv::Point> RowEndsHull(const std::vector<cv::Point>& row_ends);
 
 }  // namespace waymark

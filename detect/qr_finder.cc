@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "detect/components.h"
 #include "detect/qr_modules.h"
 #include "detect/refine.h"
 #include "detect/zxing.h"
@@ -18,7 +19,7 @@ namespace {
 
 // Binarization: dark where the pixel is below the local mean (box of about a quarter of
 // the region's shorter side, so that it spans a finder) by more than kThresholdOffset.
-constexpr double kThresholdOffset = 4.0;
+constexpr int kThresholdOffset = 4;
 // Finder checks on contour areas (upscaled pixels). The traced outlines of the 7x7 ring,
 // its 5x5 hole and the 3x3 centre give area ratios near 49 : 25 : 9, shifted by blur and
 // by the binarization threshold.
@@ -105,10 +106,10 @@ cv::Point2d Centroid(const std::vector<cv::Point>& contour) {
   return {m.m10 / m.m00, m.m01 / m.m00};
 }
 
-// True if outer contour o, hole h (child of o) and centre k (child of h) look like a finder.
-bool IsFinder(const std::vector<cv::Point>& o, const std::vector<cv::Point>& h,
-              const std::vector<cv::Point>& k) {
-  const double area_o = cv::contourArea(o), area_h = cv::contourArea(h), area_k = cv::contourArea(k);
+// True if outer contour o, hole h (child of o) and centre k (child of h) look like a finder
+// (area_x: cv::contourArea of contour x).
+bool IsFinder(const std::vector<cv::Point>& o, double area_o, double area_h, const std::vector<cv::Point>& k,
+              double area_k) {
   if (area_o < kMinFinderArea || area_k <= 0.0) return false;
   const double outer_ratio = area_o / area_k, hole_ratio = area_h / area_k;
   if (outer_ratio < kMinOuterToCentre || outer_ratio > kMaxOuterToCentre) return false;
@@ -125,9 +126,8 @@ bool IsFinder(const std::vector<cv::Point>& o, const std::vector<cv::Point>& h,
 // modules or the quiet zone's surroundings (its outline is then no square), while the light
 // 5x5 ring inside it stays closed around the 3x3 centre. The centre must be the hole's only
 // sizeable child, concentric with it, and the hole convex.
-bool IsFinderHole(const std::vector<cv::Point>& h, const std::vector<cv::Point>& k,
-                  double other_children_area) {
-  const double area_h = cv::contourArea(h), area_k = cv::contourArea(k);
+bool IsFinderHole(const std::vector<cv::Point>& h, double area_h, const std::vector<cv::Point>& k,
+                  double area_k, double other_children_area) {
   if (area_h < kMinHoleArea || area_k <= 0.0 || other_children_area > kMaxStrayFraction * area_k)
     return false;
   const double hole_ratio = area_h / area_k;
@@ -152,9 +152,8 @@ cv::Mat BinarizeRegion(const cv::Mat& gray, const cv::Rect& region, double scale
   }
   const int side = std::min(work.cols, work.rows);
   const int block = std::clamp(side / 8, 9, 101) | 1;
-  cv::Mat binary;
-  cv::adaptiveThreshold(work, binary, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, block,
-                        kThresholdOffset);
+  // cv::adaptiveThreshold's bits (mean of the block, THRESH_BINARY_INV), in integers.
+  cv::Mat binary = DarkerThanLocalMean(work, block, kThresholdOffset);
   if (work_out) *work_out = work;
   return binary;
 }
@@ -484,23 +483,36 @@ std::vector<QrFinderPattern> FindQrFinderPatterns(const cv::Mat& gray, const cv:
   cv::Mat binary = BinarizeRegion(gray, region, scale, &work_gray);
   const cv::Rect kept = KeepFinderWindows(work_gray, scale, &binary);
   if (kept.empty()) return {};
+  // Isolated dark pixels (four in ten of the contours traced on the recall bench's issue
+  // frames) are one-point contours no finder test can use (no area, no children): cleared first.
+  cv::Mat roi = binary(kept);
+  ClearIsolatedPixels(&roi);
   std::vector<std::vector<cv::Point>> contours;
   std::vector<cv::Vec4i> hierarchy;  // next, previous, first child, parent
-  cv::findContours(binary(kept), contours, hierarchy, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE, kept.tl());
+  cv::findContours(roi, contours, hierarchy, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE, kept.tl());
   // Up-scaled pixel centres back to the full image: (p + 0.5) / scale - 0.5 + offset.
   const auto to_full = [&](const cv::Point2d& p) {
     return Eigen::Vector2d((p.x + 0.5) / scale - 0.5 + region.x, (p.y + 0.5) / scale - 0.5 + region.y);
+  };
+  // Each contour's area computed once (a hole's children are tried against its outline in turn).
+  std::vector<double> areas(contours.size(), -1.0);
+  const auto area_of = [&](int i) {
+    if (areas[i] < 0.0) areas[i] = cv::contourArea(contours[i]);
+    return areas[i];
   };
   std::vector<QrFinderPattern> found;
   for (size_t o = 0; o < contours.size(); ++o) {
     if (contours[o].size() < 4) continue;
     for (int h = hierarchy[o][2]; h >= 0; h = hierarchy[h][0]) {
       int k = hierarchy[h][2];  // the hole's children: the first that completes a finder
-      while (k >= 0 && !IsFinder(contours[o], contours[h], contours[k])) k = hierarchy[k][0];
+      while (k >= 0 &&
+             !IsFinder(contours[o], area_of(static_cast<int>(o)), area_of(h), contours[k], area_of(k))) {
+        k = hierarchy[k][0];
+      }
       QrFinderPattern f;
       if (k >= 0) {
         f.centre_px = to_full(Centroid(contours[k]));
-        f.width_px = std::sqrt(cv::contourArea(contours[o])) / scale;
+        f.width_px = std::sqrt(area_of(static_cast<int>(o))) / scale;
         const std::array<cv::Point2f, 4> corners = FourCorners(contours[o]);
         for (int i = 0; i < 4; ++i) f.outer_px[i] = to_full(cv::Point2d(corners[i]));
       } else {
@@ -509,14 +521,17 @@ std::vector<QrFinderPattern> FindQrFinderPatterns(const cv::Mat& gray, const cv:
         int largest = -1;
         double largest_area = 0.0, total_area = 0.0;
         for (int c = hierarchy[h][2]; c >= 0; c = hierarchy[c][0]) {
-          const double area = cv::contourArea(contours[c]);
+          const double area = area_of(c);
           total_area += area;
           if (area > largest_area) largest_area = area, largest = c;
         }
-        if (largest < 0 || !IsFinderHole(contours[h], contours[largest], total_area - largest_area)) continue;
+        if (largest < 0 || !IsFinderHole(contours[h], area_of(h), contours[largest], largest_area,
+                                         total_area - largest_area)) {
+          continue;
+        }
         const cv::Point2d centre = Centroid(contours[largest]);
         f.centre_px = to_full(centre);
-        f.width_px = kOuterToHoleSide * std::sqrt(cv::contourArea(contours[h])) / scale;
+        f.width_px = kOuterToHoleSide * std::sqrt(area_of(h)) / scale;
         const std::array<cv::Point2f, 4> corners = FourCorners(contours[h]);
         for (int i = 0; i < 4; ++i) {
           // The hole's outline runs through the centres of the ring's inner pixels, half a

@@ -331,12 +331,21 @@ namespace {
 std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
                                        const std::vector<double>& scales) {
   std::vector<DarkQuad> all;
+  // The 1/2 and 1/4 levels in one pass (the same pixels as cv::resize's), when the sides allow.
+  cv::Mat half, quarter;
+  const bool half_and_quarter = std::count(scales.begin(), scales.end(), 0.5) > 0 &&
+                                std::count(scales.begin(), scales.end(), 0.25) > 0 &&
+                                HalfAndQuarterArea(gray, &half, &quarter);
   for (const double scale : scales) {
     const int width = static_cast<int>(std::lround(gray.cols * scale));
     const int height = static_cast<int>(std::lround(gray.rows * scale));
     if (std::min(width, height) < 2 * kBoxPx) break;
     cv::Mat small;
-    if (scale < 1.0) {
+    if (half_and_quarter && (scale == 0.5 || scale == 0.25)) {
+      small = scale == 0.5 ? half : quarter;
+    } else if (scale == 0.125 && EighthArea(gray, &small)) {
+      // FindCoarseDarkQuads' level, the pixels of cv::resize's in one pass.
+    } else if (scale < 1.0) {
       cv::resize(gray, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
     } else {
       small = gray;
@@ -353,8 +362,7 @@ std::vector<DarkQuad> ComputeDarkQuads(const cv::Mat& gray, double min_side_px,
     // Last found first (bottom-up), as cv::findContours listed them before.
     std::reverse(components.begin(), components.end());
     for (const RunComponent& component : components) {
-      std::vector<cv::Point> hull;
-      cv::convexHull(component.row_ends, hull);
+      std::vector<cv::Point> hull = RowEndsHull(component.row_ends);
       if (hull.size() < 4) continue;
       // A canonical start (approxPolyDP below depends on it): the hull's vertex after the
       // component's first pixel (top row, leftmost), which is always a vertex. This is where

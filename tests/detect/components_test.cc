@@ -129,6 +129,24 @@ TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
       }
     }
   }
+  // Boxes over 15 px (the QR finder search's, block = side / 8 up to 101), 32-bit sums: images
+  // smaller and larger than the box.
+  for (int trial = 0; trial < 12; ++trial) {
+    const int cols = 1 + rng.uniform(0, 330), rows = 1 + rng.uniform(0, 260);
+    cv::Mat gray(rows, cols, CV_8U);
+    rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(9, 9), 4.0);
+    for (const int box : {17, 29, 31, 63, 101}) {
+      for (const int darker_by : {0, 4, 9}) {
+        cv::Mat expected;
+        cv::adaptiveThreshold(gray, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, box,
+                              darker_by);
+        const cv::Mat dark = DarkerThanLocalMean(gray, box, darker_by);
+        ASSERT_EQ(cv::countNonZero(dark != expected), 0)
+            << "trial " << trial << " " << cols << "x" << rows << " box " << box << " by " << darker_by;
+      }
+    }
+  }
   // A view into a larger image: its own border is replicated (as BORDER_ISOLATED).
   cv::Mat big(100, 140, CV_8U);
   rng.fill(big, cv::RNG::UNIFORM, 0, 256);
@@ -136,6 +154,147 @@ TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
   cv::Mat expected;
   cv::adaptiveThreshold(view, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, 15, 7);
   EXPECT_EQ(cv::countNonZero(DarkerThanLocalMean(view, 15, 7) != expected), 0);
+  cv::adaptiveThreshold(view, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, 41, 4);
+  EXPECT_EQ(cv::countNonZero(DarkerThanLocalMean(view, 41, 4) != expected), 0);
+}
+
+TEST(DetectComponents, HalfAndQuarterAreaIsOpenCvsResize) {
+  cv::RNG rng(23);
+  for (int trial = 0; trial < 8; ++trial) {
+    const int cols = 4 * (1 + rng.uniform(0, 90)), rows = 4 * (1 + rng.uniform(0, 70));
+    cv::Mat gray(rows, cols, CV_8U);
+    rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(5, 5), 1.5);
+    cv::Mat half, quarter, expected_half, expected_quarter;
+    ASSERT_TRUE(HalfAndQuarterArea(gray, &half, &quarter));
+    cv::resize(gray, expected_half, cv::Size(cols / 2, rows / 2), 0, 0, cv::INTER_AREA);
+    cv::resize(gray, expected_quarter, cv::Size(cols / 4, rows / 4), 0, 0, cv::INTER_AREA);
+    ASSERT_EQ(half.size(), expected_half.size());
+    ASSERT_EQ(quarter.size(), expected_quarter.size());
+    EXPECT_EQ(cv::countNonZero(half != expected_half), 0) << cols << "x" << rows;
+    EXPECT_EQ(cv::countNonZero(quarter != expected_quarter), 0) << cols << "x" << rows;
+  }
+  // A recall-bench-sized frame, and a view into a larger image.
+  cv::Mat frame(960, 1280, CV_8U);
+  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+  const cv::Mat view = frame(cv::Rect(3, 5, 640, 480));
+  for (const cv::Mat& gray : {frame, view}) {
+    cv::Mat half, quarter, expected;
+    ASSERT_TRUE(HalfAndQuarterArea(gray, &half, &quarter));
+    cv::resize(gray, expected, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+    EXPECT_EQ(cv::countNonZero(half != expected), 0);
+    cv::resize(gray, expected, cv::Size(gray.cols / 4, gray.rows / 4), 0, 0, cv::INTER_AREA);
+    EXPECT_EQ(cv::countNonZero(quarter != expected), 0);
+  }
+  // Sides not multiples of 4: nothing written.
+  cv::Mat half, quarter;
+  EXPECT_FALSE(HalfAndQuarterArea(cv::Mat(30, 42, CV_8U, cv::Scalar(9)), &half, &quarter));
+  EXPECT_FALSE(HalfAndQuarterArea(cv::Mat(33, 40, CV_8U, cv::Scalar(9)), &half, &quarter));
+  EXPECT_TRUE(half.empty() && quarter.empty());
+}
+
+TEST(DetectComponents, EighthAreaIsOpenCvsResize) {
+  cv::RNG rng(29);
+  for (int trial = 0; trial < 8; ++trial) {
+    const int cols = 8 * (1 + rng.uniform(0, 60)), rows = 8 * (1 + rng.uniform(0, 50));
+    cv::Mat gray(rows, cols, CV_8U);
+    rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(5, 5), 1.5);
+    cv::Mat eighth, expected;
+    ASSERT_TRUE(EighthArea(gray, &eighth));
+    cv::resize(gray, expected, cv::Size(cols / 8, rows / 8), 0, 0, cv::INTER_AREA);
+    ASSERT_EQ(eighth.size(), expected.size());
+    EXPECT_EQ(cv::countNonZero(eighth != expected), 0) << cols << "x" << rows;
+  }
+  // A recall-bench-sized frame seen through a view (row padding).
+  cv::Mat big(970, 1290, CV_8U);
+  rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+  const cv::Mat frame = big(cv::Rect(5, 7, 1280, 960));
+  cv::Mat eighth, expected;
+  ASSERT_TRUE(EighthArea(frame, &eighth));
+  cv::resize(frame, expected, cv::Size(160, 120), 0, 0, cv::INTER_AREA);
+  EXPECT_EQ(cv::countNonZero(eighth != expected), 0);
+  cv::Mat untouched;
+  EXPECT_FALSE(EighthArea(cv::Mat(36, 40, CV_8U, cv::Scalar(3)), &untouched));
+  EXPECT_TRUE(untouched.empty());
+}
+
+// cv::findContours after ClearIsolatedPixels: the same contours (points, order, nesting) but
+// the one-point ones, each of which was an isolated pixel with no children.
+TEST(DetectComponents, ClearIsolatedPixelsDropsOnlyOnePointContours) {
+  cv::RNG rng(31);
+  int dropped = 0, kept_total = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    cv::Mat noise(60 + trial * 7, 90 + trial * 5, CV_8U);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 2 == 0) cv::GaussianBlur(noise, noise, cv::Size(3, 3), 0.6);
+    cv::Mat binary = noise > (trial % 4 == 0 ? 200 : 150);
+    // Rings with specks inside (a finder's hole holding noise), bars, and pixels on the border.
+    cv::rectangle(binary, cv::Rect(10, 10, 30, 30), cv::Scalar(255), 3);
+    cv::rectangle(binary, cv::Rect(16, 16, 18, 18), cv::Scalar(0), cv::FILLED);
+    binary.at<uint8_t>(25, 25) = 255;
+    binary.at<uint8_t>(0, 3) = 255;
+    const cv::Mat view = binary(cv::Rect(1, 2, binary.cols - 3, binary.rows - 4));
+    cv::Mat cleared = view.clone();
+    ClearIsolatedPixels(&cleared);
+    std::vector<std::vector<cv::Point>> before, after;
+    std::vector<cv::Vec4i> before_tree, after_tree;
+    cv::findContours(view.clone(), before, before_tree, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE);
+    cv::findContours(cleared, after, after_tree, cv::RETR_TREE, cv::CHAIN_APPROX_SIMPLE);
+    // Index of each kept contour after clearing (-1: dropped).
+    std::vector<int> index(before.size(), -1);
+    int next = 0;
+    for (size_t i = 0; i < before.size(); ++i) {
+      if (before[i].size() == 1) {
+        EXPECT_LT(before_tree[i][2], 0) << "trial " << trial;  // no children
+        ++dropped;
+        continue;
+      }
+      index[i] = next++;
+    }
+    ASSERT_EQ(static_cast<int>(after.size()), next) << "trial " << trial;
+    kept_total += next;
+    const auto mapped = [&](int i) { return i < 0 ? -1 : index[i]; };
+    for (size_t i = 0; i < before.size(); ++i) {
+      if (index[i] < 0) continue;
+      EXPECT_EQ(after[index[i]], before[i]) << "trial " << trial;
+      // Parent and first child the same contours (the first child may have been a dropped one:
+      // then it is the next kept sibling).
+      EXPECT_EQ(after_tree[index[i]][3], mapped(before_tree[i][3])) << "trial " << trial;
+      int child = before_tree[i][2];
+      while (child >= 0 && index[child] < 0) child = before_tree[child][0];
+      EXPECT_EQ(after_tree[index[i]][2], mapped(child)) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(dropped, 100);
+  EXPECT_GT(kept_total, 500);
+}
+
+TEST(DetectComponents, RowEndsHullIsOpenCvsConvexHull) {
+  cv::RNG rng(17);
+  int compared = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    // Blobs of every shape: thresholded smoothed noise (blobs, thin strokes, single pixels),
+    // and straight bars (collinear row ends).
+    cv::Mat noise(90 + trial, 120, CV_8U);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    if (trial % 3 != 0) cv::GaussianBlur(noise, noise, cv::Size(7, 7), 1.0 + trial % 4);
+    cv::Mat binary = noise > (trial % 3 == 0 ? 230 : 140);
+    cv::line(binary, cv::Point(5, 5), cv::Point(60, 5 + trial), cv::Scalar(255), 1 + trial % 3);
+    cv::rectangle(binary, cv::Rect(70, 10, 11, 9 + trial % 5), cv::Scalar(255), cv::FILLED);
+    for (const RunComponent& component : RunComponents(binary)) {
+      std::vector<cv::Point> expected;
+      cv::convexHull(component.row_ends, expected);
+      std::vector<cv::Point> hull = RowEndsHull(component.row_ends);
+      ASSERT_EQ(hull.size(), expected.size()) << "trial " << trial << " at " << component.box;
+      const auto first = std::find(hull.begin(), hull.end(), expected.front());
+      ASSERT_NE(first, hull.end());
+      std::rotate(hull.begin(), first, hull.end());
+      EXPECT_EQ(hull, expected) << "trial " << trial << " at " << component.box;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 1000);
 }
 
 }  // namespace
