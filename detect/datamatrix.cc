@@ -67,8 +67,9 @@ class DataMatrixDetector : public MarkerDetector {
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
     FrameWork work(options_.live_budget_ms);
-    std::vector<MarkerObservation> found = FirstPass(gray, &work);
-    if (options_.second_pass) SecondPasses(gray, &work, &found);
+    std::vector<Eigen::Vector2d> seen;
+    std::vector<MarkerObservation> found = FirstPass(gray, &work, &seen);
+    if (options_.second_pass) SecondPasses(gray, seen, &work, &found);
     skipped_ = work.skipped();
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
   }
@@ -76,7 +77,8 @@ class DataMatrixDetector : public MarkerDetector {
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_.gray = ToGray8(image);
     FrameWork work(options_.live_budget_ms);
-    staged_.raw = FirstPass(staged_.gray, &work);
+    staged_seen_.clear();
+    staged_.raw = FirstPass(staged_.gray, &work, &staged_seen_);
     staged_.refined = RefineObservations(staged_.gray, staged_.raw, options_.refine_corners);
     staged_.started = true;
     skipped_ = work.skipped();
@@ -87,7 +89,7 @@ class DataMatrixDetector : public MarkerDetector {
     staged_.CheckStarted();
     FrameWork work(options_.live_budget_ms);
     std::vector<MarkerObservation> found = staged_.raw;
-    if (options_.second_pass) SecondPasses(staged_.gray, &work, &found);
+    if (options_.second_pass) SecondPasses(staged_.gray, staged_seen_, &work, &found);
     skipped_ = work.skipped();
     const cv::Mat& gray = staged_.gray;
     const bool refine = options_.refine_corners;
@@ -98,7 +100,10 @@ class DataMatrixDetector : public MarkerDetector {
   }
 
  private:
-  std::vector<MarkerObservation> FirstPass(const cv::Mat& gray, FrameWork* work) const {
+  // *seen: the centres of the candidates whose patch passed RectifyDataMatrixCandidate's tests
+  // (something DataMatrix-like), for the second pass.
+  std::vector<MarkerObservation> FirstPass(const cv::Mat& gray, FrameWork* work,
+                                           std::vector<Eigen::Vector2d>* seen) const {
     std::vector<MarkerObservation> found;
     // Pass 1: Waymark's own candidates (the L finder and the timing pattern), each rectified
     // onto its own small patch (detect/quads.h) and tested there; of those that pass, the
@@ -115,7 +120,7 @@ class DataMatrixDetector : public MarkerDetector {
     std::vector<char> failed(candidates.size(), 0);  // its patch failed the test or the decoders
     for (size_t ci = 0; ci < candidates.size(); ++ci) {
       const DataMatrixCandidate& candidate = candidates[ci];
-      std::optional<DataMatrixPatch> patch = TestedPatch(gray, candidate);
+      std::optional<DataMatrixPatch> patch = TestedPatch(gray, candidate, seen);
       if (patch) {
         // No quiet zone along most of a leg: an L-shaped part of something larger.
         if (patch->quiet_zone_dark > kQuietMaxDark) continue;
@@ -153,7 +158,7 @@ class DataMatrixDetector : public MarkerDetector {
       ++refits;
       const std::optional<DataMatrixCandidate> refit = RefitDataMatrixCandidate(gray, candidates[ci]);
       if (!refit) continue;
-      std::optional<DataMatrixPatch> patch = TestedPatch(gray, *refit);
+      std::optional<DataMatrixPatch> patch = TestedPatch(gray, *refit, seen);
       if (!patch || patch->quiet_zone_dark > kQuietMaxDark || !work->Allow()) continue;
       ++decoded;
       AppendUnique(DecodeDataMatrixPatch(*patch), &found);
@@ -161,27 +166,41 @@ class DataMatrixDetector : public MarkerDetector {
     return found;
   }
 
-  // The candidate's patch when it passes RectifyDataMatrixCandidate's tests and shows a timing
-  // pattern along one side (kMinTimingSideRuns).
-  static std::optional<DataMatrixPatch> TestedPatch(const cv::Mat& gray,
-                                                    const DataMatrixCandidate& candidate) {
+  // The candidate's patch when it passes RectifyDataMatrixCandidate's tests (then its centre is
+  // appended to *seen) and shows a timing pattern along one side (kMinTimingSideRuns).
+  static std::optional<DataMatrixPatch> TestedPatch(const cv::Mat& gray, const DataMatrixCandidate& candidate,
+                                                    std::vector<Eigen::Vector2d>* seen) {
     std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
+    if (patch) seen->push_back(QuadCenter(candidate.corners_px));
     if (patch && DataMatrixTimingSideRuns(patch->patch, patch->margin, patch->side) < kMinTimingSideRuns) {
       return std::nullopt;
     }
     return patch;
   }
 
-  void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* found) const {
-    // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
-    // a symbol touching other dark things): zxing on the candidate regions holding no
-    // symbol yet, then on small ones upscaled.
-    const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-    RunSecondPass(
-        gray, regions,
-        {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
-         [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
-        work, found);
+  void SecondPasses(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& seen, FrameWork* work,
+                    std::vector<MarkerObservation>* found) const {
+    // Pass 2, for symbols whose L the candidate stage did not see or whose patch did not read
+    // (glare, a bar across the L, a symbol touching other dark things): zxing on the candidate
+    // regions holding no symbol yet, then, where the region holds the centre of a candidate
+    // whose patch passed the patch test (RectifyDataMatrixCandidate: something DataMatrix-like),
+    // on small ones upscaled. Traced on the recall bench's 900 frames (issue and hard renders,
+    // seeds 1-3) before issue 14's sixth round, when every small region was also read upscaled:
+    // 6502 upscaled reads (1.0 ms per frame) read nothing; the plain reads (0.7 ms per frame)
+    // read 3 symbols. Limiting the plain reads the same way lost 11 of datamatrix-1's 26 photos.
+    const CropAttempt plain = [](const cv::Mat& crop) {
+      return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{});
+    };
+    const std::vector<CropAttempt> plain_only = {plain};
+    const std::vector<CropAttempt> plain_then_upscaled = {
+        plain, [](const cv::Mat& crop) { return ReadUpscaled(crop); }};
+    for (const cv::Rect& region : SecondPassRegions(gray, options_.max_candidates, options_.close_up)) {
+      const bool something = std::any_of(seen.begin(), seen.end(), [&region](const Eigen::Vector2d& c) {
+        return c.x() >= region.x && c.y() >= region.y && c.x() < region.x + region.width &&
+               c.y() < region.y + region.height;
+      });
+      RunSecondPass(gray, {region}, something ? plain_then_upscaled : plain_only, work, found);
+    }
   }
 
   static std::vector<MarkerObservation> ReadUpscaled(const cv::Mat& crop) {
@@ -196,6 +215,7 @@ class DataMatrixDetector : public MarkerDetector {
   DetectorOptions options_;
   int skipped_ = 0;
   StagedDetection staged_;
+  std::vector<Eigen::Vector2d> staged_seen_;  // FirstPass's *seen for the staged second pass
 };
 
 // Owns libdmtx's objects for one scan.
@@ -254,9 +274,14 @@ constexpr double kPatchMarginFraction = 0.3;
 // frames (issue and hard renders, seeds 1-3) needed 9 different seeds, 462 of 468 one at the
 // middle of the legs; a candidate that is no symbol (about 10 per frame) fails all 18, about
 // 0.8 ms. So the seeds at 0.3 and 0.7 of the side are tried only on patches whose timing pattern
-// alternates clearly (kTimingFirstRuns): the same symbols read on those frames.
+// alternates clearly: two adjacent sides with at least 4 dark runs each (timing_runs; the dark
+// modules of the shortest DataMatrix side; 3 before issue 14's sixth round). Traced on those
+// 900 frames: each of the 7 symbols (of 571) these seeds read had 4 or more, while the 907
+// patches with 3 that passed the timing-side test (DataMatrixTimingSideRuns) read nothing and
+// paid all 18 seeds (1.3 ms per frame in all, at load 4-6).
 constexpr double kSeedFractions[] = {0.5, 0.3, 0.7};
 constexpr int kSeedFractionsForAll = 1;
+constexpr int kAllSeedsTimingRuns = 4;
 constexpr int kSeedOffsetsPx[] = {0, -1, 1};
 // A decoded symbol must lie where its candidate is (fraction of the candidate's side) and be
 // of about its size.
@@ -573,9 +598,9 @@ std::vector<MarkerObservation> DecodeDataMatrixPatch(const DataMatrixPatch& rect
   }
   if (scan.decode != nullptr) {
     // Every patch gets the seeds at the middle of the legs; only a patch with a clear timing
-    // pattern the others (which read 6 of 468 symbols, while every candidate that is no symbol
-    // fails all of them).
-    const int fractions = rectified.timing_runs >= kTimingFirstRuns
+    // pattern (kAllSeedsTimingRuns) the others (which read 7 of 571 symbols, while every
+    // candidate that is no symbol fails all of them).
+    const int fractions = rectified.timing_runs >= kAllSeedsTimingRuns
                               ? static_cast<int>(std::size(kSeedFractions))
                               : kSeedFractionsForAll;
     for (int f = 0; f < fractions; ++f) {
