@@ -166,15 +166,15 @@ class DataMatrixDetector : public MarkerDetector {
     return found;
   }
 
-  // The candidate's patch when it passes RectifyDataMatrixCandidate's tests (then its centre is
-  // appended to *seen) and shows a timing pattern along one side (kMinTimingSideRuns).
+  // The candidate's patch when it shows a timing pattern along one side (kMinTimingSideRuns)
+  // and passes RectifyDataMatrixCandidate's tests (then its centre is appended to *seen).
   static std::optional<DataMatrixPatch> TestedPatch(const cv::Mat& gray, const DataMatrixCandidate& candidate,
                                                     std::vector<Eigen::Vector2d>* seen) {
+    // The timing side first: it samples the frame where the patch's pixels would be, without
+    // the warp (most candidates fail it).
+    if (DataMatrixTimingSideRuns(gray, candidate.corners_px) < kMinTimingSideRuns) return std::nullopt;
     std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
     if (patch) seen->push_back(QuadCenter(candidate.corners_px));
-    if (patch && DataMatrixTimingSideRuns(patch->patch, patch->margin, patch->side) < kMinTimingSideRuns) {
-      return std::nullopt;
-    }
     return patch;
   }
 
@@ -347,28 +347,35 @@ struct PatchLevels {
   double light = 0.0;
   std::vector<double> inside;  // the 9 x 9 grid's samples (partially sorted)
 };
-PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
+// `at(x, y)`: the patch's gray level at patch pixel (x, y) (PatchAt, or the frame sampled where
+// the patch's pixel would be, FramePatchSampler).
+template <typename At>
+PatchLevels LegAndLightLevelsWith(const At& at, double m, double s) {
   std::vector<double> leg, inside;
   for (int k = 0; k < kPlausibleSamples; ++k) {
     const double t = 0.08 + 0.84 * k / (kPlausibleSamples - 1);
-    leg.push_back(PatchAt(patch, m + 0.03 * s, m + t * s));
-    leg.push_back(PatchAt(patch, m + t * s, m + s - 1 - 0.03 * s));
+    leg.push_back(at(m + 0.03 * s, m + t * s));
+    leg.push_back(at(m + t * s, m + s - 1 - 0.03 * s));
   }
   for (int i = 0; i < 9; ++i) {
     for (int j = 0; j < 9; ++j)
-      inside.push_back(PatchAt(patch, m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
+      inside.push_back(at(m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
   }
   std::nth_element(leg.begin(), leg.begin() + leg.size() / 2, leg.end());
   std::nth_element(inside.begin(), inside.begin() + inside.size() * 9 / 10, inside.end());
   const double dark = leg[leg.size() / 2], light = inside[inside.size() * 9 / 10];
   return {dark, light, std::move(inside)};
 }
+PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
+  return LegAndLightLevelsWith([&patch](double x, double y) { return PatchAt(patch, x, y); }, m, s);
+}
 
 // The most dark runs (gray level under `threshold`) along any of the timing lines of side
 // `which` (0 top, 1 right, 2 bottom, 3 left) of a patch with the symbol's `s` px at (m, m):
 // lines parallel to the side at kTimingDepths of the side inside it (the candidate's far
 // corner can be a few pixels off), kTimingSamples samples each over 4-96 % of it.
-int SideDarkRuns(const cv::Mat& patch, double m, double s, double threshold, int which) {
+template <typename At>
+int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which) {
   int most = 0;
   for (const double depth : kTimingDepths) {
     int runs = 0;
@@ -376,10 +383,10 @@ int SideDarkRuns(const cv::Mat& patch, double m, double s, double threshold, int
     for (int k = 0; k < kTimingSamples; ++k) {
       const double t = 0.04 + 0.92 * k / (kTimingSamples - 1);
       const double in = depth * s, along = t * s;
-      const double g = which == 0   ? PatchAt(patch, m + along, m + in)
-                       : which == 1 ? PatchAt(patch, m + s - 1 - in, m + along)
-                       : which == 2 ? PatchAt(patch, m + along, m + s - 1 - in)
-                                    : PatchAt(patch, m + in, m + along);
+      const double g = which == 0   ? at(m + along, m + in)
+                       : which == 1 ? at(m + s - 1 - in, m + along)
+                       : which == 2 ? at(m + along, m + s - 1 - in)
+                                    : at(m + in, m + along);
       const bool is_dark = g < threshold;
       runs += is_dark && !previous;
       previous = is_dark;
@@ -387,6 +394,32 @@ int SideDarkRuns(const cv::Mat& patch, double m, double s, double threshold, int
     most = std::max(most, runs);
   }
   return most;
+}
+int SideDarkRuns(const cv::Mat& patch, double m, double s, double threshold, int which) {
+  return SideDarkRunsWith([&patch](double x, double y) { return PatchAt(patch, x, y); }, m, s, threshold,
+                          which);
+}
+
+// The rectified patch's geometry for a candidate (RectifyDataMatrixCandidate): the symbol's side
+// (kPatchMinSidePx-kPatchMaxSidePx), the margin, and the homography from patch to frame pixels.
+struct PatchGeometry {
+  int side = 0;
+  int margin = 0;
+  cv::Matx33d patch_to_frame;
+};
+PatchGeometry PatchGeometryOf(const Quad2d& corners_px) {
+  PatchGeometry out;
+  out.side =
+      std::clamp(static_cast<int>(std::lround(QuadMeanSide(corners_px))), kPatchMinSidePx, kPatchMaxSidePx);
+  out.margin = static_cast<int>(std::lround(kPatchMarginFraction * out.side));
+  const double lo = out.margin - 0.5,
+               hi = out.margin + out.side - 0.5;  // outer edges, pixel-centre coordinates
+  std::vector<cv::Point2f> patch_pts = {
+      {float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
+  std::vector<cv::Point2f> frame_pts;
+  for (const Eigen::Vector2d& c : corners_px) frame_pts.emplace_back(float(c.x()), float(c.y()));
+  out.patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
+  return out;
 }
 
 }  // namespace
@@ -417,14 +450,34 @@ bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* t
   return evidence >= kTimingMinRuns;
 }
 
-int DataMatrixTimingSideRuns(const cv::Mat& patch, int margin, int side) {
-  CV_Assert(patch.type() == CV_8UC1);
-  const double m = margin, s = side;
-  const PatchLevels levels = LegAndLightLevels(patch, m, s);
+int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
+  CV_Assert(gray.type() == CV_8UC1 && !gray.empty());
+  // The patch RectifyDataMatrixCandidate would warp, sampled where its pixels are: each
+  // sample's patch pixel (nearest, clamped to the patch, as PatchAt) mapped into the frame and
+  // interpolated there (bilinear, the frame's border replicated, as the warp).
+  const PatchGeometry geometry = PatchGeometryOf(corners_px);
+  const int size = geometry.side + 2 * geometry.margin;
+  const cv::Matx33d& h = geometry.patch_to_frame;
+  const auto at = [&](double x, double y) {
+    const int c = std::clamp(static_cast<int>(std::lround(x)), 0, size - 1);
+    const int r = std::clamp(static_cast<int>(std::lround(y)), 0, size - 1);
+    const cv::Vec3d q = h * cv::Vec3d(c, r, 1.0);
+    const double fx = std::clamp(q[0] / q[2], 0.0, gray.cols - 1.0),
+                 fy = std::clamp(q[1] / q[2], 0.0, gray.rows - 1.0);
+    const int x0 = std::max(0, std::min(static_cast<int>(fx), gray.cols - 2));
+    const int y0 = std::max(0, std::min(static_cast<int>(fy), gray.rows - 2));
+    const int x1 = std::min(x0 + 1, gray.cols - 1), y1 = std::min(y0 + 1, gray.rows - 1);
+    const double ax = fx - x0, ay = fy - y0;
+    const double top = (1 - ax) * gray.at<uint8_t>(y0, x0) + ax * gray.at<uint8_t>(y0, x1);
+    const double bottom = (1 - ax) * gray.at<uint8_t>(y1, x0) + ax * gray.at<uint8_t>(y1, x1);
+    return std::round((1 - ay) * top + ay * bottom);
+  };
+  const double m = geometry.margin, s = geometry.side;
+  const PatchLevels levels = LegAndLightLevelsWith(at, m, s);
   if (levels.light - levels.dark < kPlausibleMinContrast) return 0;
   const double threshold = levels.dark + 0.5 * (levels.light - levels.dark);
   int most = 0;
-  for (int which = 0; which < 4; ++which) most = std::max(most, SideDarkRuns(patch, m, s, threshold, which));
+  for (int which = 0; which < 4; ++which) most = std::max(most, SideDarkRunsWith(at, m, s, threshold, which));
   return most;
 }
 
@@ -471,17 +524,11 @@ DataMatrixPatch WarpDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCan
   CV_Assert(gray.type() == CV_8UC1);
   DataMatrixPatch out;
   out.candidate = candidate;
-  out.side = std::clamp(static_cast<int>(std::lround(QuadMeanSide(candidate.corners_px))), kPatchMinSidePx,
-                        kPatchMaxSidePx);
-  out.margin = static_cast<int>(std::lround(kPatchMarginFraction * out.side));
+  const PatchGeometry geometry = PatchGeometryOf(candidate.corners_px);
+  out.side = geometry.side;
+  out.margin = geometry.margin;
+  out.patch_to_frame = geometry.patch_to_frame;
   const int size = out.side + 2 * out.margin;
-  const double lo = out.margin - 0.5,
-               hi = out.margin + out.side - 0.5;  // outer edges, pixel-centre coordinates
-  std::vector<cv::Point2f> patch_pts = {
-      {float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
-  std::vector<cv::Point2f> frame_pts;
-  for (const Eigen::Vector2d& c : candidate.corners_px) frame_pts.emplace_back(float(c.x()), float(c.y()));
-  out.patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
   cv::warpPerspective(gray, out.patch, cv::Mat(out.patch_to_frame), cv::Size(size, size),
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
   return out;

@@ -247,9 +247,9 @@ TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
             candidate.corners_px[i] =
                 truth[(i + turn) % 4] + Eigen::Vector2d(rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5));
           }
-          const std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(image, candidate);
-          ASSERT_TRUE(patch.has_value()) << text << " side " << side << " turn " << turn;
-          EXPECT_GE(DataMatrixTimingSideRuns(patch->patch, patch->margin, patch->side), 4)
+          EXPECT_TRUE(RectifyDataMatrixCandidate(image, candidate).has_value())
+              << text << " side " << side << " turn " << turn;
+          EXPECT_GE(DataMatrixTimingSideRuns(image, candidate.corners_px), 4)
               << text << " side " << side << " squeeze " << squeeze << " turn " << turn;
           ++tried;
         }
@@ -259,17 +259,21 @@ TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
   EXPECT_EQ(tried, 68);
 
   const int side = 60, margin = 18, size = side + 2 * margin;
+  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
+                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
   cv::Mat frame(size, size, CV_8U, cv::Scalar(220));
   cv::rectangle(frame, cv::Rect(margin, margin, 6, side), cv::Scalar(25), cv::FILLED);
   cv::rectangle(frame, cv::Rect(margin, margin + side - 6, side, 6), cv::Scalar(25), cv::FILLED);
-  EXPECT_LT(DataMatrixTimingSideRuns(frame, margin, side), 4);
+  EXPECT_LT(DataMatrixTimingSideRuns(frame, square), 4);
   cv::Mat checker = frame.clone();
   for (int y = margin + 10; y < margin + side - 8; y += 8) {
     for (int x = margin + 8; x < margin + side - 10; x += 8) {
       if (((x + y) / 8) % 2 == 0) cv::rectangle(checker, cv::Rect(x, y, 8, 8), cv::Scalar(25), cv::FILLED);
     }
   }
-  EXPECT_LT(DataMatrixTimingSideRuns(checker, margin, side), 4);
+  EXPECT_LT(DataMatrixTimingSideRuns(checker, square), 4);
   // Three dashes along the top and the right side, a mixed inside.
   cv::Mat dashed = checker.clone();
   for (int k = 0; k < 3; ++k) {
@@ -281,14 +285,14 @@ TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
   int runs = 0;
   EXPECT_TRUE(DataMatrixPatchPlausible(dashed, margin, side, &runs));
   EXPECT_EQ(runs, 3);
-  EXPECT_EQ(DataMatrixTimingSideRuns(dashed, margin, side), 3);
+  EXPECT_EQ(DataMatrixTimingSideRuns(dashed, square), 3);
   cv::Mat text = frame.clone();
   cv::putText(text, "EXIT", cv::Point(margin + 10, margin + 30), cv::FONT_HERSHEY_SIMPLEX, 0.5,
               cv::Scalar(25), 2);
   cv::putText(text, "B12", cv::Point(margin + 12, margin + 46), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(25),
               2);
-  EXPECT_LT(DataMatrixTimingSideRuns(text, margin, side), 4);
-  EXPECT_EQ(DataMatrixTimingSideRuns(cv::Mat(size, size, CV_8U, cv::Scalar(128)), margin, side), 0);
+  EXPECT_LT(DataMatrixTimingSideRuns(text, square), 4);
+  EXPECT_EQ(DataMatrixTimingSideRuns(cv::Mat(size, size, CV_8U, cv::Scalar(128)), square), 0);
 }
 
 TEST(DetectDataMatrix, BlankNoiseAndBadInput) {
