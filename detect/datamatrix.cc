@@ -377,12 +377,23 @@ PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
 template <typename At>
 int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which) {
   int most = 0;
+  long done[std::size(kTimingDepths)];  // the pixel row (column) of each line sampled so far
+  size_t lines = 0;
   for (const double depth : kTimingDepths) {
+    // A line on the same pixel row (column) as one already sampled gives the same runs: the
+    // samples are the nearest pixels.
+    const double in = depth * s;
+    const long fixed = std::lround(which == 0   ? m + in
+                                   : which == 1 ? m + s - 1 - in
+                                   : which == 2 ? m + s - 1 - in
+                                                : m + in);
+    if (std::find(done, done + lines, fixed) != done + lines) continue;
+    done[lines++] = fixed;
     int runs = 0;
     bool previous = false;
     for (int k = 0; k < kTimingSamples; ++k) {
       const double t = 0.04 + 0.92 * k / (kTimingSamples - 1);
-      const double in = depth * s, along = t * s;
+      const double along = t * s;
       const double g = which == 0   ? at(m + along, m + in)
                        : which == 1 ? at(m + s - 1 - in, m + along)
                        : which == 2 ? at(m + along, m + s - 1 - in)
@@ -458,9 +469,14 @@ int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
   const PatchGeometry geometry = PatchGeometryOf(corners_px);
   const int size = geometry.side + 2 * geometry.margin;
   const cv::Matx33d& h = geometry.patch_to_frame;
+  int last_c = -1, last_r = -1;  // the last sample's patch pixel and value (lines revisit a pixel)
+  double last = 0.0;
   const auto at = [&](double x, double y) {
     const int c = std::clamp(static_cast<int>(std::lround(x)), 0, size - 1);
     const int r = std::clamp(static_cast<int>(std::lround(y)), 0, size - 1);
+    if (c == last_c && r == last_r) return last;
+    last_c = c;
+    last_r = r;
     const cv::Vec3d q = h * cv::Vec3d(c, r, 1.0);
     const double fx = std::clamp(q[0] / q[2], 0.0, gray.cols - 1.0),
                  fy = std::clamp(q[1] / q[2], 0.0, gray.rows - 1.0);
@@ -470,7 +486,8 @@ int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
     const double ax = fx - x0, ay = fy - y0;
     const double top = (1 - ax) * gray.at<uint8_t>(y0, x0) + ax * gray.at<uint8_t>(y0, x1);
     const double bottom = (1 - ax) * gray.at<uint8_t>(y1, x0) + ax * gray.at<uint8_t>(y1, x1);
-    return std::round((1 - ay) * top + ay * bottom);
+    last = std::round((1 - ay) * top + ay * bottom);
+    return last;
   };
   const double m = geometry.margin, s = geometry.side;
   const PatchLevels levels = LegAndLightLevelsWith(at, m, s);
