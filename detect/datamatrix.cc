@@ -100,8 +100,8 @@ class DataMatrixDetector : public MarkerDetector {
   }
 
  private:
-  // *seen: the centres of the candidates whose patch passed RectifyDataMatrixCandidate's tests
-  // (something DataMatrix-like), for the second pass.
+  // *seen: the centres of the candidates that passed the timing-side test and whose patch passed
+  // RectifyDataMatrixCandidate's tests (something DataMatrix-like), for the second pass.
   std::vector<MarkerObservation> FirstPass(const cv::Mat& gray, FrameWork* work,
                                            std::vector<Eigen::Vector2d>* seen) const {
     std::vector<MarkerObservation> found;
@@ -183,11 +183,11 @@ class DataMatrixDetector : public MarkerDetector {
     // Pass 2, for symbols whose L the candidate stage did not see or whose patch did not read
     // (glare, a bar across the L, a symbol touching other dark things): zxing on the candidate
     // regions holding no symbol yet, then, where the region holds the centre of a candidate
-    // whose patch passed the patch test (RectifyDataMatrixCandidate: something DataMatrix-like),
-    // on small ones upscaled. Traced on the recall bench's 900 frames (issue and hard renders,
-    // seeds 1-3) before issue 14's sixth round, when every small region was also read upscaled:
-    // 6502 upscaled reads (1.0 ms per frame) read nothing; the plain reads (0.7 ms per frame)
-    // read 3 symbols. Limiting the plain reads the same way lost 11 of datamatrix-1's 26 photos.
+    // that passed the timing-side and patch tests (FirstPass's *seen: something
+    // DataMatrix-like), on small ones upscaled. Traced on the recall bench's 900 frames (issue and hard
+    // renders, seeds 1-3) before issue 14's sixth round, when every small region was also read upscaled: 6502
+    // upscaled reads (1.0 ms per frame) read nothing; the plain reads (0.7 ms per frame) read 3 symbols.
+    // Limiting the plain reads the same way lost 11 of the 26 symbols read on the datamatrix-1 photos.
     const CropAttempt plain = [](const cv::Mat& crop) {
       return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{});
     };
@@ -348,7 +348,7 @@ struct PatchLevels {
   std::vector<double> inside;  // the 9 x 9 grid's samples (partially sorted)
 };
 // `at(x, y)`: the patch's gray level at patch pixel (x, y) (PatchAt, or the frame sampled where
-// the patch's pixel would be, FramePatchSampler).
+// the patch's pixel would be, as DataMatrixTimingSideRuns does).
 template <typename At>
 PatchLevels LegAndLightLevelsWith(const At& at, double m, double s) {
   std::vector<double> leg, inside;

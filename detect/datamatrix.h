@@ -15,7 +15,7 @@
 // max_candidates, plus the whole image when it is at most 640x480) holding no symbol yet
 // (zxing 1.4 searches outwards from the image centre, so each crop is centred on its
 // candidate), then on small crops (<= 240 px) upscaled 2x where the crop holds the centre of
-// a candidate whose patch passed RectifyDataMatrixCandidate's tests.
+// a candidate that passed the timing-side test and RectifyDataMatrixCandidate's tests.
 // All work is bounded by those counts (no clock offline); in a live loop
 // (DetectorOptions::live_budget_ms) attempts past the budget are skipped and counted.
 // libdmtx's image origin is the bottom-left corner with y up; its fitted grid maps the
