@@ -22,6 +22,13 @@ constexpr int kMaxUpscaleSidePx = 240;  // only small crops are upscaled
 // evidence (DataMatrixPatchPlausible) that puts a patch among the first decoded.
 constexpr int kPatchTestsPerDecode = 4;
 constexpr int kTimingFirstRuns = 3;
+// A patch goes to the decoders only when one of its sides shows a timing pattern: at least
+// the dark modules of the shortest DataMatrix side (the 8 x 18 symbol's: 8 modules, 4 dark) along
+// one of its timing lines (DataMatrixTimingSideRuns). On the recall bench's 900 frames (issue
+// and hard renders, seeds 1-3) every one of the 571 patches read had a side with at least 4;
+// 72 % of the 7826 decoded patches that read nothing had none, and cost 54 % of the decoders'
+// time on them (about 2.9 ms per frame, libdmtx's seeds failing on clutter).
+constexpr int kMinTimingSideRuns = 4;
 // A patch with more than this fraction of the places along one of its legs without a light
 // quiet zone outside (DataMatrixQuietZoneDark) goes to no decoder. On the recall bench's 900
 // frames (issue and hard renders, seeds 1-3; 514 patches read, 10815 not) 512 of the patches
@@ -60,8 +67,9 @@ class DataMatrixDetector : public MarkerDetector {
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
     FrameWork work(options_.live_budget_ms);
-    std::vector<MarkerObservation> found = FirstPass(gray, &work);
-    if (options_.second_pass) SecondPasses(gray, &work, &found);
+    std::vector<Eigen::Vector2d> seen;
+    std::vector<MarkerObservation> found = FirstPass(gray, &work, &seen);
+    if (options_.second_pass) SecondPasses(gray, seen, &work, &found);
     skipped_ = work.skipped();
     return FinishObservations(gray, found, options_.refine_corners, options_.min_side_px);
   }
@@ -69,7 +77,8 @@ class DataMatrixDetector : public MarkerDetector {
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_.gray = ToGray8(image);
     FrameWork work(options_.live_budget_ms);
-    staged_.raw = FirstPass(staged_.gray, &work);
+    staged_seen_.clear();
+    staged_.raw = FirstPass(staged_.gray, &work, &staged_seen_);
     staged_.refined = RefineObservations(staged_.gray, staged_.raw, options_.refine_corners);
     staged_.started = true;
     skipped_ = work.skipped();
@@ -80,7 +89,7 @@ class DataMatrixDetector : public MarkerDetector {
     staged_.CheckStarted();
     FrameWork work(options_.live_budget_ms);
     std::vector<MarkerObservation> found = staged_.raw;
-    if (options_.second_pass) SecondPasses(staged_.gray, &work, &found);
+    if (options_.second_pass) SecondPasses(staged_.gray, staged_seen_, &work, &found);
     skipped_ = work.skipped();
     const cv::Mat& gray = staged_.gray;
     const bool refine = options_.refine_corners;
@@ -91,7 +100,10 @@ class DataMatrixDetector : public MarkerDetector {
   }
 
  private:
-  std::vector<MarkerObservation> FirstPass(const cv::Mat& gray, FrameWork* work) const {
+  // *seen: the centres of the candidates that passed the timing-side test and whose patch passed
+  // RectifyDataMatrixCandidate's tests (something DataMatrix-like), for the second pass.
+  std::vector<MarkerObservation> FirstPass(const cv::Mat& gray, FrameWork* work,
+                                           std::vector<Eigen::Vector2d>* seen) const {
     std::vector<MarkerObservation> found;
     // Pass 1: Waymark's own candidates (the L finder and the timing pattern), each rectified
     // onto its own small patch (detect/quads.h) and tested there; of those that pass, the
@@ -105,17 +117,19 @@ class DataMatrixDetector : public MarkerDetector {
     quads.insert(quads.end(), coarse.begin(), coarse.end());
     const std::vector<DataMatrixCandidate> candidates =
         DataMatrixCandidates(quads, kPatchTestsPerDecode * options_.max_datamatrix_candidates);
-    std::vector<char> failed(candidates.size(), 0);  // its patch failed the test or the decoders
+    // 1: its patch failed the patch test or the decoders; 2: it failed the timing-side test.
+    std::vector<char> failed(candidates.size(), 0);
     for (size_t ci = 0; ci < candidates.size(); ++ci) {
       const DataMatrixCandidate& candidate = candidates[ci];
-      std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
+      bool timing_side = true;
+      std::optional<DataMatrixPatch> patch = TestedPatch(gray, candidate, seen, &timing_side);
       if (patch) {
         // No quiet zone along most of a leg: an L-shaped part of something larger.
         if (patch->quiet_zone_dark > kQuietMaxDark) continue;
         patches.push_back(std::move(*patch));
         patch_index.push_back(static_cast<int>(ci));
       } else {
-        failed[ci] = 1;
+        failed[ci] = timing_side ? 1 : 2;
       }
     }
     std::vector<size_t> order(patches.size());
@@ -136,17 +150,20 @@ class DataMatrixDetector : public MarkerDetector {
     // Candidates whose patch failed the test or the decoders, best first: their sides refitted
     // to the symbol's outer module rows in the patch (RefitDataMatrixCandidate: a hull's quad
     // that took in the quiet zone or stopped a module short), tested and read again, within
-    // the same decode bound.
+    // the same decode bound. Not those without a timing pattern along any side (failed 2):
+    // traced on the recall bench's 900 frames (issue and hard renders, seeds 1-3), 89 % of the
+    // refits (about 14 of the 16 per frame, each a warp) were of such candidates and none read,
+    // while the 11 symbols read from a refit all came from candidates with one.
     int refits = 0;
     for (size_t ci = 0; ci < candidates.size() && refits < options_.max_datamatrix_candidates &&
                         decoded < options_.max_datamatrix_candidates;
          ++ci) {
-      if (!failed[ci]) continue;
+      if (failed[ci] != 1) continue;
       if (AnyObservationAt(found, QuadCenter(candidates[ci].corners_px))) continue;
       ++refits;
       const std::optional<DataMatrixCandidate> refit = RefitDataMatrixCandidate(gray, candidates[ci]);
       if (!refit) continue;
-      std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, *refit);
+      std::optional<DataMatrixPatch> patch = TestedPatch(gray, *refit, seen, nullptr);
       if (!patch || patch->quiet_zone_dark > kQuietMaxDark || !work->Allow()) continue;
       ++decoded;
       AppendUnique(DecodeDataMatrixPatch(*patch), &found);
@@ -154,16 +171,44 @@ class DataMatrixDetector : public MarkerDetector {
     return found;
   }
 
-  void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* found) const {
-    // Pass 2, for symbols whose L the candidate stage did not see (glare, a bar across it,
-    // a symbol touching other dark things): zxing on the candidate regions holding no
-    // symbol yet, then on small ones upscaled.
-    const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
-    RunSecondPass(
-        gray, regions,
-        {[](const cv::Mat& crop) { return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{}); },
-         [](const cv::Mat& crop) { return ReadUpscaled(crop); }},
-        work, found);
+  // The candidate's patch when it shows a timing pattern along one side (kMinTimingSideRuns;
+  // *timing_side, when not null, says whether it did) and passes RectifyDataMatrixCandidate's
+  // tests (then its centre is appended to *seen).
+  static std::optional<DataMatrixPatch> TestedPatch(const cv::Mat& gray, const DataMatrixCandidate& candidate,
+                                                    std::vector<Eigen::Vector2d>* seen, bool* timing_side) {
+    // The timing side first: it samples the frame where the patch's pixels would be, without
+    // the warp (most candidates fail it).
+    const bool shows = DataMatrixTimingSideRuns(gray, candidate.corners_px) >= kMinTimingSideRuns;
+    if (timing_side != nullptr) *timing_side = shows;
+    if (!shows) return std::nullopt;
+    std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
+    if (patch) seen->push_back(QuadCenter(candidate.corners_px));
+    return patch;
+  }
+
+  void SecondPasses(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& seen, FrameWork* work,
+                    std::vector<MarkerObservation>* found) const {
+    // Pass 2, for symbols whose L the candidate stage did not see or whose patch did not read
+    // (glare, a bar across the L, a symbol touching other dark things): zxing on the candidate
+    // regions holding no symbol yet, then, where the region holds the centre of a candidate
+    // that passed the timing-side and patch tests (FirstPass's *seen: something
+    // DataMatrix-like), on small ones upscaled. Traced on the recall bench's 900 frames (issue and hard
+    // renders, seeds 1-3) before issue 14's sixth round, when every small region was also read upscaled: 6502
+    // upscaled reads (1.0 ms per frame) read nothing; the plain reads (0.7 ms per frame) read 3 symbols.
+    // Limiting the plain reads the same way lost 11 of the 26 symbols read on the datamatrix-1 photos.
+    const CropAttempt plain = [](const cv::Mat& crop) {
+      return ReadWithZxing(crop, ZxingSymbology::kDataMatrix, ZxingPass{});
+    };
+    const std::vector<CropAttempt> plain_only = {plain};
+    const std::vector<CropAttempt> plain_then_upscaled = {
+        plain, [](const cv::Mat& crop) { return ReadUpscaled(crop); }};
+    for (const cv::Rect& region : SecondPassRegions(gray, options_.max_candidates, options_.close_up)) {
+      const bool something = std::any_of(seen.begin(), seen.end(), [&region](const Eigen::Vector2d& c) {
+        return c.x() >= region.x && c.y() >= region.y && c.x() < region.x + region.width &&
+               c.y() < region.y + region.height;
+      });
+      RunSecondPass(gray, {region}, something ? plain_then_upscaled : plain_only, work, found);
+    }
   }
 
   static std::vector<MarkerObservation> ReadUpscaled(const cv::Mat& crop) {
@@ -178,6 +223,7 @@ class DataMatrixDetector : public MarkerDetector {
   DetectorOptions options_;
   int skipped_ = 0;
   StagedDetection staged_;
+  std::vector<Eigen::Vector2d> staged_seen_;  // FirstPass's *seen for the staged second pass
 };
 
 // Owns libdmtx's objects for one scan.
@@ -236,9 +282,14 @@ constexpr double kPatchMarginFraction = 0.3;
 // frames (issue and hard renders, seeds 1-3) needed 9 different seeds, 462 of 468 one at the
 // middle of the legs; a candidate that is no symbol (about 10 per frame) fails all 18, about
 // 0.8 ms. So the seeds at 0.3 and 0.7 of the side are tried only on patches whose timing pattern
-// alternates clearly (kTimingFirstRuns): the same symbols read on those frames.
+// alternates clearly: two adjacent sides with at least 4 dark runs each (timing_runs; the dark
+// modules of the shortest DataMatrix side; 3 before issue 14's sixth round). Traced on those
+// 900 frames: each of the 7 symbols (of 571) these seeds read had 4 or more, while the 907
+// patches with 3 that passed the timing-side test (DataMatrixTimingSideRuns) read nothing and
+// paid all 18 seeds (1.3 ms per frame in all, at load 4-6).
 constexpr double kSeedFractions[] = {0.5, 0.3, 0.7};
 constexpr int kSeedFractionsForAll = 1;
+constexpr int kAllSeedsTimingRuns = 4;
 constexpr int kSeedOffsetsPx[] = {0, -1, 1};
 // A decoded symbol must lie where its candidate is (fraction of the candidate's side) and be
 // of about its size.
@@ -304,21 +355,90 @@ struct PatchLevels {
   double light = 0.0;
   std::vector<double> inside;  // the 9 x 9 grid's samples (partially sorted)
 };
-PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
+// `at(x, y)`: the patch's gray level at patch pixel (x, y) (PatchAt, or the frame sampled where
+// the patch's pixel would be, as DataMatrixTimingSideRuns does).
+template <typename At>
+PatchLevels LegAndLightLevelsWith(const At& at, double m, double s) {
   std::vector<double> leg, inside;
   for (int k = 0; k < kPlausibleSamples; ++k) {
     const double t = 0.08 + 0.84 * k / (kPlausibleSamples - 1);
-    leg.push_back(PatchAt(patch, m + 0.03 * s, m + t * s));
-    leg.push_back(PatchAt(patch, m + t * s, m + s - 1 - 0.03 * s));
+    leg.push_back(at(m + 0.03 * s, m + t * s));
+    leg.push_back(at(m + t * s, m + s - 1 - 0.03 * s));
   }
   for (int i = 0; i < 9; ++i) {
     for (int j = 0; j < 9; ++j)
-      inside.push_back(PatchAt(patch, m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
+      inside.push_back(at(m + s * (0.15 + 0.7 * i / 8.0), m + s * (0.15 + 0.7 * j / 8.0)));
   }
   std::nth_element(leg.begin(), leg.begin() + leg.size() / 2, leg.end());
   std::nth_element(inside.begin(), inside.begin() + inside.size() * 9 / 10, inside.end());
   const double dark = leg[leg.size() / 2], light = inside[inside.size() * 9 / 10];
   return {dark, light, std::move(inside)};
+}
+PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
+  return LegAndLightLevelsWith([&patch](double x, double y) { return PatchAt(patch, x, y); }, m, s);
+}
+
+// The most dark runs (gray level under `threshold`) along any of the timing lines of side
+// `which` (0 top, 1 right, 2 bottom, 3 left) of a patch with the symbol's `s` px at (m, m):
+// lines parallel to the side at kTimingDepths of the side inside it (the candidate's far
+// corner can be a few pixels off), kTimingSamples samples each over 4-96 % of it.
+template <typename At>
+int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which) {
+  int most = 0;
+  long done[std::size(kTimingDepths)];  // the pixel row (column) of each line sampled so far
+  size_t lines = 0;
+  for (const double depth : kTimingDepths) {
+    // A line on the same pixel row (column) as one already sampled gives the same runs: the
+    // samples are the nearest pixels.
+    const double in = depth * s;
+    const long fixed = std::lround(which == 0   ? m + in
+                                   : which == 1 ? m + s - 1 - in
+                                   : which == 2 ? m + s - 1 - in
+                                                : m + in);
+    if (std::find(done, done + lines, fixed) != done + lines) continue;
+    done[lines++] = fixed;
+    int runs = 0;
+    bool previous = false;
+    for (int k = 0; k < kTimingSamples; ++k) {
+      const double t = 0.04 + 0.92 * k / (kTimingSamples - 1);
+      const double along = t * s;
+      const double g = which == 0   ? at(m + along, m + in)
+                       : which == 1 ? at(m + s - 1 - in, m + along)
+                       : which == 2 ? at(m + along, m + s - 1 - in)
+                                    : at(m + in, m + along);
+      const bool is_dark = g < threshold;
+      runs += is_dark && !previous;
+      previous = is_dark;
+    }
+    most = std::max(most, runs);
+  }
+  return most;
+}
+int SideDarkRuns(const cv::Mat& patch, double m, double s, double threshold, int which) {
+  return SideDarkRunsWith([&patch](double x, double y) { return PatchAt(patch, x, y); }, m, s, threshold,
+                          which);
+}
+
+// The rectified patch's geometry for a candidate (RectifyDataMatrixCandidate): the symbol's side
+// (kPatchMinSidePx-kPatchMaxSidePx), the margin, and the homography from patch to frame pixels.
+struct PatchGeometry {
+  int side = 0;
+  int margin = 0;
+  cv::Matx33d patch_to_frame;
+};
+PatchGeometry PatchGeometryOf(const Quad2d& corners_px) {
+  PatchGeometry out;
+  out.side =
+      std::clamp(static_cast<int>(std::lround(QuadMeanSide(corners_px))), kPatchMinSidePx, kPatchMaxSidePx);
+  out.margin = static_cast<int>(std::lround(kPatchMarginFraction * out.side));
+  const double lo = out.margin - 0.5,
+               hi = out.margin + out.side - 0.5;  // outer edges, pixel-centre coordinates
+  std::vector<cv::Point2f> patch_pts = {
+      {float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
+  std::vector<cv::Point2f> frame_pts;
+  for (const Eigen::Vector2d& c : corners_px) frame_pts.emplace_back(float(c.x()), float(c.y()));
+  out.patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
+  return out;
 }
 
 }  // namespace
@@ -326,7 +446,6 @@ PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
 bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* timing_runs) {
   if (timing_runs != nullptr) *timing_runs = 0;
   CV_Assert(patch.type() == CV_8UC1);
-  const auto at = [&patch](double x, double y) { return PatchAt(patch, x, y); };
   const double m = margin, s = side;
   const PatchLevels levels = LegAndLightLevels(patch, m, s);
   const double contrast = levels.light - levels.dark;
@@ -339,35 +458,52 @@ bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* t
       static_cast<double>(inside.size());
   if (inside_dark < kPlausibleInsideDark[0] || inside_dark > kPlausibleInsideDark[1]) return false;
   // The timing pattern: two adjacent sides alternate (the candidate's orientation may be a
-  // quarter turn off: libdmtx, seeded on any leg, still finds the L). Each side is sampled
-  // along lines at a few depths about it (the candidate's far corner can be a few pixels
-  // off); a side's evidence is the most dark runs along any of them, the patch's the larger
-  // of the smaller of two adjacent sides'.
-  const auto side_runs = [&](int which) {
-    int most = 0;
-    for (const double depth : kTimingDepths) {
-      int runs = 0;
-      bool previous = false;
-      for (int k = 0; k < kTimingSamples; ++k) {
-        const double t = 0.04 + 0.92 * k / (kTimingSamples - 1);
-        const double in = depth * s, along = t * s;
-        const double g = which == 0   ? at(m + along, m + in)
-                         : which == 1 ? at(m + s - 1 - in, m + along)
-                         : which == 2 ? at(m + along, m + s - 1 - in)
-                                      : at(m + in, m + along);
-        const bool is_dark = g < threshold;
-        runs += is_dark && !previous;
-        previous = is_dark;
-      }
-      most = std::max(most, runs);
-    }
-    return most;
-  };
-  const int runs[4] = {side_runs(0), side_runs(1), side_runs(2), side_runs(3)};
+  // quarter turn off: libdmtx, seeded on any leg, still finds the L). A side's evidence is the
+  // most dark runs along any of its lines (SideDarkRuns), the patch's the larger of the
+  // smaller of two adjacent sides'.
+  const int runs[4] = {SideDarkRuns(patch, m, s, threshold, 0), SideDarkRuns(patch, m, s, threshold, 1),
+                       SideDarkRuns(patch, m, s, threshold, 2), SideDarkRuns(patch, m, s, threshold, 3)};
   int evidence = 0;
   for (int k = 0; k < 4; ++k) evidence = std::max(evidence, std::min(runs[k], runs[(k + 1) % 4]));
   if (timing_runs != nullptr) *timing_runs = evidence;
   return evidence >= kTimingMinRuns;
+}
+
+int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
+  CV_Assert(gray.type() == CV_8UC1 && !gray.empty());
+  // The patch RectifyDataMatrixCandidate would warp, sampled where its pixels are: each
+  // sample's patch pixel (nearest, clamped to the patch, as PatchAt) mapped into the frame and
+  // interpolated there (bilinear, the frame's border replicated, as the warp).
+  const PatchGeometry geometry = PatchGeometryOf(corners_px);
+  const int size = geometry.side + 2 * geometry.margin;
+  const cv::Matx33d& h = geometry.patch_to_frame;
+  int last_c = -1, last_r = -1;  // the last sample's patch pixel and value (lines revisit a pixel)
+  double last = 0.0;
+  const auto at = [&](double x, double y) {
+    const int c = std::clamp(static_cast<int>(std::lround(x)), 0, size - 1);
+    const int r = std::clamp(static_cast<int>(std::lround(y)), 0, size - 1);
+    if (c == last_c && r == last_r) return last;
+    last_c = c;
+    last_r = r;
+    const cv::Vec3d q = h * cv::Vec3d(c, r, 1.0);
+    const double fx = std::clamp(q[0] / q[2], 0.0, gray.cols - 1.0),
+                 fy = std::clamp(q[1] / q[2], 0.0, gray.rows - 1.0);
+    const int x0 = std::max(0, std::min(static_cast<int>(fx), gray.cols - 2));
+    const int y0 = std::max(0, std::min(static_cast<int>(fy), gray.rows - 2));
+    const int x1 = std::min(x0 + 1, gray.cols - 1), y1 = std::min(y0 + 1, gray.rows - 1);
+    const double ax = fx - x0, ay = fy - y0;
+    const double top = (1 - ax) * gray.at<uint8_t>(y0, x0) + ax * gray.at<uint8_t>(y0, x1);
+    const double bottom = (1 - ax) * gray.at<uint8_t>(y1, x0) + ax * gray.at<uint8_t>(y1, x1);
+    last = std::round((1 - ay) * top + ay * bottom);
+    return last;
+  };
+  const double m = geometry.margin, s = geometry.side;
+  const PatchLevels levels = LegAndLightLevelsWith(at, m, s);
+  if (levels.light - levels.dark < kPlausibleMinContrast) return 0;
+  const double threshold = levels.dark + 0.5 * (levels.light - levels.dark);
+  int most = 0;
+  for (int which = 0; which < 4; ++which) most = std::max(most, SideDarkRunsWith(at, m, s, threshold, which));
+  return most;
 }
 
 double DataMatrixQuietZoneDark(const cv::Mat& patch, int margin, int side) {
@@ -413,17 +549,11 @@ DataMatrixPatch WarpDataMatrixCandidate(const cv::Mat& gray, const DataMatrixCan
   CV_Assert(gray.type() == CV_8UC1);
   DataMatrixPatch out;
   out.candidate = candidate;
-  out.side = std::clamp(static_cast<int>(std::lround(QuadMeanSide(candidate.corners_px))), kPatchMinSidePx,
-                        kPatchMaxSidePx);
-  out.margin = static_cast<int>(std::lround(kPatchMarginFraction * out.side));
+  const PatchGeometry geometry = PatchGeometryOf(candidate.corners_px);
+  out.side = geometry.side;
+  out.margin = geometry.margin;
+  out.patch_to_frame = geometry.patch_to_frame;
   const int size = out.side + 2 * out.margin;
-  const double lo = out.margin - 0.5,
-               hi = out.margin + out.side - 0.5;  // outer edges, pixel-centre coordinates
-  std::vector<cv::Point2f> patch_pts = {
-      {float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
-  std::vector<cv::Point2f> frame_pts;
-  for (const Eigen::Vector2d& c : candidate.corners_px) frame_pts.emplace_back(float(c.x()), float(c.y()));
-  out.patch_to_frame = cv::getPerspectiveTransform(patch_pts, frame_pts);
   cv::warpPerspective(gray, out.patch, cv::Mat(out.patch_to_frame), cv::Size(size, size),
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
   return out;
@@ -540,9 +670,9 @@ std::vector<MarkerObservation> DecodeDataMatrixPatch(const DataMatrixPatch& rect
   }
   if (scan.decode != nullptr) {
     // Every patch gets the seeds at the middle of the legs; only a patch with a clear timing
-    // pattern the others (which read 6 of 468 symbols, while every candidate that is no symbol
-    // fails all of them).
-    const int fractions = rectified.timing_runs >= kTimingFirstRuns
+    // pattern (kAllSeedsTimingRuns) the others (which read 7 of 571 symbols, while every
+    // candidate that is no symbol fails all of them).
+    const int fractions = rectified.timing_runs >= kAllSeedsTimingRuns
                               ? static_cast<int>(std::size(kSeedFractions))
                               : kSeedFractionsForAll;
     for (int f = 0; f < fractions; ++f) {

@@ -3,7 +3,8 @@
 // Pass 1: Waymark's own candidates (detect/quads.h: dark components whose quad shows the
 // solid L finder and the dashed timing pattern, or an L alone), best first, at most 4 x
 // DetectorOptions::max_datamatrix_candidates per frame rectified onto a small upright patch
-// and tested there (RectifyDataMatrixCandidate: contrast, a mixed inside, a timing pattern);
+// and tested there (first at least 4 dark runs along one side, DataMatrixTimingSideRuns, then
+// RectifyDataMatrixCandidate: contrast, a mixed inside, a timing pattern);
 // of those that pass, the ones with a clear timing pattern first, at most
 // max_datamatrix_candidates not already holding a decoded symbol are read
 // (DecodeDataMatrixPatch): libdmtx started only at seed pixels on the L's two outer edges,
@@ -13,7 +14,8 @@
 // ([George]: Canny, dilation, scored bounding boxes; FindCodeCandidates, at most
 // max_candidates, plus the whole image when it is at most 640x480) holding no symbol yet
 // (zxing 1.4 searches outwards from the image centre, so each crop is centred on its
-// candidate), then on small crops (<= 240 px) upscaled 2x.
+// candidate), then on small crops (<= 240 px) upscaled 2x where the crop holds the centre of
+// a candidate that passed the timing-side test and RectifyDataMatrixCandidate's tests.
 // All work is bounded by those counts (no clock offline); in a live loop
 // (DetectorOptions::live_budget_ms) attempts past the budget are skipped and counted.
 // libdmtx's image origin is the bottom-left corner with y up; its fitted grid maps the
@@ -36,6 +38,15 @@ std::unique_ptr<MarkerDetector> CreateDataMatrixDetector(const DetectorOptions& 
 // loops): libdmtx's wall-clock timeout, nothing under 1 ms. Exposed for tests and the
 // benchmark.
 std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeout_ms, int max_symbols = 1);
+
+// The most dark runs along the timing lines of any one side of the patch a candidate with
+// these corners would be rectified onto (RectifyDataMatrixCandidate; lines parallel to each side
+// from 3 % of the side outside to 8 % inside, thresholded halfway between the L and the lightest
+// modules inside, as DataMatrixPatchPlausible), sampled in `gray` (8-bit) where the patch's
+// pixels would be, without warping; 0 when the patch has under 8 gray levels of contrast. A
+// DataMatrix symbol's timing sides alternate dark and light modules, at least 4 dark ones on
+// its shortest side (8 x 18): the detector warps and decodes no candidate with fewer.
+int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px);
 
 // The candidate with its four sides moved onto the symbol's outermost module rows and columns,
 // found in its rectified patch: from a quarter of the side inside, outwards while a line

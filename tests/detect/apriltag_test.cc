@@ -145,6 +145,40 @@ TEST(DetectAprilTag, SmallAndLargeTagsAtTheDefaultDecimation) {
   }
 }
 
+// Low light (issue 14, sixth round: libapriltag ignores tiles whose gray levels span under 15,
+// in the crops of the candidate quads too): tags 24-150 px drawn at a fifth of full exposure
+// (dark 12, light 55), blurred and with sensor noise, among faint clutter, are all read.
+TEST(DetectAprilTag, LowLightTagsAreRead) {
+  cv::Mat image(960, 1280, CV_8U, cv::Scalar(45));
+  cv::RNG rng(14);
+  for (int k = 0; k < 40; ++k) {  // faint clutter
+    const cv::Point p(rng.uniform(0, 1280), rng.uniform(0, 960));
+    cv::rectangle(image, cv::Rect(p, cv::Size(rng.uniform(5, 60), rng.uniform(5, 60))),
+                  cv::Scalar(rng.uniform(30, 50)), k % 2 == 0 ? cv::FILLED : 2);
+  }
+  const double sides[] = {24.0, 32.0, 44.0, 60.0, 94.0, 150.0};
+  std::vector<Quad2d> truth;
+  for (int i = 0; i < 6; ++i) {
+    truth.push_back(MakeQuad({150.0 + 200 * i, 300.0 + 60 * i}, sides[i], 0.4 * i, 0.8));
+    DrawSymbol(AprilTagSymbol("apriltag-36h11", 20 + i), truth.back(), &image, 12, 55);
+  }
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+  cv::Mat noise(image.size(), CV_16S);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 2);
+  cv::Mat noisy;
+  image.convertTo(noisy, CV_16S);
+  noisy += noise;
+  noisy.convertTo(image, CV_8U);
+  const auto found = CreateDetector("apriltag-36h11")->Detect(image);
+  ASSERT_EQ(found.size(), 6u);
+  for (const MarkerObservation& obs : found) {
+    const int i = std::stoi(obs.key.id) - 20;
+    ASSERT_GE(i, 0);
+    ASSERT_LT(i, 6);
+    EXPECT_LT(MaxCornerError(obs.corners_px, truth[i]), 0.3) << sides[i] << " px";
+  }
+}
+
 TEST(DetectAprilTag, BlankNoiseAndBadInput) {
   auto detector = CreateDetector("apriltag-36h11");
   EXPECT_TRUE(detector->Detect(Canvas()).empty());

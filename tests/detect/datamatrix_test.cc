@@ -216,6 +216,85 @@ TEST(DetectDataMatrix, RefitMovesCandidateSidesOntoTheSymbol) {
   EXPECT_FALSE(RefitDataMatrixCandidate(Canvas(320, 320), blank).has_value());
 }
 
+// The test before the decoders (DataMatrixTimingSideRuns >= 4: a side with at least the 4 dark
+// timing modules of the shortest DataMatrix side): every symbol of a fixed-seed set passes
+// (five sizes from 10 x 10 modules up, 30-180 px at 2.5 px per module or more, turned, under perspective,
+// blurred, with noise, its candidate's corners up to 1.5 px off, the candidate a quarter turn off too);
+// clutter with an L fails: the corner of a frame, a checkerboard in a frame's corner, an L with three dashes
+// along its other sides (DataMatrixPatchPlausible's two runs pass it), text inside an L.
+TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
+  cv::RNG rng(14);
+  const std::string texts[] = {"A", "D4711", "WAYMARK-14", "aisle 12 shelf 7 bin 3",
+                               "0123456789012345678901234567890123456789"};
+  int tried = 0;
+  for (const std::string& text : texts) {
+    const SymbolImage symbol = DataMatrixSymbol(text);
+    for (const double side : {30.0, 60.0, 110.0, 180.0}) {
+      if (side < 2.5 * symbol.symbol.width) continue;  // under 2.5 px per module: no decoder reads it
+      for (const double squeeze : {1.0, 0.7}) {
+        cv::Mat image = Canvas(400, 400);
+        const Quad2d truth = MakeQuad({200.0, 200.0}, side, rng.uniform(0.0, 2 * M_PI), squeeze);
+        DrawSymbol(symbol, truth, &image, 30, 210);
+        cv::GaussianBlur(image, image, cv::Size(0, 0), rng.uniform(0.5, 1.0));
+        cv::Mat noise(image.size(), CV_8S);
+        rng.fill(noise, cv::RNG::NORMAL, 0, 3);
+        image.convertTo(image, CV_16S);
+        cv::add(image, noise, image, cv::noArray(), CV_16S);
+        image.convertTo(image, CV_8U);
+        for (const int turn : {0, 1}) {
+          DataMatrixCandidate candidate;
+          for (int i = 0; i < 4; ++i) {
+            candidate.corners_px[i] =
+                truth[(i + turn) % 4] + Eigen::Vector2d(rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5));
+          }
+          EXPECT_TRUE(RectifyDataMatrixCandidate(image, candidate).has_value())
+              << text << " side " << side << " turn " << turn;
+          EXPECT_GE(DataMatrixTimingSideRuns(image, candidate.corners_px), 4)
+              << text << " side " << side << " squeeze " << squeeze << " turn " << turn;
+          ++tried;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(tried, 68);
+
+  const int side = 60, margin = 18, size = side + 2 * margin;
+  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
+                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
+  cv::Mat frame(size, size, CV_8U, cv::Scalar(220));
+  cv::rectangle(frame, cv::Rect(margin, margin, 6, side), cv::Scalar(25), cv::FILLED);
+  cv::rectangle(frame, cv::Rect(margin, margin + side - 6, side, 6), cv::Scalar(25), cv::FILLED);
+  EXPECT_LT(DataMatrixTimingSideRuns(frame, square), 4);
+  cv::Mat checker = frame.clone();
+  for (int y = margin + 10; y < margin + side - 8; y += 8) {
+    for (int x = margin + 8; x < margin + side - 10; x += 8) {
+      if (((x + y) / 8) % 2 == 0) cv::rectangle(checker, cv::Rect(x, y, 8, 8), cv::Scalar(25), cv::FILLED);
+    }
+  }
+  EXPECT_LT(DataMatrixTimingSideRuns(checker, square), 4);
+  // Three dashes along the top and the right side, a mixed inside.
+  cv::Mat dashed = checker.clone();
+  for (int k = 0; k < 3; ++k) {
+    cv::rectangle(dashed, cv::Rect(margin + 4 + 20 * k, margin, 10, 4), cv::Scalar(25), cv::FILLED);
+    cv::rectangle(dashed, cv::Rect(margin + side - 4, margin + 4 + 20 * k, 4, 10), cv::Scalar(25),
+                  cv::FILLED);
+  }
+  cv::GaussianBlur(dashed, dashed, cv::Size(0, 0), 0.7);
+  int runs = 0;
+  EXPECT_TRUE(DataMatrixPatchPlausible(dashed, margin, side, &runs));
+  EXPECT_EQ(runs, 3);
+  EXPECT_EQ(DataMatrixTimingSideRuns(dashed, square), 3);
+  cv::Mat text = frame.clone();
+  cv::putText(text, "EXIT", cv::Point(margin + 10, margin + 30), cv::FONT_HERSHEY_SIMPLEX, 0.5,
+              cv::Scalar(25), 2);
+  cv::putText(text, "B12", cv::Point(margin + 12, margin + 46), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(25),
+              2);
+  EXPECT_LT(DataMatrixTimingSideRuns(text, square), 4);
+  EXPECT_EQ(DataMatrixTimingSideRuns(cv::Mat(size, size, CV_8U, cv::Scalar(128)), square), 0);
+}
+
 TEST(DetectDataMatrix, BlankNoiseAndBadInput) {
   auto detector = CreateDetector("datamatrix");
   EXPECT_TRUE(detector->Detect(Canvas()).empty());
