@@ -53,6 +53,19 @@ void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
   }
 }
 
+// The column sums of the first row's box: over rows -r .. r (clamped: the border
+// replicated), padded by r zero columns on each side (filled by the callers).
+std::vector<uint16_t> FirstColumnSums(const cv::Mat& gray, int r) {
+  const int rows = gray.rows, cols = gray.cols;
+  std::vector<uint16_t> column(cols + 2 * r, 0);
+  uint16_t* const c = column.data() + r;
+  for (int dy = -r; dy <= r; ++dy) {
+    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
+    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
+  }
+  return column;
+}
+
 // DarkerThanLocalMean for boxes over 15 px (the QR finder search's, up to 101): 16-bit column
 // sums (at most 255 x 101) slid down the rows, each row's box sums as differences of a 32-bit
 // running sum along it.
@@ -64,12 +77,8 @@ cv::Mat DarkerThanLocalMeanWide(const cv::Mat& gray, int box, int darker_by) {
   // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
   // columns on each side with the border columns' sums.
   const int padded_cols = cols + 2 * r;
-  std::vector<uint16_t> column(padded_cols, 0);
+  std::vector<uint16_t> column = FirstColumnSums(gray, r);
   uint16_t* const c = column.data() + r;
-  for (int dy = -r; dy <= r; ++dy) {
-    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
-    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
-  }
   // As below: dark when sum >= area pixel + t, t = ceil(area (2 darker_by - 1) / 2).
   const int area = box * box;
   const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
@@ -110,12 +119,8 @@ cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
   // columns on each side with the border columns' sums; updated row by row. Unsigned 16-bit
   // arithmetic wraps, but every sum fits, so the wrapped differences are exact.
   const int padded_cols = cols + 2 * r;
-  std::vector<uint16_t> column(padded_cols, 0);
+  std::vector<uint16_t> column = FirstColumnSums(gray, r);
   uint16_t* const c = column.data() + r;
-  for (int dy = -r; dy <= r; ++dy) {
-    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
-    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
-  }
   // Sums of 2, 4 and 8 neighbouring columns: a box sum is the sum of a few of them (its
   // width in binary), each pass a plain loop the compiler vectorizes.
   std::vector<uint16_t> pow2[3];

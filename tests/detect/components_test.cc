@@ -110,16 +110,18 @@ TEST(DetectComponents, KeepFiltersByBoxAndCornerCases) {
   EXPECT_EQ(in_view[0].box, cv::Rect(1, 1, 20, 10));
 }
 
-TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
-  cv::RNG rng(11);
-  for (int trial = 0; trial < 24; ++trial) {
-    const int cols = 1 + rng.uniform(0, 120), rows = 1 + rng.uniform(0, 90);
+// DarkerThanLocalMean against cv::adaptiveThreshold on `trials` random images of up to
+// max_cols x max_rows (every other one blurred), for each box and offset.
+void ExpectAdaptiveThreshold(cv::RNG& rng, int trials, int max_cols, int max_rows, int blur_box, double blur_sigma,
+                             const std::vector<int>& boxes, const std::vector<int>& darker_bys) {
+  for (int trial = 0; trial < trials; ++trial) {
+    const int cols = 1 + rng.uniform(0, max_cols), rows = 1 + rng.uniform(0, max_rows);
     cv::Mat gray(rows, cols, CV_8U);
     // Smooth shapes and noise: many pixels near the threshold.
     rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
-    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(5, 5), 2.0);
-    for (const int box : {3, 5, 7, 9, 15}) {
-      for (const int darker_by : {0, 7, 20}) {
+    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(blur_box, blur_box), blur_sigma);
+    for (const int box : boxes) {
+      for (const int darker_by : darker_bys) {
         cv::Mat expected;
         cv::adaptiveThreshold(gray, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, box,
                               darker_by);
@@ -129,24 +131,14 @@ TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
       }
     }
   }
+}
+
+TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
+  cv::RNG rng(11);
+  ExpectAdaptiveThreshold(rng, 24, 120, 90, 5, 2.0, {3, 5, 7, 9, 15}, {0, 7, 20});
   // Boxes over 15 px (the QR finder search's, block = side / 8 up to 101), 32-bit sums: images
   // smaller and larger than the box.
-  for (int trial = 0; trial < 12; ++trial) {
-    const int cols = 1 + rng.uniform(0, 330), rows = 1 + rng.uniform(0, 260);
-    cv::Mat gray(rows, cols, CV_8U);
-    rng.fill(gray, cv::RNG::UNIFORM, 0, 256);
-    if (trial % 2 == 0) cv::GaussianBlur(gray, gray, cv::Size(9, 9), 4.0);
-    for (const int box : {17, 29, 31, 63, 101}) {
-      for (const int darker_by : {0, 4, 9}) {
-        cv::Mat expected;
-        cv::adaptiveThreshold(gray, expected, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, box,
-                              darker_by);
-        const cv::Mat dark = DarkerThanLocalMean(gray, box, darker_by);
-        ASSERT_EQ(cv::countNonZero(dark != expected), 0)
-            << "trial " << trial << " " << cols << "x" << rows << " box " << box << " by " << darker_by;
-      }
-    }
-  }
+  ExpectAdaptiveThreshold(rng, 12, 330, 260, 9, 4.0, {17, 29, 31, 63, 101}, {0, 4, 9});
   // A view into a larger image: its own border is replicated (as BORDER_ISOLATED).
   cv::Mat big(100, 140, CV_8U);
   rng.fill(big, cv::RNG::UNIFORM, 0, 256);
