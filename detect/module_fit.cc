@@ -15,9 +15,9 @@ constexpr int kLinear = 4;              // a, b, c, d
 constexpr double kMinBlurPx = 0.15;
 constexpr double kMaxBlurPx = 4.0;
 constexpr double kStartBlurPx = 0.8;
-constexpr double kBlurReach = 3.0;  // modules within this many sigmas of a pixel enter its sum
+constexpr double kBlurReach = 3.0;      // modules within this many sigmas of a pixel enter its sum
 constexpr double kConvergedPx = 0.003;  // the last step's largest corner move
-constexpr double kHuber = 1.345;    // Huber threshold, robust sigmas
+constexpr double kHuber = 1.345;        // Huber threshold, robust sigmas
 constexpr double kInvSqrt2 = 0.70710678118654752440;
 constexpr double kInvSqrt2Pi = 0.39894228040143267794;
 
@@ -79,7 +79,7 @@ struct Pixel {
 
 // The model's prediction B and its derivatives at one pixel.
 struct Prediction {
-  double b = 0.0;       // blurred darkness, 0 (light) .. 1 (dark)
+  double b = 0.0;  // blurred darkness, 0 (light) .. 1 (dark)
   double du = 0.0, dv = 0.0, dsigma = 0.0;
   double u = 0.0, v = 0.0, w = 1.0;
 };
@@ -87,7 +87,10 @@ struct Prediction {
 class GridModel {
  public:
   GridModel(int n, const std::vector<uint8_t>& dark, double scale_px)
-      : n_(n), stride_(n + 2 * kPad), padded_(static_cast<size_t>(stride_) * stride_, 0), scale_px_(scale_px) {
+      : n_(n),
+        stride_(n + 2 * kPad),
+        padded_(static_cast<size_t>(stride_) * stride_, 0),
+        scale_px_(scale_px) {
     for (int j = 0; j < n; ++j) {
       for (int i = 0; i < n; ++i) padded_[(j + kPad) * stride_ + i + kPad] = dark[j * n + i] != 0 ? 1 : 0;
     }
@@ -211,8 +214,8 @@ Evaluation Solve(const std::vector<Pixel>& pixels, const std::vector<Prediction>
   out.linear = ldlt.solve(rhs);
   if (!out.linear.allFinite()) return out;
   for (size_t k = 0; k < pixels.size(); ++k) {
-    const double model_value = out.linear[0] + out.linear[1] * predictions[k].b + out.linear[2] * pixels[k].x +
-                               out.linear[3] * pixels[k].y;
+    const double model_value = out.linear[0] + out.linear[1] * predictions[k].b +
+                               out.linear[2] * pixels[k].x + out.linear[3] * pixels[k].y;
     const double r = pixels[k].value - model_value;
     out.cost += HuberCost(r, huber_k);
     out.sq_sum += r * r;
@@ -252,8 +255,8 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
   {
     const cv::Matx33d H0 = G0.inv();
     const double q = options.quiet_modules;
-    for (const cv::Point2d m : {cv::Point2d(-q, -q), cv::Point2d(n + q, -q), cv::Point2d(n + q, n + q),
-                                cv::Point2d(-q, n + q)}) {
+    for (const cv::Point2d m :
+         {cv::Point2d(-q, -q), cv::Point2d(n + q, -q), cv::Point2d(n + q, n + q), cv::Point2d(-q, n + q)}) {
       const cv::Vec3d p = H0 * cv::Vec3d(m.x, m.y, 1.0);
       if (!(std::abs(p[2]) > 1e-12)) return std::nullopt;
       outline.emplace_back(static_cast<int>(std::lround(p[0] / p[2] * scale_px + centre.x())),
@@ -261,7 +264,8 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
     }
   }
   const cv::Rect box = cv::boundingRect(outline);
-  if (box.x < 0 || box.y < 0 || box.x + box.width > gray.cols || box.y + box.height > gray.rows) return std::nullopt;
+  if (box.x < 0 || box.y < 0 || box.x + box.width > gray.cols || box.y + box.height > gray.rows)
+    return std::nullopt;
   if (static_cast<double>(box.area()) > options.max_box_pixels) return std::nullopt;
   const double q = options.quiet_modules;
   const auto inside = [&](int r, int c) {
@@ -285,7 +289,8 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
     for (int c = box.x; c < box.x + box.width; ++c) {
       if (keep > 1 && PositionHash(r, c) % keep != 0) continue;
       if (!inside(r, c)) continue;
-      pixels.push_back({(c - centre.x()) / scale_px, (r - centre.y()) / scale_px, static_cast<double>(row[c])});
+      pixels.push_back(
+          {(c - centre.x()) / scale_px, (r - centre.y()) / scale_px, static_cast<double>(row[c])});
     }
   }
   if (pixels.size() < static_cast<size_t>(4 * n)) {
@@ -325,7 +330,8 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
     for (size_t k = 0; k < pixels.size(); ++k) {
       const Prediction& pr = predictions[k];
       const Pixel& p = pixels[k];
-      const double r = p.value - (current.linear[0] + b * pr.b + current.linear[2] * p.x + current.linear[3] * p.y);
+      const double r =
+          p.value - (current.linear[0] + b * pr.b + current.linear[2] * p.x + current.linear[3] * p.y);
       weights[k] = HuberWeight(r, huber_k);
       if (pr.du == 0.0 && pr.dv == 0.0 && pr.dsigma == 0.0) continue;
       const double inv_w = 1.0 / pr.w;
@@ -360,12 +366,14 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
         // The step's largest corner move, in pixels.
         const cv::Matx33d before(params[0], params[1], params[2], params[3], params[4], params[5], params[6],
                                  params[7], 1.0);
-        const cv::Matx33d after(trial[0], trial[1], trial[2], trial[3], trial[4], trial[5], trial[6], trial[7], 1.0);
+        const cv::Matx33d after(trial[0], trial[1], trial[2], trial[3], trial[4], trial[5], trial[6],
+                                trial[7], 1.0);
         const cv::Matx33d hb = before.inv(), ha = after.inv();
         step_px = 0.0;
         for (const cv::Point2d m : module_corners) {
           const cv::Vec3d pb = hb * cv::Vec3d(m.x, m.y, 1.0), pa = ha * cv::Vec3d(m.x, m.y, 1.0);
-          step_px = std::max(step_px, scale_px * std::hypot(pa[0] / pa[2] - pb[0] / pb[2], pa[1] / pa[2] - pb[1] / pb[2]));
+          step_px = std::max(
+              step_px, scale_px * std::hypot(pa[0] / pa[2] - pb[0] / pb[2], pa[1] / pa[2] - pb[1] / pb[2]));
         }
         params = trial;
         current = e;
@@ -385,14 +393,16 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
   const Evaluation last = Solve(pixels, predictions, 1e300, nullptr);
   const double blur = params[kGeometry];
   if (!last.ok || !(last.linear[1] < 0.0) || blur <= kMinBlurPx || blur >= kMaxBlurPx) return std::nullopt;
-  const cv::Matx33d G(params[0], params[1], params[2], params[3], params[4], params[5], params[6], params[7], 1.0);
+  const cv::Matx33d G(params[0], params[1], params[2], params[3], params[4], params[5], params[6], params[7],
+                      1.0);
   const cv::Matx33d H = G.inv();
   ModuleFit fit;
   const double max_move = std::max(options.max_shift_px, options.max_shift_modules * module_px);
   for (int k = 0; k < 4; ++k) {
     const cv::Vec3d p = H * cv::Vec3d(module_corners[k].x, module_corners[k].y, 1.0);
     if (!(std::abs(p[2]) > 1e-12)) return std::nullopt;
-    fit.corners_px[k] = Eigen::Vector2d(p[0] / p[2] * scale_px + centre.x(), p[1] / p[2] * scale_px + centre.y());
+    fit.corners_px[k] =
+        Eigen::Vector2d(p[0] / p[2] * scale_px + centre.x(), p[1] / p[2] * scale_px + centre.y());
     if (!((fit.corners_px[k] - corners_px[k]).norm() <= max_move)) return std::nullopt;
   }
   fit.blur_px = blur;

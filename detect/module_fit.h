@@ -49,11 +49,11 @@ struct ModuleFitOptions {
 };
 
 struct ModuleFit {
-  Quad2d corners_px;            // the symbol's outer corners (docs/design.md order)
-  double blur_px = 0.0;         // fitted Gaussian sigma (blur and pixel footprint)
-  double contrast = 0.0;        // light minus dark gray level (-b)
-  double residual_rms = 0.0;    // gray levels, unweighted
-  double start_rms = 0.0;       // the same at the starting corners (blur 0.8 px)
+  Quad2d corners_px;          // the symbol's outer corners (docs/design.md order)
+  double blur_px = 0.0;       // fitted Gaussian sigma (blur and pixel footprint)
+  double contrast = 0.0;      // light minus dark gray level (-b)
+  double residual_rms = 0.0;  // gray levels, unweighted
+  double start_rms = 0.0;     // the same at the starting corners (blur 0.8 px)
   int pixels = 0;
   int iterations = 0;
 };
@@ -64,6 +64,7 @@ struct ModuleFit {
 // quiet zone, the fit does not converge to a blur of 0.15-4 px with the dark modules darker,
 // or a corner would move further than the options allow.
 std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corners_px, int n,
-                                       const std::vector<uint8_t>& dark, const ModuleFitOptions& options = {});
+                                       const std::vector<uint8_t>& dark,
+                                       const ModuleFitOptions& options = {});
 
 }  // namespace waymark

@@ -112,8 +112,9 @@ TEST(DetectComponents, KeepFiltersByBoxAndCornerCases) {
 
 // DarkerThanLocalMean against cv::adaptiveThreshold on `trials` random images of up to
 // max_cols x max_rows (every other one blurred), for each box and offset.
-void ExpectAdaptiveThreshold(cv::RNG& rng, int trials, int max_cols, int max_rows, int blur_box, double blur_sigma,
-                             const std::vector<int>& boxes, const std::vector<int>& darker_bys) {
+void ExpectAdaptiveThreshold(cv::RNG& rng, int trials, int max_cols, int max_rows, int blur_box,
+                             double blur_sigma, const std::vector<int>& boxes,
+                             const std::vector<int>& darker_bys) {
   for (int trial = 0; trial < trials; ++trial) {
     const int cols = 1 + rng.uniform(0, max_cols), rows = 1 + rng.uniform(0, max_rows);
     cv::Mat gray(rows, cols, CV_8U);
