@@ -117,6 +117,14 @@ class GridModel {
     const double vx = (g[3] - out.v * g[6]) * inv_sw, vy = (g[4] - out.v * g[7]) * inv_sw;
     const double ku = std::sqrt(ux * ux + uy * uy), kv = std::sqrt(vx * vx + vy * vy);
     const double su = sigma_px * ku, sv = sigma_px * kv;
+    // A trial step can put the horizon (w2 = 0) near the symbol: such a pixel predicts light
+    // (its cost then rejects the step); far outside the symbol every module is light anyway.
+    constexpr double kFarModules = 1e4;
+    if (!(std::abs(out.u) < kFarModules && std::abs(out.v) < kFarModules && su > 1e-9 && sv > 1e-9 &&
+          su < kFarModules && sv < kFarModules)) {
+      out.du = out.dv = out.dsigma = 0.0;
+      return out;
+    }
     const int i0 = static_cast<int>(std::floor(out.u - kBlurReach * su));
     const int i1 = static_cast<int>(std::floor(out.u + kBlurReach * su));
     const int j0 = static_cast<int>(std::floor(out.v - kBlurReach * sv));

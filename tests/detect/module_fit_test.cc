@@ -102,6 +102,16 @@ TEST(DetectModuleFit, NothingForBadInput) {
   EXPECT_FALSE(FitModuleGrid(color, truth, 21, dark).has_value());
   // Partly outside the image.
   EXPECT_FALSE(FitModuleGrid(image, MakeQuad({10.0, 240.0}, 44.0, 0.2), 21, dark).has_value());
+  // Degenerate corners: all on one line, or all on one point.
+  const Quad2d line = {Eigen::Vector2d(300, 240), Eigen::Vector2d(320, 240), Eigen::Vector2d(340, 240),
+                       Eigen::Vector2d(360, 240)};
+  EXPECT_FALSE(FitModuleGrid(image, line, 21, dark).has_value());
+  const Quad2d point = {Eigen::Vector2d(320, 240), Eigen::Vector2d(320, 240), Eigen::Vector2d(320, 240),
+                        Eigen::Vector2d(320, 240)};
+  EXPECT_FALSE(FitModuleGrid(image, point, 21, dark).has_value());
+  // Started far off (a whole code's width): no crash; if anything, not a fit that moved that far.
+  const Quad2d far = MakeQuad({364.0, 240.0}, 44.0, 0.2);
+  EXPECT_FALSE(FitModuleGrid(image, far, 21, dark).has_value());
   // An empty image: no contrast to fit.
   const cv::Mat blank(480, 640, CV_8U, cv::Scalar(128));
   EXPECT_FALSE(FitModuleGrid(blank, truth, 21, dark).has_value());
