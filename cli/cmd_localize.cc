@@ -57,6 +57,11 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       code by its apparent size reads its depth), from the map's mean (or 0) with
                       this sigma (default: the map's spread, or 0 without a sensor prior: ranges
                       taken as distances; 1: weak); range-bearing datasets only
+  --calibration-time T  the odometry calibration (heading drift, turn and distance scale) as a
+                      first-order Gauss-Markov process of correlation time T seconds about the
+                      prior's mean, with the prior's sigma as its stationary sigma (docs/online.md);
+                      0 (default): constant;
+                      range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -136,7 +141,8 @@ const std::set<std::string> kValues = {"map",
                                        "start-pose",
                                        "map-uncertainty",
                                        "sensor-prior",
-                                       "depth-share-sigma"};
+                                       "depth-share-sigma",
+                                       "calibration-time"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -289,6 +295,13 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
       throw std::invalid_argument("--depth-share-sigma: expected a number >= 0, got " +
                                   *args.Get("depth-share-sigma"));
   }
+  if (args.Has("calibration-time")) {
+    const double tau = *args.GetDouble("calibration-time");
+    if (!(tau >= 0.0) || !std::isfinite(tau))
+      throw std::invalid_argument("--calibration-time: expected a number of seconds >= 0, got " +
+                                  *args.Get("calibration-time"));
+    options.calibration_time_s = Eigen::Vector3d::Constant(tau);
+  }
   if (map.range_bearing_noise) {
     options.noise = *map.range_bearing_noise;
   } else {
@@ -351,10 +364,11 @@ int RunDataset(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior"))
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
+      args.Has("calibration-time"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
-        "(range_bearing.jsonl)");
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma and --calibration-time are for range-bearing "
+        "datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -367,10 +381,11 @@ int RunDataset(const Args& args) {
 // ---- Live mode ----
 
 int RunLive(const Args& args) {
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior"))
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
+      args.Has("calibration-time"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, not "
-        "--live");
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma and --calibration-time are for range-bearing "
+        "datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");

@@ -20,14 +20,18 @@
 // what the fleet's robots showed instead of a weak constant prior. Predict with an odometry increment M =
 // (t_M, theta_M) in the robot frame, s = |t_M|:
 //   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
-//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range, k_bearing,
-//         c_depth, s_robot]
+//   x' = [t + R(theta) t_C, theta + theta_C, c' = m + phi_c (c - m) for c = (k, s_turn, s_dist), b_range,
+//         b_bearing, phi s_range, k_bearing, c_depth, s_robot]
 //   F  = d x'/d x = I12 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
-//        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration)
+//        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration),
+//        F[3+i, 3+i] = phi_c,i = exp(-dt / calibration_time_s[i]) (1 for a constant entry)
 //   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
 //   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad), and
-//   q_s = range_scale_sigma^2 (1 - phi^2) on s_range.
+//   q_s = range_scale_sigma^2 (1 - phi^2) on s_range, and calibration_sigma[i]^2 (1 - phi_c,i^2) on
+//   calibration entry i when calibration_time_s[i] > 0 (a first-order Gauss-Markov process about the
+//   prior's mean m = calibration_mean: odometry whose turn and distance scales vary with the floor,
+//   the load and the wheels' slip; 0: a constant, the default).
 // Update with a landmark l (2-D; the map's position, or as the augmented state holds it, below):
 //   d = l - t, q = |d|^2, r = sqrt(q), beta = wrap(atan2(d_y, d_x) - theta),
 //   p_x = cos(theta) d_x + sin(theta) d_y, p_y = -sin(theta) d_x + cos(theta) d_y (the landmark in
@@ -75,6 +79,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "geometry/pose.h"
 #include "geometry/types.h"
@@ -99,6 +104,11 @@ struct RangeBearingLocalizerOptions {
   // The calibration's start and its sigmas: k (rad/m), turn scale, distance scale.
   Eigen::Vector3d calibration_mean = Eigen::Vector3d::Zero();
   Eigen::Vector3d calibration_sigma = Eigen::Vector3d(0.05, 0.2, 0.2);
+  // The calibration's correlation time (s) per entry: > 0 makes the entry a first-order
+  // Gauss-Markov process about calibration_mean with stationary sigma calibration_sigma (an entry
+  // no sighting observes relaxes to its prior instead of keeping a confident wrong value); 0
+  // (default): constant, as before.
+  Eigen::Vector3d calibration_time_s = Eigen::Vector3d::Zero();
   // The sensor's range offset (m) and bearing offset (rad) at the start, and their sigmas.
   Eigen::Vector2d sensor_bias_mean = Eigen::Vector2d::Zero();
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
@@ -146,6 +156,7 @@ class RangeBearingLocalizer {
   SE2d pose() const { return SE2d(x_[0], x_[1], x_[2]); }
   Eigen::Matrix3d covariance() const { return P_.topLeftCorner<3, 3>(); }  // of the pose
   Eigen::Vector3d calibration() const { return x_.segment<3>(3); }
+  Eigen::Matrix3d calibration_covariance() const { return P_.block<3, 3>(3, 3); }
   Eigen::Vector2d sensor_bias() const { return x_.segment<2>(6); }
   double range_scale() const { return x_[8]; }
   double bearing_scale() const { return x_[9]; }
@@ -167,8 +178,17 @@ class RangeBearingLocalizer {
   static constexpr int kStateSize = 12;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
-  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
-  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
+  // phi: the range scale's exp(-dt / tau); calibration_phi: the calibration's per entry (1: constant),
+  // each entry relaxing to calibration_mean: c' = m + phi_c (c - m), after the increment used c.
+  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0,
+                              const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones(),
+                              const Eigen::Vector3d& calibration_mean = Eigen::Vector3d::Zero());
+  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b, double phi = 1.0,
+                                 const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones());
+  // The discrete Gauss-Markov transition of an entry over dt_s: phi = exp(-dt / tau) and the
+  // variance it adds, sigma^2 (1 - phi^2) (so that a stationary variance sigma^2 stays); tau <= 0:
+  // constant (phi 1, no variance).
+  static std::pair<double, double> GaussMarkovStep(double sigma, double tau_s, double dt_s);
   // h(x) of the whole state (range with its scale and offset, bearing with its offset) and d h / d x.
   static Eigen::Vector2d MeasureState(const Vector6& x, const Eigen::Vector2d& l_world);
   static Eigen::Matrix<double, 2, kStateSize> MeasureStateJacobian(const Vector6& x,

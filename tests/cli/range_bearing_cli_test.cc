@@ -186,8 +186,8 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_NE(live.exit_code, 0);
   EXPECT_THAT(
       live.err,
-      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, "
-                "not --live"));
+      HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma and --calibration-time are for "
+                "range-bearing datasets, not --live"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
   const RunResult depth =
       Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
@@ -200,6 +200,18 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_NE(negative.exit_code, 0);
   EXPECT_THAT(negative.err, HasSubstr("--depth-share-sigma: expected a number >= 0, got -1"));
   EXPECT_FALSE(fs::exists(dir_ / "y.tum"));
+  // The odometry calibration as a Gauss-Markov state; a negative correlation time refused.
+  const RunResult gauss_markov =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-gm.tum").string() + " --calibration-time 5");
+  ASSERT_EQ(gauss_markov.exit_code, 0) << gauss_markov.err;
+  EXPECT_THAT(gauss_markov.out, HasSubstr("NEES: mean "));
+  const RunResult negative_time =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "z.tum").string() + " --calibration-time -1");
+  EXPECT_NE(negative_time.exit_code, 0);
+  EXPECT_THAT(negative_time.err, HasSubstr("--calibration-time: expected a number of seconds >= 0, got -1"));
+  EXPECT_FALSE(fs::exists(dir_ / "z.tum"));
 }
 
 TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
@@ -244,8 +256,8 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
   EXPECT_NE(camera.exit_code, 0);
   EXPECT_THAT(
       camera.err,
-      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
-                "(range_bearing.jsonl)"));
+      HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma and --calibration-time are for "
+                "range-bearing datasets (range_bearing.jsonl)"));
 }
 
 }  // namespace
