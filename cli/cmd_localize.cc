@@ -342,7 +342,11 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
     const NeesResult nees = ComputeNees(*dataset.groundtruth_trajectory, run.poses, run.covariances, 0.02);
     std::cout << "NEES: mean " << FormatFixed(nees.mean, 2) << " over " << nees.samples
               << " poses (95 % bounds of the mean of independent draws [" << FormatFixed(nees.mean_lower, 3)
-              << ", " << FormatFixed(nees.mean_upper, 3) << "]); "
+              << ", " << FormatFixed(nees.mean_upper, 3) << "]; of " << FormatFixed(nees.effective_samples, 1)
+              << " effective samples, the series' integrated autocorrelation time "
+              << FormatFixed(nees.autocorrelation_time, 1) << " poses: ["
+              << FormatFixed(nees.mean_lower_correlated, 3) << ", "
+              << FormatFixed(nees.mean_upper_correlated, 3) << "]); "
               << FormatFixed(100.0 * nees.share_inside, 1)
               << " % of poses inside the per-pose 95 % interval [" << FormatFixed(nees.sample_lower, 3)
               << ", " << FormatFixed(nees.sample_upper, 3) << "]\n";
