@@ -62,6 +62,10 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       prior's mean, with the prior's sigma as its stationary sigma (docs/online.md);
                       0 (default): constant;
                       range-bearing datasets only
+  --turn-fluctuation S,T  the turn scale's fast variation as its own Gauss-Markov state beside the
+                      robot's constant turn scale: stationary sigma S, correlation time T seconds
+                      (scripts/odometry-calibration-time.py fits both from the mapped robots'
+                      smoothed trajectories; default: none); range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -142,7 +146,8 @@ const std::set<std::string> kValues = {"map",
                                        "map-uncertainty",
                                        "sensor-prior",
                                        "depth-share-sigma",
-                                       "calibration-time"};
+                                       "calibration-time",
+                                       "turn-fluctuation"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -302,6 +307,15 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
                                   *args.Get("calibration-time"));
     options.calibration_time_s = Eigen::Vector3d::Constant(tau);
   }
+  if (args.Has("turn-fluctuation")) {
+    const std::optional<std::vector<double>> v = args.GetDoubleList("turn-fluctuation");
+    if (!v || v->size() != 2 || !((*v)[0] >= 0.0) || !((*v)[1] >= 0.0) || !std::isfinite((*v)[0]) ||
+        !std::isfinite((*v)[1]))
+      throw std::invalid_argument("--turn-fluctuation: expected SIGMA,SECONDS (two numbers >= 0), got " +
+                                  *args.Get("turn-fluctuation"));
+    options.turn_fluctuation_sigma = (*v)[0];
+    options.turn_fluctuation_time_s = (*v)[1];
+  }
   if (map.range_bearing_noise) {
     options.noise = *map.range_bearing_noise;
   } else {
@@ -369,10 +383,10 @@ int RunDataset(const Args& args) {
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
   if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time"))
+      args.Has("calibration-time") || args.Has("turn-fluctuation"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma and --calibration-time are for range-bearing "
-        "datasets (range_bearing.jsonl)");
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time and --turn-fluctuation "
+        "are for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -386,10 +400,10 @@ int RunDataset(const Args& args) {
 
 int RunLive(const Args& args) {
   if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time"))
+      args.Has("calibration-time") || args.Has("turn-fluctuation"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma and --calibration-time are for range-bearing "
-        "datasets, not --live");
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time and --turn-fluctuation "
+        "are for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");

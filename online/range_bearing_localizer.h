@@ -1,7 +1,7 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth, s_robot]:
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth, s_robot, f]:
 // T_world_robot, the odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
 // factors/calibrated_odometry_factor.h, to first order), the sensor's constant range and
 // bearing offsets (as BiasedRangeBearingFactor) and the range scale error common to a frame's
@@ -19,7 +19,9 @@
 // the mapped robots' values: a robot of the same fleet), which bounds the odometry calibration to
 // what the fleet's robots showed instead of a weak constant prior. Predict with an odometry increment M =
 // (t_M, theta_M) in the robot frame, s = |t_M|:
-//   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
+//   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn + f) theta_M + k s   (the corrected increment; f the
+//   turn scale's fast fluctuation, a Gauss-Markov process: f' = phi_f f, phi_f = exp(-dt / tau_f), variance
+//   turn_fluctuation_sigma^2 (1 - phi_f^2) added; F[2, 12] = theta_M, F[12, 12] = phi_f)
 //   x' = [t + R(theta) t_C, theta + theta_C, c' = m + phi_c (c - m) for c = (k, s_turn, s_dist), b_range,
 //         b_bearing, phi s_range, k_bearing, c_depth, s_robot]
 //   F  = d x'/d x = I12 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
@@ -109,6 +111,11 @@ struct RangeBearingLocalizerOptions {
   // no sighting observes relaxes to its prior instead of keeping a confident wrong value); 0
   // (default): constant, as before.
   Eigen::Vector3d calibration_time_s = Eigen::Vector3d::Zero();
+  // The turn scale's fast fluctuation f (state 12) about the robot's own constant turn scale: a
+  // first-order Gauss-Markov process of stationary sigma turn_fluctuation_sigma and correlation
+  // time turn_fluctuation_time_s (both > 0 to use it; else f is held at 0, as before).
+  double turn_fluctuation_sigma = 0.0;
+  double turn_fluctuation_time_s = 0.0;
   // The sensor's range offset (m) and bearing offset (rad) at the start, and their sigmas.
   Eigen::Vector2d sensor_bias_mean = Eigen::Vector2d::Zero();
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
@@ -162,6 +169,7 @@ class RangeBearingLocalizer {
   double bearing_scale() const { return x_[9]; }
   double depth_share() const { return x_[10]; }
   double robot_range_scale() const { return x_[11]; }
+  double turn_fluctuation() const { return x_[12]; }
   // The augmented state: k (xi) and the landmarks' eta blocks held now.
   int map_modes() const { return k_; }
   int landmark_states() const { return static_cast<int>(slots_.size()); }
@@ -175,16 +183,19 @@ class RangeBearingLocalizer {
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static constexpr int kStateSize = 12;
+  static constexpr int kStateSize = 13;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
   // phi: the range scale's exp(-dt / tau); calibration_phi: the calibration's per entry (1: constant),
   // each entry relaxing to calibration_mean: c' = m + phi_c (c - m), after the increment used c.
+  // turn_phi: the turn fluctuation's exp(-dt / tau_f).
   static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0,
                               const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones(),
-                              const Eigen::Vector3d& calibration_mean = Eigen::Vector3d::Zero());
+                              const Eigen::Vector3d& calibration_mean = Eigen::Vector3d::Zero(),
+                              double turn_phi = 1.0);
   static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b, double phi = 1.0,
-                                 const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones());
+                                 const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones(),
+                                 double turn_phi = 1.0);
   // The discrete Gauss-Markov transition of an entry over dt_s: phi = exp(-dt / tau) and the
   // variance it adds, sigma^2 (1 - phi^2) (so that a stationary variance sigma^2 stays); tau <= 0:
   // constant (phi 1, no variance).

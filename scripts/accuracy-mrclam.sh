@@ -71,7 +71,7 @@ if [[ ${#robots[@]} -ge 5 ]]; then
   echo "== the odometry calibration's correlation time from robots 1-3 (their smoothed trajectories)"
   python3 scripts/odometry-calibration-time.py "$out/map-123.json" "$out/smoothed-123" \
     "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" | tee "$out/calibration-time-123.txt"
-  tau=$(tail -n 1 "$out/calibration-time-123.txt")
+  tau=$(tail -n 1 "$out/calibration-time-123.txt" | cut -d, -f2)
   "$waymark" eval --map "$out/map-123.json" --gt-map "$gt_map"
   echo "== the map's landmark covariance against its error (no alignment)"
   python3 scripts/map-covariance-check.py "$out/map-123.json" "$gt_map"
@@ -125,7 +125,7 @@ if [[ ${#robots[@]} -ge 5 ]]; then
     echo "== the odometry calibration's correlation time from robots ${mapped}"
     python3 scripts/odometry-calibration-time.py "$out/map-$mapped.json" "$out/smoothed-$mapped" "${dirs[@]}" |
       tee "$out/calibration-time-$mapped.txt"
-    tau=$(tail -n 1 "$out/calibration-time-$mapped.txt")
+    tau=$(tail -n 1 "$out/calibration-time-$mapped.txt" | cut -d, -f2)
     for r in $located; do
       echo "== robot$r: online against the map of robots ${mapped}"
       "$waymark" localize "$out/data/robot$r" --map "$out/map-$mapped.json" --calibration-time "$tau" \

@@ -10,7 +10,8 @@ pooled over the datasets (lag 0 is left out: it holds the white odometry noise);
 Gauss-Markov process has R(L) = sigma^2 exp(-L step / tau). Printed: R(L) for L = 1 .. the first
 lag with R <= 0 (at most MAX_LAG s, default 60), and tau and sigma from the least-squares line
 through log R(L) weighted by R(L) (the correlation time the EKF's --calibration-time takes).
-The last line is tau alone (for scripts). Usage:
+The last line is 'sigma,tau' alone (for scripts: waymark localize --turn-fluctuation sigma,tau, or
+--calibration-time tau). Usage:
   scripts/odometry-calibration-time.py MAP.json SMOOTHED_DIR DATASET... [--step S] [--max-lag S]
 Pure Python 3, no packages."""
 import bisect
@@ -99,8 +100,8 @@ def main():
         R.append((lag * step, r))
     print('R(lag):', ' '.join('%g:%.5f' % (l, r) for l, r in R))
     if len(R) < 2:
-        print('too few positive lags for a fit; tau = step')
-        print('%.3f' % step)
+        print('too few positive lags for a fit: no fluctuation (sigma 0)')
+        print('0,%.3f' % step)
         return
     sw = sum(r for l, r in R)
     ml = sum(r * l for l, r in R) / sw
@@ -109,7 +110,7 @@ def main():
     tau = -1.0 / slope if slope < 0 else float('inf')
     sigma = math.sqrt(math.exp(my - slope * ml))
     print('Gauss-Markov fit: tau %.2f s, sigma %.4f' % (tau, sigma))
-    print('%.3f' % tau)
+    print('%.4f,%.3f' % (sigma, tau))
 
 
 main()

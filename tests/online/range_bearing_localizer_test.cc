@@ -44,7 +44,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
     x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng),
-        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng), 0.02 * u(rng);
+        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng), 0.02 * u(rng), 0.05 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const double phi = 0.5 + 0.1 * u(rng);  // the range scale's decay over the increment
@@ -59,6 +59,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     RangeBearingLocalizer::Vector6 plain = x6;
     plain.segment<3>(3).setZero();
     plain[8] = 0.0;
+    plain[12] = 0.0;
     const SE2d composed = SE2d(x[0], x[1], x[2]) * M;
     const RangeBearingLocalizer::Vector6 predicted = RangeBearingLocalizer::PredictState(plain, M);
     EXPECT_NEAR(predicted[0], composed.x(), 1e-12);
@@ -586,19 +587,20 @@ TEST(RangeBearingLocalizer, GaussMarkovCalibrationTransition) {
   const SE2d M(0.2, 0.05, 0.3);
   const Eigen::Vector3d calibration_phi(0.9, 0.5, 0.99), mean(0.01, -0.05, 0.02);
   const RangeBearingLocalizer::Vector6 next =
-      RangeBearingLocalizer::PredictState(x, M, 0.7, calibration_phi, mean);
+      RangeBearingLocalizer::PredictState(x, M, 0.7, calibration_phi, mean, 0.8);
+  EXPECT_NEAR(next[12], 0.8 * x[12], 1e-15);
   for (int i = 0; i < 3; ++i)
     EXPECT_NEAR(next[3 + i], mean[i] + calibration_phi[i] * (x[3 + i] - mean[i]), 1e-15);
   // The pose moved with the calibration before the step.
   const RangeBearingLocalizer::Vector6 constant = RangeBearingLocalizer::PredictState(x, M, 0.7);
   EXPECT_LT((next.head<3>() - constant.head<3>()).cwiseAbs().maxCoeff(), 1e-15);
   const auto predict = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
-    Eigen::VectorXd out = RangeBearingLocalizer::PredictState(s, M, 0.7, calibration_phi, mean);
+    Eigen::VectorXd out = RangeBearingLocalizer::PredictState(s, M, 0.7, calibration_phi, mean, 0.8);
     out[2] = s[2] + WrapAngle(out[2] - s[2]);
     return out;
   };
   EXPECT_LT((testing::NumericJacobian(predict, x) -
-             RangeBearingLocalizer::PredictJacobian(x, M, 0.7, calibration_phi))
+             RangeBearingLocalizer::PredictJacobian(x, M, 0.7, calibration_phi, 0.8))
                 .cwiseAbs()
                 .maxCoeff(),
             1e-6);
@@ -619,7 +621,7 @@ TEST(RangeBearingLocalizer, GaussMarkovCalibrationTransition) {
 // drives among six landmarks for 50 s, then turns 4 rad for 20 s with no landmark in view. The
 // mean NEES at the end of that blind stretch, over `runs` runs, with the filter's calibration
 // correlation time tau_s (0: constant).
-double MeanNeesAfterABlindTurn(double tau_s, unsigned seed, int runs) {
+double MeanNeesAfterABlindTurn(double tau_s, unsigned seed, int runs, bool as_fluctuation = false) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0.0, 1.0);
   const MarkerMap map = SixLandmarksOnACircle();
@@ -632,6 +634,13 @@ double MeanNeesAfterABlindTurn(double tau_s, unsigned seed, int runs) {
   options.noise.odometry_c_d = 0.0;
   options.calibration_sigma = Eigen::Vector3d(1e-4, 0.1, 1e-4);
   options.calibration_time_s = Eigen::Vector3d::Constant(tau_s);
+  if (as_fluctuation) {
+    // The constant turn scale held near 0 (its prior), the variation as the fluctuation state.
+    options.calibration_sigma[1] = 1e-4;
+    options.calibration_time_s.setZero();
+    options.turn_fluctuation_sigma = 0.1;
+    options.turn_fluctuation_time_s = tau_s;
+  }
   const double sigma = 0.1, tau = 5.0, dt = 0.5;
   const double phi = std::exp(-dt / tau);
   double sum = 0.0;
@@ -674,6 +683,11 @@ TEST(RangeBearingLocalizer, AVaryingTurnScaleIsTrackedConsistentlyAsAGaussMarkov
   // The calibration taken as constant: its variance collapses while the sightings last, and after
   // the blind turn the filter is overconfident.
   const double constant = MeanNeesAfterABlindTurn(0.0, 21, runs);
+  // The same process as the turn scale's fluctuation state (f, state 12) beside a constant turn scale.
+  const double fluctuation = MeanNeesAfterABlindTurn(5.0, 21, runs, true);
+  EXPECT_GT(fluctuation, lower);
+  EXPECT_LT(fluctuation, upper);
+  std::printf("mean NEES after the blind turn, as the turn fluctuation state: %.3f\n", fluctuation);
   std::printf("mean NEES after the blind turn: Gauss-Markov %.3f, constant %.3f, bounds [%.3f, %.3f]\n",
               gauss_markov, constant, lower, upper);
   EXPECT_GT(constant, 2.0 * upper);
