@@ -57,6 +57,15 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       code by its apparent size reads its depth), from the map's mean (or 0) with
                       this sigma (default: the map's spread, or 0 without a sensor prior: ranges
                       taken as distances; 1: weak); range-bearing datasets only
+  --calibration-time T  the odometry calibration (heading drift, turn and distance scale) as a
+                      first-order Gauss-Markov process of correlation time T seconds about the
+                      prior's mean, with the prior's sigma as its stationary sigma (docs/online.md);
+                      0 (default): constant;
+                      range-bearing datasets only
+  --turn-fluctuation S,T  the turn scale's fast variation as its own Gauss-Markov state beside the
+                      robot's constant turn scale: stationary sigma S, correlation time T seconds
+                      (scripts/odometry-calibration-time.py fits both from the mapped robots'
+                      smoothed trajectories; default: none); range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -136,7 +145,9 @@ const std::set<std::string> kValues = {"map",
                                        "start-pose",
                                        "map-uncertainty",
                                        "sensor-prior",
-                                       "depth-share-sigma"};
+                                       "depth-share-sigma",
+                                       "calibration-time",
+                                       "turn-fluctuation"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -289,6 +300,22 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
       throw std::invalid_argument("--depth-share-sigma: expected a number >= 0, got " +
                                   *args.Get("depth-share-sigma"));
   }
+  if (args.Has("calibration-time")) {
+    const double tau = *args.GetDouble("calibration-time");
+    if (!(tau >= 0.0) || !std::isfinite(tau))
+      throw std::invalid_argument("--calibration-time: expected a number of seconds >= 0, got " +
+                                  *args.Get("calibration-time"));
+    options.calibration_time_s = Eigen::Vector3d::Constant(tau);
+  }
+  if (args.Has("turn-fluctuation")) {
+    const std::optional<std::vector<double>> v = args.GetDoubleList("turn-fluctuation");
+    if (!v || v->size() != 2 || !((*v)[0] >= 0.0) || !((*v)[1] >= 0.0) || !std::isfinite((*v)[0]) ||
+        !std::isfinite((*v)[1]))
+      throw std::invalid_argument("--turn-fluctuation: expected SIGMA,SECONDS (two numbers >= 0), got " +
+                                  *args.Get("turn-fluctuation"));
+    options.turn_fluctuation_sigma = (*v)[0];
+    options.turn_fluctuation_time_s = (*v)[1];
+  }
   if (map.range_bearing_noise) {
     options.noise = *map.range_bearing_noise;
   } else {
@@ -329,7 +356,11 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
     const NeesResult nees = ComputeNees(*dataset.groundtruth_trajectory, run.poses, run.covariances, 0.02);
     std::cout << "NEES: mean " << FormatFixed(nees.mean, 2) << " over " << nees.samples
               << " poses (95 % bounds of the mean of independent draws [" << FormatFixed(nees.mean_lower, 3)
-              << ", " << FormatFixed(nees.mean_upper, 3) << "]); "
+              << ", " << FormatFixed(nees.mean_upper, 3) << "]; of " << FormatFixed(nees.effective_samples, 1)
+              << " effective samples, the series' integrated autocorrelation time "
+              << FormatFixed(nees.autocorrelation_time, 1) << " poses: ["
+              << FormatFixed(nees.mean_lower_correlated, 3) << ", "
+              << FormatFixed(nees.mean_upper_correlated, 3) << "]); "
               << FormatFixed(100.0 * nees.share_inside, 1)
               << " % of poses inside the per-pose 95 % interval [" << FormatFixed(nees.sample_lower, 3)
               << ", " << FormatFixed(nees.sample_upper, 3) << "]\n";
@@ -351,10 +382,11 @@ int RunDataset(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior"))
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
+      args.Has("calibration-time") || args.Has("turn-fluctuation"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
-        "(range_bearing.jsonl)");
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time and --turn-fluctuation "
+        "are for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -367,10 +399,11 @@ int RunDataset(const Args& args) {
 // ---- Live mode ----
 
 int RunLive(const Args& args) {
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior"))
+  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
+      args.Has("calibration-time") || args.Has("turn-fluctuation"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, not "
-        "--live");
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time and --turn-fluctuation "
+        "are for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");

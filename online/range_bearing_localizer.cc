@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <tuple>
 
 #include "util/check.h"
 
@@ -61,6 +62,11 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
                            std::isfinite(bearing_scale_mean) && std::isfinite(depth_share_mean) &&
                            std::isfinite(range_scale_mean),
                        "the calibration's and the sensor's means must be finite");
+  WAYMARK_CHECK_OPTION(calibration_time_s.allFinite() && (calibration_time_s.array() >= 0.0).all(),
+                       "calibration_time_s must be finite and >= 0");
+  WAYMARK_CHECK_OPTION(
+      IsFiniteAtLeast(turn_fluctuation_sigma, 0.0) && IsFiniteAtLeast(turn_fluctuation_time_s, 0.0),
+      "turn_fluctuation_sigma and turn_fluctuation_time_s must be finite and >= 0");
   WAYMARK_CHECK_OPTION(max_landmark_states >= 1, "max_landmark_states must be >= 1");
   return true;
 }
@@ -142,6 +148,8 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
   P_(9, 9) = options.bearing_scale_sigma * options.bearing_scale_sigma;
   P_(10, 10) = options.depth_share_sigma * options.depth_share_sigma;
   P_(11, 11) = options.range_scale_state_sigma * options.range_scale_state_sigma;
+  if (options.turn_fluctuation_sigma > 0.0 && options.turn_fluctuation_time_s > 0.0)
+    P_(12, 12) = options.turn_fluctuation_sigma * options.turn_fluctuation_sigma;
   P_.bottomRightCorner(k_, k_).setIdentity();
 }
 
@@ -194,19 +202,32 @@ int RangeBearingLocalizer::SlotOf(const MarkerKey& key, const Landmark& landmark
   return n;
 }
 
+std::pair<double, double> RangeBearingLocalizer::GaussMarkovStep(double sigma, double tau_s, double dt_s) {
+  if (!(tau_s > 0.0)) return {1.0, 0.0};
+  const double phi = std::exp(-std::max(0.0, dt_s) / tau_s);
+  return {phi, sigma * sigma * (1.0 - phi * phi)};
+}
+
 RangeBearingLocalizer::Vector6 RangeBearingLocalizer::PredictState(const Vector6& x, const SE2d& T_a_b,
-                                                                   double phi) {
+                                                                   double phi,
+                                                                   const Eigen::Vector3d& calibration_phi,
+                                                                   const Eigen::Vector3d& calibration_mean,
+                                                                   double turn_phi) {
   const Eigen::Vector2d t_C = (1.0 + x[5]) * T_a_b.translation();
-  const double theta_C = (1.0 + x[4]) * T_a_b.theta() + x[3] * T_a_b.translation().norm();
+  const double theta_C = (1.0 + x[4] + x[12]) * T_a_b.theta() + x[3] * T_a_b.translation().norm();
   Vector6 next = x;
   next.head<2>() += Eigen::Rotation2Dd(x[2]) * t_C;
   next[2] = WrapAngle(x[2] + theta_C);
+  next.segment<3>(3) = calibration_mean + calibration_phi.cwiseProduct(x.segment<3>(3) - calibration_mean);
   next[8] = phi * x[8];
+  next[12] = turn_phi * x[12];
   return next;
 }
 
 RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vector6& x, const SE2d& T_a_b,
-                                                                      double phi) {
+                                                                      double phi,
+                                                                      const Eigen::Vector3d& calibration_phi,
+                                                                      double turn_phi) {
   const Eigen::Matrix2d R = Eigen::Rotation2Dd(x[2]).toRotationMatrix();
   const Eigen::Vector2d rotated = R * ((1.0 + x[5]) * T_a_b.translation());
   Matrix6 F = Matrix6::Identity();
@@ -216,6 +237,9 @@ RangeBearingLocalizer::Matrix6 RangeBearingLocalizer::PredictJacobian(const Vect
   F(2, 3) = T_a_b.translation().norm();
   F(2, 4) = T_a_b.theta();
   F(8, 8) = phi;
+  for (int i = 0; i < 3; ++i) F(3 + i, 3 + i) = calibration_phi[i];
+  F(2, 12) = T_a_b.theta();
+  F(12, 12) = turn_phi;
   return F;
 }
 
@@ -270,8 +294,17 @@ Eigen::Matrix<double, 2, 3> RangeBearingLocalizer::MeasureJacobian(const Eigen::
 void RangeBearingLocalizer::Predict(const SE2d& T_a_b, double dt_s) {
   const RangeBearingNoise& n = options_.noise;
   const double phi = n.range_scale_sigma > 0.0 ? std::exp(-std::max(0.0, dt_s) / n.range_scale_time_s) : 1.0;
+  Eigen::Vector3d calibration_phi, calibration_q;
+  for (int i = 0; i < 3; ++i) {
+    std::tie(calibration_phi[i], calibration_q[i]) =
+        GaussMarkovStep(options_.calibration_sigma[i], options_.calibration_time_s[i], dt_s);
+  }
+  const bool fluctuates = options_.turn_fluctuation_sigma > 0.0 && options_.turn_fluctuation_time_s > 0.0;
+  const auto [turn_phi, turn_q] =
+      fluctuates ? GaussMarkovStep(options_.turn_fluctuation_sigma, options_.turn_fluctuation_time_s, dt_s)
+                 : std::make_pair(1.0, 0.0);
   const Vector6 x = x_.head<kStateSize>();
-  const Matrix6 F = PredictJacobian(x, T_a_b, phi);
+  const Matrix6 F = PredictJacobian(x, T_a_b, phi, calibration_phi, turn_phi);
   const double c = std::cos(x[2]), s = std::sin(x[2]);
   Eigen::Matrix<double, kStateSize, 3> G = Eigen::Matrix<double, kStateSize, 3>::Zero();
   G.topLeftCorner<2, 2>() << c, -s, s, c;
@@ -280,11 +313,13 @@ void RangeBearingLocalizer::Predict(const SE2d& T_a_b, double dt_s) {
   const double var_t = n.odometry_q_t * (d + kLinkFloorM);
   const double var_r = n.odometry_q_r * (std::abs(T_a_b.theta()) + n.odometry_c_d * d + kLinkFloorRad);
   const Eigen::Matrix3d Q = Eigen::Vector3d(var_t, var_t, var_r).asDiagonal();
-  x_.head<kStateSize>() = PredictState(x, T_a_b, phi);
+  x_.head<kStateSize>() = PredictState(x, T_a_b, phi, calibration_phi, options_.calibration_mean, turn_phi);
   // F_aug = blockdiag(F, I): the robot's rows and columns only.
   const Matrix6 P_xx = P_.topLeftCorner<kStateSize, kStateSize>();
   Matrix6 next = F * P_xx * F.transpose() + G * Q * G.transpose();
   next(8, 8) += n.range_scale_sigma * n.range_scale_sigma * (1.0 - phi * phi);
+  for (int i = 0; i < 3; ++i) next(3 + i, 3 + i) += calibration_q[i];
+  next(12, 12) += turn_q;
   P_.topLeftCorner<kStateSize, kStateSize>() = 0.5 * (next + next.transpose());
   const int rest = static_cast<int>(x_.size()) - kStateSize;
   if (rest > 0) {

@@ -1,7 +1,7 @@
 // EKF localization of a planar robot against a map of point landmarks from range-bearing
 // observations (range_bearing.jsonl; mapping/range_bearing_map.h builds such maps).
 //
-// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth, s_robot]:
+// State x = [x, y, theta, k, s_turn, s_dist, b_range, b_bearing, s_range, k_bearing, c_depth, s_robot, f]:
 // T_world_robot, the odometry's constant errors (heading drift k in rad/m, turn scale, distance scale; as
 // factors/calibrated_odometry_factor.h, to first order), the sensor's constant range and
 // bearing offsets (as BiasedRangeBearingFactor) and the range scale error common to a frame's
@@ -19,15 +19,21 @@
 // the mapped robots' values: a robot of the same fleet), which bounds the odometry calibration to
 // what the fleet's robots showed instead of a weak constant prior. Predict with an odometry increment M =
 // (t_M, theta_M) in the robot frame, s = |t_M|:
-//   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn) theta_M + k s   (the corrected increment)
-//   x' = [t + R(theta) t_C, theta + theta_C, k, s_turn, s_dist, b_range, b_bearing, phi s_range, k_bearing,
-//         c_depth, s_robot]
+//   t_C = (1 + s_dist) t_M,  theta_C = (1 + s_turn + f) theta_M + k s   (the corrected increment; f the
+//   turn scale's fast fluctuation, a Gauss-Markov process: f' = phi_f f, phi_f = exp(-dt / tau_f), variance
+//   turn_fluctuation_sigma^2 (1 - phi_f^2) added; F[2, 12] = theta_M, F[12, 12] = phi_f)
+//   x' = [t + R(theta) t_C, theta + theta_C, c' = m + phi_c (c - m) for c = (k, s_turn, s_dist), b_range,
+//         b_bearing, phi s_range, k_bearing, c_depth, s_robot]
 //   F  = d x'/d x = I12 with F[0:2, 2] = [-(R t_C)_y, (R t_C)_x], F[0:2, 5] = R(theta) t_M,
-//        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration)
+//        F[2, 3] = s, F[2, 4] = theta_M, F[8, 8] = phi = exp(-dt / tau) (dt: the increment's duration),
+//        F[3+i, 3+i] = phi_c,i = exp(-dt / calibration_time_s[i]) (1 for a constant entry)
 //   G  = d x'/d M (pose rows) = blockdiag(R(theta), 1)
 //   P' = F P F^T + G Q G^T,  Q = diag(q_t (d + d0), q_t (d + d0), q_r (|theta_M| + c_d d + th0)), d = |t_M|
 //   (the random walk of mapping/range_bearing_map.h, d0 = 1 mm, th0 = 1 mrad), and
-//   q_s = range_scale_sigma^2 (1 - phi^2) on s_range.
+//   q_s = range_scale_sigma^2 (1 - phi^2) on s_range, and calibration_sigma[i]^2 (1 - phi_c,i^2) on
+//   calibration entry i when calibration_time_s[i] > 0 (a first-order Gauss-Markov process about the
+//   prior's mean m = calibration_mean: odometry whose turn and distance scales vary with the floor,
+//   the load and the wheels' slip; 0: a constant, the default).
 // Update with a landmark l (2-D; the map's position, or as the augmented state holds it, below):
 //   d = l - t, q = |d|^2, r = sqrt(q), beta = wrap(atan2(d_y, d_x) - theta),
 //   p_x = cos(theta) d_x + sin(theta) d_y, p_y = -sin(theta) d_x + cos(theta) d_y (the landmark in
@@ -75,6 +81,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "geometry/pose.h"
 #include "geometry/types.h"
@@ -99,6 +106,16 @@ struct RangeBearingLocalizerOptions {
   // The calibration's start and its sigmas: k (rad/m), turn scale, distance scale.
   Eigen::Vector3d calibration_mean = Eigen::Vector3d::Zero();
   Eigen::Vector3d calibration_sigma = Eigen::Vector3d(0.05, 0.2, 0.2);
+  // The calibration's correlation time (s) per entry: > 0 makes the entry a first-order
+  // Gauss-Markov process about calibration_mean with stationary sigma calibration_sigma (an entry
+  // no sighting observes relaxes to its prior instead of keeping a confident wrong value); 0
+  // (default): constant, as before.
+  Eigen::Vector3d calibration_time_s = Eigen::Vector3d::Zero();
+  // The turn scale's fast fluctuation f (state 12) about the robot's own constant turn scale: a
+  // first-order Gauss-Markov process of stationary sigma turn_fluctuation_sigma and correlation
+  // time turn_fluctuation_time_s (both > 0 to use it; else f is held at 0, as before).
+  double turn_fluctuation_sigma = 0.0;
+  double turn_fluctuation_time_s = 0.0;
   // The sensor's range offset (m) and bearing offset (rad) at the start, and their sigmas.
   Eigen::Vector2d sensor_bias_mean = Eigen::Vector2d::Zero();
   Eigen::Vector2d sensor_bias_sigma = Eigen::Vector2d(0.2, 0.05);
@@ -146,11 +163,13 @@ class RangeBearingLocalizer {
   SE2d pose() const { return SE2d(x_[0], x_[1], x_[2]); }
   Eigen::Matrix3d covariance() const { return P_.topLeftCorner<3, 3>(); }  // of the pose
   Eigen::Vector3d calibration() const { return x_.segment<3>(3); }
+  Eigen::Matrix3d calibration_covariance() const { return P_.block<3, 3>(3, 3); }
   Eigen::Vector2d sensor_bias() const { return x_.segment<2>(6); }
   double range_scale() const { return x_[8]; }
   double bearing_scale() const { return x_[9]; }
   double depth_share() const { return x_[10]; }
   double robot_range_scale() const { return x_[11]; }
+  double turn_fluctuation() const { return x_[12]; }
   // The augmented state: k (xi) and the landmarks' eta blocks held now.
   int map_modes() const { return k_; }
   int landmark_states() const { return static_cast<int>(slots_.size()); }
@@ -164,11 +183,23 @@ class RangeBearingLocalizer {
   const std::map<std::string, long>& counts() const { return counts_; }
 
   // Exposed for the Jacobian tests.
-  static constexpr int kStateSize = 12;
+  static constexpr int kStateSize = 13;
   using Vector6 = Eigen::Matrix<double, kStateSize, 1>;  // the state (name kept from 6 states)
   using Matrix6 = Eigen::Matrix<double, kStateSize, kStateSize>;
-  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
-  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b, double phi = 1.0);
+  // phi: the range scale's exp(-dt / tau); calibration_phi: the calibration's per entry (1: constant),
+  // each entry relaxing to calibration_mean: c' = m + phi_c (c - m), after the increment used c.
+  // turn_phi: the turn fluctuation's exp(-dt / tau_f).
+  static Vector6 PredictState(const Vector6& x, const SE2d& T_a_b, double phi = 1.0,
+                              const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones(),
+                              const Eigen::Vector3d& calibration_mean = Eigen::Vector3d::Zero(),
+                              double turn_phi = 1.0);
+  static Matrix6 PredictJacobian(const Vector6& x, const SE2d& T_a_b, double phi = 1.0,
+                                 const Eigen::Vector3d& calibration_phi = Eigen::Vector3d::Ones(),
+                                 double turn_phi = 1.0);
+  // The discrete Gauss-Markov transition of an entry over dt_s: phi = exp(-dt / tau) and the
+  // variance it adds, sigma^2 (1 - phi^2) (so that a stationary variance sigma^2 stays); tau <= 0:
+  // constant (phi 1, no variance).
+  static std::pair<double, double> GaussMarkovStep(double sigma, double tau_s, double dt_s);
   // h(x) of the whole state (range with its scale and offset, bearing with its offset) and d h / d x.
   static Eigen::Vector2d MeasureState(const Vector6& x, const Eigen::Vector2d& l_world);
   static Eigen::Matrix<double, 2, kStateSize> MeasureStateJacobian(const Vector6& x,

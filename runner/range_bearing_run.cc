@@ -1,8 +1,11 @@
 #include "runner/range_bearing_run.h"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <tuple>
+#include <vector>
 
 #include "online/chi_square.h"
 
@@ -83,12 +86,57 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
   return run;
 }
 
+double IntegratedAutocorrelationTime(const std::vector<double>& series) {
+  const size_t n = series.size();
+  if (n < 3) return 1.0;
+  double mean = 0.0;
+  for (const double v : series) mean += v;
+  mean /= static_cast<double>(n);
+  std::vector<double> centred(n);
+  double c0 = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    centred[i] = series[i] - mean;
+    c0 += centred[i] * centred[i];
+  }
+  if (!(c0 > 0.0)) return 1.0;
+  double tau = 1.0;
+  for (size_t k = 1; k <= n / 2; ++k) {
+    double c = 0.0;
+    for (size_t i = 0; i + k < n; ++i) c += centred[i] * centred[i + k];
+    const double rho = c / c0;
+    if (rho <= 0.0) break;
+    tau += 2.0 * rho;
+  }
+  return std::clamp(tau, 1.0, static_cast<double>(n));
+}
+
+std::pair<double, double> MeanChiSquareBounds(double n, int dof) {
+  if (!(n > 0.0) || dof < 1) throw std::invalid_argument("MeanChiSquareBounds: n must be > 0 and dof >= 1");
+  const double k = dof * n;
+  const auto quantile = [k](double p, double z) {
+    if (k > 3000.0) {
+      const double a = 2.0 / (9.0 * k);
+      return k * std::pow(1.0 - a + z * std::sqrt(a), 3);
+    }
+    // Bisection on the monotone CDF P(k / 2, x / 2).
+    double lo = 0.0, hi = k + 20.0 * std::sqrt(2.0 * k) + 50.0;
+    for (int it = 0; it < 200 && hi - lo > 1e-12 * std::max(1.0, hi); ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (RegularizedLowerGamma(0.5 * k, 0.5 * mid) < p ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+  };
+  constexpr double kZ975 = 1.959963984540054;
+  return {quantile(0.025, -kZ975) / n, quantile(0.975, kZ975) / n};
+}
+
 NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
                        const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s) {
   NeesResult result;
   result.sample_lower = ChiSquareQuantile(0.025, 3);
   result.sample_upper = ChiSquareQuantile(0.975, 3);
   double sum = 0.0, sum_position = 0.0, sum_heading = 0.0;
+  std::vector<double> series;
   size_t inside = 0, inside_position = 0, inside_heading = 0;
   const double lower2 = ChiSquareQuantile(0.025, 2), upper2 = ChiSquareQuantile(0.975, 2);
   const double lower1 = ChiSquareQuantile(0.025, 1), upper1 = ChiSquareQuantile(0.975, 1);
@@ -101,6 +149,7 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
     if (llt.info() != Eigen::Success) continue;
     const double nees = e.dot(llt.solve(e));
     sum += nees;
+    series.push_back(nees);
     inside += nees >= result.sample_lower && nees <= result.sample_upper;
     const double position = e.head<2>().dot(covariances[i].topLeftCorner<2, 2>().ldlt().solve(e.head<2>()));
     const double heading = e[2] * e[2] / covariances[i](2, 2);
@@ -118,15 +167,11 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
   result.mean_heading = sum_heading / n;
   result.share_inside_position = inside_position / n;
   result.share_inside_heading = inside_heading / n;
-  // chi2inv(p, 3N) / N by the Wilson-Hilferty approximation for large 3N (exact quantile below 3000 dof).
-  const auto mean_bound = [&](double p, double z) {
-    const double k = 3.0 * n;
-    if (k <= 3000.0) return ChiSquareQuantile(p, static_cast<int>(k)) / n;
-    const double a = 2.0 / (9.0 * k);
-    return k * std::pow(1.0 - a + z * std::sqrt(a), 3) / n;
-  };
-  result.mean_lower = mean_bound(0.025, -1.959963984540054);
-  result.mean_upper = mean_bound(0.975, 1.959963984540054);
+  std::tie(result.mean_lower, result.mean_upper) = MeanChiSquareBounds(n, 3);
+  result.autocorrelation_time = IntegratedAutocorrelationTime(series);
+  result.effective_samples = n / result.autocorrelation_time;
+  std::tie(result.mean_lower_correlated, result.mean_upper_correlated) =
+      MeanChiSquareBounds(result.effective_samples, 3);
   return result;
 }
 

@@ -15,11 +15,20 @@
 // Reported: the mean over the outputs, the share of outputs inside the two-sided 95 % interval of
 // chi-square(3) [0.216, 9.35], and the 95 % interval of the mean of N independent chi-square(3)
 // draws, [chi2inv(0.025, 3N) / N, chi2inv(0.975, 3N) / N] (consecutive outputs are correlated,
-// so this interval is the stricter reading).
+// so this interval is the stricter reading); and the same interval for the effective number of
+// independent samples of the NEES series, N_eff = N / tau_int, with the integrated
+// autocorrelation time (in samples, the series in output order)
+//   tau_int = 1 + 2 sum_{k=1}^{K} rho_k,  rho_k = sum_i (v_i - m)(v_{i+k} - m) / sum_i (v_i - m)^2,
+// summed up to K, the last lag before the first rho_k <= 0 (at most N / 2), clamped to [1, N]:
+// [chi2inv(0.025, 3 N_eff) / N_eff, chi2inv(0.975, 3 N_eff) / N_eff] (a real dof). A consistent
+// filter's NEES varies slowly (its errors are correlated over the time between sightings), so the
+// time-averaged NEES of one run has far fewer than N independent samples; these bounds say how far
+// from 3 one run's mean may be by chance.
 #pragma once
 
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "geometry/types.h"
@@ -50,11 +59,21 @@ struct NeesResult {
   double share_inside = 0.0;  // of samples inside [sample_lower, sample_upper]
   double sample_lower = 0.0, sample_upper = 0.0;
   double mean_lower = 0.0, mean_upper = 0.0;
+  // Accounting for the series' autocorrelation (above): tau_int in samples, N_eff, the bounds.
+  double autocorrelation_time = 1.0, effective_samples = 0.0;
+  double mean_lower_correlated = 0.0, mean_upper_correlated = 0.0;
   // The same split by part: the position's (2 dof) and the heading's (1 dof) NEES, each from its
   // own marginal covariance, and the share of each inside its own per-pose 95 % interval.
   double mean_position = 0.0, mean_heading = 0.0;
   double share_inside_position = 0.0, share_inside_heading = 0.0;
 };
+
+// The integrated autocorrelation time tau_int of a series (above; 1 for fewer than 3 values or
+// a constant series).
+double IntegratedAutocorrelationTime(const std::vector<double>& series);
+// The 95 % interval of the mean of n independent chi-square(dof) draws, chi2inv(p, dof n) / n for
+// p = 0.025, 0.975; n > 0 real (Wilson-Hilferty above 3000 degrees of freedom).
+std::pair<double, double> MeanChiSquareBounds(double n, int dof);
 
 // Throws std::runtime_error when no pose associates with the ground truth.
 NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,

@@ -184,10 +184,9 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   const RunResult live = Run("localize " + (dir_ / "robot2").string() + " --map " +
                              (dir_ / "map.json").string() + " --live --map-uncertainty consider");
   EXPECT_NE(live.exit_code, 0);
-  EXPECT_THAT(
-      live.err,
-      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets, "
-                "not --live"));
+  EXPECT_THAT(live.err, HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
+                                  "--calibration-time and --turn-fluctuation are for "
+                                  "range-bearing datasets, not --live"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
   const RunResult depth =
       Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
@@ -200,6 +199,29 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_NE(negative.exit_code, 0);
   EXPECT_THAT(negative.err, HasSubstr("--depth-share-sigma: expected a number >= 0, got -1"));
   EXPECT_FALSE(fs::exists(dir_ / "y.tum"));
+  // The odometry calibration as a Gauss-Markov state; a negative correlation time refused.
+  const RunResult gauss_markov =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-gm.tum").string() + " --calibration-time 5");
+  ASSERT_EQ(gauss_markov.exit_code, 0) << gauss_markov.err;
+  EXPECT_THAT(gauss_markov.out, HasSubstr("NEES: mean "));
+  const RunResult negative_time =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "z.tum").string() + " --calibration-time -1");
+  EXPECT_NE(negative_time.exit_code, 0);
+  EXPECT_THAT(negative_time.err, HasSubstr("--calibration-time: expected a number of seconds >= 0, got -1"));
+  const RunResult fluctuation =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-f.tum").string() + " --turn-fluctuation 0.08,2.5");
+  ASSERT_EQ(fluctuation.exit_code, 0) << fluctuation.err;
+  const RunResult bad_fluctuation =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "w.tum").string() + " --turn-fluctuation 0.08");
+  EXPECT_NE(bad_fluctuation.exit_code, 0);
+  EXPECT_THAT(bad_fluctuation.err,
+              HasSubstr("--turn-fluctuation: expected SIGMA,SECONDS (two numbers >= 0), got 0.08"));
+  EXPECT_FALSE(fs::exists(dir_ / "w.tum"));
+  EXPECT_FALSE(fs::exists(dir_ / "z.tum"));
 }
 
 TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
@@ -242,10 +264,9 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
       Run("localize " + (dir_ / "survey5").string() + " --map " + (dir_ / "map.json").string() + " --out " +
           (dir_ / "run.tum").string() + " --map-uncertainty consider");
   EXPECT_NE(camera.exit_code, 0);
-  EXPECT_THAT(
-      camera.err,
-      HasSubstr("--map-uncertainty, --sensor-prior and --depth-share-sigma are for range-bearing datasets "
-                "(range_bearing.jsonl)"));
+  EXPECT_THAT(camera.err, HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
+                                    "--calibration-time and --turn-fluctuation are for "
+                                    "range-bearing datasets (range_bearing.jsonl)"));
 }
 
 }  // namespace

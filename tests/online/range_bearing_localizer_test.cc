@@ -8,6 +8,7 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <random>
 
@@ -43,7 +44,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
   for (int trial = 0; trial < 10; ++trial) {
     RangeBearingLocalizer::Vector6 x6;
     x6 << u(rng), u(rng), u(rng), 0.01 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng), 0.01 * u(rng),
-        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng), 0.02 * u(rng);
+        0.01 * u(rng), 0.02 * u(rng), 0.3 * u(rng), 0.02 * u(rng), 0.05 * u(rng);
     const Eigen::Vector3d x = x6.head<3>();
     const SE2d M(0.3 * u(rng), 0.1 * u(rng), 0.2 * u(rng));
     const double phi = 0.5 + 0.1 * u(rng);  // the range scale's decay over the increment
@@ -58,6 +59,7 @@ TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
     RangeBearingLocalizer::Vector6 plain = x6;
     plain.segment<3>(3).setZero();
     plain[8] = 0.0;
+    plain[12] = 0.0;
     const SE2d composed = SE2d(x[0], x[1], x[2]) * M;
     const RangeBearingLocalizer::Vector6 predicted = RangeBearingLocalizer::PredictState(plain, M);
     EXPECT_NEAR(predicted[0], composed.x(), 1e-12);
@@ -569,6 +571,128 @@ TEST(RangeBearingLocalizer, TheBearingScaleIsEstimated) {
   EXPECT_NEAR(filter.pose().y(), truth.y(), 0.05);
 }
 
+TEST(RangeBearingLocalizer, GaussMarkovCalibrationTransition) {
+  // The discrete step: phi = exp(-dt / tau), added variance sigma^2 (1 - phi^2); tau 0: constant.
+  const auto [phi, q] = RangeBearingLocalizer::GaussMarkovStep(0.1, 5.0, 0.5);
+  EXPECT_NEAR(phi, std::exp(-0.1), 1e-15);
+  EXPECT_NEAR(q, 0.01 * (1.0 - std::exp(-0.2)), 1e-15);
+  EXPECT_EQ(RangeBearingLocalizer::GaussMarkovStep(0.1, 0.0, 0.5), std::make_pair(1.0, 0.0));
+  EXPECT_EQ(RangeBearingLocalizer::GaussMarkovStep(0.1, 5.0, 0.0), std::make_pair(1.0, 0.0));
+  // The state relaxes to the prior's mean, and F matches central differences.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  RangeBearingLocalizer::Vector6 x;
+  for (int i = 0; i < RangeBearingLocalizer::kStateSize; ++i) x[i] = 0.1 * u(rng);
+  x[2] = 2.0 * u(rng);
+  const SE2d M(0.2, 0.05, 0.3);
+  const Eigen::Vector3d calibration_phi(0.9, 0.5, 0.99), mean(0.01, -0.05, 0.02);
+  const RangeBearingLocalizer::Vector6 next =
+      RangeBearingLocalizer::PredictState(x, M, 0.7, calibration_phi, mean, 0.8);
+  EXPECT_NEAR(next[12], 0.8 * x[12], 1e-15);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(next[3 + i], mean[i] + calibration_phi[i] * (x[3 + i] - mean[i]), 1e-15);
+  // The pose moved with the calibration before the step.
+  const RangeBearingLocalizer::Vector6 constant = RangeBearingLocalizer::PredictState(x, M, 0.7);
+  EXPECT_LT((next.head<3>() - constant.head<3>()).cwiseAbs().maxCoeff(), 1e-15);
+  const auto predict = [&](const Eigen::VectorXd& s) -> Eigen::VectorXd {
+    Eigen::VectorXd out = RangeBearingLocalizer::PredictState(s, M, 0.7, calibration_phi, mean, 0.8);
+    out[2] = s[2] + WrapAngle(out[2] - s[2]);
+    return out;
+  };
+  EXPECT_LT((testing::NumericJacobian(predict, x) -
+             RangeBearingLocalizer::PredictJacobian(x, M, 0.7, calibration_phi, 0.8))
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-6);
+  // In the filter, without sightings: the calibration's variance stays at its stationary sigma^2
+  // (started there), and a constant calibration's does not grow.
+  RangeBearingLocalizerOptions options;
+  options.calibration_sigma = Eigen::Vector3d(0.01, 0.1, 0.05);
+  options.calibration_time_s = Eigen::Vector3d(10.0, 5.0, 0.0);
+  RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(), Eigen::Matrix3d::Identity() * 1e-4);
+  for (int step = 0; step < 200; ++step) filter.Predict(SE2d(0.05, 0.0, 0.1), 0.5);
+  const Eigen::Matrix3d P = filter.calibration_covariance();
+  EXPECT_NEAR(P(0, 0), 1e-4, 1e-10);
+  EXPECT_NEAR(P(1, 1), 1e-2, 1e-8);
+  EXPECT_NEAR(P(2, 2), 0.05 * 0.05, 1e-10);
+}
+
+// A robot whose true turn scale varies (a Gauss-Markov process: sigma 0.1, tau 5 s) turns and
+// drives among six landmarks for 50 s, then turns 4 rad for 20 s with no landmark in view. The
+// mean NEES at the end of that blind stretch, over `runs` runs, with the filter's calibration
+// correlation time tau_s (0: constant).
+double MeanNeesAfterABlindTurn(double tau_s, unsigned seed, int runs, bool as_fluctuation = false) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const MarkerMap map = SixLandmarksOnACircle();
+  RangeBearingLocalizerOptions options;
+  options.noise.range_a_m = 0.02;
+  options.noise.range_b = 0.0;
+  options.noise.bearing_rad = 0.01;
+  options.noise.odometry_q_t = 1e-5;
+  options.noise.odometry_q_r = 1e-5;
+  options.noise.odometry_c_d = 0.0;
+  options.calibration_sigma = Eigen::Vector3d(1e-4, 0.1, 1e-4);
+  options.calibration_time_s = Eigen::Vector3d::Constant(tau_s);
+  if (as_fluctuation) {
+    // The constant turn scale held near 0 (its prior), the variation as the fluctuation state.
+    options.calibration_sigma[1] = 1e-4;
+    options.calibration_time_s.setZero();
+    options.turn_fluctuation_sigma = 0.1;
+    options.turn_fluctuation_time_s = tau_s;
+  }
+  const double sigma = 0.1, tau = 5.0, dt = 0.5;
+  const double phi = std::exp(-dt / tau);
+  double sum = 0.0;
+  for (int run = 0; run < runs; ++run) {
+    SE2d truth;
+    RangeBearingLocalizer filter(map, options, truth, Eigen::Matrix3d::Identity() * 1e-6);
+    double scale = sigma * n(rng);
+    for (int step = 0; step < 140; ++step) {
+      const SE2d M(0.05, 0.0, 0.1);
+      const double st = std::sqrt(options.noise.odometry_q_t * (0.05 + 1e-3));
+      const double sr = std::sqrt(options.noise.odometry_q_r * (0.1 + 1e-3));
+      truth = truth * SE2d(0.05 + st * n(rng), st * n(rng), (1.0 + scale) * 0.1 + sr * n(rng));
+      scale = phi * scale + std::sqrt(1.0 - phi * phi) * sigma * n(rng);
+      filter.Predict(M, dt);
+      if (step >= 100) continue;  // blind
+      const Eigen::Vector3d x(truth.x(), truth.y(), truth.theta());
+      for (const MapMarker& m : map.markers) {
+        Eigen::Vector2d z = RangeBearingLocalizer::Measure(x, m.T_world_marker.translation().head<2>());
+        if (std::abs(z[1]) > 0.8) continue;
+        z[0] += options.noise.range_a_m * n(rng);
+        z[1] = WrapAngle(z[1] + options.noise.bearing_rad * n(rng));
+        filter.Update(Sighting(m.key.id, z));
+      }
+    }
+    const Eigen::Vector3d e(truth.x() - filter.pose().x(), truth.y() - filter.pose().y(),
+                            WrapAngle(truth.theta() - filter.pose().theta()));
+    sum += e.dot(filter.covariance().llt().solve(e));
+  }
+  return sum / runs;
+}
+
+TEST(RangeBearingLocalizer, AVaryingTurnScaleIsTrackedConsistentlyAsAGaussMarkovState) {
+  const int runs = 200;
+  const double lower = ChiSquareQuantile(0.025, 3 * runs) / runs,
+               upper = ChiSquareQuantile(0.975, 3 * runs) / runs;
+  // The filter's model matches the truth's process: the NEES is inside its bounds.
+  const double gauss_markov = MeanNeesAfterABlindTurn(5.0, 21, runs);
+  EXPECT_GT(gauss_markov, lower);
+  EXPECT_LT(gauss_markov, upper);
+  // The calibration taken as constant: its variance collapses while the sightings last, and after
+  // the blind turn the filter is overconfident.
+  const double constant = MeanNeesAfterABlindTurn(0.0, 21, runs);
+  // The same process as the turn scale's fluctuation state (f, state 12) beside a constant turn scale.
+  const double fluctuation = MeanNeesAfterABlindTurn(5.0, 21, runs, true);
+  EXPECT_GT(fluctuation, lower);
+  EXPECT_LT(fluctuation, upper);
+  std::printf("mean NEES after the blind turn, as the turn fluctuation state: %.3f\n", fluctuation);
+  std::printf("mean NEES after the blind turn: Gauss-Markov %.3f, constant %.3f, bounds [%.3f, %.3f]\n",
+              gauss_markov, constant, lower, upper);
+  EXPECT_GT(constant, 2.0 * upper);
+}
+
 TEST(RangeBearingLocalizer, RefusesBadInput) {
   RangeBearingLocalizerOptions options;
   options.noise.bearing_rad = 0.0;
@@ -587,6 +711,10 @@ TEST(RangeBearingLocalizer, RefusesBadInput) {
   bad_prior.range_scale_state_sigma = 0.0;
   bad_prior.depth_share_mean = std::nan("");
   EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_prior, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  RangeBearingLocalizerOptions bad_time;
+  bad_time.calibration_time_s[1] = -1.0;
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_time, SE2d(), Eigen::Matrix3d::Identity()),
                std::invalid_argument);
   EXPECT_EQ(ParseRangeBearingMapUncertainty("consider"), RangeBearingMapUncertainty::kConsider);
   EXPECT_FALSE(ParseRangeBearingMapUncertainty("schmidt"));
