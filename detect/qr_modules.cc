@@ -35,7 +35,9 @@ constexpr size_t kUnorientedFits = 2;
 // levels) reaches kMinUnorientedRawContrast (the codes read: 9.6-41.7; clutter: median 2.8,
 // 3/4 under 4.8), none decoded unless the best fitted grid's reaches
 // kMinUnorientedFitContrast (the codes read: 43.5-70.3; clutter: 9/10 under 19.3). Each
-// threshold is about half the weakest code's.
+// threshold is about half the weakest code's. Between the two, kMinUnorientedCodeLikeness
+// (detect/qr_modules.h) turns away before the fits the quads whose known modules explain
+// little of their samples' variation.
 constexpr double kMinUnorientedRawContrast = 5.0;
 constexpr double kMinUnorientedFitContrast = 20.0;
 // Perspective search (ReadUnorientedQrModuleGrid, after the fitted grids fail to decode): the
@@ -148,12 +150,10 @@ double KnownContrast(const cv::Mat& gray, const Quad2d& corners_px, int n, const
   return light / light_count - dark / dark_count;
 }
 
-// Known-module contrast plus kDataSpreadWeight standard deviations of the unknown modules'
-// samples: on a blurred code the data modules' samples spread most when taken at the module
-// centres, and the data area (half the symbol, most of it away from the finders) pins the
-// perspective that the known modules, three blocks at three corners, leave loose. NaN if a
-// sample leaves the image.
-double GridSharpness(const cv::Mat& gray, const Quad2d& corners_px, int n, const std::vector<int8_t>& known) {
+// Known-module contrast (mean light minus mean dark sample) and the standard deviation of the
+// unknown (data) modules' samples; false if a sample leaves the image.
+bool KnownContrastAndDataSpread(const cv::Mat& gray, const Quad2d& corners_px, int n,
+                                const std::vector<int8_t>& known, double* contrast, double* spread) {
   const cv::Matx33d H = ImageFromModules(corners_px, n);
   double light = 0.0, dark = 0.0, sum = 0.0, sum_sq = 0.0;
   int light_count = 0, dark_count = 0, data_count = 0;
@@ -161,7 +161,7 @@ double GridSharpness(const cv::Mat& gray, const Quad2d& corners_px, int n, const
     for (int c = 0; c < n; ++c) {
       const int8_t k = known[static_cast<size_t>(r * n + c)];
       double g = 0.0;
-      if (!ModuleSample(gray, H, r, c, &g)) return NAN;
+      if (!ModuleSample(gray, H, r, c, &g)) return false;
       if (k < 0) {
         sum += g;
         sum_sq += g * g;
@@ -173,8 +173,30 @@ double GridSharpness(const cv::Mat& gray, const Quad2d& corners_px, int n, const
     }
   }
   const double mean = sum / data_count;
-  const double spread = std::sqrt(std::max(0.0, sum_sq / data_count - mean * mean));
-  return light / light_count - dark / dark_count + kDataSpreadWeight * spread;
+  *contrast = light / light_count - dark / dark_count;
+  *spread = std::sqrt(std::max(0.0, sum_sq / data_count - mean * mean));
+  return true;
+}
+
+// Known-module contrast over the data modules' spread (UnorientedCodeLikeness); NaN if a
+// sample leaves the image, +infinity for a positive contrast over data samples that do not vary.
+double KnownContrastToDataSpread(const cv::Mat& gray, const Quad2d& corners_px, int n,
+                                 const std::vector<int8_t>& known) {
+  double contrast = 0.0, spread = 0.0;
+  if (!KnownContrastAndDataSpread(gray, corners_px, n, known, &contrast, &spread)) return NAN;
+  if (!(spread > 0.0)) return contrast > 0.0 ? std::numeric_limits<double>::infinity() : 0.0;
+  return contrast / spread;
+}
+
+// Known-module contrast plus kDataSpreadWeight standard deviations of the unknown modules'
+// samples: on a blurred code the data modules' samples spread most when taken at the module
+// centres, and the data area (half the symbol, most of it away from the finders) pins the
+// perspective that the known modules, three blocks at three corners, leave loose. NaN if a
+// sample leaves the image.
+double GridSharpness(const cv::Mat& gray, const Quad2d& corners_px, int n, const std::vector<int8_t>& known) {
+  double contrast = 0.0, spread = 0.0;
+  if (!KnownContrastAndDataSpread(gray, corners_px, n, known, &contrast, &spread)) return NAN;
+  return contrast + kDataSpreadWeight * spread;
 }
 
 // Darkness of module (r, c) in the current estimate; outside the symbol: light.
@@ -491,13 +513,15 @@ double UnorientedKnownModuleContrast(const cv::Mat& gray, const Quad2d& corners_
   return best;
 }
 
-std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px) {
-  if (gray.empty() || gray.type() != CV_8UC1) return {};
-  struct Hypothesis {
-    Quad2d corners;
-    int modules;
-    double contrast;
-  };
+namespace {
+
+// An unoriented quad's hypotheses (rotation, module count) by known-module contrast, best first.
+struct Hypothesis {
+  Quad2d corners;
+  int modules;
+  double contrast;
+};
+std::vector<Hypothesis> RankedHypotheses(const cv::Mat& gray, const Quad2d& corners_px) {
   std::vector<Hypothesis> hypotheses;
   for (int rotation = 0; rotation < 4; ++rotation) {
     const Quad2d corners = RotateCorners(corners_px, rotation);
@@ -508,7 +532,33 @@ std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, c
   }
   std::stable_sort(hypotheses.begin(), hypotheses.end(),
                    [](const Hypothesis& a, const Hypothesis& b) { return a.contrast > b.contrast; });
+  return hypotheses;
+}
+
+// UnorientedCodeLikeness of the hypotheses that would be fitted (the first kUnorientedFits).
+double BestCodeLikeness(const cv::Mat& gray, const std::vector<Hypothesis>& hypotheses) {
+  double best = -std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < hypotheses.size() && k < kUnorientedFits; ++k) {
+    const double ratio = KnownContrastToDataSpread(gray, hypotheses[k].corners, hypotheses[k].modules,
+                                                   KnownModules(hypotheses[k].modules));
+    if (!std::isnan(ratio)) best = std::max(best, ratio);
+  }
+  return best;
+}
+
+}  // namespace
+
+double UnorientedCodeLikeness(const cv::Mat& gray, const Quad2d& corners_px) {
+  if (gray.empty() || gray.type() != CV_8UC1) return -std::numeric_limits<double>::infinity();
+  return BestCodeLikeness(gray, RankedHypotheses(gray, corners_px));
+}
+
+std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px) {
+  if (gray.empty() || gray.type() != CV_8UC1) return {};
+  const std::vector<Hypothesis> hypotheses = RankedHypotheses(gray, corners_px);
   if (hypotheses.empty() || !(hypotheses[0].contrast >= kMinUnorientedRawContrast)) return {};
+  // Clutter whose known modules explain little of its variation: no fit.
+  if (!(BestCodeLikeness(gray, hypotheses) >= kMinUnorientedCodeLikeness)) return {};
   std::vector<QrModuleGrid> grids;
   for (size_t k = 0; k < hypotheses.size() && k < kUnorientedFits; ++k) {
     if (const std::optional<QrModuleGrid> grid =

@@ -74,4 +74,15 @@ std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, c
 // fits nothing under kMinUnorientedRawContrast. Cheap (no fit): used to rank such quads.
 double UnorientedKnownModuleContrast(const cv::Mat& gray, const Quad2d& corners_px);
 
+// How much of the quad's variation its known modules explain, before any fit: the known
+// modules' contrast over the standard deviation of the data modules' samples, the best of the
+// hypotheses ReadUnorientedQrModuleGrid would fit (-infinity when none can be sampled). A code's
+// data modules are about half dark at about the known modules' contrast, so blur and a
+// module's misplacement aside the ratio is about 2 (recall bench, issue and hard seeds 1-3:
+// the 12 codes read 0.31-1.32); on text and noise the samples vary a lot and the known modules
+// little (the clutter quads fitted: median 0.16). ReadUnorientedQrModuleGrid fits nothing under
+// kMinUnorientedCodeLikeness, about half the weakest code's.
+inline constexpr double kMinUnorientedCodeLikeness = 0.15;
+double UnorientedCodeLikeness(const cv::Mat& gray, const Quad2d& corners_px);
+
 }  // namespace waymark
