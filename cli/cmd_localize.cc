@@ -60,12 +60,14 @@ The map's landmark errors (its position_covariance and position_covariance_facto
   --calibration-time T  the odometry calibration (heading drift, turn and distance scale) as a
                       first-order Gauss-Markov process of correlation time T seconds about the
                       prior's mean, with the prior's sigma as its stationary sigma (docs/online.md);
-                      0 (default): constant;
-                      range-bearing datasets only
+                      0: constant; default: the map's range_bearing_sensor calibration_time_s (fitted
+                      by `waymark map build` from the mapped robots' smoothed trajectories against
+                      their odometry) with --sensor-prior map and without --turn-fluctuation, else
+                      0; range-bearing datasets only
   --turn-fluctuation S,T  the turn scale's fast variation as its own Gauss-Markov state beside the
                       robot's constant turn scale: stationary sigma S, correlation time T seconds
-                      (scripts/odometry-calibration-time.py fits both from the mapped robots'
-                      smoothed trajectories; default: none); range-bearing datasets only
+                      (the map's calibration_turn_scale_sigma and calibration_time_s are both, as
+                      fitted by the map build; default: none); range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -306,6 +308,18 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
       throw std::invalid_argument("--calibration-time: expected a number of seconds >= 0, got " +
                                   *args.Get("calibration-time"));
     options.calibration_time_s = Eigen::Vector3d::Constant(tau);
+  } else if (sensor_prior == "map" && !args.Has("turn-fluctuation") && map.range_bearing_sensor &&
+             map.range_bearing_sensor->calibration_time) {
+    // The map build's fit (map.json range_bearing_sensor calibration_time_s).
+    options.calibration_time_s =
+        Eigen::Vector3d::Constant(map.range_bearing_sensor->calibration_time->time_s);
+  }
+  if (options.calibration_time_s[0] > 0.0) {
+    std::cout << "odometry calibration: Gauss-Markov, correlation time "
+              << FormatSignificant(options.calibration_time_s[0], 4) << " s ("
+              << (args.Has("calibration-time") ? "--calibration-time" : "the map's") << ")\n";
+  } else {
+    std::cout << "odometry calibration: constant\n";
   }
   if (args.Has("turn-fluctuation")) {
     const std::optional<std::vector<double>> v = args.GetDoubleList("turn-fluctuation");

@@ -531,6 +531,23 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
               << ", " << pm(m.odometry_calibration[1], sd.odometry_calibration[1]) << ", "
               << pm(m.odometry_calibration[2], sd.odometry_calibration[2]) << "\n";
   }
+  {
+    // Stage (5): the odometry calibration's correlation time (waymark localize's default).
+    const CalibrationTimeFit& fit = result.calibration_time;
+    std::cout << "odometry calibration's correlation time (map.json calibration_time_s, waymark localize's "
+                 "default): ";
+    if (fit.fitted) {
+      std::cout << FormatFixed(fit.time_s, 2) << " s, turn scale variation sigma "
+                << FormatFixed(fit.sigma, 4);
+    } else {
+      std::cout << "no fit (" << fit.autocovariance.size()
+                << " positive lags, no decay): the EKF's calibration constant";
+    }
+    std::cout << "; turn scale after the constant one, autocovariance R(lag):";
+    for (const auto& [lag, r] : fit.autocovariance)
+      std::cout << " " << FormatSignificant(lag, 3) << ":" << FormatSignificant(r, 3);
+    std::cout << "\n";
+  }
   for (const auto& [key, reason] : result.unmapped)
     std::cout << "unmapped " << key.ToString() << ": " << reason << "\n";
   std::cout << "solver time: " << FormatFixed(result.solver_time_s, 2) << " s\n";

@@ -144,6 +144,16 @@ struct RangeBearingSensorModel {
   // For a robot that is not in the map: the mean and the spread of the datasets' values
   // (mapping/range_bearing_map.h, SensorPrior); a sigma of 0 holds the entry at its mean.
   RangeBearingSensorValues prior_mean, prior_sigma;
+  // The correlation time of the odometry's turn scale variation and that variation's stationary
+  // sigma, fitted by the build from the datasets' smoothed trajectories against their odometry
+  // (mapping/odometry_calibration_time.h; map.json calibration_time_s, calibration_turn_scale_sigma):
+  // the EKF's odometry calibration as a Gauss-Markov process of this time. Absent: no fit (a map
+  // before 2026-11-26, or no decaying autocovariance: the calibration constant).
+  struct CalibrationTime {
+    double time_s = 0.0;            // > 0
+    double turn_scale_sigma = 0.0;  // >= 0
+  };
+  std::optional<CalibrationTime> calibration_time;
 };
 
 // A marker in a map (map.json; also ground-truth and known markers).

@@ -382,7 +382,28 @@ RangeBearingSensorModel ParseRangeBearingSensor(const JsonSource& source, const 
                        "expected 0 with range_model \"distance\"");
     }
   }
-  JsonWarnUnknownKeys(source, value, field, {"range_model", "datasets", "prior_mean", "prior_sigma"},
+  // calibration_time_s (> 0) and calibration_turn_scale_sigma (>= 0), optional, together.
+  const nlohmann::json* time = JsonMember(source, value, field, "calibration_time_s", false);
+  const nlohmann::json* turn = JsonMember(source, value, field, "calibration_turn_scale_sigma", false);
+  if ((time == nullptr) != (turn == nullptr))
+    ThrowJsonError(source, JsonField(field, time ? "calibration_turn_scale_sigma" : "calibration_time_s"),
+                   "expected calibration_time_s and calibration_turn_scale_sigma together");
+  if (time) {
+    RangeBearingSensorModel::CalibrationTime calibration;
+    calibration.time_s = JsonNumber(source, *time, JsonField(field, "calibration_time_s"));
+    if (!(calibration.time_s > 0.0 && std::isfinite(calibration.time_s)))
+      ThrowJsonError(source, JsonField(field, "calibration_time_s"),
+                     "expected a time > 0 (s), got " + FormatDouble(calibration.time_s));
+    calibration.turn_scale_sigma =
+        JsonNumber(source, *turn, JsonField(field, "calibration_turn_scale_sigma"));
+    if (!(calibration.turn_scale_sigma >= 0.0 && std::isfinite(calibration.turn_scale_sigma)))
+      ThrowJsonError(source, JsonField(field, "calibration_turn_scale_sigma"),
+                     "expected a sigma >= 0, got " + FormatDouble(calibration.turn_scale_sigma));
+    model.calibration_time = calibration;
+  }
+  JsonWarnUnknownKeys(source, value, field,
+                      {"range_model", "datasets", "prior_mean", "prior_sigma", "calibration_time_s",
+                       "calibration_turn_scale_sigma"},
                       warnings);
   return model;
 }
@@ -742,10 +763,19 @@ std::string FormatMap(const MarkerMap& map) {
       json["noise"] = NoiseJson(dataset.noise);
       datasets.push_back(json);
     }
-    const nlohmann::ordered_json json = {{"range_model", sensor->depth_ranges ? "depth" : "distance"},
-                                         {"datasets", datasets},
-                                         {"prior_mean", SensorValuesJson(sensor->prior_mean, false)},
-                                         {"prior_sigma", SensorValuesJson(sensor->prior_sigma, true)}};
+    nlohmann::ordered_json json = {{"range_model", sensor->depth_ranges ? "depth" : "distance"},
+                                   {"datasets", datasets},
+                                   {"prior_mean", SensorValuesJson(sensor->prior_mean, false)},
+                                   {"prior_sigma", SensorValuesJson(sensor->prior_sigma, true)}};
+    if (const auto& calibration = sensor->calibration_time) {
+      if (!(calibration->time_s > 0.0 && std::isfinite(calibration->time_s)) ||
+          !(calibration->turn_scale_sigma >= 0.0 && std::isfinite(calibration->turn_scale_sigma)))
+        throw std::invalid_argument(
+            "map writer: range_bearing_sensor calibration time not > 0 (or its sigma negative or not "
+            "finite)");
+      json["calibration_time_s"] = calibration->time_s;
+      json["calibration_turn_scale_sigma"] = calibration->turn_scale_sigma;
+    }
     text += ",\n \"range_bearing_sensor\": " + json.dump();
   }
   return text + "}\n";

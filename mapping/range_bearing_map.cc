@@ -40,6 +40,9 @@ bool RangeBearingBuildOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(IsFiniteAtLeast(max_odometry_delay_s, 0.0) && max_odometry_delay_s <= 10.0,
                        "max_odometry_delay_s must be in [0, 10]");
   WAYMARK_CHECK_OPTION(IsFinitePositive(odometry_delay_step_s), "odometry_delay_step_s must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(calibration_time_step_s) &&
+                           IsFiniteAtLeast(calibration_time_max_lag_s, calibration_time_step_s),
+                       "calibration_time_step_s must be > 0 and calibration_time_max_lag_s >= it");
   WAYMARK_CHECK_OPTION(max_iterations >= 1, "max_iterations must be >= 1");
   WAYMARK_CHECK_OPTION(num_threads >= 1, "num_threads must be >= 1");
   const RangeBearingNoise& n = initial_noise;
@@ -1121,7 +1124,29 @@ RangeBearingBuildResult BuildRangeBearingMap(const std::vector<const Dataset*>& 
       throw std::runtime_error("two datasets are named " + dataset->config.name + " (dataset.yaml name)");
   }
   Builder builder(datasets, options);
-  return builder.Run();
+  RangeBearingBuildResult result = builder.Run();
+  if (options.calibration_time) {
+    // Stage (5): every dataset's smoothed trajectory against its odometry, in the datasets' order.
+    std::vector<std::vector<TurnStep>> turns;
+    for (const Dataset* dataset : datasets) {
+      const auto trajectory = result.trajectories.find(dataset->config.name);
+      const auto summary =
+          std::find_if(result.datasets.begin(), result.datasets.end(),
+                       [&](const RangeBearingDatasetSummary& s) { return s.name == dataset->config.name; });
+      if (trajectory == result.trajectories.end() || summary == result.datasets.end()) continue;
+      turns.push_back(TurnSteps(trajectory->second, dataset->odometry, summary->noise.odometry_delay_s,
+                                options.calibration_time_step_s));
+    }
+    CalibrationTimeOptions fit_options;
+    fit_options.step_s = options.calibration_time_step_s;
+    fit_options.max_lag_s = options.calibration_time_max_lag_s;
+    result.calibration_time = FitTurnScaleCorrelation(turns, fit_options);
+    if (result.calibration_time.fitted && result.map.range_bearing_sensor) {
+      result.map.range_bearing_sensor->calibration_time = RangeBearingSensorModel::CalibrationTime{
+          result.calibration_time.time_s, result.calibration_time.sigma};
+    }
+  }
+  return result;
 }
 
 }  // namespace waymark

@@ -40,7 +40,9 @@
 // (3) a final solve with the plain squared loss; landmarks seen fewer than min_observations times are
 // reported, not mapped. (3b) The landmarks' covariance from the final problem (below). (4) The range error
 // common to the landmarks of one frame (RangeBearingNoise::range_scale_sigma and range_scale_time_s, for the
-// EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale).
+// EKF) from the final residuals (range_bearing_map.cc, EstimateRangeScale). (5) The correlation time of
+// the odometry's turn scale variation from the smoothed trajectories against the odometry
+// (mapping/odometry_calibration_time.h; the EKF's odometry calibration as a Gauss-Markov process).
 //
 // Sensor model (map.json range_bearing_sensor, docs/formats.md): each dataset's sensor offsets and
 // scales (range offset, bearing offset, bearing scale, depth share, range scale), its odometry
@@ -69,6 +71,7 @@
 #include <vector>
 
 #include "geometry/types.h"
+#include "mapping/odometry_calibration_time.h"
 
 namespace waymark {
 
@@ -119,6 +122,12 @@ struct RangeBearingBuildOptions {
   bool landmark_covariance = true;
   int covariance_rank = 20;
   int max_joint_covariance_landmarks = 500;
+  // Stage (5): the odometry calibration's correlation time (map.json range_bearing_sensor
+  // calibration_time_s; mapping/odometry_calibration_time.h, steps of calibration_time_step_s,
+  // lags up to calibration_time_max_lag_s); false: not estimated (the key absent).
+  bool calibration_time = true;
+  double calibration_time_step_s = 1.0;
+  double calibration_time_max_lag_s = 60.0;
   int max_iterations = 50;
   int num_threads = 1;
   std::function<void(const std::string&)> progress;
@@ -153,6 +162,7 @@ struct RangeBearingBuildResult {
   double bearing_rms_rad = 0.0;
   double solver_time_s = 0.0;
   std::vector<std::string> notes;
+  CalibrationTimeFit calibration_time;  // stage (5); fitted false when not estimated or no fit
 };
 
 // True when some dataset has range-bearing observations (the map build then uses this builder).

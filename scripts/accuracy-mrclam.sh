@@ -15,9 +15,11 @@
 #      positions; the map's covariance against its error (scripts/map-covariance-check.py); the
 #      EKF without the map's sensor prior on the distance-model map of robots 1-3 (the filter before)
 #   5. leave-out splits: map of robots 3, 4, 5 localizing 1 and 2; map of 1, 2, 4 localizing 3 and 5
-# Online, the odometry calibration is a Gauss-Markov state whose correlation time comes from the
-# mapped robots' smoothed trajectories against their odometry (scripts/odometry-calibration-time.py,
-# no ground truth); each online run is repeated with the calibration constant (the filter before).
+# Online, the odometry calibration is a Gauss-Markov state whose correlation time the map build fits
+# from the mapped robots' smoothed trajectories against their odometry (no ground truth; map.json
+# range_bearing_sensor calibration_time_s, waymark localize's default); each online run is repeated
+# with the calibration constant (--calibration-time 0, the filter before).
+# (scripts/odometry-calibration-time.py is the same fit in Python, a diagnostic: not run here.)
 # Usage: scripts/accuracy-mrclam.sh [RUN_DIR] [OUT_DIR]   (OUT_DIR default: out/mrclam; needs
 # build/waymark: scripts/build.sh --target waymark)
 set -euo pipefail
@@ -66,12 +68,9 @@ done
 
 if [[ ${#robots[@]} -ge 5 ]]; then
   echo "== map of robots 1-3, robots 4 and 5 localized online against it"
+  # The build prints the odometry calibration's correlation time it fitted (the online default).
   "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" \
     --out "$out/map-123.json" --trajectory-dir "$out/smoothed-123"
-  echo "== the odometry calibration's correlation time from robots 1-3 (their smoothed trajectories)"
-  python3 scripts/odometry-calibration-time.py "$out/map-123.json" "$out/smoothed-123" \
-    "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" | tee "$out/calibration-time-123.txt"
-  tau=$(tail -n 1 "$out/calibration-time-123.txt" | cut -d, -f2)
   "$waymark" eval --map "$out/map-123.json" --gt-map "$gt_map"
   echo "== the map's landmark covariance against its error (no alignment)"
   python3 scripts/map-covariance-check.py "$out/map-123.json" "$gt_map"
@@ -87,21 +86,20 @@ json.dump(truth, open(sys.argv[3], "w"))
 EOF
   for robot in robot4 robot5; do
     echo "== $robot: online against the map of robots 1-3"
-    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --calibration-time "$tau" \
-      --out "$out/$robot-online.tum"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --out "$out/$robot-online.tum"
     "$waymark" eval --est "$out/$robot-online.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
       --align none --max-dt 0.02 --markers "$out/map-123.json" --gt-map "$gt_map" \
       --plot "$out/$robot-online.svg"
     echo "== $robot: online, the odometry calibration constant (--calibration-time 0, the filter before)"
-    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --out "$out/$robot-online-constant.tum"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --calibration-time 0 \
+      --out "$out/$robot-online-constant.tum"
     for mode in consider in-noise ignore; do
       echo "== $robot: online, the map's errors $mode"
       "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --map-uncertainty "$mode" \
-        --calibration-time "$tau" --out "$out/$robot-online-$mode.tum"
+        --out "$out/$robot-online-$mode.tum"
     done
     echo "== $robot: online against the true landmark positions (control)"
-    "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --calibration-time "$tau" \
-      --out "$out/$robot-online-truth-map.tum"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-truth.json" --out "$out/$robot-online-truth-map.tum"
   done
   echo "== map of robots 1-3, distance model; robots 4 and 5 online without the map's sensor prior (before)"
   "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" --range-model distance \
@@ -122,16 +120,11 @@ if [[ ${#robots[@]} -ge 5 ]]; then
     echo "== map of robots ${mapped}"
     "$waymark" map build "${dirs[@]}" --out "$out/map-$mapped.json" --trajectory-dir "$out/smoothed-$mapped"
     "$waymark" eval --map "$out/map-$mapped.json" --gt-map "$gt_map"
-    echo "== the odometry calibration's correlation time from robots ${mapped}"
-    python3 scripts/odometry-calibration-time.py "$out/map-$mapped.json" "$out/smoothed-$mapped" "${dirs[@]}" |
-      tee "$out/calibration-time-$mapped.txt"
-    tau=$(tail -n 1 "$out/calibration-time-$mapped.txt" | cut -d, -f2)
     for r in $located; do
       echo "== robot$r: online against the map of robots ${mapped}"
-      "$waymark" localize "$out/data/robot$r" --map "$out/map-$mapped.json" --calibration-time "$tau" \
-        --out "$out/robot$r-online-$mapped.tum"
+      "$waymark" localize "$out/data/robot$r" --map "$out/map-$mapped.json" --out "$out/robot$r-online-$mapped.tum"
       echo "== robot$r: online against the map of robots ${mapped}, the calibration constant (before)"
-      "$waymark" localize "$out/data/robot$r" --map "$out/map-$mapped.json" \
+      "$waymark" localize "$out/data/robot$r" --map "$out/map-$mapped.json" --calibration-time 0 \
         --out "$out/robot$r-online-$mapped-constant.tum"
     done
   done

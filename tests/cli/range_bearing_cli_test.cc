@@ -222,6 +222,44 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
               HasSubstr("--turn-fluctuation: expected SIGMA,SECONDS (two numbers >= 0), got 0.08"));
   EXPECT_FALSE(fs::exists(dir_ / "w.tum"));
   EXPECT_FALSE(fs::exists(dir_ / "z.tum"));
+  // The correlation time by default from the map (range_bearing_sensor calibration_time_s): the
+  // same poses, to the byte, as --calibration-time with it on the map without the key;
+  // --calibration-time 0 and --sensor-prior none keep the calibration constant, as a map without it.
+  MarkerMap timed = ReadMap(dir_ / "map.json");
+  ASSERT_TRUE(timed.range_bearing_sensor);
+  timed.range_bearing_sensor->calibration_time = RangeBearingSensorModel::CalibrationTime{3.5, 0.05};
+  WriteMap(dir_ / "map-timed.json", timed);
+  timed.range_bearing_sensor->calibration_time.reset();
+  WriteMap(dir_ / "map-untimed.json", timed);
+  const auto localize_with = [&](const std::string& map, const std::string& out, const std::string& extra) {
+    const RunResult r = Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / map).string() +
+                            " --out " + (dir_ / out).string() + extra);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.out;
+  };
+  const auto file = [&](const std::string& name) {
+    std::ifstream in(dir_ / name);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  EXPECT_THAT(localize_with("map-timed.json", "t-default.tum", ""),
+              HasSubstr("odometry calibration: Gauss-Markov, correlation time 3.5 s (the map's)"));
+  EXPECT_THAT(localize_with("map-untimed.json", "u-3.5.tum", " --calibration-time 3.5"),
+              HasSubstr("odometry calibration: Gauss-Markov, correlation time 3.5 s (--calibration-time)"));
+  EXPECT_EQ(file("t-default.tum"), file("u-3.5.tum"));
+  EXPECT_THAT(localize_with("map-untimed.json", "u-default.tum", ""),
+              HasSubstr("odometry calibration: constant"));
+  EXPECT_THAT(localize_with("map-timed.json", "t-0.tum", " --calibration-time 0"),
+              HasSubstr("odometry calibration: constant"));
+  EXPECT_EQ(file("t-0.tum"), file("u-default.tum"));
+  EXPECT_NE(file("t-default.tum"), file("u-default.tum"));
+  EXPECT_THAT(localize_with("map-timed.json", "t-5.tum", " --calibration-time 5"),
+              HasSubstr("odometry calibration: Gauss-Markov, correlation time 5 s (--calibration-time)"));
+  EXPECT_EQ(file("t-5.tum"), file("robot2-gm.tum"));
+  EXPECT_THAT(localize_with("map-timed.json", "t-none.tum", " --sensor-prior none"),
+              HasSubstr("odometry calibration: constant"));
+  EXPECT_THAT(localize_with("map-timed.json", "t-f.tum", " --turn-fluctuation 0.08,2.5"),
+              HasSubstr("odometry calibration: constant"));
+  EXPECT_EQ(file("t-f.tum"), file("robot2-f.tum"));
 }
 
 TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {

@@ -474,6 +474,50 @@ TEST(MapIoTest, RangeBearingSensorRoundTripAndOldMapsWithout) {
   EXPECT_THAT(
       ParseError(with("\"range_a_m\":0.01,\"range_b\":0.0046", "\"range_a_m\":0,\"range_b\":0.0046")),
       HasSubstr("range_bearing_sensor.datasets[0].noise.range_a_m: expected a positive number, got 0"));
+  // A sensor model without the odometry calibration's correlation time (before it was fitted by the
+  // build) reads as before and is written without it.
+  EXPECT_FALSE(read.calibration_time);
+  EXPECT_EQ(text.find("calibration_time_s"), std::string::npos);
+}
+
+// map.json range_bearing_sensor calibration_time_s and calibration_turn_scale_sigma (the build's
+// fit, waymark localize's default correlation time): written and read back to the last digit;
+// the two go together; errors name the field.
+TEST(MapIoTest, RangeBearingSensorCalibrationTimeRoundTrip) {
+  MarkerMap map = ParseMap(kGoodMap, "map.json");
+  RangeBearingSensorModel model;
+  RangeBearingSensorModel::Dataset dataset;
+  dataset.name = "robot1";
+  model.datasets.push_back(dataset);
+  model.calibration_time = RangeBearingSensorModel::CalibrationTime{2.357812345678, 0.0412345678901};
+  map.range_bearing_sensor = model;
+  const std::string text = FormatMap(map);
+  const MarkerMap again = ParseMap(text, "again.json");
+  ASSERT_TRUE(again.range_bearing_sensor);
+  ASSERT_TRUE(again.range_bearing_sensor->calibration_time);
+  EXPECT_EQ(again.range_bearing_sensor->calibration_time->time_s, 2.357812345678);
+  EXPECT_EQ(again.range_bearing_sensor->calibration_time->turn_scale_sigma, 0.0412345678901);
+  EXPECT_EQ(FormatMap(again), text);
+  const auto with = [&](const std::string& from, const std::string& to) {
+    std::string t = text;
+    const size_t at = t.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return t.replace(at, from.size(), to);
+  };
+  EXPECT_THAT(ParseError(with(",\"calibration_turn_scale_sigma\":0.0412345678901", "")),
+              HasSubstr("range_bearing_sensor.calibration_turn_scale_sigma: expected calibration_time_s and "
+                        "calibration_turn_scale_sigma together"));
+  EXPECT_THAT(ParseError(with("\"calibration_time_s\":2.357812345678,", "")),
+              HasSubstr("range_bearing_sensor.calibration_time_s: expected calibration_time_s and "
+                        "calibration_turn_scale_sigma together"));
+  EXPECT_THAT(ParseError(with("\"calibration_time_s\":2.357812345678", "\"calibration_time_s\":0")),
+              HasSubstr("range_bearing_sensor.calibration_time_s: expected a time > 0 (s), got 0"));
+  EXPECT_THAT(ParseError(with("\"calibration_turn_scale_sigma\":0.0412345678901",
+                              "\"calibration_turn_scale_sigma\":-1")),
+              HasSubstr("range_bearing_sensor.calibration_turn_scale_sigma: expected a sigma >= 0, got -1"));
+  // The writer refuses a time that is not > 0.
+  map.range_bearing_sensor->calibration_time->time_s = 0.0;
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
 }
 
 }  // namespace
