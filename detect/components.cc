@@ -53,18 +53,45 @@ void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
   }
 }
 
-// The column sums of the first row's box: over rows -r .. r (clamped: the border
-// replicated), padded by r zero columns on each side (filled by the callers).
-std::vector<uint16_t> FirstColumnSums(const cv::Mat& gray, int r) {
-  const int rows = gray.rows, cols = gray.cols;
-  std::vector<uint16_t> column(cols + 2 * r, 0);
-  uint16_t* const c = column.data() + r;
-  for (int dy = -r; dy <= r; ++dy) {
-    const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, rows - 1));
-    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + in[x]);
+// The column sums of a (2r + 1)-row box slid down the image: sums over rows y - r .. y + r
+// (clamped: the border replicated), padded by r columns on each side with the border
+// columns' sums (PadBorders). Unsigned 16-bit arithmetic wraps, but every sum the callers
+// keep fits, so the wrapped differences are exact.
+class SlidingColumnSums {
+ public:
+  SlidingColumnSums(const cv::Mat& gray, int r)
+      : gray_(gray), r_(r), column_(gray.cols + 2 * r, 0), c_(column_.data() + r) {
+    for (int dy = -r; dy <= r; ++dy) {
+      const uint8_t* in = gray.ptr<uint8_t>(std::clamp(dy, 0, gray.rows - 1));
+      for (int x = 0; x < gray.cols; ++x) c_[x] = static_cast<uint16_t>(c_[x] + in[x]);
+    }
   }
-  return column;
-}
+
+  // The padded sums, padded_cols = cols + 2 r entries.
+  const uint16_t* data() const { return column_.data(); }
+
+  // Copies the border columns' sums into the padding.
+  void PadBorders() {
+    const int cols = gray_.cols;
+    for (int x = 0; x < r_; ++x) {
+      column_[x] = c_[0];
+      c_[cols + x] = c_[cols - 1];
+    }
+  }
+
+  // From row y's box to row y + 1's: adds row y + 1 + r, drops row y - r (both clamped).
+  void SlideDown(int y) {
+    const uint8_t* add = gray_.ptr<uint8_t>(std::min(y + 1 + r_, gray_.rows - 1));
+    const uint8_t* drop = gray_.ptr<uint8_t>(std::max(y - r_, 0));
+    for (int x = 0; x < gray_.cols; ++x) c_[x] = static_cast<uint16_t>(c_[x] + add[x] - drop[x]);
+  }
+
+ private:
+  const cv::Mat& gray_;
+  int r_;
+  std::vector<uint16_t> column_;
+  uint16_t* c_;
+};
 
 // DarkerThanLocalMean for boxes over 15 px (the QR finder search's, up to 101): 16-bit column
 // sums (at most 255 x 101) slid down the rows, each row's box sums as differences of a 32-bit
@@ -74,23 +101,18 @@ cv::Mat DarkerThanLocalMeanWide(const cv::Mat& gray, int box, int darker_by) {
   const int rows = gray.rows, cols = gray.cols, r = box / 2;
   cv::Mat dark(rows, cols, CV_8U);
   if (rows == 0 || cols == 0) return dark;
-  // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
-  // columns on each side with the border columns' sums.
   const int padded_cols = cols + 2 * r;
-  std::vector<uint16_t> column = FirstColumnSums(gray, r);
-  uint16_t* const c = column.data() + r;
+  SlidingColumnSums column(gray, r);
   // As below: dark when sum >= area pixel + t, t = ceil(area (2 darker_by - 1) / 2).
   const int area = box * box;
   const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
   std::vector<int32_t> prefix(padded_cols + 1, 0);  // prefix[x]: sum of columns before x
+  const uint16_t* const sums = column.data();
   for (int y = 0; y < rows; ++y) {
-    for (int x = 0; x < r; ++x) {
-      column[x] = c[0];
-      c[cols + x] = c[cols - 1];
-    }
+    column.PadBorders();
     int32_t running = 0;
     for (int x = 0; x < padded_cols; ++x) {
-      running += column[x];
+      running += sums[x];
       prefix[x + 1] = running;
     }
     const int32_t* high = prefix.data() + box;
@@ -99,9 +121,7 @@ cv::Mat DarkerThanLocalMeanWide(const cv::Mat& gray, int box, int darker_by) {
     uint8_t* out = dark.ptr<uint8_t>(y);
     for (int x = 0; x < cols; ++x) out[x] = high[x] - low[x] >= area * in[x] + t_exact ? 255 : 0;
     if (y + 1 == rows) break;
-    const uint8_t* add = gray.ptr<uint8_t>(std::min(y + 1 + r, rows - 1));
-    const uint8_t* drop = gray.ptr<uint8_t>(std::max(y - r, 0));
-    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + add[x] - drop[x]);
+    column.SlideDown(y);
   }
   return dark;
 }
@@ -115,12 +135,8 @@ cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
   const int rows = gray.rows, cols = gray.cols, r = box / 2;
   cv::Mat dark(rows, cols, CV_8U);
   if (rows == 0 || cols == 0) return dark;
-  // Column sums over rows y - r .. y + r (clamped: the border replicated), padded by r
-  // columns on each side with the border columns' sums; updated row by row. Unsigned 16-bit
-  // arithmetic wraps, but every sum fits, so the wrapped differences are exact.
   const int padded_cols = cols + 2 * r;
-  std::vector<uint16_t> column = FirstColumnSums(gray, r);
-  uint16_t* const c = column.data() + r;
+  SlidingColumnSums column(gray, r);
   // Sums of 2, 4 and 8 neighbouring columns: a box sum is the sum of a few of them (its
   // width in binary), each pass a plain loop the compiler vectorizes.
   std::vector<uint16_t> pow2[3];
@@ -139,10 +155,7 @@ cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
   const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
   const bool narrow = t_exact >= 0 && area * 255 + t_exact <= 65535;
   for (int y = 0; y < rows; ++y) {
-    for (int x = 0; x < r; ++x) {
-      column[x] = c[0];
-      c[cols + x] = c[cols - 1];
-    }
+    column.PadBorders();
     for (int k = 1, step = 1; k < 4 && (1 << k) <= box; ++k, step *= 2) {
       const uint16_t* lower = k == 1 ? column.data() : pow2[k - 2].data();
       uint16_t* out = pow2[k - 1].data();
@@ -164,10 +177,7 @@ cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by) {
       }
     }
     if (y + 1 == rows) break;
-    // Slide down: add row y + 1 + r, drop row y - r (both clamped to the image).
-    const uint8_t* add = gray.ptr<uint8_t>(std::min(y + 1 + r, rows - 1));
-    const uint8_t* drop = gray.ptr<uint8_t>(std::max(y - r, 0));
-    for (int x = 0; x < cols; ++x) c[x] = static_cast<uint16_t>(c[x] + add[x] - drop[x]);
+    column.SlideDown(y);
   }
   return dark;
 }
