@@ -65,7 +65,9 @@ void LiveInput::PrintSummary(std::ostream& out) const {
         << mean(region_read_cpu_ms_, region_images_) << " ms mean, whole frames "
         << mean(whole_read_cpu_ms_, whole_images_) << " ms mean; without it: regions "
         << mean(region_cpu_ms_ - region_read_cpu_ms_, region_images_) << " ms mean, whole frames "
-        << mean(whole_cpu_ms_ - whole_read_cpu_ms_, whole_images_) << " ms mean\n";
+        << mean(whole_cpu_ms_ - whole_read_cpu_ms_, whole_images_) << " ms mean; all images "
+        << mean(region_cpu_ms_ + whole_cpu_ms_ - region_read_cpu_ms_ - whole_read_cpu_ms_, images_)
+        << " ms mean\n";
   }
   for (const std::string& warning : stream_.warnings().Lines()) out << "warning: " << warning << "\n";
   if (!pacer_.Summary().empty()) out << "warning: " << pacer_.Summary() << "\n";

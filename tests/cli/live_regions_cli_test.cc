@@ -112,6 +112,16 @@ TEST_F(LiveRegionsCliTest, PredictedRegionsKeepTheAccuracyOfWholeFrames) {
   // The CPU without decoding the image files is given beside it.
   EXPECT_NE(regions.err.find("detection: of which reading the image files: regions "), std::string::npos)
       << regions.err;
+  // ... and the mean over every image (regions and whole frames) without it: below the regions'
+  // and whole frames' means with it.
+  const size_t all = regions.err.find(" ms mean; all images ");
+  ASSERT_NE(all, std::string::npos) << regions.err;
+  const double all_ms = std::stod(regions.err.substr(all + std::string(" ms mean; all images ").size()));
+  EXPECT_GT(all_ms, 0.0) << regions.err;
+  const size_t with_read = regions.err.find("all images: CPU ");
+  ASSERT_NE(with_read, std::string::npos) << regions.err;
+  EXPECT_LE(all_ms, std::stod(regions.err.substr(with_read + std::string("all images: CPU ").size())))
+      << regions.err;
   const Accuracy a = Evaluate(whole.out), b = Evaluate(regions.out);
   ASSERT_GE(a.poses, 70);
   EXPECT_EQ(b.poses, a.poses);
