@@ -7,6 +7,7 @@
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
+#include "detect/module_fit.h"
 #include "detect/qr_grid.h"
 #include "detect/zxing.h"
 
@@ -47,6 +48,13 @@ constexpr double kMinUnorientedFitContrast = 20.0;
 constexpr double kSearchSteps[] = {0.3, 0.15, 0.075};
 constexpr int kSearchRounds = 3;
 constexpr double kDataSpreadWeight = 2.0;
+// Photometric refit (ReadUnorientedQrModuleGrid, after the perspective search fails): rounds
+// of (read the modules, fit the whole pattern as read, detect/module_fit.h), each corner free
+// to move up to max(px, modules x module) from where the round starts (a quad from a dark
+// blob's hull is a module or so off; the fit's own default allows 0.4 module).
+constexpr int kPhotometricRounds = 2;
+constexpr double kPhotometricMaxShiftModules = 1.0;
+constexpr double kPhotometricMaxShiftPx = 1.5;
 
 // The blur model's neighbourhood: offsets (dr, dc) and their weight class (0 the module
 // itself, 1 edge neighbours, 2 diagonal, 3 two modules along an axis).
@@ -569,8 +577,25 @@ std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, c
                    [](const QrModuleGrid& a, const QrModuleGrid& b) { return a.contrast > b.contrast; });
   if (grids.empty() || !(grids[0].contrast >= kMinUnorientedFitContrast)) return {};
   std::vector<MarkerObservation> read = DecodeGrids(gray, grids);
+  if (!read.empty()) return read;
   // The finder-less corner is held by few known modules: the perspective search, once.
-  if (read.empty()) read = DecodeGrids(gray, {SearchGridPerspective(gray, grids[0])});
+  QrModuleGrid grid = SearchGridPerspective(gray, grids[0]);
+  read = DecodeGrids(gray, {grid});
+  // Then the whole pattern as read, wrong modules and all, fitted photometrically (the blur
+  // through the homography, detect/module_fit.h): every module edge pulls on the corners, not
+  // only the known modules'; the grid is read again at the fitted corners.
+  for (int round = 0; read.empty() && round < kPhotometricRounds; ++round) {
+    const std::optional<Deconvolved> modules_read = Deconvolve(gray, grid);
+    if (!modules_read) break;
+    ModuleFitOptions options;
+    options.max_shift_modules = kPhotometricMaxShiftModules;
+    options.max_shift_px = kPhotometricMaxShiftPx;
+    const std::optional<ModuleFit> fit =
+        FitModuleGrid(gray, grid.corners_px, grid.modules, modules_read->binary, options);
+    if (!fit) break;
+    grid.corners_px = fit->corners_px;
+    read = DecodeGrids(gray, {grid});
+  }
   return read;
 }
 
