@@ -2,6 +2,7 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -723,6 +724,108 @@ std::vector<DarkQuad> ThinSideSmallQrCodeQuads(const std::vector<DarkQuad>& quad
   // The upper bound is exclusive in effect: a quad at exactly kSmallCodeMinSideDark is
   // SmallQrCodeQuads' (and near one of `taken`).
   return SmallCodeQuadsWithSides(quads, kSmallCodeMinThinSideDark, kSmallCodeMinSideDark, taken, max_quads);
+}
+
+namespace {
+
+// Four corners of a convex hull, clockwise on screen: the four of its vertices that span the
+// largest quadrilateral (every choice tried: a hull of a small code has a few dozen vertices
+// at most, and more are thinned to every k-th first); nullopt for fewer than four.
+std::optional<Quad2d> FourCornersOfHull(const std::vector<cv::Point>& hull) {
+  constexpr size_t kMaxVertices = 24;
+  if (hull.size() < 4) return std::nullopt;
+  std::vector<Eigen::Vector2d> p;
+  const size_t stride = (hull.size() + kMaxVertices - 1) / kMaxVertices;
+  for (size_t i = 0; i < hull.size(); i += stride) p.emplace_back(hull[i].x, hull[i].y);
+  if (p.size() < 4) return std::nullopt;
+  const auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() * b.y() - a.y() * b.x();
+  };
+  double best = -1.0;
+  std::array<size_t, 4> pick{};
+  for (size_t a = 0; a < p.size(); ++a) {
+    for (size_t b = a + 1; b < p.size(); ++b) {
+      for (size_t c = b + 1; c < p.size(); ++c) {
+        for (size_t d = c + 1; d < p.size(); ++d) {
+          // In hull order the quad is convex: twice its area is the cross of its diagonals.
+          const double area = std::abs(cross(p[c] - p[a], p[d] - p[b]));
+          if (area > best) {
+            best = area;
+            pick = {a, b, c, d};
+          }
+        }
+      }
+    }
+  }
+  Quad2d quad = {p[pick[0]], p[pick[1]], p[pick[2]], p[pick[3]]};
+  if (cross(quad[1] - quad[0], quad[2] - quad[1]) < 0) std::swap(quad[1], quad[3]);
+  return quad;
+}
+
+}  // namespace
+
+std::vector<DarkQuad> MergedFragmentQrCodeQuads(const std::vector<DarkQuad>& quads,
+                                                const std::vector<DarkQuad>& taken, int max_quads) {
+  std::vector<DarkQuad> out;
+  if (max_quads <= 0) return out;
+  // Fragments, by level.
+  std::vector<size_t> fragments;
+  for (size_t i = 0; i < quads.size(); ++i) {
+    const double side = QuadMeanSide(quads[i].corners_px);
+    if (!quads[i].l_completion && side >= kMinFragmentSidePx && side <= kMaxFragmentSidePx)
+      fragments.push_back(i);
+  }
+  // Union-find over the fragments of one level (a fixed function of the order found).
+  std::vector<size_t> parent(fragments.size());
+  for (size_t k = 0; k < parent.size(); ++k) parent[k] = k;
+  const auto root = [&parent](size_t k) {
+    while (parent[k] != k) k = parent[k] = parent[parent[k]];
+    return k;
+  };
+  for (size_t a = 0; a < fragments.size(); ++a) {
+    const DarkQuad& qa = quads[fragments[a]];
+    for (size_t b = a + 1; b < fragments.size(); ++b) {
+      const DarkQuad& qb = quads[fragments[b]];
+      if (qa.scale != qb.scale) continue;
+      const double reach =
+          kFragmentJoinFraction * (QuadMeanSide(qa.corners_px) + QuadMeanSide(qb.corners_px));
+      if ((QuadCenter(qa.corners_px) - QuadCenter(qb.corners_px)).squaredNorm() < reach * reach) {
+        const size_t ra = root(a), rb = root(b);
+        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+      }
+    }
+  }
+  const auto near = [](const DarkQuad& o, const Eigen::Vector2d& centre) {
+    return (QuadCenter(o.corners_px) - centre).norm() < 0.3 * QuadMeanSide(o.corners_px);
+  };
+  for (size_t g = 0; g < fragments.size() && static_cast<int>(out.size()) < max_quads; ++g) {
+    if (root(g) != g) continue;  // each group once, at its first fragment
+    std::vector<cv::Point> points;
+    int members = 0;
+    for (size_t k = g; k < fragments.size(); ++k) {
+      if (root(k) != g) continue;
+      ++members;
+      for (const Eigen::Vector2d& c : quads[fragments[k]].corners_px)
+        points.emplace_back(static_cast<int>(std::lround(c.x())), static_cast<int>(std::lround(c.y())));
+    }
+    if (members < 2) continue;
+    std::vector<cv::Point> hull;
+    cv::convexHull(points, hull);
+    const std::optional<Quad2d> quad = FourCornersOfHull(hull);
+    if (!quad) continue;
+    const double side = QuadMeanSide(*quad);
+    if (side < kMinSmallCodeSidePx || side > kMaxFragmentCodeSidePx) continue;
+    const Eigen::Vector2d centre = QuadCenter(*quad);
+    const auto near_centre = [&](const DarkQuad& o) { return near(o, centre); };
+    if (std::any_of(taken.begin(), taken.end(), near_centre) ||
+        std::any_of(out.begin(), out.end(), near_centre))
+      continue;
+    DarkQuad merged;
+    merged.corners_px = *quad;
+    merged.scale = quads[fragments[g]].scale;
+    out.push_back(merged);
+  }
+  return out;
 }
 
 std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate) {

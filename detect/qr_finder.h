@@ -97,6 +97,20 @@ inline constexpr double kSmallCodeMinThinSideDark = 0.35;
 std::vector<DarkQuad> ThinSideSmallQrCodeQuads(const std::vector<DarkQuad>& quads,
                                                const std::vector<DarkQuad>& taken, int max_quads);
 
+// Small codes whose modules fall apart into several dark components at every level (an oblique
+// code of 25-40 px, 1.2-1.7 px per module across the tilt: recall bench issue seeds 4-10): the
+// quads of one level with a mean side of kMinFragmentSidePx up to kMaxFragmentSidePx (not an L
+// completion) are joined where their centres are closer than kFragmentJoinFraction of their
+// two mean sides added, and each group of at least two gives the quad of the convex hull of
+// its corners (the four of its vertices that span the largest quadrilateral) when its mean side is
+// kMinSmallCodeSidePx-kMaxFragmentCodeSidePx; none near a quad of `taken` or near one of another group; in
+// the order of each group's first quad, at most `max_quads`.
+inline constexpr double kMinFragmentSidePx = 6.0, kMaxFragmentSidePx = 36.0;
+inline constexpr double kFragmentJoinFraction = 0.6;
+inline constexpr double kMaxFragmentCodeSidePx = 60.0;
+std::vector<DarkQuad> MergedFragmentQrCodeQuads(const std::vector<DarkQuad>& quads,
+                                                const std::vector<DarkQuad>& taken, int max_quads);
+
 // The bottom-right corner from the symbol's own edges: the intersection of the outer edge
 // of the top-right finder (right side, next to the top-right corner) and of the
 // bottom-left finder (bottom side, next to the bottom-left corner), found in `gray` within

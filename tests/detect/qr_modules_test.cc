@@ -449,6 +449,55 @@ TEST(DetectQrModules, ThinSideQuadsComeSecond) {
   EXPECT_TRUE(ThinSideSmallQrCodeQuads(quads, small, 0).empty());
 }
 
+// An oblique code whose modules fall apart into fragments at every level: the fragments of one
+// level near each other give the quad of their hull (MergedFragmentQrCodeQuads); a lone
+// fragment, fragments of different levels, a group near a quad already taken and an L
+// completion give none.
+TEST(DetectQrModules, FragmentsOfOneCodeMergeIntoItsQuad) {
+  const Quad2d code = MakeQuad({400.0, 300.0}, 32.0, 0.3, 0.7);
+  const auto part = [&](double u0, double v0, double u1, double v1) {
+    const auto at = [&](double u, double v) {
+      return (1 - v) * ((1 - u) * code[0] + u * code[1]) + v * ((1 - u) * code[3] + u * code[2]);
+    };
+    DarkQuad q;
+    q.corners_px = {at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)};
+    q.scale = 1.0;
+    return q;
+  };
+  // Fragments: seven of a 3 x 3 grid (the middle and the middle right missing) of blocks with gaps of 2 %
+  // between them (the modules of an oblique code that join nothing across their light neighbours).
+  std::vector<DarkQuad> quads;
+  const double edges[3][2] = {{0.0, 0.32}, {0.34, 0.66}, {0.68, 1.0}};
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      if ((r == 1 && c == 2) || (r == 1 && c == 1)) continue;
+      quads.push_back(part(edges[c][0], edges[r][0], edges[c][1], edges[r][1]));
+    }
+  }
+  DarkQuad lone;
+  lone.corners_px = MakeQuad({900.0, 700.0}, 14.0, 0.0);
+  lone.scale = 1.0;
+  quads.push_back(lone);
+  const std::vector<DarkQuad> merged = MergedFragmentQrCodeQuads(quads, {}, 4);
+  ASSERT_EQ(merged.size(), 1u);
+  for (int i = 0; i < 4; ++i) {
+    // The hull's corners are the fragments' outer corners, rounded to pixels: the code's.
+    const double nearest =
+        std::min({(merged[0].corners_px[i] - code[0]).norm(), (merged[0].corners_px[i] - code[1]).norm(),
+                  (merged[0].corners_px[i] - code[2]).norm(), (merged[0].corners_px[i] - code[3]).norm()});
+    EXPECT_LT(nearest, 1.5) << i;
+  }
+  EXPECT_TRUE(MergedFragmentQrCodeQuads(quads, merged, 4).empty());  // taken
+  EXPECT_TRUE(MergedFragmentQrCodeQuads(quads, {}, 0).empty());
+  std::vector<DarkQuad> two_levels = {quads[0], quads[1]};
+  two_levels[1].scale = 0.5;
+  EXPECT_TRUE(MergedFragmentQrCodeQuads(two_levels, {}, 4).empty());
+  std::vector<DarkQuad> completions = {quads[0], quads[1], quads[2]};
+  for (DarkQuad& q : completions) q.l_completion = true;
+  EXPECT_TRUE(MergedFragmentQrCodeQuads(completions, {}, 4).empty());
+  EXPECT_TRUE(MergedFragmentQrCodeQuads({}, {}, 4).empty());
+}
+
 TEST(DetectQrModules, NothingFromNoCodeOrBadInput) {
   cv::Mat flat(120, 120, CV_8U, cv::Scalar(128));
   const Quad2d quad = MakeQuad({60.0, 60.0}, 40.0, 0.0);
