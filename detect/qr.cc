@@ -330,7 +330,6 @@ class QrDetector : public MarkerDetector {
     const std::vector<CropAttempt> attempts = {
         [](const cv::Mat& crop) { return ReadInverted(crop); },
         [](const cv::Mat& crop) { return ReadUpscaled(crop); },
-        [](const cv::Mat& crop) { return ReadGlobalHistogram(crop); },
         // WeChat costs milliseconds per crop: only for close-ups, where the crop is the
         // whole image (pass 1 and the cheap attempts read codes in larger frames).
         [this, full = gray.size()](const cv::Mat& crop) {
@@ -345,8 +344,9 @@ class QrDetector : public MarkerDetector {
     ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, work, found);
     // A region searched for finders with none found holds no dark-on-light code that zxing
     // would find either (it needs three finders): only the inverted crop (a light-on-dark
-    // code has light finders) and WeChat are tried there.
-    const std::vector<CropAttempt> without_finders = {attempts[0], attempts[3]};
+    // code has light finders; the search finds them in most such codes, but not in all:
+    // DetectQr.InvertedCodeWithoutFindersIsRead) and WeChat are tried there.
+    const std::vector<CropAttempt> without_finders = {attempts[0], attempts[2]};
     for (size_t i = 0; i < regions.size(); ++i) {
       RunSecondPass(gray, {regions[i]}, finders_found[i] == 0 ? without_finders : attempts, work, found);
     }
@@ -365,12 +365,6 @@ class QrDetector : public MarkerDetector {
     cv::Mat inverted;
     cv::bitwise_not(crop, inverted);
     return ReadWithZxing(inverted, ZxingSymbology::kQrCode, ZxingPass{});
-  }
-
-  static std::vector<MarkerObservation> ReadGlobalHistogram(const cv::Mat& crop) {
-    ZxingPass pass;
-    pass.local_average_binarizer = false;
-    return ReadWithZxing(crop, ZxingSymbology::kQrCode, pass);
   }
 
   static std::vector<MarkerObservation> ReadUpscaled(const cv::Mat& crop) {

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "detect/detector.h"
+#include "detect/qr_finder.h"
 #include "detect/synthetic.h"
 
 namespace waymark {
@@ -125,6 +126,21 @@ TEST(DetectQr, InvertedCodeIsReadBySecondPass) {
   const auto found = CreateDetector("qr")->Detect(image);
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].key.id, "light-on-dark");
+  EXPECT_LT((QuadCenter(found[0].corners_px) - QuadCenter(truth)).norm(), 2.0);
+}
+
+// A light-on-dark code, turned and blurred so that the finder search finds none of its
+// finders in its region (it finds them in most such codes): the inverted crop still reads it.
+TEST(DetectQr, InvertedCodeWithoutFindersIsRead) {
+  const SymbolImage symbol = QrSymbol("light-on-dark/7");
+  cv::Mat image(480, 640, CV_8U, cv::Scalar(40));
+  const Quad2d truth = MakeQuad({321.3, 238.6}, 160.0, 0.8);
+  DrawSymbol(symbol, truth, &image, /*dark=*/225, /*light=*/30);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 1.0);
+  EXPECT_TRUE(FindQrFinderPatterns(image, cv::Rect(201, 118, 240, 240)).empty());
+  const auto found = CreateDetector("qr")->Detect(image);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].key.id, "light-on-dark/7");
   EXPECT_LT((QuadCenter(found[0].corners_px) - QuadCenter(truth)).norm(), 2.0);
 }
 
