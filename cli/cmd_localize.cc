@@ -68,6 +68,11 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       robot's constant turn scale: stationary sigma S, correlation time T seconds
                       (the map's calibration_turn_scale_sigma and calibration_time_s are both, as
                       fitted by the map build; default: none); range-bearing datasets only
+  --variance-factor K  report the EKF's pose covariance scaled by K > 0 (the estimate and the
+                      gates unchanged); default: the map's range_bearing_sensor
+                      online_variance_factor (`waymark map build --calibrate-online`: leave one
+                      out on the mapped robots, docs/online.md) with --sensor-prior map, else 1;
+                      1 disables; range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -149,7 +154,8 @@ const std::set<std::string> kValues = {"map",
                                        "sensor-prior",
                                        "depth-share-sigma",
                                        "calibration-time",
-                                       "turn-fluctuation"};
+                                       "turn-fluctuation",
+                                       "variance-factor"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -330,6 +336,21 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
     options.turn_fluctuation_sigma = (*v)[0];
     options.turn_fluctuation_time_s = (*v)[1];
   }
+  if (args.Has("variance-factor")) {
+    const std::optional<double> k = args.GetDouble("variance-factor");
+    if (!k || !(*k > 0.0) || !std::isfinite(*k))
+      throw std::invalid_argument("--variance-factor: expected a number > 0, got " +
+                                  *args.Get("variance-factor"));
+    options.variance_factor = *k;
+  } else if (sensor_prior == "map" && map.range_bearing_sensor &&
+             map.range_bearing_sensor->online_variance_factor) {
+    options.variance_factor = *map.range_bearing_sensor->online_variance_factor;
+  }
+  if (options.variance_factor != 1.0) {
+    std::cout << "variance factor: " << FormatSignificant(options.variance_factor, 4) << " ("
+              << (args.Has("variance-factor") ? "--variance-factor" : "the map's leave-one-out calibration")
+              << "; the reported covariance scaled)\n";
+  }
   if (map.range_bearing_noise) {
     options.noise = *map.range_bearing_noise;
   } else {
@@ -397,9 +418,10 @@ int RunDataset(const Args& args) {
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
   if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time") || args.Has("turn-fluctuation"))
+      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time and --turn-fluctuation "
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation and "
+        "--variance-factor "
         "are for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
@@ -414,9 +436,10 @@ int RunDataset(const Args& args) {
 
 int RunLive(const Args& args) {
   if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time") || args.Has("turn-fluctuation"))
+      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time and --turn-fluctuation "
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation and "
+        "--variance-factor "
         "are for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(

@@ -29,6 +29,7 @@
 #include "mapping/map_merge.h"
 #include "mapping/multi_survey.h"
 #include "mapping/range_bearing_map.h"
+#include "runner/range_bearing_run.h"
 #include "util/format.h"
 #include "util/stats.h"
 
@@ -75,6 +76,12 @@ Options (build, merge):
                       (e.g. smoothed.tum, smoothed.component1.tum), each in its component's frame
   --trajectory-dir DIR  each dataset's smoothed trajectory T_world_robot as DIR/<name>.tum
                       (<name>: dataset.yaml name, or the directory's name)
+  --calibrate-online  range-bearing datasets (two or more): for each, build the map of the others,
+                      run the online EKF (waymark localize's defaults) on it against that map and
+                      compare with its smoothed trajectory of this build (no ground truth); the
+                      pooled mean NEES / 3 is written as map.json range_bearing_sensor
+                      online_variance_factor, the factor waymark localize scales its reported
+                      covariance by (docs/online.md); one extra build per dataset
   --cameras-out DIR   every camera of DATASET as DIR/<name>.yaml, with the mounts the build
                       estimated (camera files that give T_robot_camera_sigma: extrinsic
                       self-calibration, docs/mapping.md) in place of the given ones, ready
@@ -156,8 +163,8 @@ const std::set<std::string> kBuildValues = {"out",           "trajectory",     "
                                             "max-gap",       "families",       "odometry-calibration",
                                             "payload-sigma", "trajectory-dir", "cameras-out",
                                             "range-model"};
-const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check", "detect-images",
-                                           "depth-ranges"};
+const std::set<std::string> kBuildFlags = {"no-covariance", "no-calibration", "no-id-check",
+                                           "detect-images", "depth-ranges",   "calibrate-online"};
 
 // The detections the build uses (cli/dataset_detect.h).
 void PrepareSurvey(const Args& args, Dataset* dataset) {
@@ -438,7 +445,40 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
   options.progress = terminal;
   std::vector<const Dataset*> pointers;
   for (const Dataset& dataset : datasets) pointers.push_back(&dataset);
-  const RangeBearingBuildResult result = BuildRangeBearingMap(pointers, options);
+  RangeBearingBuildResult result = BuildRangeBearingMap(pointers, options);
+  if (args.Flag("calibrate-online")) {
+    // Leave one out: each dataset localized by the EKF (waymark localize's defaults) against the
+    // map of the others, its NEES against its smoothed trajectory of this build (no ground truth).
+    if (pointers.size() < 2 || !result.map.range_bearing_sensor)
+      throw std::invalid_argument("--calibrate-online needs at least two range-bearing datasets");
+    std::vector<NeesResult> runs;
+    for (size_t i = 0; i < pointers.size(); ++i) {
+      std::vector<const Dataset*> others;
+      for (size_t j = 0; j < pointers.size(); ++j) {
+        if (j != i) others.push_back(pointers[j]);
+      }
+      const std::string& name = pointers[i]->config.name;
+      const auto reference = result.trajectories.find(name);
+      if (reference == result.trajectories.end() || reference->second.empty())
+        throw std::runtime_error("--calibrate-online: no smoothed trajectory of " + name);
+      RangeBearingBuildOptions leave_out = options;
+      leave_out.progress = nullptr;
+      const RangeBearingBuildResult part = BuildRangeBearingMap(others, leave_out);
+      const RangeBearingRun run =
+          RunRangeBearingLocalizer(*pointers[i], part.map, LocalizerOptionsFromMap(part.map));
+      NeesResult nees;
+      if (!run.poses.empty()) nees = ComputeNees(reference->second, run.poses, run.covariances, 0.02);
+      std::cout << "leave-one-out: " << name << " against the map of the others: NEES mean "
+                << FormatFixed(nees.mean, 2) << " over " << nees.samples << " poses (position "
+                << FormatFixed(nees.mean_position, 2) << ", heading " << FormatFixed(nees.mean_heading, 2)
+                << "), " << run.outputs_withheld << " withheld while lost\n";
+      runs.push_back(nees);
+    }
+    const double factor = PooledVarianceFactor(runs);
+    result.map.range_bearing_sensor->online_variance_factor = factor;
+    std::cout << "online variance factor: " << FormatSignificant(factor, 4)
+              << " (pooled mean NEES / 3; map.json range_bearing_sensor online_variance_factor)\n";
+  }
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
   std::vector<std::pair<std::string, std::string>> files;
   files.emplace_back(args.Require("out"), FormatMap(result.map));

@@ -401,9 +401,16 @@ RangeBearingSensorModel ParseRangeBearingSensor(const JsonSource& source, const 
                      "expected a sigma >= 0, got " + FormatDouble(calibration.turn_scale_sigma));
     model.calibration_time = calibration;
   }
+  if (const nlohmann::json* k = JsonMember(source, value, field, "online_variance_factor", false)) {
+    const double factor = JsonNumber(source, *k, JsonField(field, "online_variance_factor"));
+    if (!(factor > 0.0 && std::isfinite(factor)))
+      ThrowJsonError(source, JsonField(field, "online_variance_factor"),
+                     "expected a factor > 0, got " + FormatDouble(factor));
+    model.online_variance_factor = factor;
+  }
   JsonWarnUnknownKeys(source, value, field,
                       {"range_model", "datasets", "prior_mean", "prior_sigma", "calibration_time_s",
-                       "calibration_turn_scale_sigma"},
+                       "calibration_turn_scale_sigma", "online_variance_factor"},
                       warnings);
   return model;
 }
@@ -775,6 +782,11 @@ std::string FormatMap(const MarkerMap& map) {
             "finite)");
       json["calibration_time_s"] = calibration->time_s;
       json["calibration_turn_scale_sigma"] = calibration->turn_scale_sigma;
+    }
+    if (const auto& factor = sensor->online_variance_factor) {
+      if (!(*factor > 0.0 && std::isfinite(*factor)))
+        throw std::invalid_argument("map writer: range_bearing_sensor online_variance_factor not > 0");
+      json["online_variance_factor"] = *factor;
     }
     text += ",\n \"range_bearing_sensor\": " + json.dump();
   }

@@ -46,6 +46,7 @@ std::optional<RangeBearingMapUncertainty> ParseRangeBearingMapUncertainty(const 
 bool RangeBearingLocalizerOptions::Check(std::string* why) const {
   WAYMARK_CHECK_OPTION(CheckRangeBearingNoise(noise).empty(), "noise: " + CheckRangeBearingNoise(noise));
   WAYMARK_CHECK_OPTION(IsFinitePositive(gate_chi2), "gate_chi2 must be > 0");
+  WAYMARK_CHECK_OPTION(IsFinitePositive(variance_factor), "variance_factor must be > 0");
   WAYMARK_CHECK_OPTION(IsFinitePositive(lost_sigma_m), "lost_sigma_m must be > 0");
   WAYMARK_CHECK_OPTION(lost_rejections >= 1, "lost_rejections must be >= 1");
   WAYMARK_CHECK_OPTION(IsFinitePositive(reacquire_sigma_m) && IsFinitePositive(reacquire_sigma_rad),

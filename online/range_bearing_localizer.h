@@ -131,6 +131,12 @@ struct RangeBearingLocalizerOptions {
   double range_scale_state_sigma = 0.0;
   RangeBearingMapUncertainty map_uncertainty = RangeBearingMapUncertainty::kEstimate;
   int max_landmark_states = 64;  // eta_l blocks kept (kEstimate, kConsider)
+  // The variance factor k (> 0) of the reported pose covariance: RunRangeBearingLocalizer outputs
+  // k P. Scaling Q, R and P0 alike by k leaves the gain and the estimate unchanged and P scaled by
+  // k; the gate and the lost test stay on the unscaled S and P (the innovations are consistent
+  // unscaled: the factor is for the slow, systematic errors they cannot reveal). The map build's
+  // leave-one-out calibration (map.json range_bearing_sensor online_variance_factor) sets it.
+  double variance_factor = 1.0;
   bool Check(std::string* why) const;
 };
 

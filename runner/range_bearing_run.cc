@@ -52,11 +52,11 @@ RangeBearingRun RunRangeBearingLocalizer(const Dataset& dataset, const MarkerMap
     run.outputs_while_lost += filter.lost();  // never: the check above
     if (!run.poses.empty() && run.poses.back().stamp_s == stamp_s) {
       run.poses.back().T = filter.pose().ToSE3();
-      run.covariances.back() = filter.covariance();
+      run.covariances.back() = options.variance_factor * filter.covariance();
       return;
     }
     run.poses.push_back({stamp_s, filter.pose().ToSE3()});
-    run.covariances.push_back(filter.covariance());
+    run.covariances.push_back(options.variance_factor * filter.covariance());
   };
   output(odometry.front().stamp_s);
   size_t frame = 0;
@@ -173,6 +173,30 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
   std::tie(result.mean_lower_correlated, result.mean_upper_correlated) =
       MeanChiSquareBounds(result.effective_samples, 3);
   return result;
+}
+
+RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map) {
+  RangeBearingLocalizerOptions options;
+  if (map.range_bearing_sensor) {
+    SensorPriorFromMap(*map.range_bearing_sensor, &options);
+    if (map.range_bearing_sensor->calibration_time)
+      options.calibration_time_s =
+          Eigen::Vector3d::Constant(map.range_bearing_sensor->calibration_time->time_s);
+  }
+  if (map.range_bearing_noise) options.noise = *map.range_bearing_noise;
+  return options;
+}
+
+double PooledVarianceFactor(const std::vector<NeesResult>& runs) {
+  double sum = 0.0;
+  double samples = 0.0;
+  for (const NeesResult& run : runs) {
+    if (run.samples == 0) continue;
+    sum += run.mean * static_cast<double>(run.samples);
+    samples += static_cast<double>(run.samples);
+  }
+  if (!(samples > 0.0)) throw std::invalid_argument("variance factor: no NEES sample in any run");
+  return sum / (3.0 * samples);
 }
 
 }  // namespace waymark

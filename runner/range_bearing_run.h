@@ -68,6 +68,16 @@ struct NeesResult {
   double share_inside_position = 0.0, share_inside_heading = 0.0;
 };
 
+// The EKF's options as `waymark localize` defaults them from a map: the sensor prior
+// (SensorPriorFromMap), the calibration's correlation time and the noise model when the map has
+// them; the variance factor 1.
+RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map);
+
+// The variance factor that makes the NEES of several runs consistent on average: the pooled mean
+// NEES over all their samples divided by the dof, 3 (sum_i mean_i n_i / (3 sum_i n_i)); runs with
+// no samples are skipped. Throws std::invalid_argument when no run has a sample.
+double PooledVarianceFactor(const std::vector<NeesResult>& runs);
+
 // The integrated autocorrelation time tau_int of a series (above; 1 for fewer than 3 values or
 // a constant series).
 double IntegratedAutocorrelationTime(const std::vector<double>& series);

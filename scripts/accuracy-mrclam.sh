@@ -15,6 +15,8 @@
 #      positions; the map's covariance against its error (scripts/map-covariance-check.py); the
 #      EKF without the map's sensor prior on the distance-model map of robots 1-3 (the filter before)
 #   5. leave-out splits: map of robots 3, 4, 5 localizing 1 and 2; map of 1, 2, 4 localizing 3 and 5
+# The maps of step 4 and 5 are built with --calibrate-online (the EKF's variance factor by leaving
+# each mapped robot out; waymark localize scales its reported covariance by it, docs/online.md).
 # Online, the odometry calibration is a Gauss-Markov state whose correlation time the map build fits
 # from the mapped robots' smoothed trajectories against their odometry (no ground truth; map.json
 # range_bearing_sensor calibration_time_s, waymark localize's default); each online run is repeated
@@ -69,7 +71,9 @@ done
 if [[ ${#robots[@]} -ge 5 ]]; then
   echo "== map of robots 1-3, robots 4 and 5 localized online against it"
   # The build prints the odometry calibration's correlation time it fitted (the online default).
-  "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" \
+  # --calibrate-online: the EKF's variance factor from leaving each of robots 1-3 out (printed;
+  # map.json online_variance_factor, localize's default; the "unscaled" runs below disable it).
+  "$waymark" map build "$out/data/robot1" "$out/data/robot2" "$out/data/robot3" --calibrate-online \
     --out "$out/map-123.json" --trajectory-dir "$out/smoothed-123"
   "$waymark" eval --map "$out/map-123.json" --gt-map "$gt_map"
   echo "== the map's landmark covariance against its error (no alignment)"
@@ -87,6 +91,9 @@ EOF
   for robot in robot4 robot5; do
     echo "== $robot: online against the map of robots 1-3"
     "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --out "$out/$robot-online.tum"
+    echo "== $robot: online, the reported covariance unscaled (--variance-factor 1, the filter before)"
+    "$waymark" localize "$out/data/$robot" --map "$out/map-123.json" --variance-factor 1 \
+      --out "$out/$robot-online-unscaled.tum"
     "$waymark" eval --est "$out/$robot-online.tum" --gt "$out/data/$robot/groundtruth/trajectory.tum" \
       --align none --max-dt 0.02 --markers "$out/map-123.json" --gt-map "$gt_map" \
       --plot "$out/$robot-online.svg"
@@ -118,7 +125,8 @@ if [[ ${#robots[@]} -ge 5 ]]; then
     dirs=()
     for (( i = 0; i < ${#mapped}; i++ )); do dirs+=("$out/data/robot${mapped:$i:1}"); done
     echo "== map of robots ${mapped}"
-    "$waymark" map build "${dirs[@]}" --out "$out/map-$mapped.json" --trajectory-dir "$out/smoothed-$mapped"
+    "$waymark" map build "${dirs[@]}" --calibrate-online --out "$out/map-$mapped.json" \
+      --trajectory-dir "$out/smoothed-$mapped"
     "$waymark" eval --map "$out/map-$mapped.json" --gt-map "$gt_map"
     for r in $located; do
       echo "== robot$r: online against the map of robots ${mapped}"

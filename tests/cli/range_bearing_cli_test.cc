@@ -185,8 +185,15 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
                              (dir_ / "map.json").string() + " --live --map-uncertainty consider");
   EXPECT_NE(live.exit_code, 0);
   EXPECT_THAT(live.err, HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
-                                  "--calibration-time and --turn-fluctuation are for "
+                                  "--calibration-time, --turn-fluctuation and --variance-factor are for "
                                   "range-bearing datasets, not --live"));
+  // The reported covariance's variance factor: > 0 only.
+  const RunResult zero_factor =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "x.tum").string() + " --variance-factor 0");
+  EXPECT_NE(zero_factor.exit_code, 0);
+  EXPECT_THAT(zero_factor.err, HasSubstr("--variance-factor: expected a number > 0, got 0"));
+  EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
   const RunResult depth =
       Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
@@ -303,7 +310,7 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
           (dir_ / "run.tum").string() + " --map-uncertainty consider");
   EXPECT_NE(camera.exit_code, 0);
   EXPECT_THAT(camera.err, HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
-                                    "--calibration-time and --turn-fluctuation are for "
+                                    "--calibration-time, --turn-fluctuation and --variance-factor are for "
                                     "range-bearing datasets (range_bearing.jsonl)"));
 }
 

@@ -480,6 +480,33 @@ TEST(MapIoTest, RangeBearingSensorRoundTripAndOldMapsWithout) {
   EXPECT_EQ(text.find("calibration_time_s"), std::string::npos);
 }
 
+// map.json range_bearing_sensor online_variance_factor (the build's leave-one-out calibration):
+// optional (absent: not written, not read), round trip exact, > 0.
+TEST(MapIoTest, RangeBearingSensorOnlineVarianceFactorRoundTrip) {
+  MarkerMap map = ParseMap(kGoodMap, "map.json");
+  RangeBearingSensorModel model;
+  RangeBearingSensorModel::Dataset dataset;
+  dataset.name = "robot1";
+  model.datasets.push_back(dataset);
+  map.range_bearing_sensor = model;
+  EXPECT_EQ(FormatMap(map).find("online_variance_factor"), std::string::npos);
+  EXPECT_FALSE(ParseMap(FormatMap(map), "a.json").range_bearing_sensor->online_variance_factor);
+  map.range_bearing_sensor->online_variance_factor = 3.6412345678901;
+  const std::string text = FormatMap(map);
+  const MarkerMap again = ParseMap(text, "again.json");
+  ASSERT_TRUE(again.range_bearing_sensor->online_variance_factor);
+  EXPECT_EQ(*again.range_bearing_sensor->online_variance_factor, 3.6412345678901);
+  EXPECT_EQ(FormatMap(again), text);
+  std::string bad = text;
+  const std::string from = "\"online_variance_factor\":3.6412345678901";
+  ASSERT_NE(bad.find(from), std::string::npos);
+  bad.replace(bad.find(from), from.size(), "\"online_variance_factor\":0");
+  EXPECT_THAT(ParseError(bad),
+              HasSubstr("range_bearing_sensor.online_variance_factor: expected a factor > 0, got 0"));
+  map.range_bearing_sensor->online_variance_factor = -1.0;
+  EXPECT_THROW(FormatMap(map), std::invalid_argument);
+}
+
 // map.json range_bearing_sensor calibration_time_s and calibration_turn_scale_sigma (the build's
 // fit, waymark localize's default correlation time): written and read back to the last digit;
 // the two go together; errors name the field.

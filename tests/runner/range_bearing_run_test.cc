@@ -102,5 +102,67 @@ TEST(ComputeNees, CorrelatedBoundsHoldForAConsistentButCorrelatedRun) {
   EXPECT_LE(inside_textbook, 0.6 * runs);
 }
 
+// The leave-one-out variance factor: runs whose errors are drawn with k_true times the covariance
+// the filter reports (a filter whose noise is mis-specified by k_true) give a pooled mean NEES / 3
+// that recovers k_true; with the reported covariance scaled by it the mean NEES is 3.
+TEST(PooledVarianceFactor, RecoversAKnownMisspecificationAndRejectsEmptyRuns) {
+  const double k_true = 3.5;
+  std::vector<NeesResult> runs;
+  std::vector<NeesResult> corrected;
+  for (const size_t n : {1000u, 2500u, 4000u}) {
+    std::mt19937 rng(7 + static_cast<unsigned>(n));
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const Eigen::Vector3d sigma(0.1, 0.2, 0.05);
+    const Eigen::Matrix3d P = sigma.cwiseAbs2().asDiagonal();
+    Trajectory truth, poses;
+    std::vector<Eigen::Matrix3d> covariances, scaled;
+    for (size_t i = 0; i < n; ++i) {
+      const double t = 0.1 * static_cast<double>(i);
+      const Eigen::Vector3d e = std::sqrt(k_true) * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+      truth.push_back({t, SE2d(1.0, 2.0, 0.3).ToSE3()});
+      poses.push_back({t, SE2d(1.0 + sigma[0] * e[0], 2.0 + sigma[1] * e[1], 0.3 + sigma[2] * e[2]).ToSE3()});
+      covariances.push_back(P);
+    }
+    runs.push_back(ComputeNees(truth, poses, covariances, 0.01));
+  }
+  const double k = PooledVarianceFactor(runs);
+  EXPECT_NEAR(k, k_true, 0.05 * k_true);
+  // Scaling P by k divides every NEES by k: the pooled mean becomes 3 (k 1).
+  for (NeesResult run : runs) {
+    run.mean /= k;
+    corrected.push_back(run);
+  }
+  EXPECT_NEAR(PooledVarianceFactor(corrected), 1.0, 1e-12);
+  // Samples weight the pool: a run without samples is skipped; none at all is an error.
+  NeesResult empty;
+  empty.mean = 100.0;
+  runs.push_back(empty);
+  EXPECT_EQ(PooledVarianceFactor(runs), k);
+  EXPECT_THROW(PooledVarianceFactor({empty}), std::invalid_argument);
+  EXPECT_THROW(PooledVarianceFactor({}), std::invalid_argument);
+}
+
+// LocalizerOptionsFromMap: waymark localize's defaults from a map; the variance factor stays 1 and
+// a factor <= 0 is rejected by the options' check.
+TEST(LocalizerOptionsFromMap, TakesTheMapsNoiseAndCalibrationTime) {
+  MarkerMap map;
+  RangeBearingNoise noise;
+  noise.bearing_rad = 0.0321;
+  map.range_bearing_noise = noise;
+  RangeBearingSensorModel model;
+  model.calibration_time = RangeBearingSensorModel::CalibrationTime{12.5, 0.01};
+  model.online_variance_factor = 4.0;
+  map.range_bearing_sensor = model;
+  RangeBearingLocalizerOptions options = LocalizerOptionsFromMap(map);
+  EXPECT_EQ(options.noise.bearing_rad, 0.0321);
+  EXPECT_EQ(options.calibration_time_s, Eigen::Vector3d::Constant(12.5));
+  EXPECT_EQ(options.variance_factor, 1.0);
+  std::string why;
+  EXPECT_TRUE(options.Check(&why)) << why;
+  options.variance_factor = 0.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("variance_factor"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace waymark
