@@ -256,6 +256,25 @@ Quad2d TiltedSquare(const Eigen::Vector2d& centre, double side_px, double roll, 
   return quad;
 }
 
+// `text` drawn at `truth` (blur `sigma`, noise 2.5) and read as an unoriented grid from the
+// quad start_of(module px) with its corners turned by `rotation`: true when the right text is
+// read (a wrong text or a grid corner more than 1.5 modules off fails the test).
+template <typename StartOf>
+bool ObliqueCodeReads(const std::string& text, const Quad2d& truth, double sigma, const StartOf& start_of,
+                      int rotation) {
+  const SymbolImage symbol = QrSymbol(text);
+  const cv::Mat image = SmallCode(symbol, truth, sigma, 2.5);
+  const double module_px = QuadMeanSide(truth) / symbol.symbol.width;
+  const Quad2d start = start_of(module_px);
+  const std::vector<MarkerObservation> read =
+      ReadUnorientedQrModuleGrid(image, RotateCorners(start, rotation));
+  if (read.size() != 1) return false;
+  EXPECT_EQ(read[0].key.id, text);
+  // The grid's corners (the detector refines them): within a module and a half.
+  for (int i = 0; i < 4; ++i) EXPECT_LT((read[0].corners_px[i] - truth[i]).norm(), 1.5 * module_px) << text;
+  return read[0].key.id == text;
+}
+
 // Oblique small codes (25-40 px across at 45-52 deg of tilt about a skew axis, blur 0.8-1 px)
 // seen through a coarse quad whose finder-less corner is 1.2-2.1 modules off (as the recall
 // bench's whole-code dark quads at half resolution): the known modules, three finder blocks
@@ -269,27 +288,20 @@ TEST(DetectQrModules, ObliqueCodesReadAfterPerspectiveSearch) {
       for (const double axis : {0.4, 1.2}) {
         for (const double offset_modules : {1.2, 2.1}) {
           for (const double sigma : {0.8, 1.0}) {
-            const std::string text = "r/" + std::to_string(300 + cases) + "/12.5";
-            const SymbolImage symbol = QrSymbol(text);
             const Quad2d truth =
                 TiltedSquare({80.3, 79.6}, side, rng.uniform(0.0, 2 * M_PI), tilt_deg * M_PI / 180, axis);
-            const cv::Mat image = SmallCode(symbol, truth, sigma, 2.5);
-            const double module_px = QuadMeanSide(truth) / symbol.symbol.width;
-            Quad2d start = truth;
-            for (Eigen::Vector2d& c : start)
-              c += Eigen::Vector2d(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3)) * module_px;
-            const double direction = rng.uniform(0.0, 2 * M_PI);
-            start[2] +=
-                offset_modules * module_px * Eigen::Vector2d(std::cos(direction), std::sin(direction));
-            const std::vector<MarkerObservation> read =
-                ReadUnorientedQrModuleGrid(image, RotateCorners(start, cases % 4));
+            const auto start_of = [&](double module_px) {
+              Quad2d start = truth;
+              for (Eigen::Vector2d& c : start)
+                c += Eigen::Vector2d(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3)) * module_px;
+              const double direction = rng.uniform(0.0, 2 * M_PI);
+              start[2] +=
+                  offset_modules * module_px * Eigen::Vector2d(std::cos(direction), std::sin(direction));
+              return start;
+            };
+            read_count += ObliqueCodeReads("r/" + std::to_string(300 + cases) + "/12.5", truth, sigma,
+                                           start_of, cases % 4);
             ++cases;
-            if (read.size() != 1) continue;
-            EXPECT_EQ(read[0].key.id, text);
-            read_count += read[0].key.id == text;
-            // The grid's corners (the detector refines them): within a module and a half.
-            for (int i = 0; i < 4; ++i)
-              EXPECT_LT((read[0].corners_px[i] - truth[i]).norm(), 1.5 * module_px) << text;
           }
         }
       }
@@ -312,26 +324,20 @@ TEST(DetectQrModules, SmallObliqueCodesReadAfterPhotometricRefit) {
       for (const double axis : {0.3, 1.1}) {
         for (const double sigma : {0.7, 0.9}) {
           for (int repeat = 0; repeat < 2; ++repeat) {
-            const std::string text = "r/" + std::to_string(100 + cases) + "/12.5";
-            const SymbolImage symbol = QrSymbol(text);
             const Quad2d truth =
                 TiltedSquare({80.3, 79.6}, side, rng.uniform(0.0, 2 * M_PI), tilt_deg * M_PI / 180, axis);
-            const cv::Mat image = SmallCode(symbol, truth, sigma, 2.5);
-            const double module_px = QuadMeanSide(truth) / symbol.symbol.width;
-            Quad2d start = truth;
-            for (Eigen::Vector2d& c : start) {
-              const double direction = rng.uniform(0.0, 2 * M_PI);
-              c += rng.uniform(0.3, 0.9) * module_px *
-                   Eigen::Vector2d(std::cos(direction), std::sin(direction));
-            }
-            const std::vector<MarkerObservation> read =
-                ReadUnorientedQrModuleGrid(image, RotateCorners(start, cases % 4));
+            const auto start_of = [&](double module_px) {
+              Quad2d start = truth;
+              for (Eigen::Vector2d& c : start) {
+                const double direction = rng.uniform(0.0, 2 * M_PI);
+                c += rng.uniform(0.3, 0.9) * module_px *
+                     Eigen::Vector2d(std::cos(direction), std::sin(direction));
+              }
+              return start;
+            };
+            read_count += ObliqueCodeReads("r/" + std::to_string(100 + cases) + "/12.5", truth, sigma,
+                                           start_of, cases % 4);
             ++cases;
-            if (read.size() != 1) continue;
-            EXPECT_EQ(read[0].key.id, text);
-            read_count += read[0].key.id == text;
-            for (int i = 0; i < 4; ++i)
-              EXPECT_LT((read[0].corners_px[i] - truth[i]).norm(), 1.5 * module_px) << text;
           }
         }
       }
