@@ -282,7 +282,11 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
   }
   if (args.Flag("detect-images") || args.Flag("realtime"))
     throw std::invalid_argument("--detect-images and --realtime are not for range-bearing datasets");
-  RangeBearingLocalizerOptions options;
+  const std::string sensor_prior = args.GetOr("sensor-prior", "map");
+  if (sensor_prior != "map" && sensor_prior != "none")
+    throw std::invalid_argument("--sensor-prior: expected map or none, got '" + sensor_prior + "'");
+  // The map's defaults (the same as the map build's leave-one-out runs), then the options.
+  RangeBearingLocalizerOptions options = LocalizerOptionsFromMap(map, sensor_prior == "map");
   if (args.Has("map-uncertainty")) {
     const std::string name = *args.Get("map-uncertainty");
     const auto mode = ParseRangeBearingMapUncertainty(name);
@@ -291,11 +295,7 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
           "--map-uncertainty: expected estimate, consider, in-noise or ignore, got '" + name + "'");
     options.map_uncertainty = *mode;
   }
-  const std::string sensor_prior = args.GetOr("sensor-prior", "map");
-  if (sensor_prior != "map" && sensor_prior != "none")
-    throw std::invalid_argument("--sensor-prior: expected map or none, got '" + sensor_prior + "'");
   if (sensor_prior == "map" && map.range_bearing_sensor) {
-    SensorPriorFromMap(*map.range_bearing_sensor, &options);
     std::cout << "sensor prior: the map's (" << map.range_bearing_sensor->datasets.size()
               << " robots, range model " << (map.range_bearing_sensor->depth_ranges ? "depth" : "distance")
               << ")\n";
@@ -314,11 +314,9 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
       throw std::invalid_argument("--calibration-time: expected a number of seconds >= 0, got " +
                                   *args.Get("calibration-time"));
     options.calibration_time_s = Eigen::Vector3d::Constant(tau);
-  } else if (sensor_prior == "map" && !args.Has("turn-fluctuation") && map.range_bearing_sensor &&
-             map.range_bearing_sensor->calibration_time) {
-    // The map build's fit (map.json range_bearing_sensor calibration_time_s).
-    options.calibration_time_s =
-        Eigen::Vector3d::Constant(map.range_bearing_sensor->calibration_time->time_s);
+  } else if (args.Has("turn-fluctuation")) {
+    // Its own fast state beside a constant calibration, not the map's Gauss-Markov time.
+    options.calibration_time_s = RangeBearingLocalizerOptions().calibration_time_s;
   }
   if (options.calibration_time_s[0] > 0.0) {
     std::cout << "odometry calibration: Gauss-Markov, correlation time "
@@ -351,11 +349,8 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
               << (args.Has("variance-factor") ? "--variance-factor" : "the map's leave-one-out calibration")
               << "; the reported covariance scaled)\n";
   }
-  if (map.range_bearing_noise) {
-    options.noise = *map.range_bearing_noise;
-  } else {
+  if (!map.range_bearing_noise)
     std::cerr << "warning: the map has no range_bearing_noise: the default noise model is used\n";
-  }
   const RangeBearingRun run = RunRangeBearingLocalizer(dataset, map, options);
   AtomicWriteFile(
       args.Require("out"),

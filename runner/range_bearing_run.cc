@@ -175,9 +175,9 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
   return result;
 }
 
-RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map) {
+RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map, bool sensor_prior) {
   RangeBearingLocalizerOptions options;
-  if (map.range_bearing_sensor) {
+  if (sensor_prior && map.range_bearing_sensor) {
     SensorPriorFromMap(*map.range_bearing_sensor, &options);
     if (map.range_bearing_sensor->calibration_time)
       options.calibration_time_s =

@@ -68,10 +68,10 @@ struct NeesResult {
   double share_inside_position = 0.0, share_inside_heading = 0.0;
 };
 
-// The EKF's options as `waymark localize` defaults them from a map: the sensor prior
-// (SensorPriorFromMap), the calibration's correlation time and the noise model when the map has
-// them; the variance factor 1.
-RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map);
+// The EKF's options as `waymark localize` defaults them from a map: the noise model when the map
+// has one; with `sensor_prior` also the sensor prior (SensorPriorFromMap) and the calibration's
+// correlation time when the map has them; the variance factor 1 (localize then reads the map's).
+RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map, bool sensor_prior = true);
 
 // The variance factor that makes the NEES of several runs consistent on average: the pooled mean
 // NEES over all their samples divided by the dof, 3 (sum_i mean_i n_i / (3 sum_i n_i)); runs with
