@@ -39,7 +39,7 @@ constexpr int kMaxThinSideBoxes = 2;
 constexpr int kMaxThinSideReads = 1;
 // Merged-fragment quads (MergedFragmentQrCodeQuads): quads and grid reads per frame, after all
 // the others, each read only with its known-module contrast (gray levels) times its code
-// likeness (UnorientedCodeLikeness) at least kMinMergedCodeEvidence: on eight traced frames
+// likeness (UnorientedCodeEvidence) at least kMinMergedCodeEvidence: on eight traced frames
 // of issue seeds 4, 6, 7, 8 the clutter's merged quads scored at most 3.7, the codes 1.3-32
 // (a read of clutter costs milliseconds: the grid fits, the perspective search).
 constexpr int kMaxMergedBoxes = 4;
@@ -272,10 +272,8 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
   // evidence (in the contrast field).
   std::vector<Unoriented> merged_unoriented;
   for (const DarkQuad& quad : MergedFragmentQrCodeQuads(quads, taken, kMaxMergedBoxes)) {
-    const double likeness = UnorientedCodeLikeness(gray, quad.corners_px);
-    const double contrast = UnorientedKnownModuleContrast(gray, quad.corners_px);
-    if (likeness > 0.0 && contrast > 0.0 && likeness * contrast >= kMinMergedCodeEvidence)
-      merged_unoriented.push_back({quad.corners_px, likeness * contrast});
+    const double evidence = UnorientedCodeEvidence(gray, quad.corners_px);
+    if (evidence >= kMinMergedCodeEvidence) merged_unoriented.push_back({quad.corners_px, evidence});
   }
   read_grids(&merged_unoriented, kMaxMergedReads);
 }

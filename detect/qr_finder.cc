@@ -688,6 +688,12 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
 
 namespace {
 
+// True if `centre` is within 0.3 of the quad's mean side of its centre: the same code (found
+// at two levels, or by two of the small-code tests).
+bool NearQuad(const DarkQuad& quad, const Eigen::Vector2d& centre) {
+  return (QuadCenter(quad.corners_px) - centre).norm() < 0.3 * QuadMeanSide(quad.corners_px);
+}
+
 // SmallQrCodeQuads with the least dark side in [min_side_dark, max_side_dark), none near a
 // quad of `taken`.
 std::vector<DarkQuad> SmallCodeQuadsWithSides(const std::vector<DarkQuad>& quads, double min_side_dark,
@@ -704,9 +710,7 @@ std::vector<DarkQuad> SmallCodeQuadsWithSides(const std::vector<DarkQuad>& quads
     if (q.interior_spread < kSmallCodeMinSpread || q.interior_spread > kSmallCodeMaxSpread) continue;
     // The same code found at two levels counts once.
     const Eigen::Vector2d centre = QuadCenter(q.corners_px);
-    const auto near = [&](const DarkQuad& o) {
-      return (QuadCenter(o.corners_px) - centre).norm() < 0.3 * QuadMeanSide(o.corners_px);
-    };
+    const auto near = [&](const DarkQuad& o) { return NearQuad(o, centre); };
     if (std::none_of(out.begin(), out.end(), near) && std::none_of(taken.begin(), taken.end(), near))
       out.push_back(q);
   }
@@ -795,9 +799,6 @@ std::vector<DarkQuad> MergedFragmentQrCodeQuads(const std::vector<DarkQuad>& qua
       }
     }
   }
-  const auto near = [](const DarkQuad& o, const Eigen::Vector2d& centre) {
-    return (QuadCenter(o.corners_px) - centre).norm() < 0.3 * QuadMeanSide(o.corners_px);
-  };
   for (size_t g = 0; g < fragments.size() && static_cast<int>(out.size()) < max_quads; ++g) {
     if (root(g) != g) continue;  // each group once, at its first fragment
     std::vector<cv::Point> points;
@@ -816,7 +817,7 @@ std::vector<DarkQuad> MergedFragmentQrCodeQuads(const std::vector<DarkQuad>& qua
     const double side = QuadMeanSide(*quad);
     if (side < kMinSmallCodeSidePx || side > kMaxFragmentCodeSidePx) continue;
     const Eigen::Vector2d centre = QuadCenter(*quad);
-    const auto near_centre = [&](const DarkQuad& o) { return near(o, centre); };
+    const auto near_centre = [&](const DarkQuad& o) { return NearQuad(o, centre); };
     if (std::any_of(taken.begin(), taken.end(), near_centre) ||
         std::any_of(out.begin(), out.end(), near_centre))
       continue;

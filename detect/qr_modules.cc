@@ -561,6 +561,14 @@ double UnorientedCodeLikeness(const cv::Mat& gray, const Quad2d& corners_px) {
   return BestCodeLikeness(gray, RankedHypotheses(gray, corners_px));
 }
 
+double UnorientedCodeEvidence(const cv::Mat& gray, const Quad2d& corners_px) {
+  if (gray.empty() || gray.type() != CV_8UC1) return 0.0;
+  const std::vector<Hypothesis> hypotheses = RankedHypotheses(gray, corners_px);
+  if (hypotheses.empty()) return 0.0;
+  const double likeness = BestCodeLikeness(gray, hypotheses), contrast = hypotheses[0].contrast;
+  return likeness > 0.0 && contrast > 0.0 ? likeness * contrast : 0.0;
+}
+
 std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, const Quad2d& corners_px) {
   if (gray.empty() || gray.type() != CV_8UC1) return {};
   const std::vector<Hypothesis> hypotheses = RankedHypotheses(gray, corners_px);

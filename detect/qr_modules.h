@@ -85,4 +85,9 @@ double UnorientedKnownModuleContrast(const cv::Mat& gray, const Quad2d& corners_
 inline constexpr double kMinUnorientedCodeLikeness = 0.15;
 double UnorientedCodeLikeness(const cv::Mat& gray, const Quad2d& corners_px);
 
+// The best hypothesis' known-module contrast (UnorientedKnownModuleContrast) times the code
+// likeness (UnorientedCodeLikeness), from one ranking of the hypotheses; 0 when either is not
+// positive or the quad cannot be sampled. Ranks quads that no other test singled out.
+double UnorientedCodeEvidence(const cv::Mat& gray, const Quad2d& corners_px);
+
 }  // namespace waymark

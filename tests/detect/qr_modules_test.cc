@@ -504,6 +504,22 @@ TEST(DetectQrModules, FragmentsOfOneCodeMergeIntoItsQuad) {
   EXPECT_TRUE(MergedFragmentQrCodeQuads({}, {}, 4).empty());
 }
 
+// The evidence ranking merged-fragment quads is the known-module contrast times the code
+// likeness of one ranking of the hypotheses; 0 on a flat patch, an empty or colour image.
+TEST(DetectQrModules, CodeEvidenceIsContrastTimesLikeness) {
+  const SymbolImage symbol = QrSymbol("r/7/12.5");
+  const Quad2d truth = MakeQuad({80.0, 80.0}, 42.0, 0.4, 0.8);
+  const cv::Mat image = SmallCode(symbol, truth, 0.8, 2.5);
+  const double contrast = UnorientedKnownModuleContrast(image, truth);
+  const double likeness = UnorientedCodeLikeness(image, truth);
+  ASSERT_GT(contrast, 0.0);
+  ASSERT_GT(likeness, 0.0);
+  EXPECT_NEAR(UnorientedCodeEvidence(image, truth), contrast * likeness, 1e-9 * contrast * likeness);
+  EXPECT_EQ(UnorientedCodeEvidence(cv::Mat(160, 160, CV_8U, cv::Scalar(128)), truth), 0.0);
+  EXPECT_EQ(UnorientedCodeEvidence(cv::Mat(), truth), 0.0);
+  EXPECT_EQ(UnorientedCodeEvidence(cv::Mat(160, 160, CV_8UC3, cv::Scalar(128, 128, 128)), truth), 0.0);
+}
+
 TEST(DetectQrModules, NothingFromNoCodeOrBadInput) {
   cv::Mat flat(120, 120, CV_8U, cv::Scalar(128));
   const Quad2d quad = MakeQuad({60.0, 60.0}, 40.0, 0.0);
