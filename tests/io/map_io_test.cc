@@ -480,15 +480,20 @@ TEST(MapIoTest, RangeBearingSensorRoundTripAndOldMapsWithout) {
   EXPECT_EQ(text.find("calibration_time_s"), std::string::npos);
 }
 
-// map.json range_bearing_sensor online_variance_factor (the build's leave-one-out calibration):
-// optional (absent: not written, not read), round trip exact, > 0.
-TEST(MapIoTest, RangeBearingSensorOnlineVarianceFactorRoundTrip) {
-  MarkerMap map = ParseMap(kGoodMap, "map.json");
+// A sensor model with one dataset ("robot1") and every value at its default.
+RangeBearingSensorModel SensorModelOfOneDataset() {
   RangeBearingSensorModel model;
   RangeBearingSensorModel::Dataset dataset;
   dataset.name = "robot1";
   model.datasets.push_back(dataset);
-  map.range_bearing_sensor = model;
+  return model;
+}
+
+// map.json range_bearing_sensor online_variance_factor (the build's leave-one-out calibration):
+// optional (absent: not written, not read), round trip exact, > 0.
+TEST(MapIoTest, RangeBearingSensorOnlineVarianceFactorRoundTrip) {
+  MarkerMap map = ParseMap(kGoodMap, "map.json");
+  map.range_bearing_sensor = SensorModelOfOneDataset();
   EXPECT_EQ(FormatMap(map).find("online_variance_factor"), std::string::npos);
   EXPECT_FALSE(ParseMap(FormatMap(map), "a.json").range_bearing_sensor->online_variance_factor);
   map.range_bearing_sensor->online_variance_factor = 3.6412345678901;
@@ -512,10 +517,7 @@ TEST(MapIoTest, RangeBearingSensorOnlineVarianceFactorRoundTrip) {
 // the two go together; errors name the field.
 TEST(MapIoTest, RangeBearingSensorCalibrationTimeRoundTrip) {
   MarkerMap map = ParseMap(kGoodMap, "map.json");
-  RangeBearingSensorModel model;
-  RangeBearingSensorModel::Dataset dataset;
-  dataset.name = "robot1";
-  model.datasets.push_back(dataset);
+  RangeBearingSensorModel model = SensorModelOfOneDataset();
   model.calibration_time = RangeBearingSensorModel::CalibrationTime{2.357812345678, 0.0412345678901};
   map.range_bearing_sensor = model;
   const std::string text = FormatMap(map);
