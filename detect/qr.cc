@@ -1,6 +1,7 @@
 #include "detect/qr.h"
 
 #include <algorithm>
+#include <functional>
 #include <limits>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/objdetect.hpp>
@@ -45,6 +46,9 @@ constexpr int kMaxThinSideReads = 1;
 constexpr int kMaxMergedBoxes = 4;
 constexpr int kMaxMergedReads = 2;
 constexpr double kMinMergedCodeEvidence = 4.0;
+// Candidates completed from a pair of finders of a finder search and a dark quad
+// (QrCandidatesFromFinderPairs) read per frame.
+constexpr int kMaxPairReads = 2;
 
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21
 // modules), less in larger versions.
@@ -118,13 +122,31 @@ bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObser
   });
 }
 
+// Pass 2a (and 2a', 2a''): the candidates that a pair of `finders` used by none of `triples`
+// completes with its third finder found where the pair puts it (QrCandidatesFromFinderPairs),
+// within `near` of a point when given, not read yet, read rectified while `pair_reads` lasts.
+void ReadFinderPairs(const cv::Mat& gray, const std::vector<QrFinderPattern>& finders,
+                     const std::vector<QrCandidate>& triples,
+                     const std::function<bool(const QrCandidate&)>& near, int* pair_reads, FrameWork* work,
+                     std::vector<MarkerObservation>* found) {
+  if (*pair_reads <= 0 || finders.size() < 2) return;
+  for (const QrCandidate& candidate :
+       QrCandidatesFromFinderPairs(gray, finders, triples, kMaxPairFinderWidthPx)) {
+    if (*pair_reads <= 0) return;
+    if ((near && !near(candidate)) || CandidateIsRead(candidate, *found) || !work->Allow()) continue;
+    --*pair_reads;
+    AppendUnique(ReadRectifiedQr(gray, candidate), found);
+  }
+}
+
 // Pass 2a: QR candidates from finder patterns (detect/qr_finder.h) in each region
 // (smallest first) that is not one code already read, each candidate not read yet resampled
 // upright and read: at most `max_reads` candidates per frame (and none once a live frame's
 // time is up). Returns, for each region (in the order given), the number of finder patterns
 // found in it, or -1 where it was not searched.
 std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
-                                      int max_reads, FrameWork* work, std::vector<MarkerObservation>* found) {
+                                      int max_reads, int* pair_reads, FrameWork* work,
+                                      std::vector<MarkerObservation>* found) {
   // Smallest regions first: a whole close-up costs milliseconds (its binarization holds
   // many blobs) and small codes are the ones zxing misses on the whole frame.
   std::vector<int> order(regions.size());
@@ -148,6 +170,7 @@ std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv:
       ++reads;
       AppendUnique(ReadRectifiedQr(gray, candidate), found);
     }
+    ReadFinderPairs(gray, finders, candidates, {}, pair_reads, work, found);
   }
   return finders_found;
 }
@@ -165,14 +188,24 @@ cv::Rect PaddedBox(const Quad2d& corners_px, Pad pad_of, const cv::Size& image) 
 }
 
 // The first finder triple found in `box` whose centre is within `max_offset_px` of `centre`,
-// read rectified; empty when there is none or it does not read.
+// read rectified, or else what the pairs of its finders complete there (ReadFinderPairs, while
+// `pair_reads` lasts); empty when there is none or it does not read.
 std::vector<MarkerObservation> ReadFinderTripleNear(const cv::Mat& gray, const cv::Rect& box,
-                                                    const Eigen::Vector2d& centre, double max_offset_px) {
-  for (const QrCandidate& candidate : GroupQrFinders(FindQrFinderPatterns(gray, box), gray.size())) {
-    if ((QuadCenter(candidate.corners_px) - centre).norm() > max_offset_px) continue;
-    return ReadRectifiedQr(gray, candidate);
+                                                    const Eigen::Vector2d& centre, double max_offset_px,
+                                                    int* pair_reads, FrameWork* work,
+                                                    const std::vector<MarkerObservation>& found) {
+  const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(gray, box);
+  const std::vector<QrCandidate> triples = GroupQrFinders(finders, gray.size());
+  const auto near = [&](const QrCandidate& candidate) {
+    return (QuadCenter(candidate.corners_px) - centre).norm() <= max_offset_px;
+  };
+  for (const QrCandidate& candidate : triples) {
+    if (near(candidate)) return ReadRectifiedQr(gray, candidate);
   }
-  return {};
+  // No triple there: a pair of its finders and the third found where they put it.
+  std::vector<MarkerObservation> read = found;
+  ReadFinderPairs(gray, finders, triples, near, pair_reads, work, &read);
+  return std::vector<MarkerObservation>(read.begin() + static_cast<std::ptrdiff_t>(found.size()), read.end());
 }
 
 // Pass 2a': QR candidates from the shared dark-quad stage (QrCandidatesFromQuads), for
@@ -183,8 +216,8 @@ std::vector<MarkerObservation> ReadFinderTripleNear(const cv::Mat& gray, const c
 // at most `max_reads` per frame (one larger than kFinderWorkSidePx is read from the quads'
 // corners only).
 constexpr double kMaxSearchedSidePx = kFinderWorkSidePx;
-void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, FrameWork* work,
-                        std::vector<MarkerObservation>* found) {
+void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, int* pair_reads,
+                        FrameWork* work, std::vector<MarkerObservation>* found) {
   int reads = 0;
   for (const QrCandidate& candidate : QrCandidatesFromQuads(gray, FindDarkQuads(gray, min_side_px))) {
     if (reads >= max_reads) return;
@@ -199,7 +232,7 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
     // frame (40 ms on a recall bench frame).
     if (QuadMeanSide(candidate.corners_px) <= kMaxSearchedSidePx) {
       read = ReadFinderTripleNear(gray, box, QuadCenter(candidate.corners_px),
-                                  0.25 * QuadMeanSide(candidate.corners_px));
+                                  0.25 * QuadMeanSide(candidate.corners_px), pair_reads, work, *found);
     }
     if (read.empty()) read = ReadRectifiedQr(gray, candidate);
     AppendUnique(read, found);
@@ -216,8 +249,8 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
 // (detect/qr_modules.h), at most kMaxUnorientedReads per frame; at most `max_boxes` boxes
 // per frame. Then the same for the quads with one mostly light side (ThinSideSmallQrCodeQuads),
 // within their own bounds (kMaxThinSideBoxes, kMaxThinSideReads).
-void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, FrameWork* work,
-                        std::vector<MarkerObservation>* found) {
+void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, int* pair_reads,
+                        FrameWork* work, std::vector<MarkerObservation>* found) {
   struct Unoriented {
     Quad2d corners_px;
     double contrast;
@@ -231,8 +264,8 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
       const cv::Rect box = PaddedBox(
           quad.corners_px, [](int side) { return static_cast<int>(std::ceil(side / 3.0)); }, gray.size());
       const double side = QuadMeanSide(quad.corners_px);
-      const std::vector<MarkerObservation> r =
-          ReadFinderTripleNear(gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side);
+      const std::vector<MarkerObservation> r = ReadFinderTripleNear(
+          gray, box, QuadCenter(quad.corners_px), kSmallCodeCentreFraction * side, pair_reads, work, *found);
       AppendUnique(r, found);
       // No finders (an oblique code's finders are foreshortened to a module or so of light
       // ring): the module grid read from the quad's own corners, in any orientation, below.
@@ -336,10 +369,12 @@ class QrDetector : public MarkerDetector {
         },
     };
     const std::vector<cv::Rect> regions = SecondPassRegions(gray, options_.max_candidates, options_.close_up);
+    int pair_reads = kMaxPairReads;
     const std::vector<int> finders_found =
-        ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, work, found);
-    ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, work, found);
-    ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, work, found);
+        ReadFinderCandidates(gray, regions, options_.max_qr_finder_candidates, &pair_reads, work, found);
+    ReadQuadCandidates(gray, options_.min_side_px, options_.max_qr_finder_candidates, &pair_reads, work,
+                       found);
+    ReadSmallCodeQuads(gray, options_.min_side_px, kMaxSmallCodeBoxes, &pair_reads, work, found);
     // A region searched for finders with none found holds no dark-on-light code that zxing
     // would find either (it needs three finders): only the inverted crop (a light-on-dark
     // code has light finders; the search finds them in most such codes, but not in all:

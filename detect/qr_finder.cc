@@ -1,12 +1,14 @@
 #include "detect/qr_finder.h"
 
 #include <Eigen/LU>
+#include <Eigen/QR>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <numeric>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
@@ -658,6 +660,199 @@ bool HasFinderProfile(const cv::Mat& gray, const Quad2d& q) {
 
 }  // namespace
 
+namespace {
+
+// A finder pair's possible layouts: the top-left module of each finder's 7 x 7 outline in an
+// N x N code (module coordinates, x right, y down as on screen).
+struct PairLayout {
+  Eigen::Vector2d a_origin, b_origin;
+};
+
+// The affine map from module coordinates to the image that puts the two finders' outlines
+// (7 x 7 modules each) at their places in `layout`, over the labellings of the outlines'
+// corners the one with the least squared error; nullopt when it is over kMaxPairFitRmsModules
+// modules (RMS). Affine, not a homography: the outlines span 7 of the code's modules across
+// the pair, and perspective terms fitted on them throw the far side several modules off.
+constexpr double kMaxPairFitRmsModules = 1.0;
+std::optional<Eigen::Matrix<double, 2, 3>> PairLayoutAffine(const QrFinderPattern& a,
+                                                            const QrFinderPattern& b,
+                                                            const PairLayout& layout, double module_px) {
+  const auto outline = [](const Eigen::Vector2d& origin) {
+    return std::array<Eigen::Vector2d, 4>{origin, origin + Eigen::Vector2d(7, 0),
+                                          origin + Eigen::Vector2d(7, 7), origin + Eigen::Vector2d(0, 7)};
+  };
+  const std::array<Eigen::Vector2d, 4> a_modules = outline(layout.a_origin),
+                                       b_modules = outline(layout.b_origin);
+  double best_error = std::numeric_limits<double>::infinity();
+  Eigen::Matrix<double, 2, 3> best = Eigen::Matrix<double, 2, 3>::Zero();
+  // Both outlines are clockwise on screen, as the module outlines are: only their starting
+  // corners are unknown.
+  for (int sa = 0; sa < 4; ++sa) {
+    for (int sb = 0; sb < 4; ++sb) {
+      Eigen::Matrix<double, 8, 3> src;
+      Eigen::Matrix<double, 8, 2> dst;
+      for (int i = 0; i < 4; ++i) {
+        src.row(2 * i) = a_modules[i].homogeneous().transpose();
+        dst.row(2 * i) = a.outer_px[(i + sa) % 4].transpose();
+        src.row(2 * i + 1) = b_modules[i].homogeneous().transpose();
+        dst.row(2 * i + 1) = b.outer_px[(i + sb) % 4].transpose();
+      }
+      const Eigen::Matrix<double, 3, 2> x = src.colPivHouseholderQr().solve(dst);
+      const double error = (src * x - dst).squaredNorm();
+      if (error < best_error) best_error = error, best = x.transpose();
+    }
+  }
+  if (!std::isfinite(best_error) || std::sqrt(best_error / 8.0) > kMaxPairFitRmsModules * module_px) {
+    return std::nullopt;
+  }
+  return best;
+}
+
+// True if `p` is inside the clockwise (on screen) convex quad.
+bool InsideQuad(const Quad2d& quad, const Eigen::Vector2d& p) {
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d side = quad[(i + 1) % 4] - quad[i], to_p = p - quad[i];
+    if (side.x() * to_p.y() - side.y() * to_p.x() < 0.0) return false;
+  }
+  return true;
+}
+
+// The top-left module of the finder pattern nearest `expected` (module coordinates of the
+// pair's map `to_image`) within kThirdFinderReachModules modules: the 9 x 9 modules of a
+// finder and its light separator sampled (bilinear, module centres) at shifts of half a module,
+// the one whose samples correlate best with the pattern (dark ring, light ring, dark 3 x 3
+// centre, light separator), kept when that correlation is at least kMinThirdFinderCorrelation.
+constexpr double kMinThirdFinderCorrelation = 0.6;
+std::optional<Eigen::Vector2d> FindThirdFinder(const cv::Mat& gray,
+                                               const Eigen::Matrix<double, 2, 3>& to_image,
+                                               const Eigen::Vector2d& expected) {
+  static const std::array<double, 81> pattern = [] {
+    std::array<double, 81> p{};
+    for (int v = -1; v <= 7; ++v) {
+      for (int u = -1; u <= 7; ++u) {
+        const int ring =
+            std::min(std::min(u, v), std::min(6 - u, 6 - v));  // -1 separator, 0 dark, 1 light, >= 2 centre
+        p[(v + 1) * 9 + (u + 1)] = (ring == 0 || ring >= 2) ? 1.0 : 0.0;
+      }
+    }
+    const double mean = std::accumulate(p.begin(), p.end(), 0.0) / 81.0;
+    double norm = 0.0;
+    for (double& x : p) x -= mean, norm += x * x;
+    for (double& x : p) x /= std::sqrt(norm);
+    return p;
+  }();
+  const int steps = static_cast<int>(2.0 * kThirdFinderReachModules);
+  double best = kMinThirdFinderCorrelation;
+  std::optional<Eigen::Vector2d> best_origin;
+  std::array<double, 81> samples;
+  for (int sv = -steps; sv <= steps; ++sv) {
+    for (int su = -steps; su <= steps; ++su) {
+      const Eigen::Vector2d origin = expected + 0.5 * Eigen::Vector2d(su, sv);
+      double mean = 0.0;
+      for (int v = -1; v <= 7; ++v) {
+        for (int u = -1; u <= 7; ++u) {
+          const Eigen::Vector2d p = to_image * (origin + Eigen::Vector2d(u + 0.5, v + 0.5)).homogeneous();
+          // Dark is 1 in the pattern: the samples negated.
+          const double x = -Bilinear(gray, p);
+          samples[(v + 1) * 9 + (u + 1)] = x;
+          mean += x;
+        }
+      }
+      mean /= 81.0;
+      double dot = 0.0, norm = 0.0;
+      for (int k = 0; k < 81; ++k) {
+        const double x = samples[k] - mean;
+        dot += x * pattern[k];
+        norm += x * x;
+      }
+      if (norm <= 0.0) continue;
+      const double correlation = dot / std::sqrt(norm);
+      if (correlation > best) best = correlation, best_origin = origin;
+    }
+  }
+  return best_origin;
+}
+
+}  // namespace
+
+std::vector<QrCandidate> QrCandidatesFromFinderPairs(const cv::Mat& gray,
+                                                     const std::vector<QrFinderPattern>& finders,
+                                                     const std::vector<QrCandidate>& triples,
+                                                     double max_width_px) {
+  if (gray.empty() || gray.type() != CV_8UC1) return {};
+  // Version 1 and 2: the small codes whose third finder blurs away.
+  constexpr int kPairModules[] = {21, 25};
+  // Widths (square roots of areas) shrink by sqrt(cos t) under a tilt t, distances along the
+  // tilt by cos t: at up to 60 deg the pair's distance in modules is within a factor sqrt(2).
+  const double kForeshortening = std::sqrt(2.0);
+  std::vector<int> unmatched;
+  for (size_t i = 0; i < finders.size(); ++i) {
+    if (finders[i].width_px > max_width_px) continue;
+    const bool in_triple = std::any_of(triples.begin(), triples.end(), [&](const QrCandidate& c) {
+      return InsideQuad(c.corners_px, finders[i].centre_px);
+    });
+    if (!in_triple) unmatched.push_back(static_cast<int>(i));
+  }
+  std::vector<QrCandidate> out;
+  const auto seen = [&out](const QrCandidate& c) {
+    return std::any_of(out.begin(), out.end(), [&c](const QrCandidate& o) {
+      return (QuadCenter(o.corners_px) - QuadCenter(c.corners_px)).norm() < 0.25 * QuadMeanSide(o.corners_px);
+    });
+  };
+  for (size_t i = 0; i < unmatched.size(); ++i) {
+    for (size_t j = i + 1; j < unmatched.size(); ++j) {
+      const QrFinderPattern& a = finders[unmatched[i]];
+      const QrFinderPattern& b = finders[unmatched[j]];
+      const double wa = a.width_px, wb = b.width_px;
+      if (!(wa > 0.0) || !(wb > 0.0) || std::max(wa, wb) > kMaxPairWidthRatio * std::min(wa, wb)) continue;
+      const double module_px = (wa + wb) / 14.0;
+      const double d = (b.centre_px - a.centre_px).norm() / module_px;  // centres, in modules
+      // Each layout: the finders' places and the third finder's (top-left module of each).
+      struct Layout {
+        PairLayout places;
+        Eigen::Vector2d third;
+      };
+      std::vector<Layout> layouts;
+      for (const int n : kPairModules) {
+        const double spacing = n - 7;
+        if (d >= spacing / kForeshortening && d <= spacing * kForeshortening) {
+          // a, then b, as the corner finder, the other as the top-right or the bottom-left one.
+          const Eigen::Vector2d corner(0, 0), right(spacing, 0), below(0, spacing);
+          layouts.push_back({{corner, right}, below});
+          layouts.push_back({{corner, below}, right});
+          layouts.push_back({{right, corner}, below});
+          layouts.push_back({{below, corner}, right});
+        }
+        const double diagonal = std::sqrt(2.0) * spacing;
+        if (d >= diagonal / kForeshortening && d <= diagonal * kForeshortening) {
+          // The diagonal's two ends, the corner finder on either side of it.
+          layouts.push_back(
+              {{Eigen::Vector2d(spacing, 0), Eigen::Vector2d(0, spacing)}, Eigen::Vector2d(0, 0)});
+          layouts.push_back(
+              {{Eigen::Vector2d(0, spacing), Eigen::Vector2d(spacing, 0)}, Eigen::Vector2d(0, 0)});
+        }
+      }
+      for (const Layout& layout : layouts) {
+        const std::optional<Eigen::Matrix<double, 2, 3>> to_image =
+            PairLayoutAffine(a, b, layout.places, module_px);
+        if (!to_image) continue;
+        const std::optional<Eigen::Vector2d> origin = FindThirdFinder(gray, *to_image, layout.third);
+        if (!origin) continue;
+        // The third finder's outline: its 7 x 7 modules through the pair's map.
+        QrFinderPattern c;
+        const Eigen::Vector2d outline[4] = {{0, 0}, {7, 0}, {7, 7}, {0, 7}};
+        for (int k = 0; k < 4; ++k) c.outer_px[k] = *to_image * (*origin + outline[k]).homogeneous();
+        c.centre_px = *to_image * (*origin + Eigen::Vector2d(3.5, 3.5)).homogeneous();
+        c.width_px = 7.0 * std::sqrt(std::abs(to_image->leftCols<2>().determinant()));
+        for (const QrCandidate& candidate : GroupQrFinders({a, b, c}, gray.size())) {
+          if (!seen(candidate)) out.push_back(candidate);
+        }
+      }
+    }
+  }
+  return out;
+}
+
 std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::vector<DarkQuad>& quads) {
   const cv::Size image_size = gray.size();
   std::vector<QrFinderPattern> finders;
@@ -683,7 +878,12 @@ std::vector<QrCandidate> QrCandidatesFromQuads(const cv::Mat& gray, const std::v
     });
     if (!seen && f.width_px > 0.0) finders.push_back(f);
   }
-  return GroupQrFinders(finders, image_size);
+  std::vector<QrCandidate> candidates = GroupQrFinders(finders, image_size);
+  // Small codes with one finder lost to blur: their pairs, after every triple.
+  const std::vector<QrCandidate> completed =
+      QrCandidatesFromFinderPairs(gray, finders, candidates, kMaxPairFinderWidthPx);
+  candidates.insert(candidates.end(), completed.begin(), completed.end());
+  return candidates;
 }
 
 namespace {

@@ -67,6 +67,30 @@ struct QrCandidate {
 std::vector<QrCandidate> GroupQrFinders(const std::vector<QrFinderPattern>& finders,
                                         const cv::Size& image_size);
 
+// QR candidates from two finders whose third was not found (a small oblique code whose third
+// finder's rings blur into its data modules: recall bench issue seed 13 frame 127): the
+// finders of `finders` of width at most `max_width_px` whose centres lie in no candidate of
+// `triples` (GroupQrFinders' codes) are paired (widths within kMaxPairWidthRatio), and each
+// layout their distance allows (version 1 or 2, tilts up to 60 deg: either finder as the
+// corner one and the other as its right or lower neighbour, or the two as the ends of the
+// code's diagonal) maps module coordinates to `gray` by the affine map that puts the
+// two finders' outlines (7 x 7 modules) where the layout has them (least squares over the
+// labellings of their corners, at most a module RMS off: blurred outlines are rough). The
+// third finder is looked for in `gray` through that map, up to kThirdFinderReachModules
+// modules from where the layout puts it (the 9 x 9 modules of finder and separator correlated
+// with their pattern at half-module shifts, at least 0.6), and completes the triple
+// (GroupQrFinders). In the order of the pairs, each code once; empty for an empty or
+// non-8-bit `gray`.
+inline constexpr double kMaxPairWidthRatio = 1.5;
+inline constexpr double kThirdFinderReachModules = 2.0;
+// The widest finder paired, px (QrCandidatesFromQuads, and detect/qr.cc's finder searches): 7
+// modules of a version-1 code of about 70 px; larger codes' finders are found whole.
+inline constexpr double kMaxPairFinderWidthPx = 24.0;
+std::vector<QrCandidate> QrCandidatesFromFinderPairs(const cv::Mat& gray,
+                                                     const std::vector<QrFinderPattern>& finders,
+                                                     const std::vector<QrCandidate>& triples,
+                                                     double max_width_px);
+
 // QR candidates from the shared candidate stage (FindDarkQuads, detect/quads.h), for codes in
 // no candidate region: a finder's dark 7x7 ring is a dark component whose quad has at least
 // two solid sides (>= 85 % dark just inside them; the others >= 20 %: blur or a thin
