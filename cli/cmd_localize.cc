@@ -73,6 +73,12 @@ The map's landmark errors (its position_covariance and position_covariance_facto
                       online_variance_factor (`waymark map build --calibrate-online`: leave one
                       out on the mapped robots, docs/online.md) with --sensor-prior map, else 1;
                       1 disables; range-bearing datasets only
+  --update-iterations N  Gauss-Newton iterations of each EKF update while tracking (the
+                      iterated EKF: h relinearized at the updated state, stopping once converged;
+                      1..100, default 1: the plain EKF); range-bearing datasets only
+  --relocalization-iterations N  the same while the filter is lost (its prior widened to
+                      reacquire: one linearization can settle on a wrong pose); 1..100, default 1;
+                      range-bearing datasets only
 
 Localizes the robot against MAP.json (from `waymark map build`) with an EKF (docs/online.md):
 the odometry predicts, every code seen corrects. Odometry and camera frames are merged in
@@ -155,7 +161,9 @@ const std::set<std::string> kValues = {"map",
                                        "depth-share-sigma",
                                        "calibration-time",
                                        "turn-fluctuation",
-                                       "variance-factor"};
+                                       "variance-factor",
+                                       "update-iterations",
+                                       "relocalization-iterations"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
@@ -349,6 +357,16 @@ int RunRangeBearingDataset(const Args& args, const Dataset& dataset, const Marke
               << (args.Has("variance-factor") ? "--variance-factor" : "the map's leave-one-out calibration")
               << "; the reported covariance scaled)\n";
   }
+  for (const auto& [name, field] :
+       {std::pair<const char*, int*>{"update-iterations", &options.update_iterations},
+        {"relocalization-iterations", &options.relocalization_iterations}}) {
+    if (!args.Has(name)) continue;
+    const std::optional<long> n = args.GetInt(name);
+    if (!n || *n < 1 || *n > 100)
+      throw std::invalid_argument(std::string("--") + name + ": expected an integer in 1..100, got " +
+                                  *args.Get(name));
+    *field = static_cast<int>(*n);
+  }
   if (!map.range_bearing_noise)
     std::cerr << "warning: the map has no range_bearing_noise: the default noise model is used\n";
   const RangeBearingRun run = RunRangeBearingLocalizer(dataset, map, options);
@@ -413,10 +431,11 @@ int RunDataset(const Args& args) {
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
   if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor"))
+      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor") ||
+      args.Has("update-iterations") || args.Has("relocalization-iterations"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation and "
-        "--variance-factor "
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation, "
+        "--variance-factor, --update-iterations and --relocalization-iterations "
         "are for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
@@ -431,10 +450,11 @@ int RunDataset(const Args& args) {
 
 int RunLive(const Args& args) {
   if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor"))
+      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor") ||
+      args.Has("update-iterations") || args.Has("relocalization-iterations"))
     throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation and "
-        "--variance-factor "
+        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation, "
+        "--variance-factor, --update-iterations and --relocalization-iterations "
         "are for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(

@@ -69,6 +69,9 @@ bool RangeBearingLocalizerOptions::Check(std::string* why) const {
       IsFiniteAtLeast(turn_fluctuation_sigma, 0.0) && IsFiniteAtLeast(turn_fluctuation_time_s, 0.0),
       "turn_fluctuation_sigma and turn_fluctuation_time_s must be finite and >= 0");
   WAYMARK_CHECK_OPTION(max_landmark_states >= 1, "max_landmark_states must be >= 1");
+  WAYMARK_CHECK_OPTION(update_iterations >= 1 && update_iterations <= 100 && relocalization_iterations >= 1 &&
+                           relocalization_iterations <= 100,
+                       "update_iterations and relocalization_iterations must be in 1..100");
   return true;
 }
 
@@ -396,11 +399,56 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
   // Schmidt: the map's error is considered, not estimated.
   if (options_.map_uncertainty == RangeBearingMapUncertainty::kConsider)
     K.bottomRows(size - kStateSize).setZero();
-  x_ += K * y;
-  x_[2] = WrapAngle(x_[2]);
+  Eigen::MatrixXd HP_i = HP;
+  Eigen::Matrix2d S_i = S;
+  const Eigen::VectorXd x_prior = x_;
+  Eigen::VectorXd x_i = x_prior + K * y;
+  x_i[2] = WrapAngle(x_i[2]);
+  // The iterated update (Gauss-Newton on the prior and this sighting): relinearize h at the
+  // updated state, y_i = z - h(x_i) - H_i (x_prior - x_i), x = x_prior + K_i y_i.
+  const int iterations = lost_ ? options_.relocalization_iterations : options_.update_iterations;
+  for (int iteration = 1; iteration < iterations; ++iteration) {
+    const Vector6 xr = x_i.head<kStateSize>();
+    Eigen::Vector2d l_i = landmark.l_map;
+    if (options_.map_uncertainty == RangeBearingMapUncertainty::kEstimate) {
+      if (k_ > 0) l_i += landmark.F * x_i.segment(kStateSize, k_);
+      if (slot >= 0) l_i += x_i.segment<2>(slot);
+    }
+    if ((l_i - xr.head<2>()).norm() < 1e-3) break;
+    const Eigen::Matrix<double, 2, kStateSize> H_xi = MeasureStateJacobian(xr, l_i);
+    const Eigen::Matrix2d H_li = -H_xi.leftCols<2>();
+    Eigen::Matrix2d R_i = Eigen::Vector2d(var_range, sigma_bearing * sigma_bearing).asDiagonal();
+    if (options_.map_uncertainty == RangeBearingMapUncertainty::kInNoise && landmark.sigma)
+      R_i += H_li * *landmark.sigma * H_li.transpose();
+    Eigen::MatrixXd H_i = Eigen::MatrixXd::Zero(2, size);
+    H_i.leftCols<kStateSize>() = H_xi;
+    if (k_ > 0) H_i.middleCols(kStateSize, k_) = H_li * landmark.F;
+    if (slot >= 0) H_i.middleCols<2>(slot) = H_li;
+    const Eigen::Vector2d h_i = MeasureState(xr, l_i);
+    Eigen::VectorXd dx = x_prior - x_i;
+    dx[2] = WrapAngle(dx[2]);
+    const Eigen::Vector2d y_i =
+        Eigen::Vector2d(range_m - h_i[0], WrapAngle(observation.bearing_rad - h_i[1])) - H_i * dx;
+    const Eigen::MatrixXd HP_next = H_i * P_;
+    const Eigen::Matrix2d S_next = HP_next * H_i.transpose() + R_i;
+    const Eigen::LLT<Eigen::Matrix2d> llt_i(S_next);
+    if (llt_i.info() != Eigen::Success) break;
+    K = llt_i.solve(HP_next).transpose();
+    if (options_.map_uncertainty == RangeBearingMapUncertainty::kConsider)
+      K.bottomRows(size - kStateSize).setZero();
+    HP_i = HP_next;
+    S_i = S_next;
+    Eigen::VectorXd x_next = x_prior + K * y_i;
+    x_next[2] = WrapAngle(x_next[2]);
+    Eigen::VectorXd step = x_next - x_i;
+    step[2] = WrapAngle(step[2]);
+    x_i = x_next;
+    if (step.head<3>().norm() < 1e-9) break;
+  }
+  x_ = x_i;
   // Joseph form (I - K H) P (I - K H)^T + K R K^T, expanded: right for any gain.
-  const Eigen::MatrixXd KHP = K * HP;
-  P_ += -KHP - KHP.transpose() + K * S * K.transpose();
+  const Eigen::MatrixXd KHP = K * HP_i;
+  P_ += -KHP - KHP.transpose() + K * S_i * K.transpose();
   P_ = 0.5 * (P_ + P_.transpose()).eval();
   ++counts_["accepted"];
   accepted_nis_sum_ += chi2;

@@ -48,6 +48,9 @@
 //   range)^2, range_a_m^2) (the range variance less its common part; an observation's own sigma as given)
 //   gate: y^T S^-1 y <= gate_chi2 (2 dof), else the observation is a gross outlier (counted);
 //   K = P H^T S^-1 (LLT), x += K y, P = (I - K H) P (I - K H)^T + K R' K^T (Joseph), symmetrized.
+//   Iterated (options update_iterations, relocalization_iterations > 1): x_{i+1} = x_prior + K_i (z -
+//   h(x_i) - H_i (x_prior - x_i)), H_i and K_i at x_i (Gauss-Newton on the prior and the sighting),
+//   P from the last H_i and K_i; the gate on the first linearization.
 // The map's landmark errors (map_uncertainty). A landmark's map error eps_l = l_true - l_map is one
 // draw that every sighting of it shares, and the landmarks' errors are correlated (map.json
 // position_covariance and position_covariance_factor, mapping/range_bearing_map.h; in memory
@@ -137,6 +140,16 @@ struct RangeBearingLocalizerOptions {
   // unscaled: the factor is for the slow, systematic errors they cannot reveal). The map build's
   // leave-one-out calibration (map.json range_bearing_sensor online_variance_factor) sets it.
   double variance_factor = 1.0;
+  // The update's Gauss-Newton iterations (the iterated EKF): each relinearizes h at the updated
+  // state, x = x_prior + K_i (z - h(x_i) - H_i (x_prior - x_i)), until the pose moves by less than
+  // 1e-9 (m, rad) or the count is spent; P from the last linearization; the gate still uses the
+  // prediction's. update_iterations while tracking (1: the EKF, linearized once at the
+  // prediction); relocalization_iterations while lost (P inflated to the reacquire sigmas, or the
+  // position's sigma above lost_sigma_m: a prior so wide that h is far from linear over it, where
+  // one linearization can land a confident wrong pose and regain the track there). Both 1 by
+  // default (the EKF as before; docs/accuracy.md, MRCLAM, has what 10 while lost does).
+  int update_iterations = 1;
+  int relocalization_iterations = 1;
   bool Check(std::string* why) const;
 };
 

@@ -184,15 +184,36 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   const RunResult live = Run("localize " + (dir_ / "robot2").string() + " --map " +
                              (dir_ / "map.json").string() + " --live --map-uncertainty consider");
   EXPECT_NE(live.exit_code, 0);
-  EXPECT_THAT(live.err, HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
-                                  "--calibration-time, --turn-fluctuation and --variance-factor are for "
-                                  "range-bearing datasets, not --live"));
+  EXPECT_THAT(live.err,
+              HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
+                        "--calibration-time, --turn-fluctuation, --variance-factor, --update-iterations and "
+                        "--relocalization-iterations are for "
+                        "range-bearing datasets, not --live"));
   // The reported covariance's variance factor: > 0 only.
   const RunResult zero_factor =
       Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
           (dir_ / "x.tum").string() + " --variance-factor 0");
   EXPECT_NE(zero_factor.exit_code, 0);
   EXPECT_THAT(zero_factor.err, HasSubstr("--variance-factor: expected a number > 0, got 0"));
+  EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
+  // The update's Gauss-Newton iterations: 3 while tracking and 1 while lost (the plain EKF) run;
+  // 0 is refused.
+  const RunResult plain =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "robot2-plain.tum").string() + " --update-iterations 3 --relocalization-iterations 1");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_THAT(plain.out, HasSubstr("NEES: mean "));
+  const RunResult no_iterations =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "x.tum").string() + " --update-iterations 0");
+  EXPECT_NE(no_iterations.exit_code, 0);
+  EXPECT_THAT(no_iterations.err, HasSubstr("--update-iterations: expected an integer in 1..100, got 0"));
+  EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
+  const RunResult too_many =
+      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
+          (dir_ / "x.tum").string() + " --relocalization-iterations 101");
+  EXPECT_NE(too_many.exit_code, 0);
+  EXPECT_THAT(too_many.err, HasSubstr("--relocalization-iterations: expected an integer in 1..100, got 101"));
   EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
   const RunResult depth =
@@ -309,9 +330,11 @@ TEST_F(RangeBearingCliTest, TwoCorridorSurveysOneMap) {
       Run("localize " + (dir_ / "survey5").string() + " --map " + (dir_ / "map.json").string() + " --out " +
           (dir_ / "run.tum").string() + " --map-uncertainty consider");
   EXPECT_NE(camera.exit_code, 0);
-  EXPECT_THAT(camera.err, HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
-                                    "--calibration-time, --turn-fluctuation and --variance-factor are for "
-                                    "range-bearing datasets (range_bearing.jsonl)"));
+  EXPECT_THAT(camera.err,
+              HasSubstr("--map-uncertainty, --sensor-prior, --depth-share-sigma, "
+                        "--calibration-time, --turn-fluctuation, --variance-factor, --update-iterations and "
+                        "--relocalization-iterations are for "
+                        "range-bearing datasets (range_bearing.jsonl)"));
 }
 
 }  // namespace

@@ -1,7 +1,9 @@
 // online/range_bearing_localizer.h: F and H against central differences (asserted), a zero
 // innovation keeps the mean and shrinks P, P stays symmetric positive definite, unknown codes
 // and gross outliers are rejected and counted, a long run of rejections makes the filter lost
-// (and it regains the track), and the Monte-Carlo mean NEES lies inside its 95 % bounds.
+// (and it regains the track), and the Monte-Carlo mean NEES lies inside its 95 % bounds; the
+// iterated update reaches the MAP estimate of its prior and one sighting (the plain EKF does not),
+// and while lost the update iterates relocalization_iterations times.
 #include "online/range_bearing_localizer.h"
 
 #include <gtest/gtest.h>
@@ -36,6 +38,18 @@ RangeBearingObservation Sighting(const std::string& id, const Eigen::Vector2d& z
   obs.range_m = z[0];
   obs.bearing_rad = z[1];
   return obs;
+}
+
+// Options with only the pose estimated (every calibration and sensor state held) and the map
+// taken as exact: the prior of the state is then the pose's covariance alone.
+RangeBearingLocalizerOptions PoseOnlyOptions(int update_iterations) {
+  RangeBearingLocalizerOptions options;
+  options.calibration_sigma.setZero();
+  options.sensor_bias_sigma.setZero();
+  options.bearing_scale_sigma = 0.0;
+  options.map_uncertainty = RangeBearingMapUncertainty::kIgnore;
+  options.update_iterations = update_iterations;
+  return options;
 }
 
 TEST(RangeBearingLocalizer, JacobiansMatchCentralDifferences) {
@@ -131,6 +145,93 @@ TEST(RangeBearingLocalizer, ZeroInnovationKeepsTheMeanAndShrinksP) {
   EXPECT_EQ(Eigen::LLT<Eigen::Matrix3d>(filter.covariance()).info(), Eigen::Success);
 }
 
+// The stationarity condition of the MAP estimate of the pose from its prior N(x0, P0) and one
+// sighting z (noise R): x - x0 = P0 H(x)^T R^-1 (z - h(x)), its norm (0 at the optimum).
+double MapConditionResidual(const Eigen::Vector3d& x0, const Eigen::Matrix3d& P0, const Eigen::Vector3d& x,
+                            const Eigen::Vector2d& l, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  const Eigen::Vector2d h = RangeBearingLocalizer::Measure(x, l);
+  const Eigen::Vector2d y(z[0] - h[0], WrapAngle(z[1] - h[1]));
+  const Eigen::Matrix<double, 2, 3> H = RangeBearingLocalizer::MeasureJacobian(x, l);
+  Eigen::Vector3d dx = x - x0;
+  dx[2] = WrapAngle(dx[2]);
+  return (dx - P0 * H.transpose() * R.inverse() * y).norm();
+}
+
+TEST(RangeBearingLocalizer, TheIteratedUpdateIsTheMapEstimateOfPriorAndSighting) {
+  // A wide prior (as after the filter was lost): 0.5 m and 0.4 rad; the sighting is from a pose
+  // 0.4 m and 0.3 rad away from the prior's mean, where h is far from linear.
+  const Eigen::Vector3d x0(0.0, 0.0, 0.0), truth(0.3, -0.25, 0.3);
+  const Eigen::Matrix3d P0 = Eigen::Vector3d(0.25, 0.25, 0.16).asDiagonal();
+  const Eigen::Vector2d l(3.0, 1.0);
+  const Eigen::Vector2d z = RangeBearingLocalizer::Measure(truth, l);
+  const RangeBearingNoise noise;  // R: the default range and bearing sigmas, no common range part
+  const double sigma_range = noise.range_a_m + noise.range_b * z[0];
+  const Eigen::Matrix2d R =
+      Eigen::Vector2d(sigma_range * sigma_range, noise.bearing_rad * noise.bearing_rad).asDiagonal();
+  double residual[2] = {0.0, 0.0};
+  for (const int iterations : {1, 20}) {
+    RangeBearingLocalizerOptions options = PoseOnlyOptions(iterations);
+    options.gate_chi2 = 1e6;  // the prior is far off: accept
+    RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(x0[0], x0[1], x0[2]), P0);
+    ASSERT_EQ(filter.Update(Sighting("1", z)), RangeBearingUpdate::kAccepted);
+    const Eigen::Vector3d x(filter.pose().x(), filter.pose().y(), filter.pose().theta());
+    residual[iterations == 1 ? 0 : 1] = MapConditionResidual(x0, P0, x, l, z, R);
+    EXPECT_EQ(Eigen::LLT<Eigen::Matrix3d>(filter.covariance()).info(), Eigen::Success);
+  }
+  // The plain EKF stops after one linearization (far from the optimum); the iterations reach it.
+  EXPECT_GT(residual[0], 1e-2);
+  EXPECT_LT(residual[1], 1e-8);
+}
+
+TEST(RangeBearingLocalizer, TheIteratedUpdateIsTheMapEstimateWithTheSensorStates) {
+  // The same with the sensor's states estimated too: every entry of the state satisfies
+  // x - x0 = P0 H(x)^T R^-1 (z - h(x)) (P0 diagonal: the start's and the options' sigmas).
+  using Vector = RangeBearingLocalizer::Vector6;
+  RangeBearingLocalizerOptions options;
+  options.map_uncertainty = RangeBearingMapUncertainty::kIgnore;
+  options.gate_chi2 = 1e6;
+  options.depth_share_mean = 0.9;
+  options.depth_share_sigma = 0.05;
+  options.range_scale_state_sigma = 0.05;
+  options.noise.range_scale_sigma = 0.02;
+  Vector x0 = Vector::Zero(), sigma = Vector::Zero();
+  x0.segment<3>(3) = options.calibration_mean;
+  x0[10] = options.depth_share_mean;
+  sigma << 0.5, 0.5, 0.4, options.calibration_sigma, options.sensor_bias_sigma,
+      options.noise.range_scale_sigma, options.bearing_scale_sigma, options.depth_share_sigma,
+      options.range_scale_state_sigma, 0.0;
+  const Eigen::Vector3d truth(0.3, -0.25, 0.3);
+  const Eigen::Vector2d l(3.0, 1.0);
+  Eigen::Vector2d z = RangeBearingLocalizer::Measure(truth, l);
+  z[0] *= 1.05;
+  const double total = options.noise.range_a_m + options.noise.range_b * z[0];
+  const double common = options.noise.range_scale_sigma * z[0];
+  const Eigen::Matrix2d R =
+      Eigen::Vector2d(total * total - common * common, options.noise.bearing_rad * options.noise.bearing_rad)
+          .asDiagonal();
+  double residual[2] = {0.0, 0.0};
+  for (const int iterations : {1, 30}) {
+    options.update_iterations = iterations;
+    RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(),
+                                 Eigen::Matrix3d(sigma.head<3>().cwiseAbs2().asDiagonal()));
+    ASSERT_EQ(filter.Update(Sighting("1", z)), RangeBearingUpdate::kAccepted);
+    Vector x;
+    x << filter.pose().x(), filter.pose().y(), filter.pose().theta(), filter.calibration(),
+        filter.sensor_bias(), filter.range_scale(), filter.bearing_scale(), filter.depth_share(),
+        filter.robot_range_scale(), filter.turn_fluctuation();
+    const Eigen::Vector2d h = RangeBearingLocalizer::MeasureState(x, l);
+    const Eigen::Vector2d y(z[0] - h[0], WrapAngle(z[1] - h[1]));
+    const Eigen::Matrix<double, 2, RangeBearingLocalizer::kStateSize> H =
+        RangeBearingLocalizer::MeasureStateJacobian(x, l);
+    Vector dx = x - x0;
+    dx[2] = WrapAngle(dx[2]);
+    residual[iterations == 1 ? 0 : 1] =
+        (dx - sigma.cwiseAbs2().asDiagonal() * (H.transpose() * R.inverse() * y)).norm();
+  }
+  EXPECT_GT(residual[0], 1e-2);
+  EXPECT_LT(residual[1], 1e-8);
+}
+
 TEST(RangeBearingLocalizer, UnknownCodesAndGrossOutliersAreRejectedAndCounted) {
   RangeBearingLocalizer filter(TwoLandmarks(), {}, SE2d(), Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal());
   EXPECT_EQ(filter.Update(Sighting("99", {2.0, 0.1})), RangeBearingUpdate::kUnknownLandmark);
@@ -162,6 +263,39 @@ TEST(RangeBearingLocalizer, LostAfterRejectionsInARowThenRegained) {
   EXPECT_NEAR(filter.pose().y(), 0.5, 0.05);
   EXPECT_EQ(filter.counts().at("became lost"), 1);
   EXPECT_EQ(filter.counts().at("regained"), 1);
+}
+
+// While lost, the update iterates relocalization_iterations times (while tracking,
+// update_iterations): the filter is sure of the origin, a sighting from a pose 0.7 m and 0.35 rad
+// away is gated and makes it lost (P widened by the reacquire sigmas), and the next sighting's
+// update reaches the MAP estimate of the widened prior and that sighting only when iterated.
+double MapResidualOfTheFirstUpdateWhileLost(int update_iterations, int relocalization_iterations) {
+  RangeBearingLocalizerOptions options = PoseOnlyOptions(update_iterations);
+  options.relocalization_iterations = relocalization_iterations;
+  options.lost_rejections = 1;
+  const Eigen::Matrix3d P_start = Eigen::Vector3d(1e-8, 1e-8, 1e-8).asDiagonal();
+  RangeBearingLocalizer filter(TwoLandmarks(), options, SE2d(), P_start);
+  const Eigen::Vector3d truth(0.6, -0.35, 0.35);
+  const Eigen::Vector2d l(3.0, 1.0);
+  const Eigen::Vector2d z = RangeBearingLocalizer::Measure(truth, l);
+  EXPECT_EQ(filter.Update(Sighting("1", z)), RangeBearingUpdate::kGated);
+  EXPECT_TRUE(filter.lost());
+  EXPECT_EQ(filter.Update(Sighting("1", z)), RangeBearingUpdate::kAccepted);
+  const double sm = options.reacquire_sigma_m, sr = options.reacquire_sigma_rad;
+  const Eigen::Matrix3d P0 =
+      P_start + Eigen::Vector3d(sm * sm, sm * sm, sr * sr).asDiagonal().toDenseMatrix();
+  const double sigma_range = options.noise.range_a_m + options.noise.range_b * z[0];
+  const Eigen::Matrix2d R =
+      Eigen::Vector2d(sigma_range * sigma_range, options.noise.bearing_rad * options.noise.bearing_rad)
+          .asDiagonal();
+  const Eigen::Vector3d x(filter.pose().x(), filter.pose().y(), filter.pose().theta());
+  return MapConditionResidual(Eigen::Vector3d::Zero(), P0, x, l, z, R);
+}
+
+TEST(RangeBearingLocalizer, RelocalizationIterationsApplyWhileLost) {
+  EXPECT_LT(MapResidualOfTheFirstUpdateWhileLost(1, 20), 1e-8);
+  EXPECT_GT(MapResidualOfTheFirstUpdateWhileLost(20, 1), 1e-2);
+  EXPECT_GT(MapResidualOfTheFirstUpdateWhileLost(1, 1), 1e-2);
 }
 
 // Mean NEES of the pose over `runs` Monte Carlo runs of 50 steps: the truth moves by the
@@ -715,6 +849,13 @@ TEST(RangeBearingLocalizer, RefusesBadInput) {
   RangeBearingLocalizerOptions bad_time;
   bad_time.calibration_time_s[1] = -1.0;
   EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_time, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  RangeBearingLocalizerOptions bad_iterations;
+  bad_iterations.update_iterations = 0;
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_iterations, SE2d(), Eigen::Matrix3d::Identity()),
+               std::invalid_argument);
+  bad_iterations.update_iterations = 101;
+  EXPECT_THROW(RangeBearingLocalizer(TwoLandmarks(), bad_iterations, SE2d(), Eigen::Matrix3d::Identity()),
                std::invalid_argument);
   EXPECT_EQ(ParseRangeBearingMapUncertainty("consider"), RangeBearingMapUncertainty::kConsider);
   EXPECT_FALSE(ParseRangeBearingMapUncertainty("schmidt"));
