@@ -85,6 +85,12 @@ TEST_F(RangeBearingCliTest, ImportRefusesMalformedFilesWithOneLine) {
 }
 
 TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
+  // `waymark localize` of robot2 against MAP (in the test's directory), writing OUT there.
+  const auto localize_robot2 = [this](const std::string& out, const std::string& options,
+                                      const std::string& map = "map.json") {
+    return Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / map).string() + " --out " +
+               (dir_ / out).string() + (options.empty() ? "" : " " + options));
+  };
   testing::RangeBearingWorldOptions world;
   world.outlier_share = 0.02;
   for (int i = 0; i < 3; ++i)
@@ -136,8 +142,7 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_EQ(both.exit_code, 1);
   EXPECT_THAT(both.err,
               HasSubstr("--depth-ranges means --range-model depth: not with --range-model distance"));
-  const RunResult localize = Run("localize " + (dir_ / "robot2").string() + " --map " +
-                                 (dir_ / "map.json").string() + " --out " + (dir_ / "robot2.tum").string());
+  const RunResult localize = localize_robot2("robot2.tum", "");
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
   EXPECT_THAT(localize.out, HasSubstr("NEES: mean "));
@@ -147,20 +152,14 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   EXPECT_EQ(map.range_bearing_sensor->datasets.size(), 2u);
   EXPECT_EQ(map.range_bearing_sensor->datasets[0].name, "robot0");
   EXPECT_THAT(localize.out, HasSubstr("sensor prior: the map's (2 robots, range model distance)"));
-  const RunResult no_prior =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "robot2-no-prior.tum").string() + " --sensor-prior none");
+  const RunResult no_prior = localize_robot2("robot2-no-prior.tum", "--sensor-prior none");
   ASSERT_EQ(no_prior.exit_code, 0) << no_prior.err;
   EXPECT_THAT(no_prior.out, HasSubstr("sensor prior: none"));
-  const RunResult depth_map =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map-depth.json").string() +
-          " --out " + (dir_ / "robot2-depth-map.tum").string());
+  const RunResult depth_map = localize_robot2("robot2-depth-map.tum", "", "map-depth.json");
   ASSERT_EQ(depth_map.exit_code, 0) << depth_map.err;
   EXPECT_THAT(depth_map.out, HasSubstr("range model depth"));
   EXPECT_THAT(depth_map.out, HasSubstr("NEES: mean "));
-  const RunResult bad_prior =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "z.tum").string() + " --sensor-prior truth");
+  const RunResult bad_prior = localize_robot2("z.tum", "--sensor-prior truth");
   EXPECT_NE(bad_prior.exit_code, 0);
   EXPECT_THAT(bad_prior.err, HasSubstr("--sensor-prior: expected map or none, got 'truth'"));
   EXPECT_EQ(std::count(bad_prior.err.begin(), bad_prior.err.end(), '\n'), 1) << bad_prior.err;
@@ -169,14 +168,10 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   ASSERT_TRUE(map.markers.front().position_covariance);
   ASSERT_TRUE(map.markers.front().covariance_factor);
   EXPECT_EQ(map.markers.front().covariance_factor->cols(), 20);
-  const RunResult consider =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "robot2-consider.tum").string() + " --map-uncertainty consider");
+  const RunResult consider = localize_robot2("robot2-consider.tum", "--map-uncertainty consider");
   ASSERT_EQ(consider.exit_code, 0) << consider.err;
   EXPECT_THAT(consider.out, HasSubstr("NEES: mean "));
-  const RunResult bad =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "x.tum").string() + " --map-uncertainty schmidt");
+  const RunResult bad = localize_robot2("x.tum", "--map-uncertainty schmidt");
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_THAT(bad.err,
               HasSubstr("--map-uncertainty: expected estimate, consider, in-noise or ignore, got 'schmidt'"));
@@ -190,61 +185,42 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
                         "--relocalization-iterations are for "
                         "range-bearing datasets, not --live"));
   // The reported covariance's variance factor: > 0 only.
-  const RunResult zero_factor =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "x.tum").string() + " --variance-factor 0");
+  const RunResult zero_factor = localize_robot2("x.tum", "--variance-factor 0");
   EXPECT_NE(zero_factor.exit_code, 0);
   EXPECT_THAT(zero_factor.err, HasSubstr("--variance-factor: expected a number > 0, got 0"));
   EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
   // The update's Gauss-Newton iterations: 3 while tracking and 1 while lost (the plain EKF) run;
   // 0 is refused.
   const RunResult plain =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "robot2-plain.tum").string() + " --update-iterations 3 --relocalization-iterations 1");
+      localize_robot2("robot2-plain.tum", "--update-iterations 3 --relocalization-iterations 1");
   ASSERT_EQ(plain.exit_code, 0) << plain.err;
   EXPECT_THAT(plain.out, HasSubstr("NEES: mean "));
-  const RunResult no_iterations =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "x.tum").string() + " --update-iterations 0");
+  const RunResult no_iterations = localize_robot2("x.tum", "--update-iterations 0");
   EXPECT_NE(no_iterations.exit_code, 0);
   EXPECT_THAT(no_iterations.err, HasSubstr("--update-iterations: expected an integer in 1..100, got 0"));
   EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
-  const RunResult too_many =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "x.tum").string() + " --relocalization-iterations 101");
+  const RunResult too_many = localize_robot2("x.tum", "--relocalization-iterations 101");
   EXPECT_NE(too_many.exit_code, 0);
   EXPECT_THAT(too_many.err, HasSubstr("--relocalization-iterations: expected an integer in 1..100, got 101"));
   EXPECT_FALSE(fs::exists(dir_ / "x.tum"));
   // The sensor's depth share estimated by the EKF; a negative sigma refused.
-  const RunResult depth =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "robot2-depth.tum").string() + " --depth-share-sigma 1");
+  const RunResult depth = localize_robot2("robot2-depth.tum", "--depth-share-sigma 1");
   ASSERT_EQ(depth.exit_code, 0) << depth.err;
   EXPECT_THAT(depth.out, HasSubstr("NEES: mean "));
-  const RunResult negative =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "y.tum").string() + " --depth-share-sigma -1");
+  const RunResult negative = localize_robot2("y.tum", "--depth-share-sigma -1");
   EXPECT_NE(negative.exit_code, 0);
   EXPECT_THAT(negative.err, HasSubstr("--depth-share-sigma: expected a number >= 0, got -1"));
   EXPECT_FALSE(fs::exists(dir_ / "y.tum"));
   // The odometry calibration as a Gauss-Markov state; a negative correlation time refused.
-  const RunResult gauss_markov =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "robot2-gm.tum").string() + " --calibration-time 5");
+  const RunResult gauss_markov = localize_robot2("robot2-gm.tum", "--calibration-time 5");
   ASSERT_EQ(gauss_markov.exit_code, 0) << gauss_markov.err;
   EXPECT_THAT(gauss_markov.out, HasSubstr("NEES: mean "));
-  const RunResult negative_time =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "z.tum").string() + " --calibration-time -1");
+  const RunResult negative_time = localize_robot2("z.tum", "--calibration-time -1");
   EXPECT_NE(negative_time.exit_code, 0);
   EXPECT_THAT(negative_time.err, HasSubstr("--calibration-time: expected a number of seconds >= 0, got -1"));
-  const RunResult fluctuation =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "robot2-f.tum").string() + " --turn-fluctuation 0.08,2.5");
+  const RunResult fluctuation = localize_robot2("robot2-f.tum", "--turn-fluctuation 0.08,2.5");
   ASSERT_EQ(fluctuation.exit_code, 0) << fluctuation.err;
-  const RunResult bad_fluctuation =
-      Run("localize " + (dir_ / "robot2").string() + " --map " + (dir_ / "map.json").string() + " --out " +
-          (dir_ / "w.tum").string() + " --turn-fluctuation 0.08");
+  const RunResult bad_fluctuation = localize_robot2("w.tum", "--turn-fluctuation 0.08");
   EXPECT_NE(bad_fluctuation.exit_code, 0);
   EXPECT_THAT(bad_fluctuation.err,
               HasSubstr("--turn-fluctuation: expected SIGMA,SECONDS (two numbers >= 0), got 0.08"));
