@@ -34,22 +34,13 @@ void Union(std::vector<int>& parent, int a, int b) {
   }
 }
 
-// Appends the runs of non-zero pixels of one row; light stretches are skipped eight pixels
-// at a time.
+// Appends the runs of non-zero pixels of one row (SkipEqual, SkipNonZero: eight pixels at a time).
 void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
-  int x = 0;
+  int x = SkipEqual(row, 0, cols, 0);
   while (x < cols) {
-    while (x + 8 <= cols) {
-      uint64_t word;
-      std::memcpy(&word, row + x, 8);
-      if (word != 0) break;
-      x += 8;
-    }
-    while (x < cols && row[x] == 0) ++x;
-    if (x >= cols) break;
-    const int start = x;
-    while (x < cols && row[x] != 0) ++x;
-    runs->push_back({y, start, x - 1});
+    const int end = SkipNonZero(row, x, cols);
+    runs->push_back({y, x, end - 1});
+    x = SkipEqual(row, end, cols, 0);
   }
 }
 
@@ -188,6 +179,7 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
   std::vector<Run> runs;
   runs.reserve(static_cast<size_t>(binary.rows) * 8);
   std::vector<int> parent;
+  parent.reserve(runs.capacity());
   size_t previous_begin = 0, previous_end = 0;
   for (int y = 0; y < binary.rows; ++y) {
     const size_t begin = runs.size();
@@ -204,39 +196,47 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
     previous_begin = begin;
     previous_end = runs.size();
   }
-  // Bounding boxes per root (a root is its component's first run).
+  // Each run's root in place: a root is its component's first run and every run's parent
+  // an earlier run (or itself), so the parent's entry already holds its root.
   const int n = static_cast<int>(runs.size());
-  std::vector<int> root(n);
-  std::vector<int> x0(n), x1(n), y1(n), count(n, 0);
+  for (int i = 0; i < n; ++i) parent[i] = parent[parent[i]];
+  // Bounding boxes and run counts per root.
+  struct Extent {
+    int x0, x1, y1, count;
+  };
+  std::vector<Extent> extent(n);
   for (int i = 0; i < n; ++i) {
-    const int r = root[i] = Find(parent, i);
+    const int r = parent[i];
     const Run& run = runs[i];
+    Extent& e = extent[r];
     if (r == i) {
-      x0[r] = run.x0;
-      x1[r] = run.x1;
-      y1[r] = run.y;
+      e = {run.x0, run.x1, run.y, 1};
     } else {
-      x0[r] = std::min(x0[r], run.x0);
-      x1[r] = std::max(x1[r], run.x1);
-      y1[r] = std::max(y1[r], run.y);
+      e.x0 = std::min(e.x0, run.x0);
+      e.x1 = std::max(e.x1, run.x1);
+      e.y1 = std::max(e.y1, run.y);
+      ++e.count;
     }
-    ++count[r];
   }
-  // The kept components, in the order of their roots; their run ends in a second pass.
-  std::vector<int> slot(n, -1);
+  // The kept components, in the order of their roots; their run ends in a second pass. A
+  // root's count becomes its slot in `out` (-1: not kept).
   std::vector<RunComponent> out;
   for (int i = 0; i < n; ++i) {
-    if (root[i] != i) continue;
-    const cv::Rect box(x0[i], runs[i].y, x1[i] - x0[i] + 1, y1[i] - runs[i].y + 1);
-    if (keep && !keep(box)) continue;
-    slot[i] = static_cast<int>(out.size());
+    if (parent[i] != i) continue;
+    Extent& e = extent[i];
+    const cv::Rect box(e.x0, runs[i].y, e.x1 - e.x0 + 1, e.y1 - runs[i].y + 1);
+    if (keep && !keep(box)) {
+      e.count = -1;
+      continue;
+    }
     out.push_back({box, {}});
-    out.back().row_ends.reserve(2 * static_cast<size_t>(std::min(count[i], out.back().box.height)));
+    out.back().row_ends.reserve(2 * static_cast<size_t>(std::min(e.count, box.height)));
+    e.count = static_cast<int>(out.size()) - 1;
   }
   // Runs come row by row, left to right: a row's first run gives its left end, its last run
   // its right end.
   for (int i = 0; i < n; ++i) {
-    const int s = slot[root[i]];
+    const int s = extent[parent[i]].count;
     if (s < 0) continue;
     std::vector<cv::Point>& ends = out[s].row_ends;
     if (!ends.empty() && ends.back().y == runs[i].y) {

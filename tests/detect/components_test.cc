@@ -3,7 +3,8 @@
 // OpenCV's 8-connected labelling on random images, each component's row ends spanning the same
 // convex hull as all its pixels, raster order, the box filter, and the corner cases (empty,
 // all dark, one-pixel rows and columns, diagonal joins, wide images whose runs cross the
-// eight-pixel skip).
+// eight-pixel skip), and the eight-pixel run scans (SkipEqual, SkipNonZero) against a
+// pixel-by-pixel scan.
 #include "detect/components.h"
 
 #include <gtest/gtest.h>
@@ -288,6 +289,36 @@ TEST(DetectComponents, RowEndsHullIsOpenCvsConvexHull) {
     }
   }
   EXPECT_GT(compared, 1000);
+}
+
+// SkipEqual and SkipNonZero (eight pixels per step) against a pixel-by-pixel scan: rows of
+// 0 to 40 pixels of runs of 0, 255 and other values, from every start.
+TEST(DetectComponents, SkipScansMatchAPixelByPixelScan) {
+  cv::RNG rng(11);
+  int checked = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const int cols = rng.uniform(0, 41);
+    std::vector<uint8_t> row(static_cast<size_t>(cols) + 1, 0);  // + 1: data() of an empty row
+    for (int x = 0; x < cols;) {
+      const int length = 1 + rng.uniform(0, trial % 3 == 0 ? 3 : 12);
+      const int kind = rng.uniform(0, 4);
+      for (int k = 0; k < length && x < cols; ++k, ++x) {
+        row[x] = kind == 0 ? 0 : kind == 1 ? 255 : kind == 2 ? 1 : static_cast<uint8_t>(rng.uniform(0, 256));
+      }
+    }
+    for (int x = 0; x <= cols; ++x) {
+      for (const uint8_t value : {uint8_t{0}, uint8_t{255}, uint8_t{1}, row[std::min(x, cols)]}) {
+        int expected = x;
+        while (expected < cols && row[expected] == value) ++expected;
+        ASSERT_EQ(SkipEqual(row.data(), x, cols, value), expected) << "trial " << trial << " x " << x;
+      }
+      int expected = x;
+      while (expected < cols && row[expected] != 0) ++expected;
+      ASSERT_EQ(SkipNonZero(row.data(), x, cols), expected) << "trial " << trial << " x " << x;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 3000);
 }
 
 }  // namespace
