@@ -302,35 +302,43 @@ bool EighthArea(const cv::Mat& gray, cv::Mat* eighth) {
   return true;
 }
 
+namespace {
+
+// out[x] = own[x + 1] where own[x] | own[x + 2] | across[x .. x + 2] is non-zero, else 0.
+void KeepWithNeighbours(const uint8_t* __restrict own, const uint8_t* __restrict across, int cols,
+                        uint8_t* __restrict out) {
+  for (int x = 0; x < cols; ++x) {
+    const uint8_t neighbours = own[x] | own[x + 2] | across[x] | across[x + 1] | across[x + 2];
+    out[x] = own[x + 1] & static_cast<uint8_t>(neighbours != 0 ? 0xff : 0);
+  }
+}
+
+}  // namespace
+
 void ClearIsolatedPixels(cv::Mat* binary) {
   CV_Assert(binary->type() == CV_8UC1);
   const int rows = binary->rows, cols = binary->cols;
+  if (rows == 0 || cols == 0) return;
+  // Per row, branch-free (loops the compiler vectorizes): the row and the OR of the rows above
+  // and below it, each padded by a 0 on either side; a pixel stays when the OR of its eight
+  // neighbours is non-zero. Clearing in place changes no other pixel's test: a cleared pixel's
+  // neighbours are all 0 already.
+  std::vector<uint8_t> own(cols + 2, 0), across(cols + 2, 0);
+  const std::vector<uint8_t> zeros(cols, 0);
+  uint8_t* const o = own.data();
+  uint8_t* const a = across.data();
   for (int y = 0; y < rows; ++y) {
     uint8_t* row = binary->ptr<uint8_t>(y);
-    const uint8_t* above = y > 0 ? binary->ptr<uint8_t>(y - 1) : nullptr;
-    const uint8_t* below = y + 1 < rows ? binary->ptr<uint8_t>(y + 1) : nullptr;
-    int x = 0;
-    while (x < cols) {
-      // Light stretches eight pixels at a time.
-      while (x + 8 <= cols) {
-        uint64_t word;
-        std::memcpy(&word, row + x, 8);
-        if (word != 0) break;
-        x += 8;
-      }
-      if (x >= cols) break;
-      if (row[x] == 0) {
-        ++x;
-        continue;
-      }
-      const int x0 = std::max(0, x - 1), x1 = std::min(cols - 1, x + 1);
-      bool neighbour = (x > 0 && row[x - 1] != 0) || (x + 1 < cols && row[x + 1] != 0);
-      for (int nx = x0; nx <= x1 && !neighbour; ++nx) {
-        neighbour = (above != nullptr && above[nx] != 0) || (below != nullptr && below[nx] != 0);
-      }
-      if (!neighbour) row[x] = 0;
-      ++x;
+    const uint8_t* above = y > 0 ? binary->ptr<uint8_t>(y - 1) : zeros.data();
+    const uint8_t* below = y + 1 < rows ? binary->ptr<uint8_t>(y + 1) : zeros.data();
+    uint8_t any = 0;
+    for (int x = 0; x < cols; ++x) {
+      o[x + 1] = row[x];
+      any |= row[x];
     }
+    if (any == 0) continue;
+    for (int x = 0; x < cols; ++x) a[x + 1] = above[x] | below[x];
+    KeepWithNeighbours(o, a, cols, row);
   }
 }
 

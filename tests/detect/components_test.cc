@@ -321,5 +321,42 @@ TEST(DetectComponents, SkipScansMatchAPixelByPixelScan) {
   EXPECT_GT(checked, 3000);
 }
 
+// ClearIsolatedPixels against its definition, pixel by pixel: random images of any non-zero
+// values (sparse and dense, one row or one column among them), also through a view.
+TEST(DetectComponents, ClearIsolatedPixelsMatchesItsDefinition) {
+  cv::RNG rng(5);
+  int cleared_total = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const int rows = trial % 10 == 0 ? 1 : rng.uniform(1, 50),
+              cols = trial % 10 == 5 ? 1 : rng.uniform(1, 70);
+    cv::Mat big(rows + 2, cols + 3, CV_8U);
+    rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+    cv::Mat sparse = big.clone();
+    sparse.setTo(0, big < (trial % 2 == 0 ? 220 : 120));
+    const cv::Mat binary = sparse(cv::Rect(1, 1, cols, rows));
+    cv::Mat expected = binary.clone();
+    for (int y = 0; y < rows; ++y) {
+      for (int x = 0; x < cols; ++x) {
+        bool neighbour = false;
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int ny = y + dy, nx = x + dx;
+            if ((dy != 0 || dx != 0) && ny >= 0 && ny < rows && nx >= 0 && nx < cols &&
+                binary.at<uint8_t>(ny, nx) != 0) {
+              neighbour = true;
+            }
+          }
+        }
+        if (!neighbour) expected.at<uint8_t>(y, x) = 0;
+      }
+    }
+    cleared_total += cv::countNonZero(binary) - cv::countNonZero(expected);
+    cv::Mat view = binary;  // clears in place, through the view
+    ClearIsolatedPixels(&view);
+    ASSERT_EQ(cv::countNonZero(binary != expected), 0) << "trial " << trial;
+  }
+  EXPECT_GT(cleared_total, 100);
+}
+
 }  // namespace
 }  // namespace waymark
