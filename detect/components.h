@@ -25,7 +25,8 @@ struct RunComponent {
 // image's border replicated), else 0: exactly cv::adaptiveThreshold(gray, dark, 255,
 // ADAPTIVE_THRESH_MEAN_C, THRESH_BINARY_INV, box, darker_by), in integers (no division): up to
 // 15 in 16 bits (column sums slid down the rows, box sums from sums of 2, 4 and 8 columns),
-// larger boxes (the QR finder search's) in 32 bits (column sums, a running sum along the row).
+// larger boxes (the QR finder search's) in 32 bits (column sums, a running sum along the row,
+// eight columns at a time with SSE2; the comparison in single precision where that is exact).
 cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by);
 
 // The 8-connected components of the non-zero pixels of `binary` (CV_8UC1) whose bounding box

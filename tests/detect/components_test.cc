@@ -141,6 +141,9 @@ TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
   // Boxes over 15 px (the QR finder search's, block = side / 8 up to 101), 32-bit sums: images
   // smaller and larger than the box.
   ExpectAdaptiveThreshold(rng, 12, 330, 260, 9, 4.0, {17, 29, 31, 63, 101}, {0, 4, 9});
+  // The largest boxes: the comparison in single precision while area 255 + t stays under 2^24
+  // (255 with offset 0), in 32-bit integers beyond (255 with offset 9, 257).
+  ExpectAdaptiveThreshold(rng, 3, 300, 280, 9, 4.0, {255, 257}, {0, 9});
   // A view into a larger image: its own border is replicated (as BORDER_ISOLATED).
   cv::Mat big(100, 140, CV_8U);
   rng.fill(big, cv::RNG::UNIFORM, 0, 256);
