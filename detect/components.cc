@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace waymark {
 namespace {
@@ -34,22 +37,13 @@ void Union(std::vector<int>& parent, int a, int b) {
   }
 }
 
-// Appends the runs of non-zero pixels of one row; light stretches are skipped eight pixels
-// at a time.
+// Appends the runs of non-zero pixels of one row (SkipEqual, SkipNonZero: eight pixels at a time).
 void RowRuns(const uint8_t* row, int cols, int y, std::vector<Run>* runs) {
-  int x = 0;
+  int x = SkipEqual(row, 0, cols, 0);
   while (x < cols) {
-    while (x + 8 <= cols) {
-      uint64_t word;
-      std::memcpy(&word, row + x, 8);
-      if (word != 0) break;
-      x += 8;
-    }
-    while (x < cols && row[x] == 0) ++x;
-    if (x >= cols) break;
-    const int start = x;
-    while (x < cols && row[x] != 0) ++x;
-    runs->push_back({y, start, x - 1});
+    const int end = SkipNonZero(row, x, cols);
+    runs->push_back({y, x, end - 1});
+    x = SkipEqual(row, end, cols, 0);
   }
 }
 
@@ -93,6 +87,33 @@ class SlidingColumnSums {
   uint16_t* c_;
 };
 
+// out[x] = sums[0] + ... + sums[x] for x < n (32-bit). With SSE2 eight at a time (each half's
+// running sum by two shifted adds, plus the sum before it), the same integers as the plain loop.
+void PrefixSums(const uint16_t* sums, int n, int32_t* out) {
+  int x = 0;
+  int32_t running = 0;
+#if defined(__SSE2__)
+  const __m128i zero = _mm_setzero_si128();
+  __m128i carry = _mm_setzero_si128();  // the sum so far in every lane
+  for (; x + 8 <= n; x += 8) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(sums + x));
+    const __m128i halves[2] = {_mm_unpacklo_epi16(v, zero), _mm_unpackhi_epi16(v, zero)};
+    for (int k = 0; k < 2; ++k) {
+      __m128i p = _mm_add_epi32(halves[k], _mm_slli_si128(halves[k], 4));
+      p = _mm_add_epi32(p, _mm_slli_si128(p, 8));
+      p = _mm_add_epi32(p, carry);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x + 4 * k), p);
+      carry = _mm_shuffle_epi32(p, 0xff);
+    }
+  }
+  if (x > 0) running = out[x - 1];
+#endif
+  for (; x < n; ++x) {
+    running += sums[x];
+    out[x] = running;
+  }
+}
+
 // DarkerThanLocalMean for boxes over 15 px (the QR finder search's, up to 101): 16-bit column
 // sums (at most 255 x 101) slid down the rows, each row's box sums as differences of a 32-bit
 // running sum along it.
@@ -106,20 +127,28 @@ cv::Mat DarkerThanLocalMeanWide(const cv::Mat& gray, int box, int darker_by) {
   // As below: dark when sum >= area pixel + t, t = ceil(area (2 darker_by - 1) / 2).
   const int area = box * box;
   const int t_exact = static_cast<int>(std::ceil(area * (2.0 * darker_by - 1.0) / 2.0));
+  // The comparison in single precision when every value in it is an integer under 2^24 (then
+  // exact; the compiler vectorizes it without 32-bit multiplies): box sums (at most 255 area),
+  // area pixel + t.
+  const bool exact_in_float =
+      static_cast<int64_t>(area) * 255 + std::abs(static_cast<int64_t>(t_exact)) < (1 << 24);
+  const float area_f = static_cast<float>(area), t_f = static_cast<float>(t_exact);
   std::vector<int32_t> prefix(padded_cols + 1, 0);  // prefix[x]: sum of columns before x
   const uint16_t* const sums = column.data();
   for (int y = 0; y < rows; ++y) {
     column.PadBorders();
-    int32_t running = 0;
-    for (int x = 0; x < padded_cols; ++x) {
-      running += sums[x];
-      prefix[x + 1] = running;
-    }
+    PrefixSums(sums, padded_cols, prefix.data() + 1);
     const int32_t* high = prefix.data() + box;
     const int32_t* low = prefix.data();
     const uint8_t* in = gray.ptr<uint8_t>(y);
     uint8_t* out = dark.ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x) out[x] = high[x] - low[x] >= area * in[x] + t_exact ? 255 : 0;
+    if (exact_in_float) {
+      for (int x = 0; x < cols; ++x) {
+        out[x] = static_cast<float>(high[x] - low[x]) >= area_f * static_cast<float>(in[x]) + t_f ? 255 : 0;
+      }
+    } else {
+      for (int x = 0; x < cols; ++x) out[x] = high[x] - low[x] >= area * in[x] + t_exact ? 255 : 0;
+    }
     if (y + 1 == rows) break;
     column.SlideDown(y);
   }
@@ -188,6 +217,7 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
   std::vector<Run> runs;
   runs.reserve(static_cast<size_t>(binary.rows) * 8);
   std::vector<int> parent;
+  parent.reserve(runs.capacity());
   size_t previous_begin = 0, previous_end = 0;
   for (int y = 0; y < binary.rows; ++y) {
     const size_t begin = runs.size();
@@ -204,39 +234,47 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
     previous_begin = begin;
     previous_end = runs.size();
   }
-  // Bounding boxes per root (a root is its component's first run).
+  // Each run's root in place: a root is its component's first run and every run's parent
+  // an earlier run (or itself), so the parent's entry already holds its root.
   const int n = static_cast<int>(runs.size());
-  std::vector<int> root(n);
-  std::vector<int> x0(n), x1(n), y1(n), count(n, 0);
+  for (int i = 0; i < n; ++i) parent[i] = parent[parent[i]];
+  // Bounding boxes and run counts per root.
+  struct Extent {
+    int x0, x1, y1, count;
+  };
+  std::vector<Extent> extent(n);
   for (int i = 0; i < n; ++i) {
-    const int r = root[i] = Find(parent, i);
+    const int r = parent[i];
     const Run& run = runs[i];
+    Extent& e = extent[r];
     if (r == i) {
-      x0[r] = run.x0;
-      x1[r] = run.x1;
-      y1[r] = run.y;
+      e = {run.x0, run.x1, run.y, 1};
     } else {
-      x0[r] = std::min(x0[r], run.x0);
-      x1[r] = std::max(x1[r], run.x1);
-      y1[r] = std::max(y1[r], run.y);
+      e.x0 = std::min(e.x0, run.x0);
+      e.x1 = std::max(e.x1, run.x1);
+      e.y1 = std::max(e.y1, run.y);
+      ++e.count;
     }
-    ++count[r];
   }
-  // The kept components, in the order of their roots; their run ends in a second pass.
-  std::vector<int> slot(n, -1);
+  // The kept components, in the order of their roots; their run ends in a second pass. A
+  // root's count becomes its slot in `out` (-1: not kept).
   std::vector<RunComponent> out;
   for (int i = 0; i < n; ++i) {
-    if (root[i] != i) continue;
-    const cv::Rect box(x0[i], runs[i].y, x1[i] - x0[i] + 1, y1[i] - runs[i].y + 1);
-    if (keep && !keep(box)) continue;
-    slot[i] = static_cast<int>(out.size());
+    if (parent[i] != i) continue;
+    Extent& e = extent[i];
+    const cv::Rect box(e.x0, runs[i].y, e.x1 - e.x0 + 1, e.y1 - runs[i].y + 1);
+    if (keep && !keep(box)) {
+      e.count = -1;
+      continue;
+    }
     out.push_back({box, {}});
-    out.back().row_ends.reserve(2 * static_cast<size_t>(std::min(count[i], out.back().box.height)));
+    out.back().row_ends.reserve(2 * static_cast<size_t>(std::min(e.count, box.height)));
+    e.count = static_cast<int>(out.size()) - 1;
   }
   // Runs come row by row, left to right: a row's first run gives its left end, its last run
   // its right end.
   for (int i = 0; i < n; ++i) {
-    const int s = slot[root[i]];
+    const int s = extent[parent[i]].count;
     if (s < 0) continue;
     std::vector<cv::Point>& ends = out[s].row_ends;
     if (!ends.empty() && ends.back().y == runs[i].y) {
@@ -302,35 +340,43 @@ bool EighthArea(const cv::Mat& gray, cv::Mat* eighth) {
   return true;
 }
 
+namespace {
+
+// out[x] = own[x + 1] where own[x] | own[x + 2] | across[x .. x + 2] is non-zero, else 0.
+void KeepWithNeighbours(const uint8_t* __restrict own, const uint8_t* __restrict across, int cols,
+                        uint8_t* __restrict out) {
+  for (int x = 0; x < cols; ++x) {
+    const uint8_t neighbours = own[x] | own[x + 2] | across[x] | across[x + 1] | across[x + 2];
+    out[x] = own[x + 1] & static_cast<uint8_t>(neighbours != 0 ? 0xff : 0);
+  }
+}
+
+}  // namespace
+
 void ClearIsolatedPixels(cv::Mat* binary) {
   CV_Assert(binary->type() == CV_8UC1);
   const int rows = binary->rows, cols = binary->cols;
+  if (rows == 0 || cols == 0) return;
+  // Per row, branch-free (loops the compiler vectorizes): the row and the OR of the rows above
+  // and below it, each padded by a 0 on either side; a pixel stays when the OR of its eight
+  // neighbours is non-zero. Clearing in place changes no other pixel's test: a cleared pixel's
+  // neighbours are all 0 already.
+  std::vector<uint8_t> own(cols + 2, 0), across(cols + 2, 0);
+  const std::vector<uint8_t> zeros(cols, 0);
+  uint8_t* const o = own.data();
+  uint8_t* const a = across.data();
   for (int y = 0; y < rows; ++y) {
     uint8_t* row = binary->ptr<uint8_t>(y);
-    const uint8_t* above = y > 0 ? binary->ptr<uint8_t>(y - 1) : nullptr;
-    const uint8_t* below = y + 1 < rows ? binary->ptr<uint8_t>(y + 1) : nullptr;
-    int x = 0;
-    while (x < cols) {
-      // Light stretches eight pixels at a time.
-      while (x + 8 <= cols) {
-        uint64_t word;
-        std::memcpy(&word, row + x, 8);
-        if (word != 0) break;
-        x += 8;
-      }
-      if (x >= cols) break;
-      if (row[x] == 0) {
-        ++x;
-        continue;
-      }
-      const int x0 = std::max(0, x - 1), x1 = std::min(cols - 1, x + 1);
-      bool neighbour = (x > 0 && row[x - 1] != 0) || (x + 1 < cols && row[x + 1] != 0);
-      for (int nx = x0; nx <= x1 && !neighbour; ++nx) {
-        neighbour = (above != nullptr && above[nx] != 0) || (below != nullptr && below[nx] != 0);
-      }
-      if (!neighbour) row[x] = 0;
-      ++x;
+    const uint8_t* above = y > 0 ? binary->ptr<uint8_t>(y - 1) : zeros.data();
+    const uint8_t* below = y + 1 < rows ? binary->ptr<uint8_t>(y + 1) : zeros.data();
+    uint8_t any = 0;
+    for (int x = 0; x < cols; ++x) {
+      o[x + 1] = row[x];
+      any |= row[x];
     }
+    if (any == 0) continue;
+    for (int x = 0; x < cols; ++x) a[x + 1] = above[x] | below[x];
+    KeepWithNeighbours(o, a, cols, row);
   }
 }
 

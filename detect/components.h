@@ -7,6 +7,8 @@
 // contour trace. The work is a fixed function of the image.
 #pragma once
 
+#include <cstdint>
+#include <cstring>
 #include <functional>
 #include <opencv2/core.hpp>
 #include <vector>
@@ -23,7 +25,8 @@ struct RunComponent {
 // image's border replicated), else 0: exactly cv::adaptiveThreshold(gray, dark, 255,
 // ADAPTIVE_THRESH_MEAN_C, THRESH_BINARY_INV, box, darker_by), in integers (no division): up to
 // 15 in 16 bits (column sums slid down the rows, box sums from sums of 2, 4 and 8 columns),
-// larger boxes (the QR finder search's) in 32 bits (column sums, a running sum along the row).
+// larger boxes (the QR finder search's) in 32 bits (column sums, a running sum along the row,
+// eight columns at a time with SSE2; the comparison in single precision where that is exact).
 cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by);
 
 // The 8-connected components of the non-zero pixels of `binary` (CV_8UC1) whose bounding box
@@ -31,6 +34,38 @@ cv::Mat DarkerThanLocalMean(const cv::Mat& gray, int box, int darker_by);
 // then left to right).
 std::vector<RunComponent> RunComponents(const cv::Mat& binary,
                                         const std::function<bool(const cv::Rect&)>& keep = {});
+
+// The first x' in [x, cols) with row[x'] != value (SkipEqual) or row[x'] == 0 (SkipNonZero), or
+// cols when there is none; eight pixels at a time (the run scans of RunComponents and of the QR
+// finder search, detect/qr_finder.cc).
+// Both load eight pixels as one little-endian word: the pixel at the lower address is the lower byte.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
+              "SkipEqual and SkipNonZero assume little-endian loads");
+
+inline int SkipEqual(const uint8_t* row, int x, int cols, uint8_t value) {
+  const uint64_t pattern = 0x0101010101010101ULL * value;
+  for (; x + 8 <= cols; x += 8) {
+    uint64_t word;
+    std::memcpy(&word, row + x, 8);
+    const uint64_t differ = word ^ pattern;  // non-zero bytes where a pixel is not `value`
+    if (differ != 0) return x + (__builtin_ctzll(differ) >> 3);
+  }
+  while (x < cols && row[x] == value) ++x;
+  return x;
+}
+
+inline int SkipNonZero(const uint8_t* row, int x, int cols) {
+  for (; x + 8 <= cols; x += 8) {
+    uint64_t word;
+    std::memcpy(&word, row + x, 8);
+    // The lowest set bit of (word - 0x01s) & ~word & 0x80s is the lowest zero byte's high bit
+    // (a borrow only carries into the bytes above a zero byte).
+    const uint64_t zero = (word - 0x0101010101010101ULL) & ~word & 0x8080808080808080ULL;
+    if (zero != 0) return x + (__builtin_ctzll(zero) >> 3);
+  }
+  while (x < cols && row[x] != 0) ++x;
+  return x;
+}
 
 // `gray` (CV_8UC1) at half and a quarter of its size, exactly as cv::resize(gray, ...,
 // INTER_AREA) gives them (the mean of each 2x2 block rounded half up, of each 4x4 block rounded

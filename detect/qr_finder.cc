@@ -228,27 +228,11 @@ std::optional<int> VerticalFinderHole(const cv::Mat& binary, int x, int y) {
   return up + centre + down;
 }
 
-// Appends to `starts` the first pixel of every run of equal values of the row (0 or 255),
-// then `cols`; uniform stretches are skipped eight pixels at a time.
+// Appends to `starts` the first pixel of every run of equal values of the row, then `cols`;
+// eight pixels at a time (SkipEqual).
 void RunStarts(const uint8_t* row, int cols, std::vector<int>* starts) {
   starts->clear();
-  starts->push_back(0);
-  uint8_t value = row[0];
-  int x = 1;
-  while (x < cols) {
-    const uint64_t uniform = value ? ~uint64_t{0} : uint64_t{0};
-    while (x + 8 <= cols) {
-      uint64_t word;
-      std::memcpy(&word, row + x, 8);
-      if (word != uniform) break;
-      x += 8;
-    }
-    while (x < cols && row[x] == value) ++x;
-    if (x >= cols) break;
-    starts->push_back(x);
-    value = row[x];
-    ++x;
-  }
+  for (int x = 0; x < cols; x = SkipEqual(row, x, cols, row[x])) starts->push_back(x);
   starts->push_back(cols);
 }
 

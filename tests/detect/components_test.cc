@@ -3,7 +3,8 @@
 // OpenCV's 8-connected labelling on random images, each component's row ends spanning the same
 // convex hull as all its pixels, raster order, the box filter, and the corner cases (empty,
 // all dark, one-pixel rows and columns, diagonal joins, wide images whose runs cross the
-// eight-pixel skip).
+// eight-pixel skip), and the eight-pixel run scans (SkipEqual, SkipNonZero) against a
+// pixel-by-pixel scan.
 #include "detect/components.h"
 
 #include <gtest/gtest.h>
@@ -140,6 +141,9 @@ TEST(DetectComponents, DarkerThanLocalMeanIsOpenCvsAdaptiveThreshold) {
   // Boxes over 15 px (the QR finder search's, block = side / 8 up to 101), 32-bit sums: images
   // smaller and larger than the box.
   ExpectAdaptiveThreshold(rng, 12, 330, 260, 9, 4.0, {17, 29, 31, 63, 101}, {0, 4, 9});
+  // The largest boxes: the comparison in single precision while area 255 + t stays under 2^24
+  // (255 with offset 0), in 32-bit integers beyond (255 with offset 9, 257).
+  ExpectAdaptiveThreshold(rng, 3, 300, 280, 9, 4.0, {255, 257}, {0, 9});
   // A view into a larger image: its own border is replicated (as BORDER_ISOLATED).
   cv::Mat big(100, 140, CV_8U);
   rng.fill(big, cv::RNG::UNIFORM, 0, 256);
@@ -288,6 +292,73 @@ TEST(DetectComponents, RowEndsHullIsOpenCvsConvexHull) {
     }
   }
   EXPECT_GT(compared, 1000);
+}
+
+// SkipEqual and SkipNonZero (eight pixels per step) against a pixel-by-pixel scan: rows of
+// 0 to 40 pixels of runs of 0, 255 and other values, from every start.
+TEST(DetectComponents, SkipScansMatchAPixelByPixelScan) {
+  cv::RNG rng(11);
+  int checked = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const int cols = rng.uniform(0, 41);
+    std::vector<uint8_t> row(static_cast<size_t>(cols) + 1, 0);  // + 1: data() of an empty row
+    for (int x = 0; x < cols;) {
+      const int length = 1 + rng.uniform(0, trial % 3 == 0 ? 3 : 12);
+      const int kind = rng.uniform(0, 4);
+      for (int k = 0; k < length && x < cols; ++k, ++x) {
+        row[x] = kind == 0 ? 0 : kind == 1 ? 255 : kind == 2 ? 1 : static_cast<uint8_t>(rng.uniform(0, 256));
+      }
+    }
+    for (int x = 0; x <= cols; ++x) {
+      for (const uint8_t value : {uint8_t{0}, uint8_t{255}, uint8_t{1}, row[std::min(x, cols)]}) {
+        int expected = x;
+        while (expected < cols && row[expected] == value) ++expected;
+        ASSERT_EQ(SkipEqual(row.data(), x, cols, value), expected) << "trial " << trial << " x " << x;
+      }
+      int expected = x;
+      while (expected < cols && row[expected] != 0) ++expected;
+      ASSERT_EQ(SkipNonZero(row.data(), x, cols), expected) << "trial " << trial << " x " << x;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 3000);
+}
+
+// ClearIsolatedPixels against its definition, pixel by pixel: random images of any non-zero
+// values (sparse and dense, one row or one column among them), also through a view.
+TEST(DetectComponents, ClearIsolatedPixelsMatchesItsDefinition) {
+  cv::RNG rng(5);
+  int cleared_total = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const int rows = trial % 10 == 0 ? 1 : rng.uniform(1, 50),
+              cols = trial % 10 == 5 ? 1 : rng.uniform(1, 70);
+    cv::Mat big(rows + 2, cols + 3, CV_8U);
+    rng.fill(big, cv::RNG::UNIFORM, 0, 256);
+    cv::Mat sparse = big.clone();
+    sparse.setTo(0, big < (trial % 2 == 0 ? 220 : 120));
+    const cv::Mat binary = sparse(cv::Rect(1, 1, cols, rows));
+    cv::Mat expected = binary.clone();
+    for (int y = 0; y < rows; ++y) {
+      for (int x = 0; x < cols; ++x) {
+        bool neighbour = false;
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int ny = y + dy, nx = x + dx;
+            if ((dy != 0 || dx != 0) && ny >= 0 && ny < rows && nx >= 0 && nx < cols &&
+                binary.at<uint8_t>(ny, nx) != 0) {
+              neighbour = true;
+            }
+          }
+        }
+        if (!neighbour) expected.at<uint8_t>(y, x) = 0;
+      }
+    }
+    cleared_total += cv::countNonZero(binary) - cv::countNonZero(expected);
+    cv::Mat view = binary;  // clears in place, through the view
+    ClearIsolatedPixels(&view);
+    ASSERT_EQ(cv::countNonZero(binary != expected), 0) << "trial " << trial;
+  }
+  EXPECT_GT(cleared_total, 100);
 }
 
 }  // namespace
