@@ -38,11 +38,16 @@ std::vector<RunComponent> RunComponents(const cv::Mat& binary,
 // The first x' in [x, cols) with row[x'] != value (SkipEqual) or row[x'] == 0 (SkipNonZero), or
 // cols when there is none; eight pixels at a time (the run scans of RunComponents and of the QR
 // finder search, detect/qr_finder.cc).
-// Both load eight pixels as one little-endian word: the pixel at the lower address is the lower byte.
-static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
-              "SkipEqual and SkipNonZero assume little-endian loads");
+// Both load eight pixels as one little-endian word (the pixel at the lower address is the lower
+// byte); on a big-endian machine they scan pixel by pixel.
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define WAYMARK_WORD_SCANS 1
+#else
+#define WAYMARK_WORD_SCANS 0
+#endif
 
 inline int SkipEqual(const uint8_t* row, int x, int cols, uint8_t value) {
+#if WAYMARK_WORD_SCANS
   const uint64_t pattern = 0x0101010101010101ULL * value;
   for (; x + 8 <= cols; x += 8) {
     uint64_t word;
@@ -50,11 +55,13 @@ inline int SkipEqual(const uint8_t* row, int x, int cols, uint8_t value) {
     const uint64_t differ = word ^ pattern;  // non-zero bytes where a pixel is not `value`
     if (differ != 0) return x + (__builtin_ctzll(differ) >> 3);
   }
+#endif
   while (x < cols && row[x] == value) ++x;
   return x;
 }
 
 inline int SkipNonZero(const uint8_t* row, int x, int cols) {
+#if WAYMARK_WORD_SCANS
   for (; x + 8 <= cols; x += 8) {
     uint64_t word;
     std::memcpy(&word, row + x, 8);
@@ -63,6 +70,7 @@ inline int SkipNonZero(const uint8_t* row, int x, int cols) {
     const uint64_t zero = (word - 0x0101010101010101ULL) & ~word & 0x8080808080808080ULL;
     if (zero != 0) return x + (__builtin_ctzll(zero) >> 3);
   }
+#endif
   while (x < cols && row[x] != 0) ++x;
   return x;
 }
