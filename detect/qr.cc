@@ -46,8 +46,8 @@ constexpr int kMaxThinSideReads = 1;
 constexpr int kMaxMergedBoxes = 4;
 constexpr int kMaxMergedReads = 2;
 constexpr double kMinMergedCodeEvidence = 4.0;
-// Candidates completed from a pair of finders of a finder search and a dark quad
-// (QrCandidatesFromFinderPairs) read per frame.
+// Candidates completed from a pair of finders of a finder search and the third finder found
+// where the pair puts it (QrCandidatesFromFinderPairs) read per frame.
 constexpr int kMaxPairReads = 2;
 
 // First refinement window, fraction of the shortest side: 0.74 module in version 1 (21

@@ -652,6 +652,13 @@ struct PairLayout {
   Eigen::Vector2d a_origin, b_origin;
 };
 
+// The outline of a finder whose top-left module is at `origin` (module coordinates): its 7 x 7
+// modules' corners, clockwise on screen from the top-left.
+std::array<Eigen::Vector2d, 4> FinderModuleOutline(const Eigen::Vector2d& origin) {
+  return {origin, origin + Eigen::Vector2d(7, 0), origin + Eigen::Vector2d(7, 7),
+          origin + Eigen::Vector2d(0, 7)};
+}
+
 // The affine map from module coordinates to the image that puts the two finders' outlines
 // (7 x 7 modules each) at their places in `layout`, over the labellings of the outlines'
 // corners the one with the least squared error; nullopt when it is over kMaxPairFitRmsModules
@@ -661,12 +668,8 @@ constexpr double kMaxPairFitRmsModules = 1.0;
 std::optional<Eigen::Matrix<double, 2, 3>> PairLayoutAffine(const QrFinderPattern& a,
                                                             const QrFinderPattern& b,
                                                             const PairLayout& layout, double module_px) {
-  const auto outline = [](const Eigen::Vector2d& origin) {
-    return std::array<Eigen::Vector2d, 4>{origin, origin + Eigen::Vector2d(7, 0),
-                                          origin + Eigen::Vector2d(7, 7), origin + Eigen::Vector2d(0, 7)};
-  };
-  const std::array<Eigen::Vector2d, 4> a_modules = outline(layout.a_origin),
-                                       b_modules = outline(layout.b_origin);
+  const std::array<Eigen::Vector2d, 4> a_modules = FinderModuleOutline(layout.a_origin),
+                                       b_modules = FinderModuleOutline(layout.b_origin);
   double best_error = std::numeric_limits<double>::infinity();
   Eigen::Matrix<double, 2, 3> best = Eigen::Matrix<double, 2, 3>::Zero();
   // Both outlines are clockwise on screen, as the module outlines are: only their starting
@@ -824,8 +827,8 @@ std::vector<QrCandidate> QrCandidatesFromFinderPairs(const cv::Mat& gray,
         if (!origin) continue;
         // The third finder's outline: its 7 x 7 modules through the pair's map.
         QrFinderPattern c;
-        const Eigen::Vector2d outline[4] = {{0, 0}, {7, 0}, {7, 7}, {0, 7}};
-        for (int k = 0; k < 4; ++k) c.outer_px[k] = *to_image * (*origin + outline[k]).homogeneous();
+        const std::array<Eigen::Vector2d, 4> outline = FinderModuleOutline(*origin);
+        for (int k = 0; k < 4; ++k) c.outer_px[k] = *to_image * outline[k].homogeneous();
         c.centre_px = *to_image * (*origin + Eigen::Vector2d(3.5, 3.5)).homogeneous();
         c.width_px = 7.0 * std::sqrt(std::abs(to_image->leftCols<2>().determinant()));
         for (const QrCandidate& candidate : GroupQrFinders({a, b, c}, gray.size())) {

@@ -286,8 +286,8 @@ TEST(DetectQrFinder, PairCompletedWhicheverFinderIsLost) {
   EXPECT_EQ(completed, 12);
 }
 
-// Pairs are only formed from finders outside every triple, of similar widths, and need a
-// dark quad where the third finder would be.
+// Pairs are only formed from finders outside every triple, of similar widths, and need the
+// third finder's pattern in the image where they put it.
 TEST(DetectQrFinder, NoPairCompletionWithoutItsEvidence) {
   const SymbolImage symbol = QrSymbol("r/228/12.5");
   cv::Mat image = Canvas();
@@ -297,7 +297,8 @@ TEST(DetectQrFinder, NoPairCompletionWithoutItsEvidence) {
   const std::vector<QrCandidate> triples = GroupQrFinders(finders, image.size());
   ASSERT_EQ(triples.size(), 1u);
   EXPECT_TRUE(QrCandidatesFromFinderPairs(image, finders, triples, kMaxPairFinderWidthPx).empty());
-  // The same pair with no quads, with the wider finders than allowed, with one finder twice as wide.
+  // The same pair: completed; not with no image, with finders wider than allowed, or with one
+  // finder twice as wide as the other.
   const std::vector<QrFinderPattern> pair = {finders[0], finders[1]};
   EXPECT_FALSE(QrCandidatesFromFinderPairs(image, pair, {}, kMaxPairFinderWidthPx).empty());
   EXPECT_TRUE(QrCandidatesFromFinderPairs(cv::Mat(), pair, {}, kMaxPairFinderWidthPx).empty());
