@@ -361,21 +361,36 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
     var_range = std::max(total * total - common * common, n.range_a_m * n.range_a_m);
   }
   const double sigma_bearing = observation.sigma_bearing_rad.value_or(n.bearing_rad);
-  Eigen::Matrix2d R = Eigen::Vector2d(var_range, sigma_bearing * sigma_bearing).asDiagonal();
-  const Eigen::Matrix<double, 2, kStateSize> H_x = MeasureStateJacobian(x, l);
-  const Eigen::Matrix2d H_l = -H_x.leftCols<2>();
-  if (options_.map_uncertainty == RangeBearingMapUncertainty::kInNoise && landmark.sigma)
-    R += H_l * *landmark.sigma * H_l.transpose();
   const int slot = Augmented() ? SlotOf(observation.key, landmark) : -1;
   const int size = static_cast<int>(x_.size());
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, size);
-  H.leftCols<kStateSize>() = H_x;
-  if (k_ > 0) H.middleCols(kStateSize, k_) = H_l * landmark.F;
-  if (slot >= 0) H.middleCols<2>(slot) = H_l;
-  const Eigen::Vector2d predicted = MeasureState(x, l);
-  const Eigen::Vector2d y(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
+  // The measurement linearized at robot state `xr` with the landmark at `l_at`: its Jacobian
+  // over the whole state, its noise (with the map's error in it for kInNoise) and the
+  // innovation z - h.
+  struct Linearized {
+    Eigen::MatrixXd H;
+    Eigen::Matrix2d R;
+    Eigen::Vector2d y;
+  };
+  const auto linearize = [&](const Vector6& xr, const Eigen::Vector2d& l_at) {
+    Linearized out;
+    out.R = Eigen::Vector2d(var_range, sigma_bearing * sigma_bearing).asDiagonal();
+    const Eigen::Matrix<double, 2, kStateSize> H_x = MeasureStateJacobian(xr, l_at);
+    const Eigen::Matrix2d H_l = -H_x.leftCols<2>();
+    if (options_.map_uncertainty == RangeBearingMapUncertainty::kInNoise && landmark.sigma)
+      out.R += H_l * *landmark.sigma * H_l.transpose();
+    out.H = Eigen::MatrixXd::Zero(2, size);
+    out.H.leftCols<kStateSize>() = H_x;
+    if (k_ > 0) out.H.middleCols(kStateSize, k_) = H_l * landmark.F;
+    if (slot >= 0) out.H.middleCols<2>(slot) = H_l;
+    const Eigen::Vector2d predicted = MeasureState(xr, l_at);
+    out.y = Eigen::Vector2d(range_m - predicted[0], WrapAngle(observation.bearing_rad - predicted[1]));
+    return out;
+  };
+  const Linearized first = linearize(x, l);
+  const Eigen::MatrixXd& H = first.H;
+  const Eigen::Vector2d& y = first.y;
   const Eigen::MatrixXd HP = H * P_;  // 2 x size
-  const Eigen::Matrix2d S = HP * H.transpose() + R;
+  const Eigen::Matrix2d S = HP * H.transpose() + first.R;
   const Eigen::LLT<Eigen::Matrix2d> llt(S);
   if (llt.info() != Eigen::Success) {
     ++counts_["degenerate"];
@@ -415,22 +430,12 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
       if (slot >= 0) l_i += x_i.segment<2>(slot);
     }
     if ((l_i - xr.head<2>()).norm() < 1e-3) break;
-    const Eigen::Matrix<double, 2, kStateSize> H_xi = MeasureStateJacobian(xr, l_i);
-    const Eigen::Matrix2d H_li = -H_xi.leftCols<2>();
-    Eigen::Matrix2d R_i = Eigen::Vector2d(var_range, sigma_bearing * sigma_bearing).asDiagonal();
-    if (options_.map_uncertainty == RangeBearingMapUncertainty::kInNoise && landmark.sigma)
-      R_i += H_li * *landmark.sigma * H_li.transpose();
-    Eigen::MatrixXd H_i = Eigen::MatrixXd::Zero(2, size);
-    H_i.leftCols<kStateSize>() = H_xi;
-    if (k_ > 0) H_i.middleCols(kStateSize, k_) = H_li * landmark.F;
-    if (slot >= 0) H_i.middleCols<2>(slot) = H_li;
-    const Eigen::Vector2d h_i = MeasureState(xr, l_i);
+    const Linearized at = linearize(xr, l_i);
     Eigen::VectorXd dx = x_prior - x_i;
     dx[2] = WrapAngle(dx[2]);
-    const Eigen::Vector2d y_i =
-        Eigen::Vector2d(range_m - h_i[0], WrapAngle(observation.bearing_rad - h_i[1])) - H_i * dx;
-    const Eigen::MatrixXd HP_next = H_i * P_;
-    const Eigen::Matrix2d S_next = HP_next * H_i.transpose() + R_i;
+    const Eigen::Vector2d y_i = at.y - at.H * dx;
+    const Eigen::MatrixXd HP_next = at.H * P_;
+    const Eigen::Matrix2d S_next = HP_next * at.H.transpose() + at.R;
     const Eigen::LLT<Eigen::Matrix2d> llt_i(S_next);
     if (llt_i.info() != Eigen::Success) break;
     K = llt_i.solve(HP_next).transpose();
