@@ -165,6 +165,26 @@ const std::set<std::string> kValues = {"map",
                                        "update-iterations",
                                        "relocalization-iterations"};
 const std::set<std::string> kFlags = {"detect-images", "realtime", "live"};
+// The options only a range-bearing dataset (range_bearing.jsonl) takes, in the order the
+// refusal names them.
+const std::vector<std::string> kRangeBearingOnly = {
+    "map-uncertainty",  "sensor-prior",    "depth-share-sigma", "calibration-time",
+    "turn-fluctuation", "variance-factor", "update-iterations", "relocalization-iterations"};
+
+bool HasRangeBearingOnlyOption(const Args& args) {
+  return std::any_of(kRangeBearingOnly.begin(), kRangeBearingOnly.end(),
+                     [&args](const std::string& name) { return args.Has(name); });
+}
+
+// "--map-uncertainty, --sensor-prior, ... and --relocalization-iterations".
+std::string RangeBearingOnlyOptions() {
+  std::string names;
+  for (size_t i = 0; i < kRangeBearingOnly.size(); ++i) {
+    if (i > 0) names += i + 1 == kRangeBearingOnly.size() ? " and " : ", ";
+    names += "--" + kRangeBearingOnly[i];
+  }
+  return names;
+}
 // Live image detection: wall-clock ms per image for the second passes (a 30 fps camera
 // leaves 33 ms per frame for detection and the update).
 constexpr double kDefaultLiveDetectBudgetMs = 25.0;
@@ -430,13 +450,9 @@ int RunDataset(const Args& args) {
   const MarkerMap map = ReadMap(args.Require("map"));
   const Dataset dataset = LoadDataset(args.positionals()[0]);
   if (dataset.has_range_bearing_file) return RunRangeBearingDataset(args, dataset, map);
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor") ||
-      args.Has("update-iterations") || args.Has("relocalization-iterations"))
-    throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation, "
-        "--variance-factor, --update-iterations and --relocalization-iterations "
-        "are for range-bearing datasets (range_bearing.jsonl)");
+  if (HasRangeBearingOnlyOption(args))
+    throw std::invalid_argument(RangeBearingOnlyOptions() +
+                                " are for range-bearing datasets (range_bearing.jsonl)");
   const LocalizeRunOptions options = ParseOptions(args, dataset);
   CheckSquaresCanStart(args, map);
   const LocalizeRun run = RunLocalizer(dataset, map, options);
@@ -449,13 +465,8 @@ int RunDataset(const Args& args) {
 // ---- Live mode ----
 
 int RunLive(const Args& args) {
-  if (args.Has("map-uncertainty") || args.Has("depth-share-sigma") || args.Has("sensor-prior") ||
-      args.Has("calibration-time") || args.Has("turn-fluctuation") || args.Has("variance-factor") ||
-      args.Has("update-iterations") || args.Has("relocalization-iterations"))
-    throw std::invalid_argument(
-        "--map-uncertainty, --sensor-prior, --depth-share-sigma, --calibration-time, --turn-fluctuation, "
-        "--variance-factor, --update-iterations and --relocalization-iterations "
-        "are for range-bearing datasets, not --live");
+  if (HasRangeBearingOnlyOption(args))
+    throw std::invalid_argument(RangeBearingOnlyOptions() + " are for range-bearing datasets, not --live");
   if (args.Has("out") || args.Has("predicted") || args.Has("poses") || args.Flag("detect-images")) {
     throw std::invalid_argument(
         "--live writes to stdout: --out, --predicted, --poses and --detect-images do not apply");
