@@ -79,9 +79,10 @@ Options (build, merge):
   --calibrate-online  range-bearing datasets (two or more): for each, build the map of the others,
                       run the online EKF (waymark localize's defaults) on it against that map and
                       compare with its smoothed trajectory of this build (no ground truth); the
-                      pooled mean NEES / 3 is written as map.json range_bearing_sensor
-                      online_variance_factor, the factor waymark localize scales its reported
-                      covariance by (docs/online.md); one extra build per dataset
+                      geometric mean of their mean NEES / 3 is written as map.json
+                      range_bearing_sensor online_variance_factor, the factor waymark localize
+                      scales its reported covariance by (docs/online.md); one extra build per
+                      dataset
   --cameras-out DIR   every camera of DATASET as DIR/<name>.yaml, with the mounts the build
                       estimated (camera files that give T_robot_camera_sigma: extrinsic
                       self-calibration, docs/mapping.md) in place of the given ones, ready
@@ -474,10 +475,12 @@ int RunRangeBearingBuild(const Args& args, const std::vector<Dataset>& datasets)
                 << "), " << run.outputs_withheld << " withheld while lost\n";
       runs.push_back(nees);
     }
-    const double factor = PooledVarianceFactor(runs);
+    const double factor = LeaveOneOutVarianceFactor(runs);
     result.map.range_bearing_sensor->online_variance_factor = factor;
     std::cout << "online variance factor: " << FormatSignificant(factor, 4)
-              << " (pooled mean NEES / 3; map.json range_bearing_sensor online_variance_factor)\n";
+              << " (geometric mean of the left-out datasets' mean NEES / 3; map.json range_bearing_sensor "
+                 "online_variance_factor; their pooled mean NEES / 3: "
+              << FormatSignificant(PooledVarianceFactor(runs), 4) << ")\n";
   }
   if (StderrIsTerminal()) std::cerr << "\r\033[K";
   std::vector<std::pair<std::string, std::string>> files;

@@ -131,7 +131,8 @@ std::pair<double, double> MeanChiSquareBounds(double n, int dof) {
 }
 
 NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
-                       const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s) {
+                       const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s,
+                       double truth_yaw_rad) {
   NeesResult result;
   result.sample_lower = ChiSquareQuantile(0.025, 3);
   result.sample_upper = ChiSquareQuantile(0.975, 3);
@@ -144,7 +145,8 @@ NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
     const std::optional<SE3d> truth = InterpolateTrajectory(groundtruth, poses[i].stamp_s, max_dt_s);
     if (!truth) continue;
     const SE2d T_true = SE2d::FromSE3(*truth), T = SE2d::FromSE3(poses[i].T);
-    const Eigen::Vector3d e(T_true.x() - T.x(), T_true.y() - T.y(), WrapAngle(T_true.theta() - T.theta()));
+    const Eigen::Vector3d e(T_true.x() - T.x(), T_true.y() - T.y(),
+                            WrapAngle(T_true.theta() + truth_yaw_rad - T.theta()));
     const Eigen::LLT<Eigen::Matrix3d> llt(covariances[i]);
     if (llt.info() != Eigen::Success) continue;
     const double nees = e.dot(llt.solve(e));
@@ -185,6 +187,74 @@ RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map, bool 
   }
   if (map.range_bearing_noise) options.noise = *map.range_bearing_noise;
   return options;
+}
+
+std::optional<TruthYawEstimate> EstimateTruthYaw(const Trajectory& groundtruth, const Trajectory& odometry,
+                                                 const TruthYawOptions& options) {
+  constexpr double kMaxTruthGapS = 0.05;
+  constexpr double kMaxError = 0.5;
+  // The chord's direction at the window's middle, in the window's start frame.
+  const auto direction = [](const SE2d& from, const SE2d& to) {
+    const SE2d relative = from.inverse() * to;
+    return std::atan2(relative.y(), relative.x()) - 0.5 * relative.theta();
+  };
+  std::vector<double> errors;
+  size_t start = 0;
+  while (start + 1 < odometry.size()) {
+    const SE2d odometry_from = SE2d::FromSE3(odometry[start].T);
+    size_t end = start + 1;
+    while (end < odometry.size() && odometry[end].stamp_s - odometry[start].stamp_s <= options.max_window_s &&
+           (odometry_from.translation() - SE2d::FromSE3(odometry[end].T).translation()).norm() <
+               options.min_travel_m) {
+      ++end;
+    }
+    if (end >= odometry.size()) break;
+    const SE2d odometry_to = SE2d::FromSE3(odometry[end].T);
+    const std::optional<SE3d> truth_from =
+        InterpolateTrajectory(groundtruth, odometry[start].stamp_s, kMaxTruthGapS);
+    const std::optional<SE3d> truth_to =
+        InterpolateTrajectory(groundtruth, odometry[end].stamp_s, kMaxTruthGapS);
+    const bool moved =
+        (odometry_from.translation() - odometry_to.translation()).norm() >= options.min_travel_m;
+    if (moved && truth_from && truth_to) {
+      const SE2d a = SE2d::FromSE3(*truth_from), b = SE2d::FromSE3(*truth_to);
+      const bool straight =
+          std::abs(WrapAngle(odometry_to.theta() - odometry_from.theta())) <= options.max_turn_rad &&
+          std::abs(WrapAngle(b.theta() - a.theta())) <= options.max_turn_rad;
+      if (straight && (a.translation() - b.translation()).norm() >= 0.5 * options.min_travel_m) {
+        const double e = WrapAngle(direction(a, b) - direction(odometry_from, odometry_to));
+        if (std::abs(e) <= kMaxError) errors.push_back(e);
+      }
+    }
+    start = end;
+  }
+  if (errors.size() < std::max<size_t>(options.min_windows, 1)) return std::nullopt;
+  const auto median = [](std::vector<double> v) {
+    const size_t mid = v.size() / 2;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(mid), v.end());
+    if (v.size() % 2 == 1) return v[mid];
+    return 0.5 * (v[mid] + *std::max_element(v.begin(), v.begin() + static_cast<long>(mid)));
+  };
+  TruthYawEstimate estimate;
+  estimate.windows = errors.size();
+  estimate.yaw_rad = median(errors);
+  std::vector<double> deviations;
+  for (const double e : errors) deviations.push_back(std::abs(e - estimate.yaw_rad));
+  estimate.spread_rad = 1.4826 * median(deviations);
+  return estimate;
+}
+
+double LeaveOneOutVarianceFactor(const std::vector<NeesResult>& runs) {
+  double sum_log = 0.0;
+  int count = 0;
+  for (const NeesResult& run : runs) {
+    if (run.samples == 0) continue;
+    if (!(run.mean > 0.0)) throw std::invalid_argument("variance factor: a run's mean NEES is not positive");
+    sum_log += std::log(run.mean / 3.0);
+    ++count;
+  }
+  if (count == 0) throw std::invalid_argument("variance factor: no NEES sample in any run");
+  return std::exp(sum_log / count);
 }
 
 double PooledVarianceFactor(const std::vector<NeesResult>& runs) {

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -73,9 +74,21 @@ struct NeesResult {
 // correlation time when the map has them; the variance factor 1 (localize then reads the map's).
 RangeBearingLocalizerOptions LocalizerOptionsFromMap(const MarkerMap& map, bool sensor_prior = true);
 
-// The variance factor that makes the NEES of several runs consistent on average: the pooled mean
-// NEES over all their samples divided by the dof, 3 (sum_i mean_i n_i / (3 sum_i n_i)); runs with
-// no samples are skipped. Throws std::invalid_argument when no run has a sample.
+// The variance factor for a run not among `runs` (the leave-one-out runs of a build): each run's
+// own factor f_i = mean_i / 3 (the dof), one draw per run of how much a filter of this fleet
+// underrates its error, and k = exp(mean_i log f_i), their geometric mean, unweighted by the
+// runs' lengths. The runs' factors spread by a ratio (MRCLAM: 1.3-12.5), and a run's mean NEES is
+// judged against bounds nearly symmetric about 3 on a log scale, so k is the value whose ratio to
+// a new run's factor is smallest on average (the least squares of log f_i); the pooled mean
+// (sum_i mean_i n_i / (3 sum_i n_i), PooledVarianceFactor) is the factor of all the runs' poses
+// together, dominated by the run that goes worst (a robot that loses its track) and above most
+// runs' own. Runs with no samples are skipped; throws std::invalid_argument when no run has a
+// sample or a run's mean is not positive.
+double LeaveOneOutVarianceFactor(const std::vector<NeesResult>& runs);
+
+// The pooled mean NEES over all the runs' samples divided by the dof, 3 (above; the factor of
+// `waymark map build --calibrate-online` before 2026-11-27, printed beside it). Runs with no
+// samples are skipped. Throws std::invalid_argument when no run has a sample.
 double PooledVarianceFactor(const std::vector<NeesResult>& runs);
 
 // The integrated autocorrelation time tau_int of a series (above; 1 for fewer than 3 values or
@@ -85,8 +98,37 @@ double IntegratedAutocorrelationTime(const std::vector<double>& series);
 // p = 0.025, 0.975; n > 0 real (Wilson-Hilferty above 3000 degrees of freedom).
 std::pair<double, double> MeanChiSquareBounds(double n, int dof);
 
-// Throws std::runtime_error when no pose associates with the ground truth.
+// The NEES against the ground truth turned by truth_yaw_rad about each true pose (the heading
+// compared is theta_true + truth_yaw_rad; EstimateTruthYaw). Throws std::runtime_error when no
+// pose associates with the ground truth.
 NeesResult ComputeNees(const Trajectory& groundtruth, const Trajectory& poses,
-                       const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s);
+                       const std::vector<Eigen::Matrix3d>& covariances, double max_dt_s,
+                       double truth_yaw_rad = 0.0);
+
+// The yaw of the odometry's frame in the ground truth's body frame, from the directions of travel.
+// The filter's heading is the odometry's (the odometry moves the robot along its own x axis), while
+// a motion-capture body frame sits on the robot wherever its markers were put: its heading can be
+// a few hundredths of a radian off the direction the robot drives in (MRCLAM: 0.003-0.017 rad), a
+// constant that a NEES against the recorded heading counts as the filter's error. Over windows of
+// the odometry that move >= min_travel_m in at most max_window_s while turning less than
+// max_turn_rad (in the odometry and in the truth, the truth interpolated within 0.05 s), each
+// chord's direction in its start frame, turned back by half the window's turn (the direction at its
+// middle), is compared: e = wrap(direction_truth - direction_odometry), windows with |e| > 0.5 rad
+// dropped (a truth that stands while the odometry moves); the yaw is the median of e and its
+// spread 1.4826 times the median absolute deviation. Windows do not overlap. Stamps as given (the
+// odometry's delay does not turn a straight chord). nullopt with fewer than min_windows windows.
+struct TruthYawEstimate {
+  double yaw_rad = 0.0;  // add to the truth's heading to get the odometry's
+  double spread_rad = 0.0;
+  size_t windows = 0;
+};
+struct TruthYawOptions {
+  double min_travel_m = 0.05;
+  double max_window_s = 2.0;
+  double max_turn_rad = 0.05;
+  size_t min_windows = 20;
+};
+std::optional<TruthYawEstimate> EstimateTruthYaw(const Trajectory& groundtruth, const Trajectory& odometry,
+                                                 const TruthYawOptions& options = {});
 
 }  // namespace waymark

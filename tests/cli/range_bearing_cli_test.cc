@@ -154,7 +154,32 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
   EXPECT_THAT(localize.out, HasSubstr("NEES: mean "));
+  // The truth's yaw to the odometry (the simulated truth is the odometry's frame: about 0).
+  EXPECT_THAT(localize.out, HasSubstr("truth frame: the odometry's direction of travel is "));
+  EXPECT_THAT(localize.out, HasSubstr("NEES against the heading as recorded: mean "));
   EXPECT_GT(ReadTum(dir_ / "robot2.tum").size(), 1000u);
+  // The variance factor by leaving each robot out: the geometric mean of their factors, in
+  // map.json, and localize scales by it; one dataset cannot be left out.
+  const RunResult calibrated =
+      Run("map build " + (dir_ / "robot0").string() + " " + (dir_ / "robot1").string() + " --out " +
+          (dir_ / "map-calibrated.json").string() + " --calibrate-online");
+  ASSERT_EQ(calibrated.exit_code, 0) << calibrated.err;
+  EXPECT_THAT(calibrated.out, HasSubstr("leave-one-out: robot0 against the map of the others: NEES mean "));
+  EXPECT_THAT(calibrated.out, HasSubstr("leave-one-out: robot1 against the map of the others: NEES mean "));
+  EXPECT_THAT(calibrated.out, HasSubstr("(geometric mean of the left-out datasets' mean NEES / 3"));
+  const MarkerMap calibrated_map = ReadMap(dir_ / "map-calibrated.json");
+  ASSERT_TRUE(calibrated_map.range_bearing_sensor);
+  ASSERT_TRUE(calibrated_map.range_bearing_sensor->online_variance_factor);
+  EXPECT_GT(*calibrated_map.range_bearing_sensor->online_variance_factor, 0.0);
+  const RunResult scaled = localize_robot2("robot2-scaled.tum", "", "map-calibrated.json");
+  ASSERT_EQ(scaled.exit_code, 0) << scaled.err;
+  EXPECT_THAT(scaled.out, HasSubstr("(the map's leave-one-out calibration; the reported covariance scaled)"));
+  const RunResult alone = Run("map build " + (dir_ / "robot0").string() + " --out " +
+                              (dir_ / "m-alone.json").string() + " --calibrate-online");
+  EXPECT_EQ(alone.exit_code, 1);
+  EXPECT_THAT(alone.err, HasSubstr("--calibrate-online needs at least two range-bearing datasets"));
+  EXPECT_EQ(std::count(alone.err.begin(), alone.err.end(), '\n'), 1) << alone.err;
+  EXPECT_FALSE(fs::exists(dir_ / "m-alone.json"));
   // The map's sensor model: one entry per robot, the prior for another robot; the EKF reads it.
   ASSERT_TRUE(map.range_bearing_sensor);
   EXPECT_EQ(map.range_bearing_sensor->datasets.size(), 2u);

@@ -142,6 +142,79 @@ TEST(PooledVarianceFactor, RecoversAKnownMisspecificationAndRejectsEmptyRuns) {
   EXPECT_THROW(PooledVarianceFactor({}), std::invalid_argument);
 }
 
+// The leave-one-out factor is the geometric mean of the runs' own factors, one per run whatever
+// its length: runs at 2 and 8 times their covariance give 4 (the pooled mean of 1000 poses at 2
+// and 4000 at 8 would give 6.8); a single run's factor is its own; runs without samples are
+// skipped, none at all or a mean <= 0 is an error.
+TEST(LeaveOneOutVarianceFactor, IsTheGeometricMeanOfTheRunsFactors) {
+  NeesResult low, high, empty;
+  low.samples = 1000;
+  low.mean = 3.0 * 2.0;
+  high.samples = 4000;
+  high.mean = 3.0 * 8.0;
+  empty.mean = 100.0;
+  EXPECT_NEAR(LeaveOneOutVarianceFactor({low, high}), 4.0, 1e-12);
+  EXPECT_NEAR(LeaveOneOutVarianceFactor({low, high, empty}), 4.0, 1e-12);
+  EXPECT_NEAR(PooledVarianceFactor({low, high}), (1000.0 * 2.0 + 4000.0 * 8.0) / 5000.0, 1e-12);
+  EXPECT_NEAR(LeaveOneOutVarianceFactor({high}), 8.0, 1e-12);
+  EXPECT_THROW(LeaveOneOutVarianceFactor({empty}), std::invalid_argument);
+  EXPECT_THROW(LeaveOneOutVarianceFactor({}), std::invalid_argument);
+  NeesResult zero = low;
+  zero.mean = 0.0;
+  EXPECT_THROW(LeaveOneOutVarianceFactor({low, zero}), std::invalid_argument);
+}
+
+// The truth's yaw to the odometry: a robot driving squares (straight legs, turns in place, a
+// reversing leg) whose motion-capture frame is turned by -0.02 rad on it; the odometry is the
+// true motion in the robot's own frame with a slow heading drift and noise. The estimate is the
+// yaw (0.02 within 2 mrad: add it to the truth's heading), from the straight windows only;
+// with the frames aligned it is 0; a truth that never moves straight gives nullopt; the NEES of
+// poses exactly on the turned truth is 0 with the yaw and large without it.
+TEST(EstimateTruthYaw, RecoversTheMotionCaptureFramesYawOnTheRobot) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const double frame_yaw = -0.02;
+  Trajectory truth, odometry, truth_aligned;
+  SE2d pose(0.0, 0.0, 0.0), odom(5.0, -1.0, 1.0);
+  double t = 0.0;
+  const double dt = 0.02;
+  const auto step = [&](double v, double w) {
+    const SE2d increment(v * dt, 0.0, w * dt);
+    pose = pose * increment;
+    const SE2d measured(v * dt * (1.0 + 0.002 * noise(rng)), 0.0005 * dt * noise(rng), w * dt + 1e-5);
+    odom = odom * measured;
+    t += dt;
+    truth.push_back({t, (pose * SE2d(0.0, 0.0, frame_yaw)).ToSE3()});
+    truth_aligned.push_back({t, pose.ToSE3()});
+    odometry.push_back({t, odom.ToSE3()});
+  };
+  for (int lap = 0; lap < 4; ++lap) {
+    for (int side = 0; side < 4; ++side) {
+      for (int i = 0; i < 150; ++i) step(side == 3 && lap % 2 == 1 ? -0.3 : 0.3, 0.0);
+      for (int i = 0; i < 50; ++i) step(0.0, side == 3 && lap % 2 == 1 ? 0.0 : 0.5 * M_PI);
+    }
+  }
+  const std::optional<TruthYawEstimate> yaw = EstimateTruthYaw(truth, odometry);
+  ASSERT_TRUE(yaw.has_value());
+  EXPECT_NEAR(yaw->yaw_rad, -frame_yaw, 0.002);
+  EXPECT_GE(yaw->windows, 50u);
+  EXPECT_LT(yaw->spread_rad, 0.01);
+  const std::optional<TruthYawEstimate> aligned = EstimateTruthYaw(truth_aligned, odometry);
+  ASSERT_TRUE(aligned.has_value());
+  EXPECT_NEAR(aligned->yaw_rad, 0.0, 0.002);
+  // Turning in place only: no straight window.
+  Trajectory spin_truth, spin_odometry;
+  for (int i = 0; i < 500; ++i) {
+    spin_truth.push_back({0.02 * i, SE2d(1.0, 1.0, 0.01 * i).ToSE3()});
+    spin_odometry.push_back({0.02 * i, SE2d(0.0, 0.0, 0.01 * i).ToSE3()});
+  }
+  EXPECT_FALSE(EstimateTruthYaw(spin_truth, spin_odometry).has_value());
+  // Poses exactly on the truth turned back by the yaw: NEES 0 against it, large without it.
+  std::vector<Eigen::Matrix3d> covariances(truth_aligned.size(), Eigen::Matrix3d::Identity() * 1e-4);
+  EXPECT_NEAR(ComputeNees(truth, truth_aligned, covariances, 0.01, -frame_yaw).mean, 0.0, 1e-9);
+  EXPECT_GT(ComputeNees(truth, truth_aligned, covariances, 0.01).mean, 3.0);
+}
+
 // LocalizerOptionsFromMap: waymark localize's defaults from a map; the variance factor stays 1 and
 // a factor <= 0 is rejected by the options' check.
 TEST(LocalizerOptionsFromMap, TakesTheMapsNoiseAndCalibrationTime) {
