@@ -154,10 +154,11 @@ struct RangeBearingSensorModel {
     double turn_scale_sigma = 0.0;  // >= 0
   };
   std::optional<CalibrationTime> calibration_time;
-  // The online EKF's variance factor k (map.json online_variance_factor, > 0): the mean NEES / 3 of
-  // the range-bearing EKF run on each mapped dataset against the map of the others (leave one out)
-  // with that dataset's smoothed trajectory as the reference (waymark map build --calibrate-online;
-  // docs/online.md). waymark localize reports k P. Absent: not calibrated (k = 1).
+  // The online EKF's variance factor k (map.json online_variance_factor, > 0): from the mean NEES / 3
+  // of the range-bearing EKF run on each mapped dataset against the map of the others (leave one
+  // out) with that dataset's smoothed trajectory as the reference, their geometric mean
+  // (LeaveOneOutVarianceFactor; waymark map build --calibrate-online; docs/online.md). waymark
+  // localize reports k P. Absent: not calibrated (k = 1).
   std::optional<double> online_variance_factor;
 };
 
