@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "detect/common.h"
+#include "detect/datamatrix_ecc.h"
 #include "detect/quads.h"
 #include "detect/zxing.h"
 
@@ -236,6 +237,23 @@ struct DmtxScan {
   }
 };
 
+// libdmtx's decode of `region`, or nullptr; also nullptr (the message destroyed) when its
+// codewords after error correction are not a Reed-Solomon codeword of the symbol (libdmtx 0.7.7
+// lets some through: detect/datamatrix_ecc.h).
+DmtxMessage* DecodeVerifiedRegion(DmtxDecode* decode, DmtxRegion* region) {
+  DmtxMessage* message = dmtxDecodeMatrixRegion(decode, region, DmtxUndefined);
+  if (message == nullptr) return nullptr;
+  const std::vector<std::uint8_t> codewords(message->code, message->code + message->codeSize);
+  const int size_idx = region->sizeIdx;
+  if (!DataMatrixCodewordsValid(codewords, dmtxGetSymbolAttribute(DmtxSymAttribSymbolDataWords, size_idx),
+                                dmtxGetSymbolAttribute(DmtxSymAttribInterleavedBlocks, size_idx),
+                                dmtxGetSymbolAttribute(DmtxSymAttribBlockErrorWords, size_idx))) {
+    dmtxMessageDestroy(&message);
+    return nullptr;
+  }
+  return message;
+}
+
 }  // namespace
 
 std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeout_ms, int max_symbols) {
@@ -257,7 +275,7 @@ std::vector<MarkerObservation> ReadWithLibdmtx(const cv::Mat& gray, double timeo
   DmtxTime deadline =
       timed ? dmtxTimeAdd(dmtxTimeNow(), static_cast<long>(std::ceil(timeout_ms))) : DmtxTime{};
   while (DmtxRegion* region = dmtxRegionFindNext(scan.decode, timed ? &deadline : nullptr)) {
-    if (DmtxMessage* message = dmtxDecodeMatrixRegion(scan.decode, region, DmtxUndefined)) {
+    if (DmtxMessage* message = DecodeVerifiedRegion(scan.decode, region)) {
       MarkerObservation obs;
       obs.key.family = kFamilyDataMatrix;
       obs.key.id = TextToId(std::string(reinterpret_cast<const char*>(message->output), message->outputIdx));
@@ -684,7 +702,7 @@ std::vector<MarkerObservation> DecodeDataMatrixPatch(const DataMatrixPatch& rect
           DmtxRegion* region = dmtxRegionScanPixel(scan.decode, seed.x, (size - 1) - seed.y);
           if (region == nullptr) continue;
           std::vector<MarkerObservation> out;
-          if (DmtxMessage* message = dmtxDecodeMatrixRegion(scan.decode, region, DmtxUndefined)) {
+          if (DmtxMessage* message = DecodeVerifiedRegion(scan.decode, region)) {
             MarkerObservation obs;
             obs.key.family = kFamilyDataMatrix;
             obs.key.id =
