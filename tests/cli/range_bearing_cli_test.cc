@@ -139,17 +139,19 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
                depth_map_read.markers[i].T_world_marker.translation())
                   .norm(),
               1e-6);
-  const RunResult bad_model = Run("map build " + (dir_ / "robot0").string() + " --out " +
-                                  (dir_ / "m-bad.json").string() + " --range-model size");
-  EXPECT_EQ(bad_model.exit_code, 1);
-  EXPECT_THAT(bad_model.err, HasSubstr("--range-model: expected depth or distance, got 'size'"));
-  EXPECT_EQ(std::count(bad_model.err.begin(), bad_model.err.end(), '\n'), 1) << bad_model.err;
-  EXPECT_FALSE(fs::exists(dir_ / "m-bad.json"));
-  const RunResult both = Run("map build " + (dir_ / "robot0").string() + " --out " +
-                             (dir_ / "m-both.json").string() + " --range-model distance --depth-ranges");
-  EXPECT_EQ(both.exit_code, 1);
-  EXPECT_THAT(both.err,
-              HasSubstr("--depth-ranges means --range-model depth: not with --range-model distance"));
+  // A build of robot0 alone that the options make refuse: one line, no map written.
+  const auto expect_build_refused = [&](const std::string& options, const std::string& message) {
+    const fs::path out = dir_ / "m-refused.json";
+    const RunResult refused =
+        Run("map build " + (dir_ / "robot0").string() + " --out " + out.string() + " " + options);
+    EXPECT_EQ(refused.exit_code, 1) << options;
+    EXPECT_THAT(refused.err, HasSubstr(message));
+    EXPECT_EQ(std::count(refused.err.begin(), refused.err.end(), '\n'), 1) << refused.err;
+    EXPECT_FALSE(fs::exists(out));
+  };
+  expect_build_refused("--range-model size", "--range-model: expected depth or distance, got 'size'");
+  expect_build_refused("--range-model distance --depth-ranges",
+                       "--depth-ranges means --range-model depth: not with --range-model distance");
   const RunResult localize = localize_robot2("robot2.tum", "");
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
   EXPECT_THAT(localize.out, HasSubstr("ATE RMSE: "));
@@ -174,12 +176,7 @@ TEST_F(RangeBearingCliTest, SeveralRobotsOneMapThenLocalizeAnother) {
   const RunResult scaled = localize_robot2("robot2-scaled.tum", "", "map-calibrated.json");
   ASSERT_EQ(scaled.exit_code, 0) << scaled.err;
   EXPECT_THAT(scaled.out, HasSubstr("(the map's leave-one-out calibration; the reported covariance scaled)"));
-  const RunResult alone = Run("map build " + (dir_ / "robot0").string() + " --out " +
-                              (dir_ / "m-alone.json").string() + " --calibrate-online");
-  EXPECT_EQ(alone.exit_code, 1);
-  EXPECT_THAT(alone.err, HasSubstr("--calibrate-online needs at least two range-bearing datasets"));
-  EXPECT_EQ(std::count(alone.err.begin(), alone.err.end(), '\n'), 1) << alone.err;
-  EXPECT_FALSE(fs::exists(dir_ / "m-alone.json"));
+  expect_build_refused("--calibrate-online", "--calibrate-online needs at least two range-bearing datasets");
   // The map's sensor model: one entry per robot, the prior for another robot; the EKF reads it.
   ASSERT_TRUE(map.range_bearing_sensor);
   EXPECT_EQ(map.range_bearing_sensor->datasets.size(), 2u);
