@@ -189,11 +189,16 @@ class AprilTagDetector : public MarkerDetector {
   }
 
   // libapriltag on `gray` (a view into the frame at `offset`): corners in frame pixels,
-  // DESIGN.md order, OpenCV's pixel centres.
+  // DESIGN.md order, OpenCV's pixel centres. The frame is never written: libapriltag 3.3 blurs
+  // (quad_sigma > 0) or sharpens (< 0) the image it is given in place when it does not decimate
+  // it (quad_decimate <= 1), which would change the pixels the other families read at the same
+  // time on other threads, this family's later crops and the corner refinement; it gets a copy then.
   std::vector<MarkerObservation> Run(apriltag_detector_t* detector, const cv::Mat& gray,
                                      const cv::Point& offset) {
-    image_u8_t view{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
-                    const_cast<uint8_t*>(gray.data)};
+    const bool writes_image = detector->quad_sigma != 0.0f && !(detector->quad_decimate > 1.0f);
+    const cv::Mat pixels = writes_image ? gray.clone() : gray;
+    image_u8_t view{pixels.cols, pixels.rows, static_cast<int32_t>(pixels.step[0]),
+                    const_cast<uint8_t*>(pixels.data)};
     zarray_t* detections = apriltag_detector_detect(detector, &view);
     std::vector<MarkerObservation> out;
     for (int i = 0; i < zarray_size(detections); ++i) {

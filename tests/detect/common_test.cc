@@ -152,6 +152,35 @@ TEST(DetectCommon, MultiDetectorOnTwoThreadsGivesTheSameResult) {
   }
 }
 
+// Issue 14: the families of one frame read one shared image, on several threads at once, so no
+// detector may write its pixels. libapriltag blurs the image it is given in place when it does not
+// decimate it (quad_sigma > 0, quad_decimate 1: the crops of small tags, or the whole frame at
+// apriltag_decimate 1): the blurred tag region changed what the refinement and, on other threads,
+// the other families saw.
+TEST(DetectCommon, DetectorsLeaveTheImageUnchanged) {
+  cv::Mat image(480, 1280, CV_8U, cv::Scalar(190));
+  DrawSymbol(QrSymbol("q-3"), MakeQuad({220.0, 240.0}, 120.0, 0.3, 0.8), &image);
+  DrawSymbol(DataMatrixSymbol("d-4"), MakeQuad({640.0, 240.0}, 100.0, 0.4, 0.9), &image);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", 5), MakeQuad({1000.0, 240.0}, 40.0, 0.2), &image);
+  DrawSymbol(AprilTagSymbol("apriltag-36h11", 6), MakeQuad({1150.0, 240.0}, 90.0, -0.2), &image);
+  const cv::Mat before = image.clone();
+  for (const double decimate : {8.0, 1.0}) {
+    for (const double sigma : {0.0, 0.8}) {
+      for (const int threads : {1, 2}) {
+        DetectorOptions options;
+        options.apriltag_decimate = decimate;
+        options.apriltag_blur_sigma = sigma;
+        options.threads = threads;
+        const auto found =
+            CreateMultiDetector({"qr", "datamatrix", "apriltag-36h11"}, options)->Detect(image);
+        EXPECT_GE(found.size(), 3u) << "decimate " << decimate << " sigma " << sigma;
+        EXPECT_EQ(cv::countNonZero(image != before), 0)
+            << "decimate " << decimate << " sigma " << sigma << " threads " << threads;
+      }
+    }
+  }
+}
+
 // The shared whole-frame work: computed once per image content, also when asked from several
 // threads at once; other pixels or another key compute anew.
 TEST(DetectCommon, PerImageCacheComputesOncePerImage) {
