@@ -160,10 +160,16 @@ RangeBearingLocalizer::RangeBearingLocalizer(const MarkerMap& map,
 std::optional<Eigen::Vector2d> RangeBearingLocalizer::LandmarkPosition(const MarkerKey& key) const {
   const auto it = landmarks_.find(key);
   if (it == landmarks_.end()) return std::nullopt;
-  Eigen::Vector2d l = it->second.l_map;
+  const auto slot = slots_.find(key);
+  return LandmarkIn(it->second, slot != slots_.end() ? slot->second.index : -1, x_);
+}
+
+Eigen::Vector2d RangeBearingLocalizer::LandmarkIn(const Landmark& landmark, int slot,
+                                                  const Eigen::VectorXd& state) const {
+  Eigen::Vector2d l = landmark.l_map;
   if (options_.map_uncertainty != RangeBearingMapUncertainty::kEstimate) return l;
-  if (k_ > 0) l += it->second.F * x_.segment(kStateSize, k_);
-  if (const auto slot = slots_.find(key); slot != slots_.end()) l += x_.segment<2>(slot->second.index);
+  if (k_ > 0) l += landmark.F * state.segment(kStateSize, k_);
+  if (slot >= 0) l += state.segment<2>(slot);
   return l;
 }
 
@@ -424,11 +430,7 @@ RangeBearingUpdate RangeBearingLocalizer::Update(const RangeBearingObservation& 
   const int iterations = lost_ ? options_.relocalization_iterations : options_.update_iterations;
   for (int iteration = 1; iteration < iterations; ++iteration) {
     const Vector6 xr = x_i.head<kStateSize>();
-    Eigen::Vector2d l_i = landmark.l_map;
-    if (options_.map_uncertainty == RangeBearingMapUncertainty::kEstimate) {
-      if (k_ > 0) l_i += landmark.F * x_i.segment(kStateSize, k_);
-      if (slot >= 0) l_i += x_i.segment<2>(slot);
-    }
+    const Eigen::Vector2d l_i = LandmarkIn(landmark, slot, x_i);
     if ((l_i - xr.head<2>()).norm() < 1e-3) break;
     const Linearized at = linearize(xr, l_i);
     Eigen::VectorXd dx = x_prior - x_i;

@@ -249,6 +249,9 @@ class RangeBearingLocalizer {
   // Adds eta_l of `key` to the state (dropping the least recently used one when full); -1 when
   // the landmark has no covariance.
   int SlotOf(const MarkerKey& key, const Landmark& landmark);
+  // The landmark's position in `state` (this filter's layout): l_map + F xi + eta (eta at `slot`,
+  // < 0: none) under kEstimate, l_map otherwise.
+  Eigen::Vector2d LandmarkIn(const Landmark& landmark, int slot, const Eigen::VectorXd& state) const;
   void DropSlot(const MarkerKey& key);
 
   RangeBearingLocalizerOptions options_;
