@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "online/chi_square.h"
+#include "util/stats.h"
 
 namespace waymark {
 namespace {
@@ -229,18 +230,12 @@ std::optional<TruthYawEstimate> EstimateTruthYaw(const Trajectory& groundtruth, 
     start = end;
   }
   if (errors.size() < std::max<size_t>(options.min_windows, 1)) return std::nullopt;
-  const auto median = [](std::vector<double> v) {
-    const size_t mid = v.size() / 2;
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(mid), v.end());
-    if (v.size() % 2 == 1) return v[mid];
-    return 0.5 * (v[mid] + *std::max_element(v.begin(), v.begin() + static_cast<long>(mid)));
-  };
   TruthYawEstimate estimate;
   estimate.windows = errors.size();
-  estimate.yaw_rad = median(errors);
+  estimate.yaw_rad = Median(errors);
   std::vector<double> deviations;
   for (const double e : errors) deviations.push_back(std::abs(e - estimate.yaw_rad));
-  estimate.spread_rad = 1.4826 * median(deviations);
+  estimate.spread_rad = 1.4826 * Median(deviations);
   return estimate;
 }
 
