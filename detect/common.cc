@@ -303,7 +303,7 @@ std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates,
     options.max_regions = max_candidates;
     std::vector<cv::Rect> regions;
     // A close-up first: its code may fill the image and its candidates be parts of it.
-    if (close_up && gray.total() <= 640u * 480u) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
+    if (close_up && MayBeCloseUp(gray.size())) regions.push_back(cv::Rect(0, 0, gray.cols, gray.rows));
     for (const CandidateRegion& c : FindCodeCandidates(gray, options)) regions.push_back(c.rect);
     return regions;
   });

@@ -75,8 +75,13 @@ bool ObservationInside(const MarkerObservation& obs, const cv::Rect& rect);
 // convention kept (scaling is about pixel edges: (p + 0.5) / scale - 0.5).
 void MapFromCrop(const cv::Point& offset, double scale, std::vector<MarkerObservation>* observations);
 
-// The regions a second pass tries: the whole image when it has at most 640x480 pixels and
-// `close_up` (DetectorOptions::close_up: the code may fill it, leaving no blob boundary), then
+// True when `size` may be a close-up whose code fills the image (at most 640x480 pixels): the
+// second passes then try the whole image as a region of its own, and QR tries OpenCV's WeChat
+// decoder on it.
+inline bool MayBeCloseUp(const cv::Size& size) { return size.area() <= 640 * 480; }
+
+// The regions a second pass tries: the whole image when it MayBeCloseUp and `close_up`
+// (DetectorOptions::close_up: the code may fill it, leaving no blob boundary), then
 // FindCodeCandidates.
 std::vector<cv::Rect> SecondPassRegions(const cv::Mat& gray, int max_candidates, bool close_up = true);
 

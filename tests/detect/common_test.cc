@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -240,6 +241,26 @@ TEST(DetectCommon, CloseUpRegionOnlyForCloseUps) {
   ASSERT_FALSE(with.empty());
   EXPECT_EQ(with[0], cv::Rect(0, 0, 320, 240));
   for (const cv::Rect& r : SecondPassRegions(image, 8, false)) EXPECT_NE(r, cv::Rect(0, 0, 320, 240));
+}
+
+TEST(DetectCommon, OnlyImagesUpTo640x480MayBeCloseUps) {
+  EXPECT_TRUE(MayBeCloseUp(cv::Size(640, 480)));
+  EXPECT_TRUE(MayBeCloseUp(cv::Size(480, 640)));
+  EXPECT_TRUE(MayBeCloseUp(cv::Size(320, 240)));
+  EXPECT_FALSE(MayBeCloseUp(cv::Size(641, 480)));
+  EXPECT_FALSE(MayBeCloseUp(cv::Size(1280, 960)));
+  // A larger frame can still have a candidate region that is all of it (clutter across the
+  // frame, padded and clipped): the region's size alone does not make it a close-up, so QR's
+  // WeChat attempt asks MayBeCloseUp of the frame too (750 ms on one such issue frame).
+  cv::Mat clutter(960, 1280, CV_8U);
+  cv::RNG rng(3);
+  for (int y = 0; y < clutter.rows; y += 8) {
+    for (int x = 0; x < clutter.cols; x += 8) {
+      clutter(cv::Rect(x, y, 8, 8)).setTo(cv::Scalar(rng.uniform(0, 2) ? 40 : 210));
+    }
+  }
+  const std::vector<cv::Rect> regions = SecondPassRegions(clutter, 8, true);
+  EXPECT_NE(std::find(regions.begin(), regions.end(), cv::Rect(0, 0, 1280, 960)), regions.end());
 }
 
 TEST(DetectCommon, IdsAreAlwaysValidUtf8) {
