@@ -274,8 +274,11 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
       }
     }
   };
-  // The best `max_reads` by known-module contrast read as module grids.
-  const auto read_grids = [&](std::vector<Unoriented>* unoriented, int max_reads) {
+  // The best `max_reads` by known-module contrast read as module grids. With `raw_contrast`
+  // (the contrast field is UnorientedKnownModuleContrast) a quad under kMinUnorientedRawContrast
+  // takes its read but is not handed to the reader, which would read nothing: it would rank
+  // the same hypotheses again only to find that out.
+  const auto read_grids = [&](std::vector<Unoriented>* unoriented, int max_reads, bool raw_contrast) {
     std::stable_sort(unoriented->begin(), unoriented->end(),
                      [](const Unoriented& a, const Unoriented& b) { return a.contrast > b.contrast; });
     int reads = 0;
@@ -285,6 +288,7 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
       as_code.corners_px = u.corners_px;
       if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
       ++reads;
+      if (raw_contrast && !(u.contrast >= kMinUnorientedRawContrast)) continue;
       AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
     }
   };
@@ -292,12 +296,12 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
   const std::vector<DarkQuad> small = SmallQrCodeQuads(quads, max_boxes);
   std::vector<Unoriented> unoriented;
   search_boxes(small, &unoriented);
-  read_grids(&unoriented, kMaxUnorientedReads);
+  read_grids(&unoriented, kMaxUnorientedReads, true);
   // Codes with a mostly light side, after the others and within their own bounds.
   std::vector<Unoriented> thin_unoriented;
   const std::vector<DarkQuad> thin = ThinSideSmallQrCodeQuads(quads, small, kMaxThinSideBoxes);
   search_boxes(thin, &thin_unoriented);
-  read_grids(&thin_unoriented, kMaxThinSideReads);
+  read_grids(&thin_unoriented, kMaxThinSideReads, true);
   // Codes whose modules fall apart at every level, last and within their own bounds.
   std::vector<DarkQuad> taken = small;
   taken.insert(taken.end(), thin.begin(), thin.end());
@@ -308,7 +312,7 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
     const double evidence = UnorientedCodeEvidence(gray, quad.corners_px);
     if (evidence >= kMinMergedCodeEvidence) merged_unoriented.push_back({quad.corners_px, evidence});
   }
-  read_grids(&merged_unoriented, kMaxMergedReads);
+  read_grids(&merged_unoriented, kMaxMergedReads, false);
 }
 
 class QrDetector : public MarkerDetector {

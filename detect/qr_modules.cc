@@ -39,7 +39,6 @@ constexpr size_t kUnorientedFits = 2;
 // threshold is about half the weakest code's. Between the two, kMinUnorientedCodeLikeness
 // (detect/qr_modules.h) turns away before the fits the quads whose known modules explain
 // little of their samples' variation.
-constexpr double kMinUnorientedRawContrast = 5.0;
 constexpr double kMinUnorientedFitContrast = 20.0;
 // Perspective search (ReadUnorientedQrModuleGrid, after the fitted grids fail to decode): the
 // best grid's corners moved again, in smaller steps (fractions of a module, rounds per step),
@@ -573,8 +572,13 @@ std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, c
   if (gray.empty() || gray.type() != CV_8UC1) return {};
   const std::vector<Hypothesis> hypotheses = RankedHypotheses(gray, corners_px);
   if (hypotheses.empty() || !(hypotheses[0].contrast >= kMinUnorientedRawContrast)) return {};
-  // Clutter whose known modules explain little of its variation: no fit.
-  if (!(BestCodeLikeness(gray, hypotheses) >= kMinUnorientedCodeLikeness)) return {};
+  // Clutter whose known modules explain little of its variation, or whose contrast times that
+  // likeness (UnorientedCodeEvidence) is under kMinUnorientedFitEvidence: no fit.
+  const double likeness = BestCodeLikeness(gray, hypotheses);
+  if (!(likeness >= kMinUnorientedCodeLikeness) ||
+      !(likeness * hypotheses[0].contrast >= kMinUnorientedFitEvidence)) {
+    return {};
+  }
   std::vector<QrModuleGrid> grids;
   for (size_t k = 0; k < hypotheses.size() && k < kUnorientedFits; ++k) {
     if (const std::optional<QrModuleGrid> grid =

@@ -72,6 +72,7 @@ std::vector<MarkerObservation> ReadUnorientedQrModuleGrid(const cv::Mat& gray, c
 // The known modules' contrast of the best of those hypotheses before any fit (mean light
 // minus mean dark, gray levels; -infinity when none can be sampled): ReadUnorientedQrModuleGrid
 // fits nothing under kMinUnorientedRawContrast. Cheap (no fit): used to rank such quads.
+inline constexpr double kMinUnorientedRawContrast = 5.0;
 double UnorientedKnownModuleContrast(const cv::Mat& gray, const Quad2d& corners_px);
 
 // How much of the quad's variation its known modules explain, before any fit: the known
@@ -89,5 +90,13 @@ double UnorientedCodeLikeness(const cv::Mat& gray, const Quad2d& corners_px);
 // likeness (UnorientedCodeLikeness), from one ranking of the hypotheses; 0 when either is not
 // positive or the quad cannot be sampled. Ranks quads that no other test singled out.
 double UnorientedCodeEvidence(const cv::Mat& gray, const Quad2d& corners_px);
+
+// ReadUnorientedQrModuleGrid fits nothing whose code evidence (UnorientedCodeEvidence) is under
+// this (issue 14's tenth speed round): the two grid fits of a quad cost about 3 ms, and nearly
+// every quad fitted is clutter. A code has known modules of tens of gray levels that explain
+// much of its data modules' spread (likeness about 0.3-2); on the recall bench (issue seeds 1-3,
+// QR-only issue seeds 4-7, hard seeds 1-2: 15 quads read, 1021 fitted in vain) every quad read
+// scored 5.7-66, about twice this at least, and 74 % of the clutter quads fitted under it.
+inline constexpr double kMinUnorientedFitEvidence = 3.0;
 
 }  // namespace waymark

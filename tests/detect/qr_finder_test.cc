@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 
 #include "detect/detector.h"
@@ -316,6 +317,57 @@ TEST(DetectQrFinder, NoPairCompletionWithoutItsEvidence) {
   const std::vector<QrFinderPattern> squares = FindQrFinderPatterns(two, kWhole);
   ASSERT_EQ(squares.size(), 2u);
   EXPECT_TRUE(QrCandidatesFromFinderPairs(two, squares, {}, kMaxPairFinderWidthPx).empty());
+}
+
+// The rectified read's evidence (RectifiedQrFinderContrast, resampled on the three finders'
+// patches only since issue 14's tenth speed round): codes of 21 modules at 2.9-6.7 px per module,
+// turned and foreshortened, blurred, score well above 0 and read; the same layout of three
+// solid dark squares (a filled box is no finder: its light ring is dark), of three thick dark
+// frames round small light boxes (light where the centre is dark, dark where the ring is
+// light) score at most 0, and a quad over noise little; none reads.
+TEST(DetectQrFinder, RectifiedFinderContrastTellsCodesFromClutter) {
+  int k = 0;
+  for (const double side : {60.0, 90.0, 140.0}) {
+    for (const double squeeze : {1.0, 0.85}) {
+      const SymbolImage symbol = QrSymbol("r/" + std::to_string(300 + k) + "/12.5");
+      cv::Mat image = Canvas();
+      DrawSymbol(symbol, MakeQuad({320.0, 240.0}, side, 0.3 + 0.7 * k, squeeze), &image);
+      cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
+      const std::vector<QrCandidate> candidates =
+          GroupQrFinders(FindQrFinderPatterns(image, kWhole), image.size());
+      ASSERT_EQ(candidates.size(), 1u) << side << " " << squeeze;
+      EXPECT_GT(RectifiedQrFinderContrast(image, candidates[0]), 20.0) << side << " " << squeeze;
+      EXPECT_EQ(ReadRectifiedQr(image, candidates[0]).size(), 1u) << side << " " << squeeze;
+      ++k;
+    }
+  }
+  // Clutter at a code's corners: 21 modules of 4 px, the three 7-module blocks at 260..288
+  // and 320..348.
+  QrCandidate candidate;
+  candidate.corners_px = {Eigen::Vector2d(259.5, 199.5), Eigen::Vector2d(343.5, 199.5),
+                          Eigen::Vector2d(343.5, 283.5), Eigen::Vector2d(259.5, 283.5)};
+  candidate.module_px = 4.0;
+  for (const bool frames : {false, true}) {
+    cv::Mat boxes = Canvas();
+    for (const cv::Point& at : {cv::Point(260, 200), cv::Point(316, 200), cv::Point(260, 256)}) {
+      cv::rectangle(boxes, cv::Rect(at, cv::Size(28, 28)), cv::Scalar(20), cv::FILLED);
+      if (frames)
+        cv::rectangle(boxes, cv::Rect(at + cv::Point(8, 8), cv::Size(12, 12)), cv::Scalar(230), cv::FILLED);
+    }
+    cv::GaussianBlur(boxes, boxes, cv::Size(0, 0), 0.7);
+    EXPECT_LE(RectifiedQrFinderContrast(boxes, candidate), 0.0) << frames;
+    EXPECT_TRUE(ReadRectifiedQr(boxes, candidate).empty()) << frames;
+  }
+  cv::Mat noise(480, 640, CV_8U);
+  cv::RNG rng(5);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  EXPECT_LT(RectifiedQrFinderContrast(noise, candidate), 10.0);
+  EXPECT_TRUE(ReadRectifiedQr(noise, candidate).empty());
+  // Bad input.
+  EXPECT_EQ(RectifiedQrFinderContrast(cv::Mat(), candidate), -std::numeric_limits<double>::infinity());
+  QrCandidate degenerate = candidate;
+  degenerate.module_px = 0.0;
+  EXPECT_EQ(RectifiedQrFinderContrast(Canvas(), degenerate), -std::numeric_limits<double>::infinity());
 }
 
 TEST(DetectQrFinder, NoCandidateWithoutThreeFinders) {
