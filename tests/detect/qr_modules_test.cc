@@ -50,6 +50,29 @@ std::vector<uint8_t> TrueModules(const SymbolImage& symbol) {
   return dark;
 }
 
+// Clutter for the code-evidence tests (160 x 160): twelve lines of random small text, and 80
+// random dark blocks.
+cv::Mat TextPage(cv::RNG& rng) {
+  cv::Mat page(160, 160, CV_8U, cv::Scalar(200));
+  for (int line = 0; line < 12; ++line) {
+    std::string words;
+    for (int c = 0; c < 16; ++c)
+      words += static_cast<char>(rng.uniform(0, 4) == 0 ? ' ' : rng.uniform('a', 'z' + 1));
+    cv::putText(page, words, cv::Point(rng.uniform(0, 10), 12 + line * 13), cv::FONT_HERSHEY_PLAIN,
+                rng.uniform(0.6, 1.0), cv::Scalar(40), 1, cv::LINE_AA);
+  }
+  return page;
+}
+cv::Mat RandomBlocks(cv::RNG& rng) {
+  cv::Mat blocks(160, 160, CV_8U, cv::Scalar(200));
+  for (int b = 0; b < 80; ++b) {
+    cv::rectangle(blocks,
+                  cv::Rect(rng.uniform(30, 126), rng.uniform(30, 126), rng.uniform(2, 9), rng.uniform(2, 9)),
+                  cv::Scalar(40), cv::FILLED);
+  }
+  return blocks;
+}
+
 TEST(DetectQrModules, RenderedMatrixReads) {
   const SymbolImage symbol = QrSymbol("grid-7");
   const std::vector<MarkerObservation> read = ReadWithZxing(
@@ -378,22 +401,8 @@ TEST(DetectQrModules, CodeLikenessTurnsAwayClutter) {
   // Clutter, blurred like the codes: lines of small text, random blocks, a grating, noise.
   std::vector<cv::Mat> clutter;
   for (int k = 0; k < 6; ++k) {
-    cv::Mat page(160, 160, CV_8U, cv::Scalar(200));
-    for (int line = 0; line < 12; ++line) {
-      std::string words;
-      for (int c = 0; c < 16; ++c)
-        words += static_cast<char>(rng.uniform(0, 4) == 0 ? ' ' : rng.uniform('a', 'z' + 1));
-      cv::putText(page, words, cv::Point(rng.uniform(0, 10), 12 + line * 13), cv::FONT_HERSHEY_PLAIN,
-                  rng.uniform(0.6, 1.0), cv::Scalar(40), 1, cv::LINE_AA);
-    }
-    clutter.push_back(page);
-    cv::Mat blocks(160, 160, CV_8U, cv::Scalar(200));
-    for (int b = 0; b < 80; ++b) {
-      cv::rectangle(
-          blocks, cv::Rect(rng.uniform(30, 126), rng.uniform(30, 126), rng.uniform(2, 9), rng.uniform(2, 9)),
-          cv::Scalar(40), cv::FILLED);
-    }
-    clutter.push_back(blocks);
+    clutter.push_back(TextPage(rng));
+    clutter.push_back(RandomBlocks(rng));
     cv::Mat grating(160, 160, CV_8U, cv::Scalar(200));
     const double period = rng.uniform(3.0, 8.0), angle = rng.uniform(0.0, M_PI);
     for (int y = 0; y < 160; ++y) {
@@ -457,22 +466,8 @@ TEST(DetectQrModules, FitsNeedCodeEvidence) {
   int quads = 0, turned_away = 0;
   for (int k = 0; k < 6; ++k) {
     std::vector<cv::Mat> clutter;
-    cv::Mat page(160, 160, CV_8U, cv::Scalar(200));
-    for (int line = 0; line < 12; ++line) {
-      std::string words;
-      for (int c = 0; c < 16; ++c)
-        words += static_cast<char>(rng.uniform(0, 4) == 0 ? ' ' : rng.uniform('a', 'z' + 1));
-      cv::putText(page, words, cv::Point(rng.uniform(0, 10), 12 + line * 13), cv::FONT_HERSHEY_PLAIN,
-                  rng.uniform(0.6, 1.0), cv::Scalar(40), 1, cv::LINE_AA);
-    }
-    clutter.push_back(page);
-    cv::Mat blocks(160, 160, CV_8U, cv::Scalar(200));
-    for (int b = 0; b < 80; ++b) {
-      cv::rectangle(
-          blocks, cv::Rect(rng.uniform(30, 126), rng.uniform(30, 126), rng.uniform(2, 9), rng.uniform(2, 9)),
-          cv::Scalar(40), cv::FILLED);
-    }
-    clutter.push_back(blocks);
+    clutter.push_back(TextPage(rng));
+    clutter.push_back(RandomBlocks(rng));
     cv::Mat frame(160, 160, CV_8U, cv::Scalar(200));  // a dark frame round a light box
     cv::rectangle(frame, cv::Rect(50, 50, 60, 60), cv::Scalar(40), cv::FILLED);
     cv::rectangle(frame, cv::Rect(50 + 3 + k, 53 + k, 54 - 2 * k, 54 - 2 * k), cv::Scalar(200), cv::FILLED);
