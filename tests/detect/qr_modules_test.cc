@@ -50,29 +50,6 @@ std::vector<uint8_t> TrueModules(const SymbolImage& symbol) {
   return dark;
 }
 
-// Clutter for the code-evidence tests (160 x 160): twelve lines of random small text, and 80
-// random dark blocks.
-cv::Mat TextPage(cv::RNG& rng) {
-  cv::Mat page(160, 160, CV_8U, cv::Scalar(200));
-  for (int line = 0; line < 12; ++line) {
-    std::string words;
-    for (int c = 0; c < 16; ++c)
-      words += static_cast<char>(rng.uniform(0, 4) == 0 ? ' ' : rng.uniform('a', 'z' + 1));
-    cv::putText(page, words, cv::Point(rng.uniform(0, 10), 12 + line * 13), cv::FONT_HERSHEY_PLAIN,
-                rng.uniform(0.6, 1.0), cv::Scalar(40), 1, cv::LINE_AA);
-  }
-  return page;
-}
-cv::Mat RandomBlocks(cv::RNG& rng) {
-  cv::Mat blocks(160, 160, CV_8U, cv::Scalar(200));
-  for (int b = 0; b < 80; ++b) {
-    cv::rectangle(blocks,
-                  cv::Rect(rng.uniform(30, 126), rng.uniform(30, 126), rng.uniform(2, 9), rng.uniform(2, 9)),
-                  cv::Scalar(40), cv::FILLED);
-  }
-  return blocks;
-}
-
 TEST(DetectQrModules, RenderedMatrixReads) {
   const SymbolImage symbol = QrSymbol("grid-7");
   const std::vector<MarkerObservation> read = ReadWithZxing(
@@ -279,6 +256,60 @@ Quad2d TiltedSquare(const Eigen::Vector2d& centre, double side_px, double roll, 
   return quad;
 }
 
+// `count` small codes (versions 1 and 2, 1.2-2.4 px per module along the mean side, tilted up
+// to 55 deg, blur 0.5-1 px, noise) on 160 x 160 images, each with its corners up to 0.4 module
+// off and its corner order turned by its index; texts numbered from `first_number`.
+struct SmallCodeCase {
+  std::string text;
+  cv::Mat image;
+  Quad2d start;
+  double module_px = 0.0;
+};
+std::vector<SmallCodeCase> SmallCodeCases(cv::RNG* rng, int count, int first_number) {
+  std::vector<SmallCodeCase> cases;
+  while (static_cast<int>(cases.size()) < count) {
+    const int k = static_cast<int>(cases.size());
+    SmallCodeCase c;
+    c.text = k % 3 == 2 ? "waymark-small-code-" + std::to_string(k) + "-v2"
+                        : "r/" + std::to_string(first_number + k) + "/12.5";
+    const SymbolImage symbol = QrSymbol(c.text);
+    const Quad2d truth = TiltedSquare({80.3, 79.6}, rng->uniform(24.0, 60.0), rng->uniform(0.0, 2 * M_PI),
+                                      rng->uniform(0.0, 55.0) * M_PI / 180, rng->uniform(0.0, M_PI));
+    c.module_px = QuadMeanSide(truth) / symbol.symbol.width;
+    if (c.module_px < 1.2) continue;
+    c.image = SmallCode(symbol, truth, rng->uniform(0.5, 1.0), rng->uniform(1.0, 3.0));
+    Quad2d start = truth;
+    for (Eigen::Vector2d& corner : start)
+      corner += Eigen::Vector2d(rng->uniform(-0.4, 0.4), rng->uniform(-0.4, 0.4)) * c.module_px;
+    c.start = RotateCorners(start, k % 4);
+    cases.push_back(std::move(c));
+  }
+  return cases;
+}
+
+// Clutter for the code-evidence tests (160 x 160): twelve lines of random small text, and 80
+// random dark blocks.
+cv::Mat TextPage(cv::RNG& rng) {
+  cv::Mat page(160, 160, CV_8U, cv::Scalar(200));
+  for (int line = 0; line < 12; ++line) {
+    std::string words;
+    for (int c = 0; c < 16; ++c)
+      words += static_cast<char>(rng.uniform(0, 4) == 0 ? ' ' : rng.uniform('a', 'z' + 1));
+    cv::putText(page, words, cv::Point(rng.uniform(0, 10), 12 + line * 13), cv::FONT_HERSHEY_PLAIN,
+                rng.uniform(0.6, 1.0), cv::Scalar(40), 1, cv::LINE_AA);
+  }
+  return page;
+}
+cv::Mat RandomBlocks(cv::RNG& rng) {
+  cv::Mat blocks(160, 160, CV_8U, cv::Scalar(200));
+  for (int b = 0; b < 80; ++b) {
+    cv::rectangle(blocks,
+                  cv::Rect(rng.uniform(30, 126), rng.uniform(30, 126), rng.uniform(2, 9), rng.uniform(2, 9)),
+                  cv::Scalar(40), cv::FILLED);
+  }
+  return blocks;
+}
+
 // `text` drawn at `truth` (blur `sigma`, noise 2.5) and read as an unoriented grid from the
 // quad start_of(module px) with its corners turned by `rotation`: true when the right text is
 // read (a wrong text or a grid corner more than 1.5 modules off fails the test).
@@ -382,20 +413,9 @@ TEST(DetectQrModules, SmallObliqueCodesReadAfterPhotometricRefit) {
 TEST(DetectQrModules, CodeLikenessTurnsAwayClutter) {
   cv::RNG rng(21);
   int codes = 0;
-  while (codes < 48) {
-    const std::string text = codes % 3 == 2 ? "waymark-small-code-" + std::to_string(codes) + "-v2"
-                                            : "r/" + std::to_string(500 + codes) + "/12.5";
-    const SymbolImage symbol = QrSymbol(text);
-    const Quad2d truth = TiltedSquare({80.3, 79.6}, rng.uniform(24.0, 60.0), rng.uniform(0.0, 2 * M_PI),
-                                      rng.uniform(0.0, 55.0) * M_PI / 180, rng.uniform(0.0, M_PI));
-    const double module_px = QuadMeanSide(truth) / symbol.symbol.width;
-    if (module_px < 1.2) continue;
-    const cv::Mat image = SmallCode(symbol, truth, rng.uniform(0.5, 1.0), rng.uniform(1.0, 3.0));
-    Quad2d start = truth;
-    for (Eigen::Vector2d& c : start)
-      c += Eigen::Vector2d(rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4)) * module_px;
-    EXPECT_GE(UnorientedCodeLikeness(image, RotateCorners(start, codes % 4)), 2 * kMinUnorientedCodeLikeness)
-        << text << " " << module_px;
+  for (const SmallCodeCase& c : SmallCodeCases(&rng, 48, 500)) {
+    EXPECT_GE(UnorientedCodeLikeness(c.image, c.start), 2 * kMinUnorientedCodeLikeness)
+        << c.text << " " << c.module_px;
     ++codes;
   }
   // Clutter, blurred like the codes: lines of small text, random blocks, a grating, noise.
@@ -445,21 +465,10 @@ TEST(DetectQrModules, FitsNeedCodeEvidence) {
   cv::RNG rng(23);
   int codes = 0;
   double weakest = std::numeric_limits<double>::infinity();
-  while (codes < 48) {
-    const std::string text = codes % 3 == 2 ? "waymark-small-code-" + std::to_string(codes) + "-v2"
-                                            : "r/" + std::to_string(600 + codes) + "/12.5";
-    const SymbolImage symbol = QrSymbol(text);
-    const Quad2d truth = TiltedSquare({80.3, 79.6}, rng.uniform(24.0, 60.0), rng.uniform(0.0, 2 * M_PI),
-                                      rng.uniform(0.0, 55.0) * M_PI / 180, rng.uniform(0.0, M_PI));
-    const double module_px = QuadMeanSide(truth) / symbol.symbol.width;
-    if (module_px < 1.2) continue;
-    const cv::Mat image = SmallCode(symbol, truth, rng.uniform(0.5, 1.0), rng.uniform(1.0, 3.0));
-    Quad2d start = truth;
-    for (Eigen::Vector2d& c : start)
-      c += Eigen::Vector2d(rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4)) * module_px;
-    const double evidence = UnorientedCodeEvidence(image, RotateCorners(start, codes % 4));
+  for (const SmallCodeCase& c : SmallCodeCases(&rng, 48, 600)) {
+    const double evidence = UnorientedCodeEvidence(c.image, c.start);
     weakest = std::min(weakest, evidence);
-    EXPECT_GE(evidence, 2 * kMinUnorientedFitEvidence) << text << " " << module_px;
+    EXPECT_GE(evidence, 2 * kMinUnorientedFitEvidence) << c.text << " " << c.module_px;
     ++codes;
   }
   std::printf("weakest code evidence %.1f (bound %.1f)\n", weakest, kMinUnorientedFitEvidence);
