@@ -179,7 +179,8 @@ class DataMatrixDetector : public MarkerDetector {
                                                     std::vector<Eigen::Vector2d>* seen, bool* timing_side) {
     // The timing side first: it samples the frame where the patch's pixels would be, without
     // the warp (most candidates fail it).
-    const bool shows = DataMatrixTimingSideRuns(gray, candidate.corners_px) >= kMinTimingSideRuns;
+    const bool shows =
+        DataMatrixTimingSideRuns(gray, candidate.corners_px, kMinTimingSideRuns) >= kMinTimingSideRuns;
     if (timing_side != nullptr) *timing_side = shows;
     if (!shows) return std::nullopt;
     std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
@@ -400,8 +401,10 @@ PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
 // `which` (0 top, 1 right, 2 bottom, 3 left) of a patch with the symbol's `s` px at (m, m):
 // lines parallel to the side at kTimingDepths of the side inside it (the candidate's far
 // corner can be a few pixels off), kTimingSamples samples each over 4-96 % of it.
+// `enough`: the first line with at least that many runs ends the search (its count is returned).
 template <typename At>
-int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which) {
+int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which,
+                     int enough = std::numeric_limits<int>::max()) {
   int most = 0;
   long done[std::size(kTimingDepths)];  // the pixel row (column) of each line sampled so far
   size_t lines = 0;
@@ -429,6 +432,7 @@ int SideDarkRunsWith(const At& at, double m, double s, double threshold, int whi
       previous = is_dark;
     }
     most = std::max(most, runs);
+    if (most >= enough) break;
   }
   return most;
 }
@@ -487,7 +491,7 @@ bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* t
   return evidence >= kTimingMinRuns;
 }
 
-int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
+int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px, int enough) {
   CV_Assert(gray.type() == CV_8UC1 && !gray.empty());
   // The patch RectifyDataMatrixCandidate would warp, sampled where its pixels are: each
   // sample's patch pixel (nearest, clamped to the patch, as PatchAt) mapped into the frame and
@@ -520,7 +524,8 @@ int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
   if (levels.light - levels.dark < kPlausibleMinContrast) return 0;
   const double threshold = levels.dark + 0.5 * (levels.light - levels.dark);
   int most = 0;
-  for (int which = 0; which < 4; ++which) most = std::max(most, SideDarkRunsWith(at, m, s, threshold, which));
+  for (int which = 0; which < 4 && most < enough; ++which)
+    most = std::max(most, SideDarkRunsWith(at, m, s, threshold, which, enough));
   return most;
 }
 
