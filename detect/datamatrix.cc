@@ -362,8 +362,8 @@ Eigen::Vector2d Apply(const cv::Matx33d& h, const Eigen::Vector2d& p) {
 
 // A patch's gray level at (x, y), nearest pixel, clamped to the patch.
 double PatchAt(const cv::Mat& patch, double x, double y) {
-  const int c = std::clamp(static_cast<int>(std::lround(x)), 0, patch.cols - 1);
-  const int r = std::clamp(static_cast<int>(std::lround(y)), 0, patch.rows - 1);
+  const int c = std::clamp(static_cast<int>(RoundHalfAwayFromZero(x)), 0, patch.cols - 1);
+  const int r = std::clamp(static_cast<int>(RoundHalfAwayFromZero(y)), 0, patch.rows - 1);
   return static_cast<double>(patch.at<uint8_t>(r, c));
 }
 
@@ -412,10 +412,10 @@ int SideDarkRunsWith(const At& at, double m, double s, double threshold, int whi
     // A line on the same pixel row (column) as one already sampled gives the same runs: the
     // samples are the nearest pixels.
     const double in = depth * s;
-    const long fixed = std::lround(which == 0   ? m + in
-                                   : which == 1 ? m + s - 1 - in
-                                   : which == 2 ? m + s - 1 - in
-                                                : m + in);
+    const long fixed = RoundHalfAwayFromZero(which == 0   ? m + in
+                                             : which == 1 ? m + s - 1 - in
+                                             : which == 2 ? m + s - 1 - in
+                                                          : m + in);
     if (std::find(done, done + lines, fixed) != done + lines) continue;
     done[lines++] = fixed;
     int runs = 0;
@@ -502,8 +502,8 @@ int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px, int 
   int last_c = -1, last_r = -1;  // the last sample's patch pixel and value (lines revisit a pixel)
   double last = 0.0;
   const auto at = [&](double x, double y) {
-    const int c = std::clamp(static_cast<int>(std::lround(x)), 0, size - 1);
-    const int r = std::clamp(static_cast<int>(std::lround(y)), 0, size - 1);
+    const int c = std::clamp(static_cast<int>(RoundHalfAwayFromZero(x)), 0, size - 1);
+    const int r = std::clamp(static_cast<int>(RoundHalfAwayFromZero(y)), 0, size - 1);
     if (c == last_c && r == last_r) return last;
     last_c = c;
     last_r = r;
