@@ -179,7 +179,8 @@ class DataMatrixDetector : public MarkerDetector {
                                                     std::vector<Eigen::Vector2d>* seen, bool* timing_side) {
     // The timing side first: it samples the frame where the patch's pixels would be, without
     // the warp (most candidates fail it).
-    const bool shows = DataMatrixTimingSideRuns(gray, candidate.corners_px) >= kMinTimingSideRuns;
+    const bool shows =
+        DataMatrixTimingSideRuns(gray, candidate.corners_px, kMinTimingSideRuns) >= kMinTimingSideRuns;
     if (timing_side != nullptr) *timing_side = shows;
     if (!shows) return std::nullopt;
     std::optional<DataMatrixPatch> patch = RectifyDataMatrixCandidate(gray, candidate);
@@ -313,6 +314,17 @@ constexpr int kSeedOffsetsPx[] = {0, -1, 1};
 // of about its size.
 constexpr double kMaxCentreOffset = 0.2;
 constexpr double kMaxSizeRatio = 1.4;
+// libdmtx's edge-length bounds on a patch (DmtxPropEdgeMin / DmtxPropEdgeMax, in patch pixels,
+// as fractions of the symbol's side there): its edge trail is dropped when the trail's bounding
+// box is under 2 edgeMin^2 (any shape; an upright square L spans about side^2, the 8 x 18
+// symbol's about 0.86 side^2 at its mean side, both above 0.5 side^2) or its diagonal over 1.56
+// edgeMax (3.1 sides: the whole patch, quiet zone included, is 2.3). Both lie beyond the 1.4x
+// size bound a read must meet anyway (kMaxSizeRatio), so no symbol the candidate can give is
+// turned away; what goes is clutter's short edges and trails that wander off the patch. Issue 14's
+// tenth round: the same detections on the recall bench (issue seeds 1-3, DataMatrix-only issue
+// seeds 4-5 and hard seeds 1-3), libdmtx's seeds 4 % fewer instructions.
+constexpr double kDmtxEdgeMinFraction = 0.5;
+constexpr double kDmtxEdgeMaxFactor = 2.0;
 // DataMatrixPatchPlausible (detect/quads.h). On two recall-bench sets (issue scenario seed
 // 2, hard renders seed 3: 131 candidates read, 3198 not) every candidate read had a contrast
 // >= 29 gray levels (25 for a low-light symbol of hard seed 1) and 31-62 % of its inside
@@ -361,8 +373,8 @@ Eigen::Vector2d Apply(const cv::Matx33d& h, const Eigen::Vector2d& p) {
 
 // A patch's gray level at (x, y), nearest pixel, clamped to the patch.
 double PatchAt(const cv::Mat& patch, double x, double y) {
-  const int c = std::clamp(static_cast<int>(std::lround(x)), 0, patch.cols - 1);
-  const int r = std::clamp(static_cast<int>(std::lround(y)), 0, patch.rows - 1);
+  const int c = std::clamp(static_cast<int>(RoundHalfAwayFromZero(x)), 0, patch.cols - 1);
+  const int r = std::clamp(static_cast<int>(RoundHalfAwayFromZero(y)), 0, patch.rows - 1);
   return static_cast<double>(patch.at<uint8_t>(r, c));
 }
 
@@ -400,8 +412,10 @@ PatchLevels LegAndLightLevels(const cv::Mat& patch, double m, double s) {
 // `which` (0 top, 1 right, 2 bottom, 3 left) of a patch with the symbol's `s` px at (m, m):
 // lines parallel to the side at kTimingDepths of the side inside it (the candidate's far
 // corner can be a few pixels off), kTimingSamples samples each over 4-96 % of it.
+// `enough`: the first line with at least that many runs ends the search (its count is returned).
 template <typename At>
-int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which) {
+int SideDarkRunsWith(const At& at, double m, double s, double threshold, int which,
+                     int enough = std::numeric_limits<int>::max()) {
   int most = 0;
   long done[std::size(kTimingDepths)];  // the pixel row (column) of each line sampled so far
   size_t lines = 0;
@@ -409,10 +423,10 @@ int SideDarkRunsWith(const At& at, double m, double s, double threshold, int whi
     // A line on the same pixel row (column) as one already sampled gives the same runs: the
     // samples are the nearest pixels.
     const double in = depth * s;
-    const long fixed = std::lround(which == 0   ? m + in
-                                   : which == 1 ? m + s - 1 - in
-                                   : which == 2 ? m + s - 1 - in
-                                                : m + in);
+    const long fixed = RoundHalfAwayFromZero(which == 0   ? m + in
+                                             : which == 1 ? m + s - 1 - in
+                                             : which == 2 ? m + s - 1 - in
+                                                          : m + in);
     if (std::find(done, done + lines, fixed) != done + lines) continue;
     done[lines++] = fixed;
     int runs = 0;
@@ -429,6 +443,7 @@ int SideDarkRunsWith(const At& at, double m, double s, double threshold, int whi
       previous = is_dark;
     }
     most = std::max(most, runs);
+    if (most >= enough) break;
   }
   return most;
 }
@@ -487,7 +502,7 @@ bool DataMatrixPatchPlausible(const cv::Mat& patch, int margin, int side, int* t
   return evidence >= kTimingMinRuns;
 }
 
-int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
+int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px, int enough) {
   CV_Assert(gray.type() == CV_8UC1 && !gray.empty());
   // The patch RectifyDataMatrixCandidate would warp, sampled where its pixels are: each
   // sample's patch pixel (nearest, clamped to the patch, as PatchAt) mapped into the frame and
@@ -498,8 +513,8 @@ int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
   int last_c = -1, last_r = -1;  // the last sample's patch pixel and value (lines revisit a pixel)
   double last = 0.0;
   const auto at = [&](double x, double y) {
-    const int c = std::clamp(static_cast<int>(std::lround(x)), 0, size - 1);
-    const int r = std::clamp(static_cast<int>(std::lround(y)), 0, size - 1);
+    const int c = std::clamp(static_cast<int>(RoundHalfAwayFromZero(x)), 0, size - 1);
+    const int r = std::clamp(static_cast<int>(RoundHalfAwayFromZero(y)), 0, size - 1);
     if (c == last_c && r == last_r) return last;
     last_c = c;
     last_r = r;
@@ -520,7 +535,8 @@ int DataMatrixTimingSideRuns(const cv::Mat& gray, const Quad2d& corners_px) {
   if (levels.light - levels.dark < kPlausibleMinContrast) return 0;
   const double threshold = levels.dark + 0.5 * (levels.light - levels.dark);
   int most = 0;
-  for (int which = 0; which < 4; ++which) most = std::max(most, SideDarkRunsWith(at, m, s, threshold, which));
+  for (int which = 0; which < 4 && most < enough; ++which)
+    most = std::max(most, SideDarkRunsWith(at, m, s, threshold, which, enough));
   return most;
 }
 
@@ -685,6 +701,14 @@ std::vector<MarkerObservation> DecodeDataMatrixPatch(const DataMatrixPatch& rect
   if (scan.image != nullptr) {
     dmtxImageSetProp(scan.image, DmtxPropRowPadBytes, static_cast<int>(patch.step[0]) - patch.cols);
     scan.decode = dmtxDecodeCreate(scan.image, 1);
+    if (scan.decode != nullptr) {
+      // The symbol is `side` px in the patch, and a region more than 1.4x off that is dropped
+      // below (kMaxSizeRatio): libdmtx gives up on edge trails whose bounding box is under
+      // kDmtxEdgeMinFraction of it squared, or whose diagonal is beyond kDmtxEdgeMaxFactor of
+      // it (times sqrt 2 + 10 %), before it fits lines and sizes to them.
+      dmtxDecodeSetProp(scan.decode, DmtxPropEdgeMin, static_cast<int>(kDmtxEdgeMinFraction * side));
+      dmtxDecodeSetProp(scan.decode, DmtxPropEdgeMax, static_cast<int>(std::ceil(kDmtxEdgeMaxFactor * side)));
+    }
   }
   if (scan.decode != nullptr) {
     // Every patch gets the seeds at the middle of the legs; only a patch with a clear timing

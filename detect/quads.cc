@@ -171,7 +171,8 @@ SideSamples SampleSide(const cv::Mat& dark, const Eigen::Vector2d& a, const Eige
   for (int i = 0; i < n; ++i) {
     const double t = 0.08 + 0.84 * i / (n - 1);
     const Eigen::Vector2d p = a + t * d + offset;
-    const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
+    const int x = static_cast<int>(RoundHalfAwayFromZero(p.x())),
+              y = static_cast<int>(RoundHalfAwayFromZero(p.y()));
     if (x < 0 || y < 0 || x >= dark.cols || y >= dark.rows) continue;
     const bool is_dark = dark.at<uint8_t>(y, x) != 0;
     dark_count += is_dark;
@@ -243,7 +244,8 @@ std::optional<Quad2d> LQuadFromDarkLegs(const std::vector<cv::Point>& hull, cons
 // box or an empty frame.
 double InteriorSpread(const cv::Mat& gray, const Quad2d& q) {
   const auto at = [&gray](const Eigen::Vector2d& p) -> std::optional<double> {
-    const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
+    const int x = static_cast<int>(RoundHalfAwayFromZero(p.x())),
+              y = static_cast<int>(RoundHalfAwayFromZero(p.y()));
     if (x < 0 || y < 0 || x >= gray.cols || y >= gray.rows) return std::nullopt;
     return gray.at<uint8_t>(y, x);
   };

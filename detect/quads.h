@@ -119,7 +119,8 @@ std::optional<DataMatrixPatch> RectifyDataMatrixCandidate(const cv::Mat& gray,
 
 // Decodes a rectified candidate: libdmtx started only at seed pixels on the L's two outer
 // edges (dmtxRegionScanPixel: never a scan of the frame or of the patch; at the middle of the
-// legs, and at 0.3 and 0.7 of them too when timing_runs >= 4), and zxing-cpp's
+// legs, and at 0.3 and 0.7 of them too when timing_runs >= 4; its edge-length bounds half and
+// twice the patch's symbol side, beyond the size bound below), and zxing-cpp's
 // DataMatrix reader on the same patch as the fallback (the symbol at its centre, where
 // zxing 1.4 starts its search). When zxing reads the same text as libdmtx on the patch, its
 // corners are returned (a better start for the refinement), and its text replaces a libdmtx

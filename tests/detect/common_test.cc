@@ -271,5 +271,24 @@ TEST(DetectCommon, IdsAreAlwaysValidUtf8) {
   EXPECT_TRUE(IsValidUtf8(TextToId(std::string("\xff\x00\x80", 3))));
 }
 
+// RoundHalfAwayFromZero is std::lround bit for bit: halves (both signs), the doubles next to them
+// (0.49999999999999994, where adding 0.5 and truncating goes wrong), integers, and random values.
+TEST(DetectCommon, RoundHalfAwayFromZeroIsLround) {
+  std::vector<double> values = {
+      0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 1e15 + 0.5, -1e15 - 0.5, 4503599627370495.5};
+  for (const double h : {0.5, 1.5, 2.5, 99.5, 223.5}) {
+    for (const double sign : {1.0, -1.0}) {
+      values.push_back(sign * std::nextafter(h, 0.0));
+      values.push_back(sign * std::nextafter(h, 1e9));
+    }
+  }
+  cv::RNG rng(52);
+  for (int i = 0; i < 100000; ++i) values.push_back(rng.uniform(-300.0, 300.0));
+  for (int i = 0; i < 1000; ++i) values.push_back(std::round(rng.uniform(-300.0, 300.0) * 2.0) / 2.0);
+  for (const double x : values) EXPECT_EQ(RoundHalfAwayFromZero(x), std::lround(x)) << std::hexfloat << x;
+  EXPECT_EQ(RoundHalfAwayFromZero(std::nextafter(0.5, 0.0)), 0);
+  EXPECT_EQ(RoundHalfAwayFromZero(-2.5), -3);
+}
+
 }  // namespace
 }  // namespace waymark

@@ -295,6 +295,58 @@ TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
   EXPECT_EQ(DataMatrixTimingSideRuns(cv::Mat(size, size, CV_8U, cv::Scalar(128)), square), 0);
 }
 
+// DataMatrixTimingSideRuns with `enough` (the detector asks only whether a side has 4 runs): the same
+// answer to "at least `enough`?" as the full count for every `enough`, the full count itself when it
+// is under `enough`, and never more than it, on symbols (turned, blurred, noisy) and on L-shaped clutter.
+TEST(DetectDataMatrix, TimingSideRunsWithEnoughGiveTheSameAnswer) {
+  cv::RNG rng(1410);
+  std::vector<std::pair<cv::Mat, Quad2d>> cases;
+  for (const std::string& text : {std::string("D4711"), std::string("aisle 12 shelf 7 bin 3")}) {
+    const SymbolImage symbol = DataMatrixSymbol(text);
+    for (const double side : {40.0, 90.0, 160.0}) {
+      cv::Mat image = Canvas(320, 320);
+      const Quad2d truth = MakeQuad({160.0, 160.0}, side, rng.uniform(0.0, 2 * M_PI), 0.8);
+      DrawSymbol(symbol, truth, &image, 30, 210);
+      cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+      for (const int turn : {0, 1, 2}) {
+        Quad2d corners;
+        for (int i = 0; i < 4; ++i) corners[i] = truth[(i + turn) % 4];
+        cases.emplace_back(image, corners);
+      }
+    }
+  }
+  // Clutter: an L with a checkerboard inside, and three dashes along two sides.
+  const int side = 60, margin = 18, size = side + 2 * margin;
+  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
+                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
+                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
+  cv::Mat clutter(size, size, CV_8U, cv::Scalar(220));
+  cv::rectangle(clutter, cv::Rect(margin, margin, 6, side), cv::Scalar(25), cv::FILLED);
+  cv::rectangle(clutter, cv::Rect(margin, margin + side - 6, side, 6), cv::Scalar(25), cv::FILLED);
+  for (int k = 0; k < 3; ++k) {
+    cv::rectangle(clutter, cv::Rect(margin + 4 + 20 * k, margin, 10, 4), cv::Scalar(25), cv::FILLED);
+    cv::rectangle(clutter, cv::Rect(margin + side - 4, margin + 4 + 20 * k, 4, 10), cv::Scalar(25),
+                  cv::FILLED);
+  }
+  cases.emplace_back(clutter, square);
+  cases.emplace_back(cv::Mat(size, size, CV_8U, cv::Scalar(128)), square);
+  int stopped_early = 0;
+  for (const auto& [image, corners] : cases) {
+    const int full = DataMatrixTimingSideRuns(image, corners);
+    for (int enough = 1; enough <= 12; ++enough) {
+      const int runs = DataMatrixTimingSideRuns(image, corners, enough);
+      EXPECT_EQ(runs >= enough, full >= enough) << "enough " << enough << " full " << full;
+      EXPECT_LE(runs, full);
+      if (full < enough) {
+        EXPECT_EQ(runs, full);
+      }
+      stopped_early += runs < full;
+    }
+  }
+  EXPECT_GT(stopped_early, 0);  // the early stop happened (the test can fail)
+}
+
 TEST(DetectDataMatrix, BlankNoiseAndBadInput) {
   auto detector = CreateDetector("datamatrix");
   EXPECT_TRUE(detector->Detect(Canvas()).empty());
