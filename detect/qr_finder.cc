@@ -442,10 +442,7 @@ struct RectifiedPlacement {
   int canvas = 0;
   cv::Mat H_rect_image;
 };
-// With `unrefined_contrast`, the finder-ring contrast on the corners before their refinement
-// is stored there, and a candidate at or under MinUnrefinedQrFinderContrast is not placed.
-std::optional<RectifiedPlacement> PlaceRectified(const cv::Mat& gray, const QrCandidate& candidate,
-                                                 double* unrefined_contrast = nullptr) {
+std::optional<RectifiedPlacement> PlaceRectified(const cv::Mat& gray, const QrCandidate& candidate) {
   if (gray.empty() || gray.type() != CV_8UC1 || !(candidate.module_px > 0.0)) return std::nullopt;
   RectifiedPlacement p;
   p.modules = std::clamp(QuadMeanSide(candidate.corners_px) / candidate.module_px, 21.0, 97.0);
@@ -458,15 +455,6 @@ std::optional<RectifiedPlacement> PlaceRectified(const cv::Mat& gray, const QrCa
       dst = {{float(lo), float(lo)}, {float(hi), float(lo)}, {float(hi), float(hi)}, {float(lo), float(hi)}};
   p.quad = candidate.corners_px;
   QrCornerFromFinderEdges(gray, &p.quad);
-  const auto homography = [&] {
-    src.clear();
-    for (const Eigen::Vector2d& c : p.quad) src.emplace_back(c.x(), c.y());
-    return cv::getPerspectiveTransform(src, dst);
-  };
-  if (unrefined_contrast != nullptr) {
-    *unrefined_contrast = FinderContrastOnPatches(gray, cv::Matx33d(homography()), p.quiet, p.side);
-    if (*unrefined_contrast <= MinUnrefinedQrFinderContrast(candidate.module_px)) return std::nullopt;
-  }
   // The finders' outlines are a binarization's, a pixel or so off on a blurred small code
   // (a third of a module at 2 px per module: enough to sample the module grid wrongly);
   // the symbol's own edges place it better, with a first window under a module (the outer
@@ -477,7 +465,8 @@ std::optional<RectifiedPlacement> PlaceRectified(const cv::Mat& gray, const QrCa
   if (const std::optional<RefinedQuad> refined = RefineQuadCorners(gray, p.quad, refine)) {
     p.quad = refined->corners_px;
   }
-  p.H_rect_image = homography();
+  for (const Eigen::Vector2d& c : p.quad) src.emplace_back(c.x(), c.y());
+  p.H_rect_image = cv::getPerspectiveTransform(src, dst);
   return p;
 }
 
@@ -1079,19 +1068,8 @@ double RectifiedQrFinderContrast(const cv::Mat& gray, const QrCandidate& candida
   return FinderContrastOnPatches(gray, cv::Matx33d(p->H_rect_image), p->quiet, p->side);
 }
 
-double UnrefinedQrFinderContrast(const cv::Mat& gray, const QrCandidate& candidate) {
-  double contrast = -std::numeric_limits<double>::infinity();
-  PlaceRectified(gray, candidate, &contrast);
-  return contrast;
-}
-
-double MinUnrefinedQrFinderContrast(double module_px) {
-  return module_px >= kLargeUnrefinedModulePx ? kMinUnrefinedContrastLarge : kMinUnrefinedContrastSmall;
-}
-
 std::vector<MarkerObservation> ReadRectifiedQr(const cv::Mat& gray, const QrCandidate& candidate) {
-  double unrefined = -std::numeric_limits<double>::infinity();
-  const std::optional<RectifiedPlacement> placed = PlaceRectified(gray, candidate, &unrefined);
+  const std::optional<RectifiedPlacement> placed = PlaceRectified(gray, candidate);
   if (!placed) return {};
   const Quad2d& quad = placed->quad;
   const double modules = placed->modules, side = placed->side;

@@ -20,9 +20,7 @@
 //      bottom-right, the intersection of the top-right finder's right edge and the
 //      bottom-left finder's bottom edge;
 //   3. rectification (ReadRectifiedQr): the bottom-right corner re-found on the image's
-//      edges (QrCornerFromFinderEdges), the finders' rings tested laxly on those corners
-//      (UnrefinedQrFinderContrast), the corners refined and the rings tested again
-//      (RectifiedQrFinderContrast), the homography H maps the quad onto a square of
+//      edges (QrCornerFromFinderEdges), the homography H maps the quad onto a square of
 //      n * kRectifiedModulePx pixels (n = the module count estimated from the finder
 //      width, 7 modules) inside a kRectifiedQuietModules-module quiet zone, the image is
 //      resampled through H^-1 (bicubic), zxing reads it (as it is, sharpened, or with its
@@ -156,19 +154,6 @@ void QrCornerFromFinderEdges(const cv::Mat& gray, Quad2d* corners_px);
 // off mostly do not: ReadRectifiedQr resamples and reads nothing at or under 0 (-infinity for
 // bad input).
 double RectifiedQrFinderContrast(const cv::Mat& gray, const QrCandidate& candidate);
-
-// The same contrast on the corners before their refinement (QrCornerFromFinderEdges only;
-// -infinity for bad input). ReadRectifiedQr neither refines nor reads a candidate at or under
-// MinUnrefinedQrFinderContrast(candidate.module_px) (issue 14's eleventh speed round): the
-// refinement was most of a clutter triple's cost. The bound is lax, a wide margin below every
-// code read: unrefined corners can be a pixel off, so a code's rings score less than on refined
-// corners, the more so the smaller its modules (on the recall bench's training sets, codes read
-// scored down to 18 at >= kLargeUnrefinedModulePx px per module, down to -3.5 below).
-inline constexpr double kLargeUnrefinedModulePx = 2.5;
-inline constexpr double kMinUnrefinedContrastLarge = 0.0;
-inline constexpr double kMinUnrefinedContrastSmall = -15.0;
-double UnrefinedQrFinderContrast(const cv::Mat& gray, const QrCandidate& candidate);
-double MinUnrefinedQrFinderContrast(double module_px);
 
 // The code of `candidate` read from `gray` resampled upright (see above); at most one
 // observation (the one nearest the rectified centre), corners mapped back to `gray`.
