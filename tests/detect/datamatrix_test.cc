@@ -15,6 +15,7 @@
 #include "detect/detector.h"
 #include "detect/quads.h"
 #include "detect/synthetic.h"
+#include "tests/detect/patch_test_util.h"
 
 namespace waymark {
 namespace {
@@ -259,13 +260,8 @@ TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
   EXPECT_EQ(tried, 68);
 
   const int side = 60, margin = 18, size = side + 2 * margin;
-  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
-                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
-  cv::Mat frame(size, size, CV_8U, cv::Scalar(220));
-  cv::rectangle(frame, cv::Rect(margin, margin, 6, side), cv::Scalar(25), cv::FILLED);
-  cv::rectangle(frame, cv::Rect(margin, margin + side - 6, side, 6), cv::Scalar(25), cv::FILLED);
+  const Quad2d square = PatchSquare(margin, side);
+  const cv::Mat frame = LFramePatch(margin, side);
   EXPECT_LT(DataMatrixTimingSideRuns(frame, square), 4);
   cv::Mat checker = frame.clone();
   for (int y = margin + 10; y < margin + side - 8; y += 8) {
@@ -276,11 +272,7 @@ TEST(DetectDataMatrix, TimingSideRunsPassEverySymbolAndTurnAwayClutter) {
   EXPECT_LT(DataMatrixTimingSideRuns(checker, square), 4);
   // Three dashes along the top and the right side, a mixed inside.
   cv::Mat dashed = checker.clone();
-  for (int k = 0; k < 3; ++k) {
-    cv::rectangle(dashed, cv::Rect(margin + 4 + 20 * k, margin, 10, 4), cv::Scalar(25), cv::FILLED);
-    cv::rectangle(dashed, cv::Rect(margin + side - 4, margin + 4 + 20 * k, 4, 10), cv::Scalar(25),
-                  cv::FILLED);
-  }
+  AddThreeDashes(margin, side, &dashed);
   cv::GaussianBlur(dashed, dashed, cv::Size(0, 0), 0.7);
   int runs = 0;
   EXPECT_TRUE(DataMatrixPatchPlausible(dashed, margin, side, &runs));
@@ -315,20 +307,11 @@ TEST(DetectDataMatrix, TimingSideRunsWithEnoughGiveTheSameAnswer) {
       }
     }
   }
-  // Clutter: an L with a checkerboard inside, and three dashes along two sides.
+  // Clutter: an L and three dashes along the two other sides.
   const int side = 60, margin = 18, size = side + 2 * margin;
-  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
-                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
-  cv::Mat clutter(size, size, CV_8U, cv::Scalar(220));
-  cv::rectangle(clutter, cv::Rect(margin, margin, 6, side), cv::Scalar(25), cv::FILLED);
-  cv::rectangle(clutter, cv::Rect(margin, margin + side - 6, side, 6), cv::Scalar(25), cv::FILLED);
-  for (int k = 0; k < 3; ++k) {
-    cv::rectangle(clutter, cv::Rect(margin + 4 + 20 * k, margin, 10, 4), cv::Scalar(25), cv::FILLED);
-    cv::rectangle(clutter, cv::Rect(margin + side - 4, margin + 4 + 20 * k, 4, 10), cv::Scalar(25),
-                  cv::FILLED);
-  }
+  const Quad2d square = PatchSquare(margin, side);
+  cv::Mat clutter = LFramePatch(margin, side);
+  AddThreeDashes(margin, side, &clutter);
   cases.emplace_back(clutter, square);
   cases.emplace_back(cv::Mat(size, size, CV_8U, cv::Scalar(128)), square);
   int stopped_early = 0;

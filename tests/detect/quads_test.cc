@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "detect/synthetic.h"
+#include "tests/detect/patch_test_util.h"
 
 namespace waymark {
 namespace {
@@ -55,10 +56,7 @@ TEST(DetectQuads, DataMatrixCandidateInEveryRotationWithItsOrientation) {
 // an even inside (light or dark) or no contrast fails.
 TEST(DetectQuads, DataMatrixPatchPlausibleTurnsAwayClutter) {
   const int side = 60, margin = 18, size = side + 2 * margin;
-  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
-                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
+  const Quad2d square = PatchSquare(margin, side);
   const SymbolImage symbol = DataMatrixSymbol("P1");
   const auto patch_with = [&](int dark, int light) {
     cv::Mat patch(size, size, CV_8U, cv::Scalar(light));
@@ -102,10 +100,7 @@ TEST(DetectQuads, DataMatrixPatchPlausibleTurnsAwayClutter) {
 
 TEST(DetectQuads, QuietZoneOutsideTheLegs) {
   const int side = 60, margin = 18, size = side + 2 * margin;
-  const Quad2d square = {Eigen::Vector2d(margin - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin - 0.5),
-                         Eigen::Vector2d(margin + side - 0.5, margin + side - 0.5),
-                         Eigen::Vector2d(margin - 0.5, margin + side - 0.5)};
+  const Quad2d square = PatchSquare(margin, side);
   cv::Mat patch(size, size, CV_8U, cv::Scalar(235));
   DrawSymbol(DataMatrixSymbol("P1"), square, &patch, 20, 235);
   cv::GaussianBlur(patch, patch, cv::Size(0, 0), 0.8);
