@@ -143,21 +143,20 @@ std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology
   ZXing::DecodeHints hints;
   hints.setFormats(symbology == ZxingSymbology::kQrCode ? ZXing::BarcodeFormat::QRCode
                                                         : ZXing::BarcodeFormat::DataMatrix);
-  hints.setBinarizer(pass.local_average_binarizer ? ZXing::Binarizer::LocalAverage
-                                                  : ZXing::Binarizer::GlobalHistogram);
   hints.setTryHarder(pass.try_harder);
-  hints.setTryRotate(false);  // 2-D finders are rotation invariant; rotation only costs time
-  hints.setTryDownscale(pass.try_downscale);
+  hints.setTryRotate(false);     // 2-D finders are rotation invariant; rotation only costs time
+  hints.setTryDownscale(false);  // one layer: the mask below is that layer's binarization
   hints.setIsPure(pass.pure);
-  // The local-average binarization made here (ZxingHybridBlackMask, the same bits in a tenth
-  // of the time) and handed over as black = 0 (zxing's BoolCast); smaller images are left to
-  // zxing, which binarizes them with its global histogram.
-  cv::Mat mask;
-  if (pass.local_average_binarizer && gray.cols >= kZxingHybridMinSide && gray.rows >= kZxingHybridMinSide) {
-    mask = ZxingHybridBlackMask(gray);
-    hints.setBinarizer(ZXing::Binarizer::BoolCast);
-  }
-  const cv::Mat& image = mask.empty() ? gray : mask;
+  // The local-average binarization made here (ZxingHybridBlackMask, the same bits in a sixth
+  // of the time) and handed over as black = 0 (zxing's BoolCast); images under its minimum side
+  // are left to zxing, which binarizes them with its global histogram.
+  const bool own_mask =
+      pass.local_average_binarizer && gray.cols >= kZxingHybridMinSide && gray.rows >= kZxingHybridMinSide;
+  const cv::Mat mask = own_mask ? ZxingHybridBlackMask(gray) : cv::Mat();
+  hints.setBinarizer(own_mask                       ? ZXing::Binarizer::BoolCast
+                     : pass.local_average_binarizer ? ZXing::Binarizer::LocalAverage
+                                                    : ZXing::Binarizer::GlobalHistogram);
+  const cv::Mat& image = own_mask ? mask : gray;
   const ZXing::ImageView view(image.data, image.cols, image.rows, ZXing::ImageFormat::Lum,
                               static_cast<int>(image.step[0]));
   const ZXing::Results results = ZXing::ReadBarcodes(view, hints);

@@ -17,7 +17,6 @@ enum class ZxingSymbology { kQrCode, kDataMatrix };
 struct ZxingPass {
   bool local_average_binarizer = true;  // false: global histogram
   bool try_harder = true;
-  bool try_downscale = false;
   bool pure = false;  // a clean, upright symbol filling the image with its quiet zone
 };
 
