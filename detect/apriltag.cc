@@ -143,7 +143,10 @@ class AprilTagDetector : public MarkerDetector {
     const cv::Rect frame(0, 0, gray.cols, gray.rows);
     for (const Quad2d& quad : SolidBorderQuads(FindDarkQuads(gray, options_.min_side_px),
                                                std::numeric_limits<double>::infinity(), kMaxQuadCrops)) {
-      if (AnyObservationAt(raw, QuadCenter(quad))) continue;
+      // A tag read already, or another family's code (a QR code's quad often has three
+      // solid sides).
+      if (AnyObservationAt(raw, QuadCenter(quad)) || AnyObservationAt(ReadByOthers(), QuadCenter(quad)))
+        continue;
       double shortest = std::numeric_limits<double>::infinity();
       for (int j = 0; j < 4; ++j) shortest = std::min(shortest, (quad[(j + 1) % 4] - quad[j]).norm());
       const int decimate = std::clamp(static_cast<int>(shortest / kCropDecimatedSidePx), 1,

@@ -318,8 +318,24 @@ double WallMs() {
 
 }  // namespace
 
-FrameWork::FrameWork(double live_budget_ms) : budget_ms_(live_budget_ms) {
+FrameWork::FrameWork(double live_budget_ms, const std::vector<MarkerObservation>* read_by_others)
+    : budget_ms_(live_budget_ms), read_by_others_(read_by_others) {
   if (budget_ms_ > 0.0) start_ms_ = WallMs();
+}
+
+const std::vector<MarkerObservation>& FrameWork::read_by_others() const {
+  static const std::vector<MarkerObservation> kNone;
+  return read_by_others_ != nullptr ? *read_by_others_ : kNone;
+}
+
+bool RegionIsMostlyOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes) {
+  constexpr double kCoveredFraction = 0.3;
+  return std::any_of(codes.begin(), codes.end(), [&](const MarkerObservation& obs) {
+    if (!ObservationInside(obs, region)) return false;
+    std::vector<cv::Point2f> corners;
+    for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
+    return cv::boundingRect(corners).area() >= kCoveredFraction * region.area();
+  });
 }
 
 bool FrameWork::Allow() {
@@ -341,7 +357,7 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
     const bool covered = std::any_of(found->begin(), found->end(), [&](const MarkerObservation& o) {
       return ObservationInside(o, region);
     });
-    if (covered) continue;
+    if (covered || RegionIsMostlyOneCode(region, work->read_by_others())) continue;
     const cv::Mat crop = gray(region);
     for (const CropAttempt& attempt : attempts) {
       if (!work->Allow()) continue;

@@ -102,24 +102,35 @@ using CropAttempt = std::function<std::vector<MarkerObservation>(const cv::Mat& 
 // candidates), so the result depends on the image alone. Live (live_budget_ms > 0): once
 // the frame has taken live_budget_ms of wall-clock time, Allow() returns false and counts
 // the attempt as skipped.
+//
+// It also carries the codes other families have read in the frame
+// (MarkerDetector::ReadByOthers): the passes skip their candidates there.
 class FrameWork {
  public:
-  explicit FrameWork(double live_budget_ms);
+  explicit FrameWork(double live_budget_ms, const std::vector<MarkerObservation>* read_by_others = nullptr);
   // True if the next attempt may run; false (and one more skipped attempt) if not.
   bool Allow();
   // Wall-clock milliseconds left in a live frame; infinity offline.
   double LeftMs() const;
   int skipped() const { return skipped_; }
+  // Codes of other families already read (empty when none were given).
+  const std::vector<MarkerObservation>& read_by_others() const;
 
  private:
   double budget_ms_;
+  const std::vector<MarkerObservation>* read_by_others_;
   double start_ms_ = 0.0;
   int skipped_ = 0;
 };
 
-// For each region holding no code of `found` yet, runs `attempts` in order on the crop
-// until one decodes something (appended to *found in full-image pixels); every attempt
-// asks work->Allow() first.
+// True if `region` is mostly one code of `codes`: a code's centre inside it, and the code's
+// bounding box at least 0.3 of the region (a candidate region pads its blob by a quarter
+// side, so a lone code covers about 0.44 of it).
+bool RegionIsMostlyOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes);
+
+// For each region holding no code of `found` yet and not mostly one code of another family
+// (work->read_by_others()), runs `attempts` in order on the crop until one decodes something
+// (appended to *found in full-image pixels); every attempt asks work->Allow() first.
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
                    const std::vector<CropAttempt>& attempts, FrameWork* work,
                    std::vector<MarkerObservation>* found);

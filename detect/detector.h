@@ -111,8 +111,23 @@ class MarkerDetector {
     return *first_pass_;
   }
 
+  // Codes of other families already read in the image of the next Detect() or
+  // DetectSecondPasses() (the multi-family detector sets them; none by default). One place
+  // holds one code, so a detector may skip its candidates at them: what it would read there is
+  // not its own. `codes` must outlive those calls; nullptr clears them.
+  void SetReadByOthers(const std::vector<MarkerObservation>* codes) { read_by_others_ = codes; }
+  const std::vector<MarkerObservation>& ReadByOthers() const {
+    static const std::vector<MarkerObservation> kNone;
+    return read_by_others_ != nullptr ? *read_by_others_ : kNone;
+  }
+  // True if DetectFirstPass() is a cheap read of the whole image and DetectSecondPasses() the
+  // costly search for what it missed (QR): the multi-family detector then runs the first pass
+  // before the other families and the second passes after them (see CreateMultiDetector).
+  virtual bool SecondPassesLast() const { return false; }
+
  private:
   std::optional<std::vector<MarkerObservation>> first_pass_;  // of the default stages
+  const std::vector<MarkerObservation>* read_by_others_ = nullptr;
 };
 
 // Family names CreateDetector accepts: qr, datamatrix, and apriltag-<name> for every
@@ -126,7 +141,15 @@ std::unique_ptr<MarkerDetector> CreateDetector(const std::string& family,
                                                const DetectorOptions& options = {});
 
 // One detector running several families on each image (on up to options.threads threads at
-// once, the same result for any count); duplicates (same key, same place) are dropped. Throws like
+// once, the same result for any count); duplicates (same key, same place) are dropped. Its
+// Detect() runs in three steps, each family of a step on whichever thread takes it: (1) the
+// first passes of the families whose second passes come last (SecondPassesLast: QR's whole-frame
+// zxing read); (2) every other family whole, each given step 1's codes (SetReadByOthers); (3)
+// the second passes of step 1's families, each given the codes every other family read. A
+// family thus skips the places another has read (on issue 14's frames a third of a frame's
+// time went to one family's candidates at another family's codes) and the steps' order, not
+// the threads, decides what each sees. DetectFirstPass() and DetectSecondPasses() run every
+// family's stage at once, without SetReadByOthers. Throws like
 // CreateDetector, and for an empty or repeated family list.
 std::unique_ptr<MarkerDetector> CreateMultiDetector(const std::vector<std::string>& families,
                                                     const DetectorOptions& options = {});

@@ -57,10 +57,37 @@ class MultiDetector : public MarkerDetector {
     return families;
   }
 
+  // The three steps of detect/detector.h (CreateMultiDetector).
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);   // convert once for every family
     const PixelHashScope hash_once(gray);  // the shared whole-frame work's cache key
-    return EachFamily([&gray](MarkerDetector& d) { return d.Detect(gray); });
+    const size_t n = detectors_.size();
+    std::vector<size_t> last, whole;  // families with SecondPassesLast, the others
+    for (size_t i = 0; i < n; ++i) (detectors_[i]->SecondPassesLast() ? last : whole).push_back(i);
+    std::vector<std::vector<MarkerObservation>> found(n);
+    std::vector<int> skipped(n, 0);
+    // No detector keeps a pointer to the lists below once Detect() returns or throws.
+    const ClearReadByOthers clear{&detectors_};
+    // 1: the first passes.
+    EachOf(
+        last, [&gray](MarkerDetector& d) { return d.DetectFirstPass(gray); }, &found, &skipped);
+    // 2: the other families, each given step 1's codes.
+    std::vector<MarkerObservation> first_reads;
+    for (const size_t i : last) AppendUnique(found[i], &first_reads);
+    for (const size_t i : whole) detectors_[i]->SetReadByOthers(&first_reads);
+    EachOf(
+        whole, [&gray](MarkerDetector& d) { return d.Detect(gray); }, &found, &skipped);
+    // 3: the second passes, each given every other family's codes.
+    std::vector<std::vector<MarkerObservation>> others(n);
+    for (const size_t i : last) {
+      for (size_t j = 0; j < n; ++j) {
+        if (j != i) AppendUnique(found[j], &others[i]);
+      }
+      detectors_[i]->SetReadByOthers(&others[i]);
+    }
+    EachOf(
+        last, [](MarkerDetector& d) { return d.DetectSecondPasses(); }, &found, &skipped);
+    return Merge(found, skipped);
   }
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
@@ -79,23 +106,31 @@ class MultiDetector : public MarkerDetector {
   int SkippedAttempts() const override { return skipped_; }
 
  private:
-  // `run` on each family's detector, each family on whichever worker takes it next (one
-  // detector is never used by two threads at once); the results are merged in the families'
-  // order, so the output does not depend on the thread count or on which thread finished first.
+  // Clears every detector's SetReadByOthers when it goes out of scope.
+  struct ClearReadByOthers {
+    std::vector<std::unique_ptr<MarkerDetector>>* detectors;
+    ~ClearReadByOthers() {
+      for (auto& d : *detectors) d->SetReadByOthers(nullptr);
+    }
+  };
+
+  // `run` on the detectors of the families `which`, each family on whichever worker takes it
+  // next (one detector is never used by two threads at once): (*found)[i] and (*skipped)[i]
+  // for each i of `which`; the first family's error (in `which` order) rethrown after all ran.
   template <typename Run>
-  std::vector<MarkerObservation> EachFamily(Run run) {
-    const size_t n = detectors_.size();
-    std::vector<std::vector<MarkerObservation>> found(n);
-    std::vector<int> skipped(n, 0);
+  void EachOf(const std::vector<size_t>& which, Run run, std::vector<std::vector<MarkerObservation>>* found,
+              std::vector<int>* skipped) {
+    const size_t n = which.size();
     std::vector<std::exception_ptr> errors(n);
     std::atomic<size_t> next{0};
     const auto work = [&] {
-      for (size_t i = next++; i < n; i = next++) {
+      for (size_t k = next++; k < n; k = next++) {
+        const size_t i = which[k];
         try {
-          found[i] = run(*detectors_[i]);
-          skipped[i] = detectors_[i]->SkippedAttempts();
+          (*found)[i] = run(*detectors_[i]);
+          (*skipped)[i] = detectors_[i]->SkippedAttempts();
         } catch (...) {
-          errors[i] = std::current_exception();
+          errors[k] = std::current_exception();
         }
       }
     };
@@ -103,14 +138,34 @@ class MultiDetector : public MarkerDetector {
     for (size_t t = 1; t < std::min<size_t>(threads_, n); ++t) helpers.emplace_back(work);
     work();
     for (std::thread& t : helpers) t.join();
+    for (const std::exception_ptr& error : errors) {
+      if (error) std::rethrow_exception(error);
+    }
+  }
+
+  // The families' results merged in the families' order, so that the output does not depend
+  // on the thread count or on which thread finished first.
+  std::vector<MarkerObservation> Merge(const std::vector<std::vector<MarkerObservation>>& found,
+                                       const std::vector<int>& skipped) {
     std::vector<MarkerObservation> all;
     skipped_ = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (errors[i]) std::rethrow_exception(errors[i]);
+    for (size_t i = 0; i < found.size(); ++i) {
       AppendUnique(found[i], &all);
       skipped_ += skipped[i];
     }
     return all;
+  }
+
+  // `run` on every family's detector at once (EachOf over all of them), merged.
+  template <typename Run>
+  std::vector<MarkerObservation> EachFamily(Run run) {
+    const size_t n = detectors_.size();
+    std::vector<size_t> all(n);
+    for (size_t i = 0; i < n; ++i) all[i] = i;
+    std::vector<std::vector<MarkerObservation>> found(n);
+    std::vector<int> skipped(n, 0);
+    EachOf(all, run, &found, &skipped);
+    return Merge(found, skipped);
   }
 
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;

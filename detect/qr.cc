@@ -101,25 +101,18 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   }
 }
 
-// True if `region` is mostly one code of `found`: a code's centre inside it, and the code's
-// bounding box at least kCoveredFraction of the region (a candidate region pads its blob by
-// a quarter side, so a lone code covers about 0.44 of it).
-constexpr double kCoveredFraction = 0.3;
-bool RegionIsOneReadCode(const cv::Rect& region, const std::vector<MarkerObservation>& found) {
-  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
-    if (!ObservationInside(obs, region)) return false;
-    std::vector<cv::Point2f> corners;
-    for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
-    return cv::boundingRect(corners).area() >= kCoveredFraction * region.area();
-  });
+// True if `region` is mostly one code of `found` or of another family (RegionIsMostlyOneCode).
+bool RegionIsOneReadCode(const cv::Rect& region, const std::vector<MarkerObservation>& found,
+                         const FrameWork& work) {
+  return RegionIsMostlyOneCode(region, found) || RegionIsMostlyOneCode(region, work.read_by_others());
 }
 
-// True if the candidate's centre lies within half a side of a code already read.
-bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObservation>& found) {
-  return std::any_of(found.begin(), found.end(), [&](const MarkerObservation& obs) {
-    return (QuadCenter(obs.corners_px) - QuadCenter(candidate.corners_px)).norm() <
-           0.5 * QuadMeanSide(obs.corners_px);
-  });
+// True if the candidate's centre lies within half a side of a code already read, of this
+// family or another.
+bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObservation>& found,
+                     const FrameWork& work) {
+  const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
+  return AnyObservationAt(found, centre) || AnyObservationAt(work.read_by_others(), centre);
 }
 
 // Pass 2a (and 2a', 2a''): the candidates that a pair of `finders` used by none of `triples`
@@ -133,7 +126,7 @@ void ReadFinderPairs(const cv::Mat& gray, const std::vector<QrFinderPattern>& fi
   for (const QrCandidate& candidate :
        QrCandidatesFromFinderPairs(gray, finders, triples, kMaxPairFinderWidthPx)) {
     if (*pair_reads <= 0) return;
-    if ((near && !near(candidate)) || CandidateIsRead(candidate, *found) || !work->Allow()) continue;
+    if ((near && !near(candidate)) || CandidateIsRead(candidate, *found, *work) || !work->Allow()) continue;
     --*pair_reads;
     AppendUnique(ReadRectifiedQr(gray, candidate), found);
   }
@@ -158,14 +151,14 @@ std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv:
   for (const int index : order) {
     const cv::Rect& region = regions[index];
     if (reads >= max_reads) break;
-    if (RegionIsOneReadCode(region, *found)) continue;
+    if (RegionIsOneReadCode(region, *found, *work)) continue;
     if (!work->Allow()) continue;
     const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(gray, region);
     finders_found[index] = static_cast<int>(finders.size());
     const std::vector<QrCandidate> candidates = GroupQrFinders(finders, gray.size());
     for (const QrCandidate& candidate : candidates) {
       if (reads >= max_reads) break;
-      if (CandidateIsRead(candidate, *found)) continue;
+      if (CandidateIsRead(candidate, *found, *work)) continue;
       if (!work->Allow()) continue;
       ++reads;
       AppendUnique(ReadRectifiedQr(gray, candidate), found);
@@ -221,7 +214,7 @@ void ReadQuadCandidates(const cv::Mat& gray, double min_side_px, int max_reads, 
   int reads = 0;
   for (const QrCandidate& candidate : QrCandidatesFromQuads(gray, FindDarkQuads(gray, min_side_px))) {
     if (reads >= max_reads) return;
-    if (CandidateIsRead(candidate, *found)) continue;
+    if (CandidateIsRead(candidate, *found, *work)) continue;
     if (!work->Allow()) continue;
     ++reads;
     const cv::Rect box = PaddedBox(
@@ -260,7 +253,7 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
     for (const DarkQuad& quad : quads) {
       QrCandidate as_code;
       as_code.corners_px = quad.corners_px;
-      if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+      if (CandidateIsRead(as_code, *found, *work) || !work->Allow()) continue;
       const cv::Rect box = PaddedBox(
           quad.corners_px, [](int side) { return static_cast<int>(std::ceil(side / 3.0)); }, gray.size());
       const double side = QuadMeanSide(quad.corners_px);
@@ -286,7 +279,7 @@ void ReadSmallCodeQuads(const cv::Mat& gray, double min_side_px, int max_boxes, 
       if (reads >= max_reads) break;
       QrCandidate as_code;
       as_code.corners_px = u.corners_px;
-      if (CandidateIsRead(as_code, *found) || !work->Allow()) continue;
+      if (CandidateIsRead(as_code, *found, *work) || !work->Allow()) continue;
       ++reads;
       if (raw_contrast && !(u.contrast >= kMinUnorientedRawContrast)) continue;
       AppendUnique(ReadUnorientedQrModuleGrid(gray, u.corners_px), found);
@@ -321,10 +314,14 @@ class QrDetector : public MarkerDetector {
 
   std::vector<std::string> Families() const override { return {kFamilyQr}; }
   int SkippedAttempts() const override { return skipped_; }
+  // The first pass is zxing on the whole frame; the second passes search it again (finders,
+  // quads, small codes, crops): far more time, most of it in clutter and, beside other
+  // families, at their codes.
+  bool SecondPassesLast() const override { return true; }
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    FrameWork work(options_.live_budget_ms);
+    FrameWork work(options_.live_budget_ms, &ReadByOthers());
     std::vector<MarkerObservation> found = FirstPass(gray);
     if (options_.second_pass) SecondPasses(gray, &work, &found);
     skipped_ = work.skipped();
@@ -342,7 +339,7 @@ class QrDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> DetectSecondPasses() override {
     staged_.CheckStarted();
-    FrameWork work(options_.live_budget_ms);
+    FrameWork work(options_.live_budget_ms, &ReadByOthers());
     std::vector<MarkerObservation> found = staged_.raw;
     if (options_.second_pass) SecondPasses(staged_.gray, &work, &found);
     skipped_ = work.skipped();
