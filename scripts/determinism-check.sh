@@ -3,7 +3,7 @@
 # idle machine and beside a full-load build, at any --threads (docs/detection.md "Determinism").
 #
 #   1. Images: DIR if given, else 150 issue frames rendered by
-#      `bench_recall_bench --frames 150 --seed 1 --scenario issue --dump all` (copied from /tmp).
+#      `bench_recall_bench --frames 150 --seed 1 --scenario issue --dump all --dump-dir D`.
 #   2. Idle: `waymark detect DIR` at --threads 1, --threads 2 and the default (the machine's cores),
 #      and one `waymark map build data/demo/survey --detect-images`.
 #   3. Loaded: a real compile of this project (a scratch build directory, ccache off,
@@ -72,8 +72,7 @@ else
   [ -x "$bench" ] || { echo "determinism-check: no $bench (configure with -DWAYMARK_BUILD_BENCH=ON)" >&2; exit 2; }
   images="$work/frames"
   mkdir "$images"
-  "$bench" --frames 150 --seed 1 --scenario issue --no-write --dump all > "$work/render.log"
-  for f in $(seq 0 149); do cp "/tmp/recall_frame_$f.png" "$images/"; done
+  "$bench" --frames 150 --seed 1 --scenario issue --no-write --dump all --dump-dir "$images" > "$work/render.log"
   echo "images: 150 issue frames (bench_recall_bench --frames 150 --seed 1 --scenario issue --dump all)"
 fi
 echo "binary: $waymark; $(nproc) cores; scratch: $work"
