@@ -13,6 +13,7 @@
 #include "detect/datamatrix.h"
 #include "detect/detector.h"
 #include "detect/qr.h"
+#include "detect/quads.h"
 #include "util/check.h"
 
 namespace waymark {
@@ -46,8 +47,8 @@ void CheckOptions(const DetectorOptions& options) {
 
 class MultiDetector : public MarkerDetector {
  public:
-  MultiDetector(std::vector<std::unique_ptr<MarkerDetector>> detectors, int threads)
-      : detectors_(std::move(detectors)), threads_(threads) {}
+  MultiDetector(std::vector<std::unique_ptr<MarkerDetector>> detectors, const DetectorOptions& options)
+      : detectors_(std::move(detectors)), options_(options), threads_(options.threads) {}
 
   std::vector<std::string> Families() const override {
     std::vector<std::string> families;
@@ -68,9 +69,15 @@ class MultiDetector : public MarkerDetector {
     std::vector<int> skipped(n, 0);
     // No detector keeps a pointer to the lists below once Detect() returns or throws.
     const ClearReadByOthers clear{&detectors_};
-    // 1: the first passes.
-    EachOf(
-        last, [&gray](MarkerDetector& d) { return d.DetectFirstPass(gray); }, &found, &skipped);
+    // 1: the first passes; beside them, on a thread of their own, the shared candidate stages
+    // the later steps use (each a function of the pixels, cached per image: the results do not
+    // depend on which thread computes them first).
+    {
+      const JoinedThread warm(threads_ > 1 && !last.empty(), [this, &gray] { WarmSharedStages(gray); });
+      EachOf(
+          last, [&gray](MarkerDetector& d) { return d.DetectFirstPass(gray); }, &found, &skipped,
+          warm.running() ? threads_ - 1 : threads_);
+    }
     // 2: the other families, each given step 1's codes.
     std::vector<MarkerObservation> first_reads;
     for (const size_t i : last) AppendUnique(found[i], &first_reads);
@@ -106,6 +113,25 @@ class MultiDetector : public MarkerDetector {
   int SkippedAttempts() const override { return skipped_; }
 
  private:
+  // A thread running `task` (when `start`), joined when this goes out of scope, also when an
+  // exception leaves it.
+  class JoinedThread {
+   public:
+    template <typename Task>
+    JoinedThread(bool start, Task task) {
+      if (start) thread_ = std::thread(std::move(task));
+    }
+    ~JoinedThread() {
+      if (thread_.joinable()) thread_.join();
+    }
+    JoinedThread(const JoinedThread&) = delete;
+    JoinedThread& operator=(const JoinedThread&) = delete;
+    bool running() const { return thread_.joinable(); }
+
+   private:
+    std::thread thread_;
+  };
+
   // Clears every detector's SetReadByOthers when it goes out of scope.
   struct ClearReadByOthers {
     std::vector<std::unique_ptr<MarkerDetector>>* detectors;
@@ -119,7 +145,8 @@ class MultiDetector : public MarkerDetector {
   // for each i of `which`; the first family's error (in `which` order) rethrown after all ran.
   template <typename Run>
   void EachOf(const std::vector<size_t>& which, Run run, std::vector<std::vector<MarkerObservation>>* found,
-              std::vector<int>* skipped) {
+              std::vector<int>* skipped, int threads = 0) {
+    if (threads <= 0) threads = threads_;
     const size_t n = which.size();
     std::vector<std::exception_ptr> errors(n);
     std::atomic<size_t> next{0};
@@ -135,7 +162,7 @@ class MultiDetector : public MarkerDetector {
       }
     };
     std::vector<std::thread> helpers;
-    for (size_t t = 1; t < std::min<size_t>(threads_, n); ++t) helpers.emplace_back(work);
+    for (size_t t = 1; t < std::min<size_t>(threads, n); ++t) helpers.emplace_back(work);
     work();
     for (std::thread& t : helpers) t.join();
     for (const std::exception_ptr& error : errors) {
@@ -156,6 +183,25 @@ class MultiDetector : public MarkerDetector {
     return all;
   }
 
+  // The candidate stages the families share (detect/quads.h, SecondPassRegions), computed
+  // into their per-image caches with the parameters the families ask for. An error is left
+  // for the family that asks next (it computes the stage again and throws).
+  void WarmSharedStages(const cv::Mat& gray) const {
+    try {
+      const PixelHashScope hash_once(gray);
+      const std::vector<std::string> families = Families();
+      const auto has = [&families](const std::string& f) {
+        return std::find(families.begin(), families.end(), f) != families.end();
+      };
+      FindDarkQuads(gray, options_.min_side_px);
+      if (has(kFamilyDataMatrix)) FindCoarseDarkQuads(gray, options_.min_side_px);
+      if (options_.second_pass && (has(kFamilyQr) || has(kFamilyDataMatrix))) {
+        SecondPassRegions(gray, options_.max_candidates, options_.close_up);
+      }
+    } catch (...) {
+    }
+  }
+
   // `run` on every family's detector at once (EachOf over all of them), merged.
   template <typename Run>
   std::vector<MarkerObservation> EachFamily(Run run) {
@@ -169,6 +215,7 @@ class MultiDetector : public MarkerDetector {
   }
 
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;
+  DetectorOptions options_;
   cv::Mat staged_gray_;
   int threads_ = 1;
   int skipped_ = 0;
@@ -201,7 +248,7 @@ std::unique_ptr<MarkerDetector> CreateMultiDetector(const std::vector<std::strin
       throw std::invalid_argument("marker family '" + family + "' given twice");
     detectors.push_back(CreateDetector(family, options));
   }
-  return std::make_unique<MultiDetector>(std::move(detectors), options.threads);
+  return std::make_unique<MultiDetector>(std::move(detectors), options);
 }
 
 std::vector<std::string> ParseFamilyList(const std::string& comma_separated) {
