@@ -353,6 +353,24 @@ std::optional<Line2d> FitEdgeThrough(const cv::Mat& gray, const std::vector<Eige
   return FitEdgeLine(points, strengths, static_cast<int>(points_px.size()));
 }
 
+EdgeLinePair FitEdgeThroughBoth(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& points_px,
+                                const Eigen::Vector2d& outward, double half_window_px, double min_step) {
+  if (gray.empty() || gray.type() != CV_8UC1) return {};
+  std::vector<Eigen::Vector2d> modelled, centroid;
+  std::vector<double> strengths;
+  modelled.reserve(points_px.size()), centroid.reserve(points_px.size()), strengths.reserve(points_px.size());
+  for (const Eigen::Vector2d& p : points_px) {
+    const std::optional<EdgeHit> hit = FindOuterEdge(gray, p, outward, half_window_px, min_step);
+    if (!hit) continue;
+    const std::optional<double> fitted = FitEdgeModel(gray, p, outward, hit->offset_px);
+    modelled.push_back(p + fitted.value_or(hit->offset_px) * outward);
+    centroid.push_back(p + hit->offset_px * outward);
+    strengths.push_back(hit->strength);
+  }
+  const int samples = static_cast<int>(points_px.size());
+  return {FitEdgeLine(modelled, strengths, samples), FitEdgeLine(centroid, strengths, samples)};
+}
+
 std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n,
                                      double half_window, double min_step) {
   const int count = static_cast<int>(std::round(2.0 * (half_window + 0.5) / kStepPx)) + 1;
