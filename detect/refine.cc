@@ -23,6 +23,24 @@ constexpr double kMaxBarPx = 3.5;
 constexpr double kAdaptiveStepFraction = 0.25;
 constexpr double kMinAdaptiveStep = 4.0;  // wider bars leave the outer edge's centroid unbiased
 
+// True if Bilinear reads (x, y) inside the image.
+inline bool InsideForBilinear(const cv::Mat& gray, double x, double y) {
+  return x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0 && gray.cols >= 2 &&
+         gray.rows >= 2;
+}
+
+// Bilinear at (x, y) where InsideForBilinear holds.
+inline double BilinearInside(const cv::Mat& gray, double x, double y) {
+  const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
+  const int x1 = x0 + 1;
+  const double fx = x - x0;
+  const double fy = y - y0;
+  const uint8_t* r0 = gray.ptr<uint8_t>(y0);
+  const uint8_t* r1 = gray.ptr<uint8_t>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+}
+
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
   if (!(x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0) || gray.cols < 2 ||
@@ -384,10 +402,21 @@ std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d&
   if (count > kInlineProfile)
     heap_buffer.resize(2 * static_cast<size_t>(count)), profile = heap_buffer.data();
   double* step = profile + count;
-  for (int k = 0; k < count; ++k) {
-    const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
-    profile[k] = Bilinear(gray, q.x(), q.y());
-    if (std::isnan(profile[k])) return std::nullopt;
+  // The sample points run monotonically along x and y (each coordinate p + t n rounds
+  // monotonically in t): with both ends inside the image, all are, and no sample is tested.
+  const Eigen::Vector2d first = p + (-half_window - 0.5 + 0 * kStepPx) * n;
+  const Eigen::Vector2d last = p + (-half_window - 0.5 + (count - 1) * kStepPx) * n;
+  if (InsideForBilinear(gray, first.x(), first.y()) && InsideForBilinear(gray, last.x(), last.y())) {
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
+      profile[k] = BilinearInside(gray, q.x(), q.y());
+    }
+  } else {
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
+      profile[k] = Bilinear(gray, q.x(), q.y());
+      if (std::isnan(profile[k])) return std::nullopt;
+    }
   }
   const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
   std::fill(step, step + count, 0.0);

@@ -137,7 +137,8 @@ TEST(DetectRefine, DegenerateInputGivesNothing) {
 }
 
 // A window of more than 64 samples (FindOuterEdge's profile then leaves its stack buffer)
-// finds the same edge: the top side of the square, 10 px outwards of the start.
+// finds the same edge: the top side of the square, 10 px outwards of the start; a window
+// reaching out of the image gives nothing.
 TEST(DetectRefine, WideWindowFindsTheOuterEdge) {
   const cv::Mat image = SquareImage();
   const std::optional<EdgeHit> wide = FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, 12.0, 12.0);
@@ -146,6 +147,11 @@ TEST(DetectRefine, WideWindowFindsTheOuterEdge) {
   EXPECT_NEAR(wide->offset_px, 10.0, 0.05);
   EXPECT_NEAR(wide->offset_px - 9.5, narrow->offset_px, 1e-9);
   EXPECT_FALSE(FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, -3.0, 12.0));  // no window
+  // The window's ends at rows 40 and 0 (inside), then at 40.5 and -0.5 (its last sample out).
+  const std::optional<EdgeHit> to_border = FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, 19.5, 12.0);
+  ASSERT_TRUE(to_border);
+  EXPECT_NEAR(to_border->offset_px, 10.0, 0.05);
+  EXPECT_FALSE(FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, 20.0, 12.0));
 }
 
 // A saturated quiet zone (every outside pixel 255) leaves the bar model's light level
