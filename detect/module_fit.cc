@@ -214,8 +214,15 @@ Evaluation Solve(const std::vector<Pixel>& pixels, const std::vector<Prediction>
   for (size_t k = 0; k < pixels.size(); ++k) {
     const Eigen::Matrix<double, kLinear, 1> row(1.0, predictions[k].b, pixels[k].x, pixels[k].y);
     const double w = weights != nullptr ? (*weights)[k] : 1.0;
-    A.noalias() += (w * row) * row.transpose();
+    // The lower triangle of (w row) row^T, the only part the LDLT below reads.
+    const Eigen::Matrix<double, kLinear, 1> w_row = w * row;
+    for (int a = 0; a < kLinear; ++a) {
+      for (int c = 0; c <= a; ++c) A(a, c) += w_row[a] * row[c];
+    }
     rhs += w * pixels[k].value * row;
+  }
+  for (int a = 0; a < kLinear; ++a) {
+    for (int c = 0; c < a; ++c) A(c, a) = A(a, c);
   }
   Eigen::LDLT<Eigen::Matrix<double, kLinear, kLinear>> ldlt(A);
   if (ldlt.info() != Eigen::Success) return out;
@@ -354,8 +361,15 @@ std::optional<ModuleFit> FitModuleGrid(const cv::Mat& gray, const Quad2d& corner
       J[6] = -b * (pr.du * pr.u + pr.dv * pr.v) * p.x * inv_w;
       J[7] = -b * (pr.du * pr.u + pr.dv * pr.v) * p.y * inv_w;
       J[8] = b * pr.dsigma;
-      JtJ.noalias() += (weights[k] * J) * J.transpose();
+      // The lower triangle of (w J) J^T, the only part the LDLT below reads.
+      const Eigen::Matrix<double, kParams, 1> wJ = weights[k] * J;
+      for (int a = 0; a < kParams; ++a) {
+        for (int c = 0; c <= a; ++c) JtJ(a, c) += wJ[a] * J[c];
+      }
       Jtr += weights[k] * r * J;
+    }
+    for (int a = 0; a < kParams; ++a) {
+      for (int c = 0; c < a; ++c) JtJ(c, a) = JtJ(a, c);
     }
     const Eigen::Matrix<double, kParams, kParams>& normal = JtJ;
     bool accepted = false;

@@ -191,10 +191,7 @@ std::optional<Quad2d> FitQrSidesOnDarkModules(const cv::Mat& gray, const Quad2d&
     const std::vector<Eigen::Vector2d> points = DarkModulePoints(gray, H, n, side, threshold, module_px);
     if (static_cast<int>(points.size()) < kMinSidePoints) return std::nullopt;
     const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
-    const std::optional<Line2d> modelled =
-        FitEdgeThrough(gray, points, outward, half_window, kMinStep, /*fit_model=*/true);
-    const std::optional<Line2d> centroid =
-        FitEdgeThrough(gray, points, outward, half_window, kMinStep, /*fit_model=*/false);
+    const auto [modelled, centroid] = FitEdgeThroughBoth(gray, points, outward, half_window, kMinStep);
     if (!modelled || !centroid || modelled->inlier_fraction < kMinSideInliers ||
         centroid->inlier_fraction < kMinSideInliers) {
       return std::nullopt;

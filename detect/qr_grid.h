@@ -14,7 +14,7 @@
 //     (row 6 and column 6, modules 8 .. n-9, dark at even indices);
 //   - sides: every module of the outer row/column darker than the midpoint of those two
 //     references gives an edge point at its centre, and one at its boundary with a dark
-//     predecessor (detect/refine.h FitEdgeThrough); each side is the mean of two lines
+//     predecessor (detect/refine.h FitEdgeThroughBoth); each side is the mean of two lines
 //     fitted to those profiles: one from the derivative centroids (steady, but pulled
 //     outwards by a thin dark bar: +0.1-0.2 px for a 2 px module) and one from the thin-bar
 //     model (unbiased, noisier on 2 px modules); corners are the intersections of adjacent

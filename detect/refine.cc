@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -21,6 +22,24 @@ constexpr double kMaxBarPx = 3.5;
 // kMinAdaptiveStep gray levels per px (RefineQuadCorners).
 constexpr double kAdaptiveStepFraction = 0.25;
 constexpr double kMinAdaptiveStep = 4.0;  // wider bars leave the outer edge's centroid unbiased
+
+// True if Bilinear reads (x, y) inside the image.
+inline bool InsideForBilinear(const cv::Mat& gray, double x, double y) {
+  return x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0 && gray.cols >= 2 &&
+         gray.rows >= 2;
+}
+
+// Bilinear at (x, y) where InsideForBilinear holds.
+inline double BilinearInside(const cv::Mat& gray, double x, double y) {
+  const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
+  const int x1 = x0 + 1;
+  const double fx = x - x0;
+  const double fy = y - y0;
+  const uint8_t* r0 = gray.ptr<uint8_t>(y0);
+  const uint8_t* r1 = gray.ptr<uint8_t>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+}
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
@@ -99,6 +118,7 @@ std::optional<Line2d> FitEdgeLine(const std::vector<Eigen::Vector2d>& points,
   if (best_count < 4) return std::nullopt;
   std::vector<Eigen::Vector2d> inliers;
   std::vector<double> inlier_strengths;
+  inliers.reserve(best_count), inlier_strengths.reserve(best_count);
   for (size_t i = 0; i < points.size(); ++i) {
     if (Distance(best, points[i]) < kInlierBandPx)
       inliers.push_back(points[i]), inlier_strengths.push_back(strengths[i]);
@@ -115,6 +135,7 @@ void SideEdgePoints(const cv::Mat& gray, const Eigen::Vector2d& a, const Eigen::
                     std::vector<Eigen::Vector2d>* points, std::vector<double>* strengths) {
   const Eigen::Vector2d along = (b - a).normalized();
   const Eigen::Vector2d outward(along.y(), -along.x());  // clockwise quad, y down
+  points->reserve(points->size() + samples), strengths->reserve(strengths->size() + samples);
   for (int k = 0; k < samples; ++k) {
     const Eigen::Vector2d p = a + (t0 + (t1 - t0) * k / (samples - 1.0)) * (b - a);
     if (const std::optional<EdgeHit> hit = FindOuterEdge(gray, p, outward, half_window, min_step)) {
@@ -154,14 +175,25 @@ std::optional<RefinedQuad> RefineOnce(const cv::Mat& gray, const Quad2d& corners
   return out;
 }
 
-// True if a pixel that the bilinear sample at (x, y) reads is saturated (>= kClippedLevel).
+// The bilinear intensity at (x, y) as Bilinear gives it, and whether a pixel it reads is
+// saturated (>= kClippedLevel), from one read of the four pixels; NaN (and false) outside
+// the image.
 constexpr int kClippedLevel = 254;
-bool ReadsClippedPixel(const cv::Mat& gray, double x, double y) {
+double BilinearClipped(const cv::Mat& gray, double x, double y, bool* clipped) {
+  *clipped = false;
+  if (!(x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0) || gray.cols < 2 ||
+      gray.rows < 2) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
   const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
   const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
+  const int x1 = x0 + 1;
+  const double fx = x - x0;
+  const double fy = y - y0;
   const uint8_t* r0 = gray.ptr<uint8_t>(y0);
   const uint8_t* r1 = gray.ptr<uint8_t>(y0 + 1);
-  return std::max({r0[x0], r0[x0 + 1], r1[x0], r1[x0 + 1]}) >= kClippedLevel;
+  *clipped = std::max({r0[x0], r0[x1], r1[x0], r1[x1]}) >= kClippedLevel;
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
 }
 
 // Blurred dark bar model of a profile along the outward normal (see the header):
@@ -174,58 +206,84 @@ struct BarModel {
 double NormalCdf(double u) { return 0.5 * std::erfc(-u / std::sqrt(2.0)); }
 double NormalPdf(double u) { return std::exp(-0.5 * u * u) / std::sqrt(2.0 * M_PI); }
 
-// Levenberg-Marquardt on the samples (s_k, I_k); returns false if it did not converge to a
-// plausible model (sigma in [0.2, 4] px, positive amplitude, e within the samples).
-bool FitBarModel(const std::vector<double>& s, const std::vector<double>& intensity, bool fit_width,
-                 BarModel* m) {
+// FitEdgeModel's profile: kInnerPx inside to kOuterPx outside of the first estimate, every
+// kStepPx (27 samples; the buffers hold a few more).
+constexpr double kInnerPx = 4.0, kOuterPx = 2.5;
+constexpr int kMaxProfile = static_cast<int>((kInnerPx + kOuterPx) / kStepPx) + 6;
+
+// The model's standardized distances to its two edges and their normal CDFs at every sample.
+struct BarValues {
+  std::array<double, kMaxProfile> u1, u2, cdf1, cdf2;
+};
+
+// Levenberg-Marquardt on the `count` samples (s_k, I_k); returns false if it did not converge
+// to a plausible model (sigma in [0.2, 4] px, positive amplitude, e within the samples).
+bool FitBarModel(const double* s, const double* intensity, int count, bool fit_width, BarModel* m) {
   const int n = fit_width ? 5 : 4;
   double lambda = 1e-3;
-  // The model's two normal CDFs at every sample, kept from the cost of the current model for
-  // its Jacobian (the same values: erfc was most of the fit's time when each was computed
-  // three times).
-  std::vector<double> cdf1(s.size()), cdf2(s.size()), next_cdf1(s.size()), next_cdf2(s.size());
-  auto cost = [&](const BarModel& b, std::vector<double>* c1, std::vector<double>* c2) {
+  // The values of the current model's cost are kept for its Jacobian (the same values: erfc
+  // was most of the fit's time when each was computed three times).
+  BarValues values[2];
+  BarValues* current_values = &values[0];
+  BarValues* next_values = &values[1];
+  auto cost = [&](const BarModel& b, BarValues* v) {
     double c = 0.0;
-    for (size_t k = 0; k < s.size(); ++k) {
-      (*c1)[k] = NormalCdf((b.e - s[k]) / b.sigma);
-      (*c2)[k] = NormalCdf((b.e - b.width - s[k]) / b.sigma);
-      const double r = b.light - b.amplitude * ((*c1)[k] - (*c2)[k]) - intensity[k];
+    for (int k = 0; k < count; ++k) {
+      v->u1[k] = (b.e - s[k]) / b.sigma;
+      v->u2[k] = (b.e - b.width - s[k]) / b.sigma;
+      v->cdf1[k] = NormalCdf(v->u1[k]);
+      v->cdf2[k] = NormalCdf(v->u2[k]);
+      const double r = b.light - b.amplitude * (v->cdf1[k] - v->cdf2[k]) - intensity[k];
       c += r * r;
     }
     return c;
   };
-  double current = cost(*m, &cdf1, &cdf2);
+  double current = cost(*m, current_values);
+  // J^T J and J^T r of the current model: kept over rejected steps (the model is unchanged).
+  // Only the lower triangle is summed (j_a j_b = j_b j_a exactly), then mirrored.
+  Eigen::Matrix<double, 5, 5> jtj;
+  Eigen::Matrix<double, 5, 1> jtr;
+  bool normal_current = false;
   for (int it = 0; it < 20; ++it) {
-    Eigen::Matrix<double, 5, 5> jtj = Eigen::Matrix<double, 5, 5>::Zero();
-    Eigen::Matrix<double, 5, 1> jtr = Eigen::Matrix<double, 5, 1>::Zero();
-    for (size_t k = 0; k < s.size(); ++k) {
-      const double u1 = (m->e - s[k]) / m->sigma, u2 = (m->e - m->width - s[k]) / m->sigma;
-      const double p1 = NormalPdf(u1), p2 = NormalPdf(u2);
-      const double r = m->light - m->amplitude * (cdf1[k] - cdf2[k]) - intensity[k];
-      Eigen::Matrix<double, 5, 1> j;
-      j << -m->amplitude * (p1 - p2) / m->sigma, m->amplitude * (p1 * u1 - p2 * u2) / m->sigma, 1.0,
-          -(cdf1[k] - cdf2[k]), -m->amplitude * p2 / m->sigma;
-      if (!fit_width) j[4] = 0.0;
-      jtj += j * j.transpose();
-      jtr += j * r;
+    if (!normal_current) {
+      jtj.setZero();
+      jtr.setZero();
+      const BarValues& v = *current_values;
+      for (int k = 0; k < count; ++k) {
+        const double u1 = v.u1[k], u2 = v.u2[k];
+        const double p1 = NormalPdf(u1), p2 = NormalPdf(u2);
+        const double r = m->light - m->amplitude * (v.cdf1[k] - v.cdf2[k]) - intensity[k];
+        const double j[5] = {-m->amplitude * (p1 - p2) / m->sigma,
+                             m->amplitude * (p1 * u1 - p2 * u2) / m->sigma, 1.0, -(v.cdf1[k] - v.cdf2[k]),
+                             fit_width ? -m->amplitude * p2 / m->sigma : 0.0};
+        for (int a = 0; a < 5; ++a) {
+          for (int b = 0; b <= a; ++b) jtj(a, b) += j[a] * j[b];
+          jtr[a] += j[a] * r;
+        }
+      }
+      for (int a = 0; a < 5; ++a) {
+        for (int b = 0; b < a; ++b) jtj(b, a) = jtj(a, b);
+      }
+      if (!fit_width) jtj(4, 4) = 1.0;
+      normal_current = true;
     }
-    if (!fit_width) jtj(4, 4) = 1.0;
     Eigen::Matrix<double, 5, 5> damped = jtj;
     for (int i = 0; i < n; ++i) damped(i, i) *= 1.0 + lambda;
     const Eigen::Matrix<double, 5, 1> dx = -damped.ldlt().solve(jtr);
     BarModel next{m->e + dx[0], m->sigma + dx[1], m->light + dx[2], m->amplitude + dx[3], m->width + dx[4]};
     const double next_cost =
-        next.sigma > 0.1 ? cost(next, &next_cdf1, &next_cdf2) : std::numeric_limits<double>::infinity();
+        next.sigma > 0.1 ? cost(next, next_values) : std::numeric_limits<double>::infinity();
     if (next_cost < current) {
       *m = next, current = next_cost, lambda *= 0.3;
-      cdf1.swap(next_cdf1), cdf2.swap(next_cdf2);
+      std::swap(current_values, next_values);
+      normal_current = false;
       if (std::abs(dx[0]) < 1e-4) break;
     } else {
       lambda *= 10.0;
       if (lambda > 1e6) break;
     }
   }
-  return m->sigma >= 0.2 && m->sigma <= 4.0 && m->amplitude > 0.0 && m->e >= s.front() && m->e <= s.back();
+  return m->sigma >= 0.2 && m->sigma <= 4.0 && m->amplitude > 0.0 && m->e >= s[0] && m->e <= s[count - 1];
 }
 
 }  // namespace
@@ -233,21 +291,24 @@ bool FitBarModel(const std::vector<double>& s, const std::vector<double>& intens
 std::optional<double> FitEdgeModel(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n,
                                    double offset_px) {
   // Samples from kInnerPx inside to kOuterPx outside of the first estimate.
-  constexpr double kInnerPx = 4.0, kOuterPx = 2.5;
-  std::vector<double> s_all, profile;
-  std::vector<bool> clipped;
-  for (double t = offset_px - kInnerPx; t <= offset_px + kOuterPx + 1e-9; t += kStepPx) {
+  std::array<double, kMaxProfile> s_all, profile;
+  std::array<bool, kMaxProfile> clipped;
+  bool any_clipped = false;
+  int size = 0;
+  for (double t = offset_px - kInnerPx; t <= offset_px + kOuterPx + 1e-9 && size < kMaxProfile;
+       t += kStepPx) {
     const Eigen::Vector2d q = p + t * n;
-    const double value = Bilinear(gray, q.x(), q.y());
+    const double value = BilinearClipped(gray, q.x(), q.y(), &clipped[size]);
     if (std::isnan(value)) return std::nullopt;
-    s_all.push_back(t), profile.push_back(value), clipped.push_back(ReadsClippedPixel(gray, q.x(), q.y()));
+    any_clipped = any_clipped || clipped[size];
+    s_all[size] = t, profile[size] = value, ++size;
   }
   // The bar's inner edge: the most negative derivative (1 px baseline) inside the estimate.
   const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
   const int at = static_cast<int>(std::round(kInnerPx / kStepPx));
   double peak = 0.0, trough = 0.0;
   int trough_k = -1;
-  for (int k = h; k + h < static_cast<int>(profile.size()); ++k) {
+  for (int k = h; k + h < size; ++k) {
     const double d = profile[k + h] - profile[k - h];
     if (std::abs(k - at) <= 2 * h) peak = std::max(peak, d);
     if (k < at - h && d < trough) trough = d, trough_k = k;
@@ -256,20 +317,21 @@ std::optional<double> FitEdgeModel(const cv::Mat& gray, const Eigen::Vector2d& p
   const bool bar = trough_k >= 0 && trough < -kBarLobe * peak;
   // Only a thin bar biases the first estimate; a clipped profile leaves L undetermined.
   if (!bar || s_all[at] - s_all[trough_k] > kMaxBarPx) return offset_px;
-  if (std::find(clipped.begin(), clipped.end(), true) != clipped.end()) return offset_px;
+  if (any_clipped) return offset_px;
   BarModel m{offset_px, 0.8, 0.0, 0.0, bar ? s_all[at] - s_all[trough_k] : 1e3};
   // Samples used: unclipped, and inside at most half a pixel past the inner edge.
-  std::vector<double> s, intensity;
+  std::array<double, kMaxProfile> s, intensity;
+  int used = 0;
   double dark = 255.0;
-  for (size_t k = 0; k < profile.size(); ++k) {
+  for (int k = 0; k < size; ++k) {
     if (clipped[k] || (bar && s_all[k] < offset_px - m.width - 0.75)) continue;
-    s.push_back(s_all[k]), intensity.push_back(profile[k]);
+    s[used] = s_all[k], intensity[used] = profile[k], ++used;
     if (s_all[k] < offset_px) dark = std::min(dark, profile[k]);
     if (s_all[k] > offset_px) m.light = std::max(m.light, profile[k]);
   }
-  if (s.size() < 10 || m.light <= dark) return std::nullopt;
+  if (used < 10 || m.light <= dark) return std::nullopt;
   m.amplitude = m.light - dark;
-  if (!FitBarModel(s, intensity, bar, &m)) return std::nullopt;
+  if (!FitBarModel(s.data(), intensity.data(), used, bar, &m)) return std::nullopt;
   if (std::abs(m.e - offset_px) > 0.75) return std::nullopt;
   return m.e;
 }
@@ -309,17 +371,55 @@ std::optional<Line2d> FitEdgeThrough(const cv::Mat& gray, const std::vector<Eige
   return FitEdgeLine(points, strengths, static_cast<int>(points_px.size()));
 }
 
+EdgeLinePair FitEdgeThroughBoth(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& points_px,
+                                const Eigen::Vector2d& outward, double half_window_px, double min_step) {
+  if (gray.empty() || gray.type() != CV_8UC1) return {};
+  std::vector<Eigen::Vector2d> modelled, centroid;
+  std::vector<double> strengths;
+  modelled.reserve(points_px.size()), centroid.reserve(points_px.size()), strengths.reserve(points_px.size());
+  for (const Eigen::Vector2d& p : points_px) {
+    const std::optional<EdgeHit> hit = FindOuterEdge(gray, p, outward, half_window_px, min_step);
+    if (!hit) continue;
+    const std::optional<double> fitted = FitEdgeModel(gray, p, outward, hit->offset_px);
+    modelled.push_back(p + fitted.value_or(hit->offset_px) * outward);
+    centroid.push_back(p + hit->offset_px * outward);
+    strengths.push_back(hit->strength);
+  }
+  const int samples = static_cast<int>(points_px.size());
+  return {FitEdgeLine(modelled, strengths, samples), FitEdgeLine(centroid, strengths, samples)};
+}
+
 std::optional<EdgeHit> FindOuterEdge(const cv::Mat& gray, const Eigen::Vector2d& p, const Eigen::Vector2d& n,
                                      double half_window, double min_step) {
   const int count = static_cast<int>(std::round(2.0 * (half_window + 0.5) / kStepPx)) + 1;
-  std::vector<double> profile(count);
-  for (int k = 0; k < count; ++k) {
-    const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
-    profile[k] = Bilinear(gray, q.x(), q.y());
-    if (std::isnan(profile[k])) return std::nullopt;
+  if (count < 1) return std::nullopt;
+  // The profile and its derivative: on the stack for windows up to kInlineProfile samples (every
+  // second-round window and most first ones), else on the heap.
+  constexpr int kInlineProfile = 64;
+  std::array<double, 2 * kInlineProfile> inline_buffer;
+  std::vector<double> heap_buffer;
+  double* profile = inline_buffer.data();
+  if (count > kInlineProfile)
+    heap_buffer.resize(2 * static_cast<size_t>(count)), profile = heap_buffer.data();
+  double* step = profile + count;
+  // The sample points run monotonically along x and y (each coordinate p + t n rounds
+  // monotonically in t): with both ends inside the image, all are, and no sample is tested.
+  const Eigen::Vector2d first = p + (-half_window - 0.5 + 0 * kStepPx) * n;
+  const Eigen::Vector2d last = p + (-half_window - 0.5 + (count - 1) * kStepPx) * n;
+  if (InsideForBilinear(gray, first.x(), first.y()) && InsideForBilinear(gray, last.x(), last.y())) {
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
+      profile[k] = BilinearInside(gray, q.x(), q.y());
+    }
+  } else {
+    for (int k = 0; k < count; ++k) {
+      const Eigen::Vector2d q = p + (-half_window - 0.5 + k * kStepPx) * n;
+      profile[k] = Bilinear(gray, q.x(), q.y());
+      if (std::isnan(profile[k])) return std::nullopt;
+    }
   }
   const int h = static_cast<int>(std::round(kHalfBaselinePx / kStepPx));
-  std::vector<double> step(count, 0.0);
+  std::fill(step, step + count, 0.0);
   double strongest = 0.0;
   for (int k = h; k + h < count; ++k) {
     step[k] = profile[k + h] - profile[k - h];

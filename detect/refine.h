@@ -90,6 +90,15 @@ std::optional<Line2d> FitEdgeThrough(const cv::Mat& gray, const std::vector<Eige
                                      const Eigen::Vector2d& outward, double half_window_px, double min_step,
                                      bool fit_model);
 
+// FitEdgeThrough with and without the model from one pass over the profiles (each point's
+// FindOuterEdge taken once): the same two lines as the two calls give.
+struct EdgeLinePair {
+  std::optional<Line2d> modelled;  // fit_model = true
+  std::optional<Line2d> centroid;  // fit_model = false
+};
+EdgeLinePair FitEdgeThroughBoth(const cv::Mat& gray, const std::vector<Eigen::Vector2d>& points_px,
+                                const Eigen::Vector2d& outward, double half_window_px, double min_step);
+
 // Intersection of two lines, or nullopt when they are within ~6 degrees of parallel.
 std::optional<Eigen::Vector2d> IntersectLines(const Line2d& a, const Line2d& b);
 

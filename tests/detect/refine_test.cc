@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <utility>
+#include <vector>
 
 #include "detect/synthetic.h"
 
@@ -132,6 +134,65 @@ TEST(DetectRefine, DegenerateInputGivesNothing) {
   EXPECT_FALSE(FindOuterEdge(flat, {32, 32}, {1, 0}, 2.0, 12.0));
   // A profile leaving the image.
   EXPECT_FALSE(FitEdgeModel(SquareImage(), {1.0, 30.0}, {-1, 0}, 0.0));
+}
+
+// A window of more than 64 samples (FindOuterEdge's profile then leaves its stack buffer)
+// finds the same edge: the top side of the square, 10 px outwards of the start; a window
+// reaching out of the image gives nothing.
+TEST(DetectRefine, WideWindowFindsTheOuterEdge) {
+  const cv::Mat image = SquareImage();
+  const std::optional<EdgeHit> wide = FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, 12.0, 12.0);
+  const std::optional<EdgeHit> narrow = FindOuterEdge(image, {30.0, 10.5}, {0.0, -1.0}, 2.0, 12.0);
+  ASSERT_TRUE(wide && narrow);
+  EXPECT_NEAR(wide->offset_px, 10.0, 0.05);
+  EXPECT_NEAR(wide->offset_px - 9.5, narrow->offset_px, 1e-9);
+  EXPECT_FALSE(FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, -3.0, 12.0));  // no window
+  // The window's ends at rows 40 and 0 (inside), then at 40.5 and -0.5 (its last sample out).
+  const std::optional<EdgeHit> to_border = FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, 19.5, 12.0);
+  ASSERT_TRUE(to_border);
+  EXPECT_NEAR(to_border->offset_px, 10.0, 0.05);
+  EXPECT_FALSE(FindOuterEdge(image, {30.0, 20.0}, {0.0, -1.0}, 20.0, 12.0));
+}
+
+// A saturated quiet zone (every outside pixel 255) leaves the bar model's light level
+// undetermined: the first estimate comes back unchanged, though a thin bar is there.
+TEST(DetectRefine, ClippedProfileKeepsTheFirstEstimate) {
+  const Eigen::Vector2d point(32.3, 31.7), n(std::cos(0.3), std::sin(0.3));
+  const cv::Mat image = EdgeImage(point, 0.3, 0.7, 300.0, 2.0);
+  const Eigen::Vector2d p = point + 0.3 * n;
+  const std::optional<EdgeHit> hit = FindOuterEdge(image, p, n, 1.25, 12.0);
+  ASSERT_TRUE(hit);
+  const std::optional<double> e = FitEdgeModel(image, p, n, hit->offset_px);
+  ASSERT_TRUE(e);
+  EXPECT_EQ(*e, hit->offset_px);
+  // Unsaturated, the same bar is fitted and the estimate moves.
+  const cv::Mat unclipped = EdgeImage(point, 0.3, 0.7, 190.0, 2.0);
+  const std::optional<EdgeHit> hit2 = FindOuterEdge(unclipped, p, n, 1.25, 12.0);
+  ASSERT_TRUE(hit2);
+  const std::optional<double> e2 = FitEdgeModel(unclipped, p, n, hit2->offset_px);
+  ASSERT_TRUE(e2);
+  EXPECT_NE(*e2, hit2->offset_px);
+}
+
+// FitEdgeThroughBoth gives bit for bit the lines of FitEdgeThrough with and without the model.
+TEST(DetectRefine, BothLinesEqualTheTwoFits) {
+  const Eigen::Vector2d point(32.3, 31.7), n(std::cos(0.3), std::sin(0.3)), along(-n.y(), n.x());
+  const cv::Mat image = EdgeImage(point, 0.3, 0.8, 190.0, 2.1);
+  std::vector<Eigen::Vector2d> points;
+  for (int k = -10; k <= 10; ++k) points.push_back(point + 0.9 * k * along + 0.4 * n);
+  const EdgeLinePair both = FitEdgeThroughBoth(image, points, n, 1.5, 12.0);
+  const std::optional<Line2d> modelled = FitEdgeThrough(image, points, n, 1.5, 12.0, true);
+  const std::optional<Line2d> centroid = FitEdgeThrough(image, points, n, 1.5, 12.0, false);
+  ASSERT_TRUE(both.modelled && both.centroid && modelled && centroid);
+  for (const auto& [a, b] : {std::pair(*both.modelled, *modelled), std::pair(*both.centroid, *centroid)}) {
+    EXPECT_EQ(a.point, b.point);
+    EXPECT_EQ(a.direction, b.direction);
+    EXPECT_EQ(a.inlier_fraction, b.inlier_fraction);
+  }
+  // The model moves the line (a thin bar): the two differ.
+  EXPECT_NE(both.modelled->point, both.centroid->point);
+  const EdgeLinePair none = FitEdgeThroughBoth(cv::Mat(), points, n, 1.5, 12.0);
+  EXPECT_FALSE(none.modelled || none.centroid);
 }
 
 // A dim code (the recall bench's low light: the frame at 0.15-0.3 of its exposure, a border
