@@ -6,7 +6,7 @@
 //
 //   bench_recall_bench [--frames N] [--seed S] [--scenario hard|issue|issue-plain] [--families LIST]
 //                      [--verbose] [--dump N|all] [--dump-dir DIR] [--no-write] [--threads N]
-//                      [--detections FILE]
+//                      [--detections FILE] [--families-at-once]
 //
 // --scenario issue: issue 14's own frames (40-200 px, tilt up to 55 deg, blur sigma 0.5-1 px,
 // noise, lighting gradients; no extra condition) on our cluttered background, written to
@@ -18,6 +18,8 @@
 // --threads N: the multi-family detector's threads (DetectorOptions::threads, default 1); the
 // time per frame is then the CPU time of every thread of the process, and the wall time is
 // reported beside it.
+// --families-at-once: DetectorOptions::family_steps off (every family at once, none skipping
+// another's codes).
 // --detections FILE writes every detection (frame, key, corners to 1e-4 px, quality): two
 // builds, or two thread counts, compared with diff.
 //
@@ -265,10 +267,11 @@ double WallMs() {
 
 int Run(int frames, uint64_t seed, const std::vector<std::string>& families, const Scenario& scenario,
         bool verbose, bool write, int dump_frame, const fs::path& dump_dir, int threads,
-        const std::string& detections_path) {
+        const std::string& detections_path, bool family_steps) {
   cv::RNG rng(seed);
   DetectorOptions options;
   options.threads = threads;
+  options.family_steps = family_steps;
   const auto detector = CreateMultiDetector(families, options);
   std::ofstream detections_file;
   if (!detections_path.empty()) {
@@ -412,7 +415,8 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
   nlohmann::json out;
   out["command"] = "bench_recall_bench --frames " + std::to_string(frames) + " --seed " +
                    std::to_string(seed) + (scenario.name == "hard" ? "" : " --scenario " + scenario.name) +
-                   (threads > 1 ? " --threads " + std::to_string(threads) : "");
+                   (threads > 1 ? " --threads " + std::to_string(threads) : "") +
+                   (family_steps ? "" : " --families-at-once");
   out["scenario"] = {{"name", scenario.name},
                      {"side_px", {scenario.min_side_px, scenario.max_side_px}},
                      {"max_tilt_deg", scenario.max_tilt_deg},
@@ -425,6 +429,7 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
   out["time_with_codes"] = stats(code_ms);
   out["time_empty"] = stats(empty_ms);
   out["threads"] = threads;
+  out["family_steps"] = family_steps;
   out["wall_time_with_codes"] = stats(code_wall_ms);
   out["wall_time_empty"] = stats(empty_wall_ms);
   out["empty_frame_detections"] = empty_detections;
@@ -509,6 +514,7 @@ int main(int argc, char** argv) {
   std::string dump_dir;  // --dump-dir; empty: the system's temporary directory
   int threads = 1;
   std::string detections_path;
+  bool family_steps = true;
   std::vector<std::string> families = {"qr", "datamatrix", "apriltag-36h11"};
   waymark::Scenario scenario;
   for (int i = 1; i < argc; ++i) {
@@ -549,10 +555,12 @@ int main(int argc, char** argv) {
       }
     } else if (arg == "--detections" && i + 1 < argc) {
       detections_path = argv[++i];
+    } else if (arg == "--families-at-once") {
+      family_steps = false;
     } else {
       std::cerr << "usage: bench_recall_bench [--frames N] [--seed S] [--scenario hard|issue|issue-plain] "
                    "[--families LIST] [--verbose] [--dump N|all] [--dump-dir DIR] [--no-write] [--threads N] "
-                   "[--detections FILE]\n";
+                   "[--detections FILE] [--families-at-once]\n";
       return 1;
     }
   }
@@ -565,5 +573,5 @@ int main(int argc, char** argv) {
     return 1;
   }
   return waymark::Run(frames, seed, families, scenario, verbose, write, dump_frame, dump_path, threads,
-                      detections_path);
+                      detections_path, family_steps);
 }

@@ -48,6 +48,7 @@ constexpr const char* kUsage = R"(Usage:
   waymark detect INPUT --out detections.jsonl [--camera cam.yaml]
                  [--families qr,datamatrix,apriltag-36h11] [--annotate DIR]
                  [--max-candidates 8] [--apriltag-decimate 8] [--threads N]
+                 [--families-at-once]
 
 Detects printed codes and writes one JSON line per image or video frame (docs/design.md
 detections.jsonl; frames without codes get a line too). INPUT is
@@ -80,6 +81,11 @@ Options:
                       that of the crops around candidate tag borders
   --threads N         threads per frame: the families run at the same time (default: the
                       machine's cores); the detections do not depend on N
+  --families-at-once  every family on the whole frame at once, none skipping the places
+                      another has read: more CPU time per frame, but on two or more idle
+                      cores often less wall time (docs/detection.md); by default QR's
+                      first pass, then the others, then QR's second passes, each skipping
+                      the codes read before it
 
 Exit status 0 on success; 1 with one line on stderr for a corrupt image, an unreadable
 video, an empty directory or bad options.
@@ -312,6 +318,7 @@ std::unique_ptr<MarkerDetector> MakeDetector(const Args& args, bool* square) {
   }
   if (const auto decimate = args.GetDouble("apriltag-decimate")) options.apriltag_decimate = *decimate;
   options.threads = DetectionThreads(args);
+  options.family_steps = !args.Flag("families-at-once");
   const std::string list = args.GetOr("families", kDefaultDetectFamilies);
   std::string others;
   *square = false;
@@ -440,8 +447,9 @@ std::vector<DetectionFrame> RunInput(const std::string& input, MarkerDetector* d
 }
 
 int RunDetect(const std::vector<std::string>& argv) {
-  const Args args(
-      argv, {"out", "camera", "families", "annotate", "max-candidates", "apriltag-decimate", "threads"}, {});
+  const Args args(argv,
+                  {"out", "camera", "families", "annotate", "max-candidates", "apriltag-decimate", "threads"},
+                  {"families-at-once"});
   if (args.Help()) {
     std::cout << kUsage;
     return 0;

@@ -71,9 +71,18 @@ struct DetectorOptions {
   // Worker threads of one Detect() call of a multi-family detector (CreateMultiDetector): its
   // families run at the same time, sharing the frame's whole-frame work (the candidate stage
   // and regions are computed once, whichever family asks first). The result is the same for
-  // any count: each family's work depends on the image alone and the families' results are
-  // merged in the order of the list. libapriltag itself always runs on one thread.
+  // any count: each family's work depends on the image alone (and on the codes of the steps
+  // before its own, below) and the families' results are merged in the order of the list.
+  // libapriltag itself always runs on one thread.
   int threads = 1;
+  // A multi-family detector's Detect() in steps, each family skipping the codes the others
+  // have read (CreateMultiDetector): the least work, best on one core or a busy machine. false:
+  // every family at once on its own, the way before 2026-11-27: more work, but on two or more
+  // idle cores the shortest wall time per frame when QR is the longest family (the cluttered
+  // frames of docs/detection.md). The codes read are the same on every recall run measured;
+  // they may differ where a count bound (candidates per frame) is reached, a skipped place
+  // leaving room for another candidate.
+  bool family_steps = true;
 
   // True if usable; otherwise false with the reason in *why (when why != nullptr).
   bool Check(std::string* why) const;

@@ -62,6 +62,7 @@ class MultiDetector : public MarkerDetector {
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);   // convert once for every family
     const PixelHashScope hash_once(gray);  // the shared whole-frame work's cache key
+    if (!options_.family_steps) return EachFamily([&gray](MarkerDetector& d) { return d.Detect(gray); });
     const size_t n = detectors_.size();
     std::vector<size_t> last, whole;  // families with SecondPassesLast, the others
     for (size_t i = 0; i < n; ++i) (detectors_[i]->SecondPassesLast() ? last : whole).push_back(i);

@@ -319,6 +319,12 @@ TEST_F(DetectCli, ThreadsGiveIdenticalFiles) {
   size_t markers = 0;
   for (const DetectionFrame& frame : ReadBack(dir_ / "one.jsonl")) markers += frame.markers.size();
   EXPECT_GE(markers, 6u) << slurp(dir_ / "one.jsonl");
+  // Every family at once (none skipping another's codes): the same codes here, also at 2 threads.
+  for (const char* n : {"1", "2"}) {
+    const fs::path out = dir_ / (std::string("at-once") + n + ".jsonl");
+    ASSERT_EQ(Run(input + " --families-at-once --threads " + n + " --out " + out.string()), 0) << Stderr();
+    EXPECT_EQ(slurp(dir_ / "one.jsonl"), slurp(out)) << n << " threads, families at once";
+  }
 }
 
 }  // namespace

@@ -98,23 +98,26 @@ TEST(ReadByOthers, MultiDetectorReadsWhatEachFamilyReadsAlone) {
     for (const MarkerObservation& obs : CreateDetector(family)->Detect(image)) alone.push_back(obs);
   }
   for (const int threads : {1, 2, 3}) {
-    DetectorOptions options;
-    options.threads = threads;
-    const auto multi = CreateMultiDetector(families, options);
-    const std::vector<MarkerObservation> together = multi->Detect(image);
-    EXPECT_EQ(Ids(together), Ids(alone)) << threads << " threads";
-    EXPECT_EQ(together.size(), 5u);  // two QR codes, a DataMatrix symbol, two tags
-    // The same corners as each family alone (a family's reads do not depend on the others').
-    for (const MarkerObservation& a : alone) {
-      const auto same = std::find_if(together.begin(), together.end(),
-                                     [&a](const MarkerObservation& t) { return t.key == a.key; });
-      ASSERT_NE(same, together.end());
-      for (int k = 0; k < 4; ++k) EXPECT_EQ(same->corners_px[k], a.corners_px[k]) << a.key.id << " " << k;
+    for (const bool steps : {true, false}) {
+      DetectorOptions options;
+      options.threads = threads;
+      options.family_steps = steps;
+      const auto multi = CreateMultiDetector(families, options);
+      const std::vector<MarkerObservation> together = multi->Detect(image);
+      EXPECT_EQ(Ids(together), Ids(alone)) << threads << " threads, steps " << steps;
+      EXPECT_EQ(together.size(), 5u);  // two QR codes, a DataMatrix symbol, two tags
+      // The same corners as each family alone (a family's reads do not depend on the others').
+      for (const MarkerObservation& a : alone) {
+        const auto same = std::find_if(together.begin(), together.end(),
+                                       [&a](const MarkerObservation& t) { return t.key == a.key; });
+        ASSERT_NE(same, together.end());
+        for (int k = 0; k < 4; ++k) EXPECT_EQ(same->corners_px[k], a.corners_px[k]) << a.key.id << " " << k;
+      }
+      // A second image gets no stale codes of the first: the blank frame reads nothing, and the
+      // frame again reads everything.
+      EXPECT_TRUE(multi->Detect(cv::Mat(480, 640, CV_8U, cv::Scalar(200))).empty());
+      EXPECT_EQ(Ids(multi->Detect(image)), Ids(alone));
     }
-    // A second image gets no stale codes of the first: the blank frame reads nothing, and the
-    // frame again reads everything.
-    EXPECT_TRUE(multi->Detect(cv::Mat(480, 640, CV_8U, cv::Scalar(200))).empty());
-    EXPECT_EQ(Ids(multi->Detect(image)), Ids(alone));
   }
 }
 
