@@ -29,17 +29,23 @@ inline bool InsideForBilinear(const cv::Mat& gray, double x, double y) {
          gray.rows >= 2;
 }
 
-// Bilinear at (x, y) where InsideForBilinear holds.
-inline double BilinearInside(const cv::Mat& gray, double x, double y) {
+// The four pixels a bilinear sample at (x, y) reads and its offsets from the first, where
+// InsideForBilinear holds.
+struct BilinearCell {
+  uint8_t p00, p01, p10, p11;  // (x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)
+  double fx, fy;
+  double Value() const { return (1 - fy) * ((1 - fx) * p00 + fx * p01) + fy * ((1 - fx) * p10 + fx * p11); }
+};
+inline BilinearCell CellAt(const cv::Mat& gray, double x, double y) {
   const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
   const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
-  const int x1 = x0 + 1;
-  const double fx = x - x0;
-  const double fy = y - y0;
   const uint8_t* r0 = gray.ptr<uint8_t>(y0);
   const uint8_t* r1 = gray.ptr<uint8_t>(y0 + 1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  return {r0[x0], r0[x0 + 1], r1[x0], r1[x0 + 1], x - x0, y - y0};
 }
+
+// Bilinear at (x, y) where InsideForBilinear holds.
+inline double BilinearInside(const cv::Mat& gray, double x, double y) { return CellAt(gray, x, y).Value(); }
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
@@ -181,19 +187,10 @@ std::optional<RefinedQuad> RefineOnce(const cv::Mat& gray, const Quad2d& corners
 constexpr int kClippedLevel = 254;
 double BilinearClipped(const cv::Mat& gray, double x, double y, bool* clipped) {
   *clipped = false;
-  if (!(x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0) || gray.cols < 2 ||
-      gray.rows < 2) {
-    return std::numeric_limits<double>::quiet_NaN();
-  }
-  const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
-  const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
-  const int x1 = x0 + 1;
-  const double fx = x - x0;
-  const double fy = y - y0;
-  const uint8_t* r0 = gray.ptr<uint8_t>(y0);
-  const uint8_t* r1 = gray.ptr<uint8_t>(y0 + 1);
-  *clipped = std::max({r0[x0], r0[x1], r1[x0], r1[x1]}) >= kClippedLevel;
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  if (!InsideForBilinear(gray, x, y)) return std::numeric_limits<double>::quiet_NaN();
+  const BilinearCell cell = CellAt(gray, x, y);
+  *clipped = std::max({cell.p00, cell.p01, cell.p10, cell.p11}) >= kClippedLevel;
+  return cell.Value();
 }
 
 // Blurred dark bar model of a profile along the outward normal (see the header):
