@@ -48,7 +48,7 @@ void CheckOptions(const DetectorOptions& options) {
 class MultiDetector : public MarkerDetector {
  public:
   MultiDetector(std::vector<std::unique_ptr<MarkerDetector>> detectors, const DetectorOptions& options)
-      : detectors_(std::move(detectors)), options_(options), threads_(options.threads) {}
+      : detectors_(std::move(detectors)), options_(options) {}
 
   std::vector<std::string> Families() const override {
     std::vector<std::string> families;
@@ -74,10 +74,11 @@ class MultiDetector : public MarkerDetector {
     // the later steps use (each a function of the pixels, cached per image: the results do not
     // depend on which thread computes them first).
     {
-      const JoinedThread warm(threads_ > 1 && !last.empty(), [this, &gray] { WarmSharedStages(gray); });
+      const JoinedThread warm(options_.threads > 1 && !last.empty(),
+                              [this, &gray] { WarmSharedStages(gray); });
       EachOf(
           last, [&gray](MarkerDetector& d) { return d.DetectFirstPass(gray); }, &found, &skipped,
-          warm.running() ? threads_ - 1 : threads_);
+          warm.running() ? options_.threads - 1 : options_.threads);
     }
     // 2: the other families, each given step 1's codes.
     std::vector<MarkerObservation> first_reads;
@@ -147,7 +148,7 @@ class MultiDetector : public MarkerDetector {
   template <typename Run>
   void EachOf(const std::vector<size_t>& which, Run run, std::vector<std::vector<MarkerObservation>>* found,
               std::vector<int>* skipped, int threads = 0) {
-    if (threads <= 0) threads = threads_;
+    if (threads <= 0) threads = options_.threads;
     const size_t n = which.size();
     std::vector<std::exception_ptr> errors(n);
     std::atomic<size_t> next{0};
@@ -216,9 +217,8 @@ class MultiDetector : public MarkerDetector {
   }
 
   std::vector<std::unique_ptr<MarkerDetector>> detectors_;
-  DetectorOptions options_;
+  DetectorOptions options_;  // options_.threads: the workers of one call
   cv::Mat staged_gray_;
-  int threads_ = 1;
   int skipped_ = 0;
 };
 

@@ -49,19 +49,8 @@ inline double BilinearInside(const cv::Mat& gray, double x, double y) { return C
 
 // Bilinear intensity at (x, y); NaN outside the image.
 double Bilinear(const cv::Mat& gray, double x, double y) {
-  if (!(x >= 0.0 && y >= 0.0 && x <= gray.cols - 1.0 && y <= gray.rows - 1.0) || gray.cols < 2 ||
-      gray.rows < 2) {
-    return std::numeric_limits<double>::quiet_NaN();
-  }
-  const int x0 = std::min(static_cast<int>(x), gray.cols - 2);
-  const int y0 = std::min(static_cast<int>(y), gray.rows - 2);
-  const int x1 = x0 + 1;
-  const int y1 = y0 + 1;
-  const double fx = x - x0;
-  const double fy = y - y0;
-  const uint8_t* r0 = gray.ptr<uint8_t>(y0);
-  const uint8_t* r1 = gray.ptr<uint8_t>(y1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  return InsideForBilinear(gray, x, y) ? BilinearInside(gray, x, y)
+                                       : std::numeric_limits<double>::quiet_NaN();
 }
 
 // The edge points whose step is at least kFullContrast times the typical step of the
