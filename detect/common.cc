@@ -199,9 +199,26 @@ void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<Marke
   }
 }
 
+namespace {
+
+// True if `p` is inside the convex quad, either winding.
+bool InsideConvexQuad(const Quad2d& quad, const Eigen::Vector2d& p) {
+  int positive = 0, negative = 0;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d side = quad[(i + 1) % 4] - quad[i], to_p = p - quad[i];
+    const double cross = side.x() * to_p.y() - side.y() * to_p.x();
+    positive += cross > 0.0;
+    negative += cross < 0.0;
+  }
+  return positive == 0 || negative == 0;
+}
+
+}  // namespace
+
 bool AnyObservationAt(const std::vector<MarkerObservation>& found, const Eigen::Vector2d& centre_px) {
   return std::any_of(found.begin(), found.end(), [&centre_px](const MarkerObservation& o) {
-    return (QuadCenter(o.corners_px) - centre_px).norm() < 0.5 * QuadMeanSide(o.corners_px);
+    return (QuadCenter(o.corners_px) - centre_px).norm() < 0.5 * QuadMeanSide(o.corners_px) ||
+           InsideConvexQuad(o.corners_px, centre_px);
   });
 }
 
@@ -330,11 +347,16 @@ const std::vector<MarkerObservation>& FrameWork::read_by_others() const {
 
 bool RegionIsMostlyOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes) {
   constexpr double kCoveredFraction = 0.3;
+  constexpr double kInsideFraction = 0.75;
+  const Eigen::Vector2d region_centre(region.x + 0.5 * region.width, region.y + 0.5 * region.height);
   return std::any_of(codes.begin(), codes.end(), [&](const MarkerObservation& obs) {
-    if (!ObservationInside(obs, region)) return false;
     std::vector<cv::Point2f> corners;
     for (const Eigen::Vector2d& c : obs.corners_px) corners.emplace_back(c.x(), c.y());
-    return cv::boundingRect(corners).area() >= kCoveredFraction * region.area();
+    const cv::Rect box = cv::boundingRect(corners);
+    if (ObservationInside(obs, region)) return box.area() >= kCoveredFraction * region.area();
+    // A region inside the code: a blob of its modules.
+    return InsideConvexQuad(obs.corners_px, region_centre) &&
+           (box & region).area() >= kInsideFraction * region.area();
   });
 }
 
@@ -357,7 +379,9 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
     const bool covered = std::any_of(found->begin(), found->end(), [&](const MarkerObservation& o) {
       return ObservationInside(o, region);
     });
-    if (covered || RegionIsMostlyOneCode(region, work->read_by_others())) continue;
+    if (covered || RegionIsMostlyOneCode(region, *found) ||
+        RegionIsMostlyOneCode(region, work->read_by_others()))
+      continue;
     const cv::Mat crop = gray(region);
     for (const CropAttempt& attempt : attempts) {
       if (!work->Allow()) continue;

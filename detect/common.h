@@ -53,8 +53,8 @@ bool SameDetection(const MarkerObservation& a, const MarkerObservation& b);
 // Appends the observations of `found` that are not already in `all` (SameDetection).
 void AppendUnique(const std::vector<MarkerObservation>& found, std::vector<MarkerObservation>* all);
 
-// True if a code of `found` (any key) has its centre within half its own mean side of `centre_px`:
-// that place is already read.
+// True if a code of `found` (any key) has its centre within half its own mean side of `centre_px`,
+// or has `centre_px` inside its quad: that place is already read.
 bool AnyObservationAt(const std::vector<MarkerObservation>& found, const Eigen::Vector2d& centre_px);
 
 // Candidate regions that may hold a 2-D code ([George]: Canny edges, dilation, the
@@ -125,7 +125,9 @@ class FrameWork {
 
 // True if `region` is mostly one code of `codes`: a code's centre inside it, and the code's
 // bounding box at least 0.3 of the region (a candidate region pads its blob by a quarter
-// side, so a lone code covers about 0.44 of it).
+// side, so a lone code covers about 0.44 of it); or the region's centre inside a code's quad
+// and at least 0.75 of the region inside the code's bounding box (a blob of the code's own
+// modules: no other code can be there).
 bool RegionIsMostlyOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes);
 
 // For each region holding no code of `found` yet and not mostly one code of another family

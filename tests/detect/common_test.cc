@@ -290,5 +290,47 @@ TEST(DetectCommon, RoundHalfAwayFromZeroIsLround) {
   EXPECT_EQ(RoundHalfAwayFromZero(-2.5), -3);
 }
 
+// A place is read when it is near a code's centre or anywhere inside its quad (a finder-like
+// corner of a large code is neither a code nor the centre's neighbourhood).
+TEST(DetectCommon, AnyObservationAtCoversTheWholeQuad) {
+  MarkerObservation code;
+  code.key = {"datamatrix", "x"};
+  code.corners_px = MakeQuad({200.0, 150.0}, 100.0, 0.2, 1.0);
+  const std::vector<MarkerObservation> found = {code};
+  EXPECT_TRUE(AnyObservationAt(found, {200.0, 150.0}));
+  // Near a corner, outside the half-side circle around the centre but inside the quad.
+  const Eigen::Vector2d near_corner =
+      code.corners_px[2] + 0.08 * (QuadCenter(code.corners_px) - code.corners_px[2]);
+  EXPECT_GT((near_corner - QuadCenter(code.corners_px)).norm(), 0.5 * QuadMeanSide(code.corners_px));
+  EXPECT_TRUE(AnyObservationAt(found, near_corner));
+  // Just outside the corner, and well away from the code.
+  const Eigen::Vector2d outside =
+      code.corners_px[2] - 0.08 * (QuadCenter(code.corners_px) - code.corners_px[2]);
+  EXPECT_FALSE(AnyObservationAt(found, outside));
+  EXPECT_FALSE(AnyObservationAt(found, {400.0, 150.0}));
+  // Either winding.
+  MarkerObservation reversed = code;
+  std::reverse(reversed.corners_px.begin(), reversed.corners_px.end());
+  EXPECT_TRUE(AnyObservationAt({reversed}, near_corner));
+  EXPECT_FALSE(AnyObservationAt({reversed}, outside));
+}
+
+// A region is one code when the code fills enough of it, or when the region is a blob of the
+// code's own modules; not when the code is only part of a larger region or the region reaches
+// well outside it.
+TEST(DetectCommon, RegionIsMostlyOneCodeInsideAndAround) {
+  MarkerObservation code;
+  code.key = {"qr", "x"};
+  code.corners_px = Square(100, 100, 120);
+  const std::vector<MarkerObservation> codes = {code};
+  EXPECT_TRUE(RegionIsMostlyOneCode(cv::Rect(70, 70, 180, 180), codes));   // padded code: 0.44
+  EXPECT_FALSE(RegionIsMostlyOneCode(cv::Rect(20, 20, 300, 300), codes));  // 0.16 of it
+  EXPECT_TRUE(RegionIsMostlyOneCode(cv::Rect(110, 180, 30, 30), codes));   // a blob inside
+  EXPECT_TRUE(RegionIsMostlyOneCode(cv::Rect(195, 130, 28, 30), codes));   // a blob at its edge
+  EXPECT_FALSE(RegionIsMostlyOneCode(cv::Rect(200, 130, 60, 30), codes));  // half outside
+  EXPECT_FALSE(RegionIsMostlyOneCode(cv::Rect(400, 100, 30, 30), codes));  // elsewhere
+  EXPECT_FALSE(RegionIsMostlyOneCode(cv::Rect(110, 180, 30, 30), {}));
+}
+
 }  // namespace
 }  // namespace waymark
