@@ -66,7 +66,7 @@ struct DetectorOptions {
   // about 32 px (at most this one), then the whole frame at this one for tags at no such quad
   // (corners are refined at full resolution).
   double apriltag_decimate = 8.0;
-  double apriltag_blur_sigma = 0.0;  // quad_sigma
+  double apriltag_blur_sigma = 0.0;  // quad_sigma of the crops (the whole frame's: 0.8)
   int apriltag_max_bits_corrected = 1;
   // Worker threads of one Detect() call of a multi-family detector (CreateMultiDetector): its
   // families run at the same time, sharing the frame's whole-frame work (the candidate stage

@@ -110,9 +110,10 @@ TEST(DetectAprilTag, DarkBarAcrossTheBorderGivesNoBadCorners) {
     }
   }
   std::printf("%d of 16 tags with a bar across the border reported\n", reported);
-  // Crops of the quads with three solid sides too (the bar's side broken): 6 of 16 (3 when only
-  // four solid sides made a crop; 8 with the whole frame at decimation 4).
-  EXPECT_GE(reported, 6);
+  // Crops of the quads with three solid sides too (the bar's side broken), and the whole frame
+  // at decimation 8 blurred by 0.8 px: 7 of 16 (6 unblurred; 3 when only four solid sides made
+  // a crop; 8 with the whole frame at decimation 4).
+  EXPECT_GE(reported, 7);
 }
 
 // Tags from 24 to 420 px in one cluttered frame at the default options: the small ones are read
