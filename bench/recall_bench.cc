@@ -6,13 +6,16 @@
 //
 //   bench_recall_bench [--frames N] [--seed S] [--scenario hard|issue|issue-plain] [--families LIST]
 //                      [--verbose] [--dump N|all] [--dump-dir DIR] [--no-write] [--threads N]
-//                      [--detections FILE] [--families-at-once]
+//                      [--detections FILE] [--families-at-once] [--noise-scale F]
 //
 // --scenario issue: issue 14's own frames (40-200 px, tilt up to 55 deg, blur sigma 0.5-1 px,
 // noise, lighting gradients; no extra condition) on our cluttered background, written to
 // bench/results/recall_issue.json. --scenario issue-plain: the same frames without the clutter
 // (the same random draws, the rectangles and text not painted), as issue 14 lists what its
 // frames hold; written to bench/results/recall_issue-plain.json.
+// --noise-scale F multiplies every frame's sensor noise (sigma 1.5-3.5 gray levels, 2 in low
+// light) by F, the same draws otherwise: what a noisier camera costs (results then go to
+// recall_<scenario>-noise<F>.json).
 // --dump N (or all) writes frame N (every frame) to DIR/recall_frame_N.png (--dump-dir, default
 // the system's temporary directory).
 // --threads N: the multi-family detector's threads (DetectorOptions::threads, default 1); the
@@ -41,6 +44,7 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -66,8 +70,9 @@ struct Scenario {
   std::string name = "hard";
   double min_side_px = 20.0, max_side_px = 300.0;
   double max_tilt_deg = 65.0;
-  bool conditions = true;  // false: every frame clean
-  bool clutter = true;     // false: the clutter's draws taken, nothing painted
+  bool conditions = true;    // false: every frame clean
+  bool clutter = true;       // false: the clutter's draws taken, nothing painted
+  double noise_scale = 1.0;  // --noise-scale: multiplies the sensor noise's sigma
 };
 constexpr double kFocalPx = 1000.0;
 const double kBinEdges[] = {0.0, 20.0, 25.0, 40.0, 80.0, 150.0, 1e9};
@@ -163,6 +168,13 @@ void AddNoise(cv::RNG& rng, double sigma, cv::Mat* frame) {
   wide.convertTo(*frame, CV_8U);
 }
 
+// The noise scale as the command line and the results' file name give it: "2", "2.5".
+std::string NoiseScaleText(double scale) {
+  std::ostringstream text;
+  text << scale;
+  return text.str();
+}
+
 Frame MakeFrame(cv::RNG& rng, int index, int codes, const std::vector<std::string>& families,
                 const Scenario& scenario) {
   Frame frame;
@@ -244,7 +256,8 @@ Frame MakeFrame(cv::RNG& rng, int index, int codes, const std::vector<std::strin
     cv::line(frame.image, cv::Point(int(p0.x()), int(p0.y())), cv::Point(int(p1.x()), int(p1.y())),
              cv::Scalar(rng.uniform(20, 60)), int(width), cv::LINE_AA);
   }
-  AddNoise(rng, frame.condition == "low-light" ? 2.0 : rng.uniform(1.5, 3.5), &frame.image);
+  AddNoise(rng, scenario.noise_scale * (frame.condition == "low-light" ? 2.0 : rng.uniform(1.5, 3.5)),
+           &frame.image);
   return frame;
 }
 
@@ -413,15 +426,18 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
     return j;
   };
   nlohmann::json out;
-  out["command"] = "bench_recall_bench --frames " + std::to_string(frames) + " --seed " +
-                   std::to_string(seed) + (scenario.name == "hard" ? "" : " --scenario " + scenario.name) +
-                   (threads > 1 ? " --threads " + std::to_string(threads) : "") +
-                   (family_steps ? "" : " --families-at-once");
+  out["command"] =
+      "bench_recall_bench --frames " + std::to_string(frames) + " --seed " + std::to_string(seed) +
+      (scenario.name == "hard" ? "" : " --scenario " + scenario.name) +
+      (threads > 1 ? " --threads " + std::to_string(threads) : "") +
+      (family_steps ? "" : " --families-at-once") +
+      (scenario.noise_scale != 1.0 ? " --noise-scale " + NoiseScaleText(scenario.noise_scale) : "");
   out["scenario"] = {{"name", scenario.name},
                      {"side_px", {scenario.min_side_px, scenario.max_side_px}},
                      {"max_tilt_deg", scenario.max_tilt_deg},
                      {"conditions", scenario.conditions},
-                     {"clutter", scenario.clutter}};
+                     {"clutter", scenario.clutter},
+                     {"noise_scale", scenario.noise_scale}};
   double load[3] = {0, 0, 0};
   getloadavg(load, 3);
   out["load_average_1min"] = load[0];
@@ -494,8 +510,12 @@ int Run(int frames, uint64_t seed, const std::vector<std::string>& families, con
   out["misses"] = misses;
   out["poor_corners"] = poor_corners;
   if (write) {
-    const fs::path json = fs::path(WAYMARK_SOURCE_DIR) / "bench" / "results" /
-                          (scenario.name == "hard" ? "recall.json" : "recall_" + scenario.name + ".json");
+    const std::string noise =
+        scenario.noise_scale != 1.0 ? "-noise" + NoiseScaleText(scenario.noise_scale) : std::string();
+    const fs::path json =
+        fs::path(WAYMARK_SOURCE_DIR) / "bench" / "results" /
+        (scenario.name == "hard" && noise.empty() ? "recall.json"
+                                                  : "recall_" + scenario.name + noise + ".json");
     AtomicWriteFile(json, out.dump(2) + "\n");
     std::cout << "wrote " << json.string() << "\n";
   }
@@ -557,10 +577,18 @@ int main(int argc, char** argv) {
       detections_path = argv[++i];
     } else if (arg == "--families-at-once") {
       family_steps = false;
+    } else if (arg == "--noise-scale" && i + 1 < argc) {
+      char* end = nullptr;
+      scenario.noise_scale = std::strtod(argv[++i], &end);
+      if (end == argv[i] || *end != '\0' || !(scenario.noise_scale >= 0.0 && scenario.noise_scale <= 20.0)) {
+        std::cerr << "bench_recall_bench: --noise-scale must be a number in [0, 20], got '" << argv[i]
+                  << "'\n";
+        return 1;
+      }
     } else {
       std::cerr << "usage: bench_recall_bench [--frames N] [--seed S] [--scenario hard|issue|issue-plain] "
                    "[--families LIST] [--verbose] [--dump N|all] [--dump-dir DIR] [--no-write] [--threads N] "
-                   "[--detections FILE] [--families-at-once]\n";
+                   "[--detections FILE] [--families-at-once] [--noise-scale F]\n";
       return 1;
     }
   }
