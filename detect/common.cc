@@ -3,6 +3,7 @@
 #include <time.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -135,6 +136,48 @@ cv::Mat ToGray8(const cv::Mat& image) {
       throw std::invalid_argument("detector: unsupported pixel type " + std::to_string(image.type()) +
                                   " (expected 8-bit gray, BGR or BGRA, or 16-bit gray)");
   }
+}
+
+namespace {
+
+double ComputeNoiseSigma(const cv::Mat& gray) {
+  if (gray.cols < 2) return 0.0;
+  std::array<int64_t, 256> histogram{};
+  int64_t n = 0;
+  for (int y = 0; y < gray.rows; y += 4) {
+    const uint8_t* row = gray.ptr<uint8_t>(y);
+    for (int x = 0; x + 1 < gray.cols; ++x) ++histogram[std::abs(row[x + 1] - row[x])];
+    n += gray.cols - 1;
+  }
+  if (n == 0) return 0.0;
+  // The median of the absolute differences, linear within its level: level 0 stands for
+  // [0, 0.5), level k > 0 for [k - 0.5, k + 0.5).
+  const double half = 0.5 * static_cast<double>(n);
+  int64_t below = 0;
+  double median = 0.0;
+  for (int level = 0; level < 256; ++level) {
+    if (static_cast<double>(below + histogram[level]) >= half) {
+      const double lo = level == 0 ? 0.0 : level - 0.5, width = level == 0 ? 0.5 : 1.0;
+      median = lo + width * (half - static_cast<double>(below)) / static_cast<double>(histogram[level]);
+      break;
+    }
+    below += histogram[level];
+  }
+  return median / (0.6745 * std::sqrt(2.0));
+}
+
+}  // namespace
+
+double NoiseSigma(const cv::Mat& gray) {
+  CV_Assert(gray.type() == CV_8UC1);
+  static PerImageCache<double> cache;
+  return cache.Get(gray, 0.0, [&gray] { return ComputeNoiseSigma(gray); });
+}
+
+int NoiseAwareThreshold(int base, double noise_sigma, double levels_per_sigma) {
+  if (!(noise_sigma > 0.0) || !(levels_per_sigma > 0.0)) return base;
+  const double grown = std::round(std::min(levels_per_sigma * noise_sigma, 255.0));
+  return std::max(base, static_cast<int>(grown));
 }
 
 namespace {

@@ -24,6 +24,22 @@ using Quad2d = std::array<Eigen::Vector2d, 4>;
 // 1/256). Throws std::invalid_argument for an empty image or another pixel type.
 cv::Mat ToGray8(const cv::Mat& image);
 
+// The standard deviation (gray levels) of the white sensor noise on `gray` (8-bit, one
+// channel), robustly: the median of |I(x + 1, y) - I(x, y)| over every fourth row (read
+// between the integer levels) divided by 0.6745 sqrt(2). Edges and texture are the minority
+// of neighbouring pairs on a camera frame and barely move the median; a frame that is mostly
+// fine texture reads noisier than it is. 0 for an image under two pixels wide. Computed once
+// per image for the families of one frame (PerImageCache, below).
+double NoiseSigma(const cv::Mat& gray);
+
+// The whole-frame binarizations' allowance for that noise: a threshold of `base` gray levels
+// that grows with the noise once `levels_per_sigma` noise sigmas exceed it:
+// max(base, round(levels_per_sigma noise_sigma)). With the factors the callers use, the recall
+// bench's frames (noise 1.5-3.5 gray levels) keep `base`; at twice and three times that noise
+// the fixed thresholds made speckle of most of a flat frame, and a frame cost 2 and 3 times as
+// much (docs/detection.md).
+int NoiseAwareThreshold(int base, double noise_sigma, double levels_per_sigma);
+
 // True if the quad can be reported: finite corners inside [-0.5, w-0.5] x [-0.5, h-0.5],
 // every side at least `min_side_px`, strictly convex, and clockwise on screen (x right,
 // y down), which is docs/design.md's order top-left, top-right, bottom-right, bottom-left seen

@@ -22,6 +22,11 @@ namespace {
 
 // Crops larger than this (longer side, px) are not upscaled in pass 2.
 constexpr int kMaxUpscaleSidePx = 480;
+// The whole frame's zxing read: a block is flat (no black point of its own) while its range is
+// at most zxing's 24 gray levels or this many noise sigmas of the frame (NoiseAwareThreshold):
+// 64 pixels of noise alone span about 5 sigmas, so above 3.4 gray levels of noise a fixed 24
+// turned flat areas into speckle.
+constexpr double kMinDynamicRangePerSigma = 7.0;
 
 // Small-code boxes searched for finders per frame (ReadSmallCodeQuads).
 constexpr int kMaxSmallCodeBoxes = 16;
@@ -355,7 +360,10 @@ class QrDetector : public MarkerDetector {
 
  private:
   static std::vector<MarkerObservation> FirstPass(const cv::Mat& gray) {
-    return ReadWithZxing(gray, ZxingSymbology::kQrCode, ZxingPass{});
+    ZxingPass pass;
+    pass.min_dynamic_range =
+        NoiseAwareThreshold(kZxingMinDynamicRange, NoiseSigma(gray), kMinDynamicRangePerSigma);
+    return ReadWithZxing(gray, ZxingSymbology::kQrCode, pass);
   }
 
   void SecondPasses(const cv::Mat& gray, FrameWork* work, std::vector<MarkerObservation>* found) {

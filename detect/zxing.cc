@@ -50,10 +50,9 @@ std::string TextToId(const std::string& bytes) {
   return out;
 }
 
-cv::Mat ZxingHybridBlackMask(const cv::Mat& gray) {
+cv::Mat ZxingHybridBlackMask(const cv::Mat& gray, int min_dynamic_range) {
   CV_Assert(gray.type() == CV_8UC1 && gray.cols >= kZxingHybridMinSide && gray.rows >= kZxingHybridMinSide);
   constexpr int kBlock = 8;
-  constexpr int kMinDynamicRange = 24;
   const int width = gray.cols, height = gray.rows;
   const int blocks_x = (width + kBlock - 1) / kBlock, blocks_y = (height + kBlock - 1) / kBlock;
   // Black point of every block, raster order (a low-contrast block reads its upper and left
@@ -94,7 +93,7 @@ cv::Mat ZxingHybridBlackMask(const cv::Mat& gray) {
         hi = std::max<int>(hi, column_max[static_cast<size_t>(x)]);
       }
       int point = sum / (kBlock * kBlock);
-      if (hi - lo <= kMinDynamicRange) {
+      if (hi - lo <= min_dynamic_range) {
         point = lo / 2;
         if (by > 0 && bx > 0) {
           const int neighbours = (bp(bx, by - 1) + 2 * bp(bx - 1, by) + bp(bx - 1, by - 1)) / 4;
@@ -152,7 +151,7 @@ std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology
   // are left to zxing, which binarizes them with its global histogram.
   const bool own_mask =
       pass.local_average_binarizer && gray.cols >= kZxingHybridMinSide && gray.rows >= kZxingHybridMinSide;
-  const cv::Mat mask = own_mask ? ZxingHybridBlackMask(gray) : cv::Mat();
+  const cv::Mat mask = own_mask ? ZxingHybridBlackMask(gray, pass.min_dynamic_range) : cv::Mat();
   hints.setBinarizer(own_mask                       ? ZXing::Binarizer::BoolCast
                      : pass.local_average_binarizer ? ZXing::Binarizer::LocalAverage
                                                     : ZXing::Binarizer::GlobalHistogram);

@@ -14,10 +14,15 @@ namespace waymark {
 
 enum class ZxingSymbology { kQrCode, kDataMatrix };
 
+constexpr int kZxingMinDynamicRange = 24;  // zxing-cpp 1.4's HybridBinarizer MIN_DYNAMIC_RANGE
+
 struct ZxingPass {
   bool local_average_binarizer = true;  // false: global histogram
   bool try_harder = true;
   bool pure = false;  // a clean, upright symbol filling the image with its quiet zone
+  // The local-average binarizer's flat-block range (ZxingHybridBlackMask): zxing's 24, or more
+  // on a noisy whole frame (NoiseAwareThreshold), where noise alone spans more than that.
+  int min_dynamic_range = kZxingMinDynamicRange;
 };
 
 // Decoded symbols of one symbology in `gray` (8-bit, one channel), with family set to
@@ -40,8 +45,13 @@ std::vector<MarkerObservation> ReadWithZxing(const cv::Mat& gray, ZxingSymbology
 // with a neighbour above and to the left, the neighbours' (up + 2 left + up-left) / 4 when
 // that is above min. A block's threshold is the integer mean of the 5x5 black points around
 // it (the window shifted inside the grid at its edges); a pixel is black when <= threshold.
+//
+// `min_dynamic_range` replaces the 24 (the same bits as zxing's with 24): a block of noise
+// alone spans about 5 noise sigmas, so with fixed 24 a flat area under noise of 5 gray levels
+// or more becomes speckle of the mean, which zxing's finder search then walks (two thirds of a
+// whole-frame read's time on such frames).
 constexpr int kZxingHybridMinSide = 40;
-cv::Mat ZxingHybridBlackMask(const cv::Mat& gray);
+cv::Mat ZxingHybridBlackMask(const cv::Mat& gray, int min_dynamic_range = kZxingMinDynamicRange);
 
 // `bytes` if they are valid UTF-8, else the bytes read as ISO-8859-1 (the default
 // character set of QR and DataMatrix) re-encoded as UTF-8. Ids are always valid UTF-8.

@@ -332,5 +332,37 @@ TEST(DetectCommon, RegionIsMostlyOneCodeInsideAndAround) {
   EXPECT_FALSE(RegionIsMostlyOneCode(cv::Rect(110, 180, 30, 30), {}));
 }
 
+// The noise estimate on flat, graded and code-holding frames under white noise of known sigma,
+// and the thresholds that grow with it.
+TEST(DetectCommon, NoiseSigmaOfWhiteNoiseOnFramesWithContent) {
+  for (const double sigma : {1.5, 3.0, 5.0, 8.0, 12.0}) {
+    cv::Mat frame(960, 1280, CV_8UC1);
+    for (int y = 0; y < frame.rows; ++y) {
+      for (int x = 0; x < frame.cols; ++x)
+        frame.at<uint8_t>(y, x) = static_cast<uint8_t>(90 + x / 16 + y / 24);
+    }
+    DrawSymbol(QrSymbol("noise"), MakeQuad({400.0, 300.0}, 220.0, 0.3, 0.9), &frame);
+    DrawSymbol(DataMatrixSymbol("noise"), MakeQuad({900.0, 600.0}, 160.0, -0.2, 0.85), &frame);
+    cv::GaussianBlur(frame, frame, cv::Size(0, 0), 0.8);
+    cv::Mat noise(frame.size(), CV_16S), wide;
+    cv::RNG rng(static_cast<uint64_t>(sigma * 10));
+    rng.fill(noise, cv::RNG::NORMAL, 0, sigma);
+    frame.convertTo(wide, CV_16S);
+    wide += noise;
+    wide.convertTo(frame, CV_8U);
+    const double estimate = NoiseSigma(frame);
+    EXPECT_NEAR(estimate, sigma, 0.15 * sigma + 0.3) << sigma;
+    EXPECT_EQ(NoiseSigma(frame), estimate);  // cached, the same number
+  }
+  EXPECT_LT(NoiseSigma(cv::Mat(480, 640, CV_8UC1, cv::Scalar(77))), 0.3);  // every difference 0
+  EXPECT_EQ(NoiseSigma(cv::Mat(5, 1, CV_8UC1, cv::Scalar(77))), 0.0);
+  EXPECT_EQ(NoiseAwareThreshold(24, 2.0, 7.0), 24);
+  EXPECT_EQ(NoiseAwareThreshold(24, 5.0, 7.0), 35);
+  EXPECT_EQ(NoiseAwareThreshold(7, 3.5, 2.0), 7);
+  EXPECT_EQ(NoiseAwareThreshold(7, 4.0, 2.0), 8);
+  EXPECT_EQ(NoiseAwareThreshold(7, 1000.0, 2.0), 255);
+  EXPECT_EQ(NoiseAwareThreshold(7, std::numeric_limits<double>::quiet_NaN(), 2.0), 7);
+}
+
 }  // namespace
 }  // namespace waymark

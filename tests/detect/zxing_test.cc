@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <string>
 
+#include "detect/common.h"
 #include "detect/synthetic.h"
 
 namespace waymark {
@@ -19,7 +20,7 @@ namespace {
 // The binarization written as zxing-cpp 1.4's HybridBinarizer states it, block by block in
 // raster order, every block's 64 pixels written (a pulled-back last block overwrites its
 // neighbour's): the slow, literal form that the row-wise ZxingHybridBlackMask must equal.
-cv::Mat LiteralHybridMask(const cv::Mat& gray) {
+cv::Mat LiteralHybridMask(const cv::Mat& gray, int min_dynamic_range = 24) {
   const int w = gray.cols, h = gray.rows, bw = (w + 7) / 8, bh = (h + 7) / 8;
   cv::Mat_<int> bp(bh, bw);
   for (int by = 0; by < bh; ++by) {
@@ -35,7 +36,7 @@ cv::Mat LiteralHybridMask(const cv::Mat& gray) {
         }
       }
       int point = sum / 64;
-      if (hi - lo <= 24) {
+      if (hi - lo <= min_dynamic_range) {
         point = lo / 2;
         if (by > 0 && bx > 0) {
           const int n = (bp(by - 1, bx) + 2 * bp(by, bx - 1) + bp(by - 1, bx - 1)) / 4;
@@ -99,6 +100,29 @@ TEST(ZxingHybridBlackMask, EqualsTheLiteralBlockByBlockBinarization) {
   // Both kinds of pixel occur (the test is not passed by all-light masks).
   EXPECT_GT(dark, 10000);
   EXPECT_GT(light, 10000);
+}
+
+// A wider flat-block range (for noisy whole frames) is the same rule with another number, and on a
+// flat frame under noise of 8 gray levels it leaves the flat area light where zxing's 24 makes
+// speckle of about half of it.
+TEST(ZxingHybridBlackMask, WiderFlatRangeKeepsNoiseLight) {
+  for (const int range : {24, 40, 56}) {
+    const cv::Mat image = TestImage(333, 257, 40 + range);
+    EXPECT_EQ(cv::countNonZero(ZxingHybridBlackMask(image, range) != LiteralHybridMask(image, range)), 0)
+        << range;
+  }
+  cv::Mat flat(480, 640, CV_8UC1, cv::Scalar(150)), noise(flat.size(), CV_16S), wide;
+  cv::RNG rng(9);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 8.0);
+  flat.convertTo(wide, CV_16S);
+  wide += noise;
+  wide.convertTo(flat, CV_8U);
+  const double pixels = static_cast<double>(flat.total());
+  EXPECT_GT(cv::countNonZero(ZxingHybridBlackMask(flat) == 0) / pixels, 0.3);
+  EXPECT_LT(
+      cv::countNonZero(ZxingHybridBlackMask(flat, NoiseAwareThreshold(24, NoiseSigma(flat), 7.0)) == 0) /
+          pixels,
+      0.01);
 }
 
 TEST(ZxingHybridBlackMask, TakesARegionOfInterestWithItsStride) {
