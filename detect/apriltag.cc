@@ -47,6 +47,11 @@ constexpr int kMinTileContrast = 15;
 // bar across its border: 7 of 16 instead of 6, in tests/detect/apriltag_test.cc). The crops keep
 // apriltag_blur_sigma: blurred, they read the same tags in no less time and with other corners.
 constexpr double kWholeFrameSigma = 0.8;
+// The whole frame's tile contrast also grows with the frame's sensor noise once 2.5 noise
+// sigmas exceed kMinTileContrast (NoiseAwareThreshold; the bench's noise, at most 3.5 gray
+// levels, keeps 15): the blur leaves about half the noise, whose tiles of 16 decimated pixels
+// span 3-4 of its sigmas.
+constexpr double kTileContrastPerSigma = 2.5;
 
 struct FamilyEntry {
   const char* name;  // after "apriltag-"
@@ -174,6 +179,8 @@ class AprilTagDetector : public MarkerDetector {
       }
     }
     if (!TooSmall(gray.size(), options_.apriltag_decimate)) {
+      whole_frame_->qtp.min_white_black_diff =
+          NoiseAwareThreshold(kMinTileContrast, NoiseSigma(gray), kTileContrastPerSigma);
       for (const MarkerObservation& obs : Run(whole_frame_, gray, cv::Point(0, 0))) {
         if (!AnyObservationAt(raw, QuadCenter(obs.corners_px))) raw.push_back(obs);
       }
