@@ -164,12 +164,8 @@ cv::Mat Frame(const std::string& family, int codes) {
                &frame);
   }
   cv::GaussianBlur(frame, frame, cv::Size(0, 0), 0.6);
-  cv::Mat noise(frame.size(), CV_16S), wide;
   cv::RNG rng(5);
-  rng.fill(noise, cv::RNG::NORMAL, 0, 3.0);
-  frame.convertTo(wide, CV_16S);
-  wide += noise;
-  wide.convertTo(frame, CV_8U);
+  AddSensorNoise(rng, 3.0, &frame);
   return frame;
 }
 

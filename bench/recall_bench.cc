@@ -160,14 +160,6 @@ SymbolImage Symbol(const std::string& family, int id, std::string* key_id) {
   return AprilTagSymbol(family, id);
 }
 
-void AddNoise(cv::RNG& rng, double sigma, cv::Mat* frame) {
-  cv::Mat noise(frame->size(), CV_16S), wide;
-  rng.fill(noise, cv::RNG::NORMAL, 0, sigma);
-  frame->convertTo(wide, CV_16S);
-  wide += noise;
-  wide.convertTo(*frame, CV_8U);
-}
-
 // The noise scale as the command line and the results' file name give it: "2", "2.5".
 std::string NoiseScaleText(double scale) {
   std::ostringstream text;
@@ -256,8 +248,8 @@ Frame MakeFrame(cv::RNG& rng, int index, int codes, const std::vector<std::strin
     cv::line(frame.image, cv::Point(int(p0.x()), int(p0.y())), cv::Point(int(p1.x()), int(p1.y())),
              cv::Scalar(rng.uniform(20, 60)), int(width), cv::LINE_AA);
   }
-  AddNoise(rng, scenario.noise_scale * (frame.condition == "low-light" ? 2.0 : rng.uniform(1.5, 3.5)),
-           &frame.image);
+  AddSensorNoise(rng, scenario.noise_scale * (frame.condition == "low-light" ? 2.0 : rng.uniform(1.5, 3.5)),
+                 &frame.image);
   return frame;
 }
 

@@ -131,6 +131,15 @@ void DrawSymbol(const SymbolImage& symbol, const Quad2d& corners_px, cv::Mat* ca
   }
 }
 
+void AddSensorNoise(cv::RNG& rng, double sigma, cv::Mat* image) {
+  CV_Assert(image != nullptr && image->type() == CV_8UC1);
+  cv::Mat noise(image->size(), CV_16S), wide;
+  rng.fill(noise, cv::RNG::NORMAL, 0, sigma);
+  image->convertTo(wide, CV_16S);
+  wide += noise;
+  wide.convertTo(*image, CV_8U);
+}
+
 Quad2d MakeQuad(const Eigen::Vector2d& center_px, double side_px, double angle_rad, double squeeze) {
   const double h = 0.5 * side_px;
   // Unit square corners in docs/design.md order on screen (y down); the right side scaled.

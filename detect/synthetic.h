@@ -31,6 +31,10 @@ SymbolImage AprilTagSymbol(const std::string& family, int id);
 void DrawSymbol(const SymbolImage& symbol, const Quad2d& corners_px, cv::Mat* canvas, int dark = 20,
                 int light = 235);
 
+// Adds white Gaussian sensor noise of `sigma` gray levels (drawn from `rng`, one value per
+// pixel, row by row) to `image` (8-bit gray), saturating at 0 and 255.
+void AddSensorNoise(cv::RNG& rng, double sigma, cv::Mat* image);
+
 // A square quad of side `side_px` centred at `center_px`, rotated by `angle_rad`
 // (clockwise on screen), with a perspective squeeze: the right side is `squeeze` times
 // as long as the left (1 = none).

@@ -344,12 +344,8 @@ TEST(DetectCommon, NoiseSigmaOfWhiteNoiseOnFramesWithContent) {
     DrawSymbol(QrSymbol("noise"), MakeQuad({400.0, 300.0}, 220.0, 0.3, 0.9), &frame);
     DrawSymbol(DataMatrixSymbol("noise"), MakeQuad({900.0, 600.0}, 160.0, -0.2, 0.85), &frame);
     cv::GaussianBlur(frame, frame, cv::Size(0, 0), 0.8);
-    cv::Mat noise(frame.size(), CV_16S), wide;
     cv::RNG rng(static_cast<uint64_t>(sigma * 10));
-    rng.fill(noise, cv::RNG::NORMAL, 0, sigma);
-    frame.convertTo(wide, CV_16S);
-    wide += noise;
-    wide.convertTo(frame, CV_8U);
+    AddSensorNoise(rng, sigma, &frame);
     const double estimate = NoiseSigma(frame);
     EXPECT_NEAR(estimate, sigma, 0.15 * sigma + 0.3) << sigma;
     EXPECT_EQ(NoiseSigma(frame), estimate);  // cached, the same number

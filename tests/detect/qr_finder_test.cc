@@ -76,12 +76,8 @@ TEST(DetectQrFinder, ThreeFindersUnderHeavyNoise) {
   const Quad2d truth = MakeQuad({320.3, 241.7}, 150.0, 0.3);
   DrawSymbol(symbol, truth, &image);
   cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
-  cv::Mat noise(image.size(), CV_16S), wide;
   cv::RNG rng(10);
-  rng.fill(noise, cv::RNG::NORMAL, 0, 10.0);
-  image.convertTo(wide, CV_16S);
-  wide += noise;
-  wide.convertTo(image, CV_8U);
+  AddSensorNoise(rng, 10.0, &image);
   const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(image, kWhole);
   ASSERT_EQ(finders.size(), 3u);
   for (const Eigen::Vector2d& e : {SymbolPoint(truth, n, 3.5, 3.5), SymbolPoint(truth, n, n - 3.5, 3.5),

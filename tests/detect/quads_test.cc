@@ -149,12 +149,8 @@ TEST(DetectQuads, NoisyFrameKeepsTheSymbolAndFewQuads) {
   const Quad2d truth = MakeQuad({500.0, 420.0}, 90.0, 0.3, 0.85);
   DrawSymbol(DataMatrixSymbol("N8"), truth, &image, 40, 210);
   cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7);
-  cv::Mat noise(image.size(), CV_16S), wide;
   cv::RNG rng(8);
-  rng.fill(noise, cv::RNG::NORMAL, 0, 8.0);
-  image.convertTo(wide, CV_16S);
-  wide += noise;
-  wide.convertTo(image, CV_8U);
+  AddSensorNoise(rng, 8.0, &image);
   const std::vector<DarkQuad> quads = FindDarkQuads(image);
   EXPECT_LT(quads.size(), 30u);
   const auto candidates = DataMatrixCandidates(quads, 8);

@@ -206,12 +206,8 @@ TEST(DetectRefine, DimCodeIsRefined) {
   DrawSymbol(symbol, truth, &image, 20, 210);  // a light ring round the border ...
   image.convertTo(image, CV_8U, 0.12);         // ... at 0.12 of the exposure: 2 .. 25
   cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
-  cv::Mat noise(image.size(), CV_16S), wide;
   cv::RNG rng(5);
-  rng.fill(noise, cv::RNG::NORMAL, 0, 1.0);
-  image.convertTo(wide, CV_16S);
-  wide += noise;
-  wide.convertTo(image, CV_8U);
+  AddSensorNoise(rng, 1.0, &image);
   Quad2d start = truth;
   for (int i = 0; i < 4; ++i) start[i] += Eigen::Vector2d(i % 2 ? 0.8 : -0.7, i < 2 ? 0.6 : -0.9);
   const std::optional<RefinedQuad> refined = RefineQuadCorners(image, start);
