@@ -378,14 +378,17 @@ double WallMs() {
 
 }  // namespace
 
-FrameWork::FrameWork(double live_budget_ms, const std::vector<MarkerObservation>* read_by_others)
-    : budget_ms_(live_budget_ms), read_by_others_(read_by_others) {
+FrameWork::FrameWork(double live_budget_ms, const std::vector<MarkerObservation>& read_by_others)
+    : budget_ms_(live_budget_ms), read_by_others_(&read_by_others) {
   if (budget_ms_ > 0.0) start_ms_ = WallMs();
 }
 
-const std::vector<MarkerObservation>& FrameWork::read_by_others() const {
-  static const std::vector<MarkerObservation> kNone;
-  return read_by_others_ != nullptr ? *read_by_others_ : kNone;
+bool FrameWork::IsRead(const std::vector<MarkerObservation>& found, const Eigen::Vector2d& centre_px) const {
+  return AnyObservationAt(found, centre_px) || AnyObservationAt(*read_by_others_, centre_px);
+}
+
+bool FrameWork::RegionIsRead(const cv::Rect& region, const std::vector<MarkerObservation>& found) const {
+  return RegionIsMostlyOneCode(region, found) || RegionIsMostlyOneCode(region, *read_by_others_);
 }
 
 bool RegionIsMostlyOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes) {
@@ -422,9 +425,7 @@ void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
     const bool covered = std::any_of(found->begin(), found->end(), [&](const MarkerObservation& o) {
       return ObservationInside(o, region);
     });
-    if (covered || RegionIsMostlyOneCode(region, *found) ||
-        RegionIsMostlyOneCode(region, work->read_by_others()))
-      continue;
+    if (covered || work->RegionIsRead(region, *found)) continue;
     const cv::Mat crop = gray(region);
     for (const CropAttempt& attempt : attempts) {
       if (!work->Allow()) continue;

@@ -123,14 +123,20 @@ using CropAttempt = std::function<std::vector<MarkerObservation>(const cv::Mat& 
 // (MarkerDetector::ReadByOthers): the passes skip their candidates there.
 class FrameWork {
  public:
-  explicit FrameWork(double live_budget_ms, const std::vector<MarkerObservation>* read_by_others = nullptr);
+  // `read_by_others`: the codes other families have read in the frame (MarkerDetector::
+  // ReadByOthers); it must outlive this.
+  FrameWork(double live_budget_ms, const std::vector<MarkerObservation>& read_by_others);
   // True if the next attempt may run; false (and one more skipped attempt) if not.
   bool Allow();
   // Wall-clock milliseconds left in a live frame; infinity offline.
   double LeftMs() const;
   int skipped() const { return skipped_; }
-  // Codes of other families already read (empty when none were given).
-  const std::vector<MarkerObservation>& read_by_others() const;
+  // Codes of other families already read.
+  const std::vector<MarkerObservation>& read_by_others() const { return *read_by_others_; }
+  // True if `centre_px` is at a code of `found` or of another family (AnyObservationAt).
+  bool IsRead(const std::vector<MarkerObservation>& found, const Eigen::Vector2d& centre_px) const;
+  // True if `region` is mostly one code of `found` or of another family (RegionIsMostlyOneCode).
+  bool RegionIsRead(const cv::Rect& region, const std::vector<MarkerObservation>& found) const;
 
  private:
   double budget_ms_;
@@ -146,8 +152,8 @@ class FrameWork {
 // modules: no other code can be there).
 bool RegionIsMostlyOneCode(const cv::Rect& region, const std::vector<MarkerObservation>& codes);
 
-// For each region holding no code of `found` yet and not mostly one code of another family
-// (work->read_by_others()), runs `attempts` in order on the crop until one decodes something
+// For each region holding no code of `found` yet and not mostly one code read already
+// (work->RegionIsRead), runs `attempts` in order on the crop until one decodes something
 // (appended to *found in full-image pixels); every attempt asks work->Allow() first.
 void RunSecondPass(const cv::Mat& gray, const std::vector<cv::Rect>& regions,
                    const std::vector<CropAttempt>& attempts, FrameWork* work,

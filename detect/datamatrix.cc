@@ -67,7 +67,7 @@ class DataMatrixDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    FrameWork work(options_.live_budget_ms, &ReadByOthers());
+    FrameWork work(options_.live_budget_ms, ReadByOthers());
     std::vector<Eigen::Vector2d> seen;
     std::vector<MarkerObservation> found = FirstPass(gray, &work, &seen);
     if (options_.second_pass) SecondPasses(gray, seen, &work, &found);
@@ -77,7 +77,7 @@ class DataMatrixDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> DetectFirstPass(const cv::Mat& image) override {
     staged_.gray = ToGray8(image);
-    FrameWork work(options_.live_budget_ms, &ReadByOthers());
+    FrameWork work(options_.live_budget_ms, ReadByOthers());
     staged_seen_.clear();
     staged_.raw = FirstPass(staged_.gray, &work, &staged_seen_);
     staged_.refined = RefineObservations(staged_.gray, staged_.raw, options_.refine_corners);
@@ -88,7 +88,7 @@ class DataMatrixDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> DetectSecondPasses() override {
     staged_.CheckStarted();
-    FrameWork work(options_.live_budget_ms, &ReadByOthers());
+    FrameWork work(options_.live_budget_ms, ReadByOthers());
     std::vector<MarkerObservation> found = staged_.raw;
     if (options_.second_pass) SecondPasses(staged_.gray, staged_seen_, &work, &found);
     skipped_ = work.skipped();

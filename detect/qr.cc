@@ -106,18 +106,11 @@ void RefineQrCorners(const cv::Mat& gray, MarkerObservation* obs) {
   }
 }
 
-// True if `region` is mostly one code of `found` or of another family (RegionIsMostlyOneCode).
-bool RegionIsOneReadCode(const cv::Rect& region, const std::vector<MarkerObservation>& found,
-                         const FrameWork& work) {
-  return RegionIsMostlyOneCode(region, found) || RegionIsMostlyOneCode(region, work.read_by_others());
-}
-
-// True if the candidate's centre lies within half a side of a code already read, of this
-// family or another.
+// True if the candidate's centre is at a code already read, of this family or another
+// (FrameWork::IsRead).
 bool CandidateIsRead(const QrCandidate& candidate, const std::vector<MarkerObservation>& found,
                      const FrameWork& work) {
-  const Eigen::Vector2d centre = QuadCenter(candidate.corners_px);
-  return AnyObservationAt(found, centre) || AnyObservationAt(work.read_by_others(), centre);
+  return work.IsRead(found, QuadCenter(candidate.corners_px));
 }
 
 // Pass 2a (and 2a', 2a''): the candidates that a pair of `finders` used by none of `triples`
@@ -156,7 +149,7 @@ std::vector<int> ReadFinderCandidates(const cv::Mat& gray, const std::vector<cv:
   for (const int index : order) {
     const cv::Rect& region = regions[index];
     if (reads >= max_reads) break;
-    if (RegionIsOneReadCode(region, *found, *work)) continue;
+    if (work->RegionIsRead(region, *found)) continue;
     if (!work->Allow()) continue;
     const std::vector<QrFinderPattern> finders = FindQrFinderPatterns(gray, region);
     finders_found[index] = static_cast<int>(finders.size());
@@ -326,7 +319,7 @@ class QrDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> Detect(const cv::Mat& image) override {
     const cv::Mat gray = ToGray8(image);
-    FrameWork work(options_.live_budget_ms, &ReadByOthers());
+    FrameWork work(options_.live_budget_ms, ReadByOthers());
     std::vector<MarkerObservation> found = FirstPass(gray);
     if (options_.second_pass) SecondPasses(gray, &work, &found);
     skipped_ = work.skipped();
@@ -344,7 +337,7 @@ class QrDetector : public MarkerDetector {
 
   std::vector<MarkerObservation> DetectSecondPasses() override {
     staged_.CheckStarted();
-    FrameWork work(options_.live_budget_ms, &ReadByOthers());
+    FrameWork work(options_.live_budget_ms, ReadByOthers());
     std::vector<MarkerObservation> found = staged_.raw;
     if (options_.second_pass) SecondPasses(staged_.gray, &work, &found);
     skipped_ = work.skipped();
